@@ -1,0 +1,218 @@
+//! Load errors: every one names the file, and says where in it and what is wrong.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// A failure to load a scene. Displays as `FILE: problem`.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {kind}", path.display())]
+pub struct LoadError {
+    /// The file the problem is in (the model, or the buffer/image/MTL it references).
+    pub path: PathBuf,
+    /// What went wrong.
+    pub kind: LoadErrorKind,
+}
+
+impl LoadError {
+    /// An error about `path`.
+    pub fn new(path: &Path, kind: LoadErrorKind) -> Self {
+        Self {
+            path: path.to_path_buf(),
+            kind,
+        }
+    }
+}
+
+/// Where in a glTF mesh a problem is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PrimitiveAt {
+    /// Mesh index.
+    pub mesh: usize,
+    /// Primitive index within the mesh.
+    pub primitive: usize,
+}
+
+impl fmt::Display for PrimitiveAt {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "mesh {} primitive {}", self.mesh, self.primitive)
+    }
+}
+
+/// What went wrong while loading.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadErrorKind {
+    /// Reading a file failed (missing, unreadable).
+    #[error("{0}")]
+    Io(#[source] std::io::Error),
+    /// A directory was given where a file was expected.
+    #[error("is a directory, not a model file")]
+    IsDirectory,
+    /// The file is empty.
+    #[error("file is empty (0 bytes)")]
+    EmptyFile,
+    /// A file is larger than the configured limit.
+    #[error("file is {bytes} bytes, over the limit of {limit} bytes")]
+    FileTooLarge {
+        /// Actual size.
+        bytes: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// Neither GLB, glTF JSON nor OBJ.
+    #[error("unknown format: not a GLB (no 'glTF' magic), not glTF JSON and not a .obj file")]
+    UnknownFormat,
+    /// The GLB container is malformed (bad header, truncated chunk...).
+    #[error("malformed GLB container: {0}")]
+    Glb(String),
+    /// The JSON does not parse as glTF, or fails the glTF schema.
+    #[error("invalid glTF: {0}")]
+    Gltf(String),
+    /// The file requires an extension meshtracer does not implement.
+    #[error("requires extension {name}{what}, which meshtracer does not support")]
+    UnsupportedExtension {
+        /// Extension name.
+        name: String,
+        /// A short explanation of what it is, with a leading space and parentheses, or empty.
+        what: String,
+    },
+    /// A buffer's data could not be found.
+    #[error("buffer {buffer}: {problem}")]
+    Buffer {
+        /// Buffer index.
+        buffer: usize,
+        /// What is wrong.
+        problem: String,
+    },
+    /// A buffer holds fewer bytes than the file declares.
+    #[error("buffer {buffer}: expected {expected} bytes but found {actual}")]
+    BufferTooShort {
+        /// Buffer index.
+        buffer: usize,
+        /// Declared length.
+        expected: usize,
+        /// Available length.
+        actual: usize,
+    },
+    /// A buffer view reaches past its buffer.
+    #[error(
+        "bufferView {view}: bytes {start}..{end} are past the end of buffer {buffer} ({len} bytes)"
+    )]
+    ViewOutOfRange {
+        /// View index.
+        view: usize,
+        /// Buffer index.
+        buffer: usize,
+        /// First byte.
+        start: usize,
+        /// One past the last byte.
+        end: usize,
+        /// Buffer length.
+        len: usize,
+    },
+    /// An accessor is inconsistent with its buffer view or its use.
+    #[error("{at}: accessor {accessor} ({semantic}): {problem}")]
+    Accessor {
+        /// Where it is used.
+        at: PrimitiveAt,
+        /// Accessor index.
+        accessor: usize,
+        /// Attribute name, or `indices`.
+        semantic: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// An index points past the vertex count.
+    #[error("{at}: index {index} is out of range for {vertex_count} vertices")]
+    IndexOutOfRange {
+        /// Where.
+        at: PrimitiveAt,
+        /// The bad index value.
+        index: u32,
+        /// Number of vertices.
+        vertex_count: usize,
+    },
+    /// A primitive has no POSITION attribute.
+    #[error("{at}: has no POSITION attribute")]
+    MissingPositions {
+        /// Where.
+        at: PrimitiveAt,
+    },
+    /// An image reference is broken.
+    #[error("image {image}: {problem}")]
+    Image {
+        /// Image index.
+        image: usize,
+        /// What is wrong.
+        problem: String,
+    },
+    /// A URI points outside the model's folder.
+    #[error("{what} URI '{uri}' points outside the model's folder; pass --allow-external-files to read it")]
+    ExternalFile {
+        /// What references it (`buffer 0`, `image 2`, `mtllib`).
+        what: String,
+        /// The URI as written.
+        uri: String,
+    },
+    /// A `data:` URI is malformed.
+    #[error("{what}: bad data URI: {problem}")]
+    DataUri {
+        /// What references it.
+        what: String,
+        /// What is wrong.
+        problem: String,
+    },
+    /// The node hierarchy has a cycle.
+    #[error("node {node} is its own ancestor (the node hierarchy has a cycle)")]
+    NodeCycle {
+        /// A node on the cycle.
+        node: usize,
+    },
+    /// The scene to render does not exist or holds no triangle.
+    #[error("the scene has no triangles to render{0}")]
+    NoTriangles(String),
+    /// The glTF file has no scene.
+    #[error("the file defines no scene")]
+    NoScene,
+    /// More triangles than the limit allows.
+    #[error("the scene has {count} triangles, over the limit of {limit} (raise it with --max-triangles)")]
+    TooManyTriangles {
+        /// Triangles counted so far.
+        count: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// OBJ parse failure.
+    #[error("OBJ: {0}")]
+    Obj(String),
+    /// OBJ face index past the vertex list.
+    #[error(
+        "OBJ: model {model} ('{name}'): {what} index {index} is out of range for {count} entries"
+    )]
+    ObjIndexOutOfRange {
+        /// Model index.
+        model: usize,
+        /// Model name.
+        name: String,
+        /// `position`, `normal` or `texcoord`.
+        what: &'static str,
+        /// The bad index (0-based).
+        index: u32,
+        /// Number of entries.
+        count: usize,
+    },
+    /// A material library cannot be read.
+    #[error("MTL '{mtl}': {problem}")]
+    Mtl {
+        /// The MTL path as written.
+        mtl: String,
+        /// What is wrong.
+        problem: String,
+    },
+}
+
+impl LoadErrorKind {
+    /// `NoTriangles` with no detail.
+    pub fn no_triangles() -> Self {
+        LoadErrorKind::NoTriangles(String::new())
+    }
+}

@@ -1,0 +1,1045 @@
+//! glTF 2.0 (.gltf and .glb) -> [`Scene`].
+//!
+//! The `gltf` crate parses and validates the JSON; everything it would index blindly (buffer
+//! views, accessor ranges, index values, the GLB header) is checked here first, so that a hostile
+//! file gets an error naming the file, mesh and primitive instead of a panic.
+//!
+//! Conventions (glTF 2.0 specification):
+//! - §3.5.3: node transforms are `matrix` or T·R·S, parent · child.
+//! - §3.7.2.1: without NORMAL, flat normals; normals transform by the inverse transpose; a
+//!   negative determinant mirrors the geometry and so flips the winding.
+//! - §3.7.2.1 / §5.24: TRIANGLE_STRIP triangle i = (i, i+1+i%2, i+2-i%2), TRIANGLE_FAN = (i+1, i+2, 0).
+//! - §3.10: cameras look down local -Z with +Y up; `yfov` in radians.
+//! - KHR_lights_punctual: lights shine along local -Z; candela (point, spot), lux (directional).
+
+use super::builder::TriangleIn;
+use super::error::PrimitiveAt;
+use super::{
+    AlphaMode, Bounds, Camera, FileAccess, Filter, Format, ImageSource, Instance, Light, LightKind,
+    LoadError, LoadErrorKind, LoadOptions, Material, Projection, Sampler, Scene, SoupBuilder,
+    Texture, TextureRef, TextureTransform, Wrap,
+};
+use base64::Engine;
+use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
+use gltf::accessor::{DataType, Dimensions};
+use gltf::mesh::Mode;
+use std::path::Path;
+use std::sync::Arc;
+
+/// Extensions whose absence would make a file render wrongly, and which we implement (fully or
+/// as a documented approximation). `extensionsRequired` naming anything else is an error.
+const SUPPORTED_REQUIRED: &[&str] = &[
+    "KHR_lights_punctual",
+    "KHR_texture_transform",
+    "KHR_materials_emissive_strength",
+    "KHR_materials_ior",
+    "KHR_materials_specular",
+    "KHR_materials_transmission",
+    "KHR_materials_unlit",
+    "KHR_materials_variants",
+    "KHR_materials_volume",
+    "KHR_materials_pbrSpecularGlossiness",
+];
+
+/// Most node visits a hierarchy may expand to. A node shared by two parents is instanced twice,
+/// so 30 levels of sharing would be 2^30 visits: refuse such files instead of hanging.
+const MAX_NODE_VISITS: usize = 4_000_000;
+
+/// GLB header: magic, version, length (glTF 2.0 §4.4.2).
+const GLB_HEADER_BYTES: usize = 12;
+
+/// Loads a glTF or GLB file whose bytes are already read.
+pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<Scene, LoadError> {
+    let err = |kind| LoadError::new(path, kind);
+    check_glb_header(bytes).map_err(err)?;
+    let gltf = gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| err(convert(e)))?;
+    let format = if bytes.starts_with(b"glTF") {
+        Format::Glb
+    } else {
+        Format::Gltf
+    };
+    for name in gltf.document.extensions_required() {
+        if !SUPPORTED_REQUIRED.contains(&name) {
+            return Err(err(unsupported_extension(name)));
+        }
+    }
+    let blob = gltf.blob;
+    let document =
+        gltf::Document::from_json(gltf.document.into_json()).map_err(|e| err(convert(e)))?;
+    let access = FileAccess::new(
+        path,
+        options.allow_external_files,
+        options.limits.max_file_bytes,
+    );
+    let buffers = load_buffers(&document, blob, &access)?;
+    check_views(&document, &buffers).map_err(err)?;
+    let mut importer = Importer {
+        document: &document,
+        buffers: &buffers,
+        builder: SoupBuilder::new(options.limits.max_triangles),
+        warnings: Vec::new(),
+        instances: Vec::new(),
+        cameras: Vec::new(),
+        lights: Vec::new(),
+        default_material: document.materials().len() as u32,
+        uses_default_material: false,
+        primitive_count: 0,
+        skipped_non_triangle: 0,
+        singular_instances: 0,
+        warned_skin: false,
+        warned_morph: false,
+    };
+    importer.walk_default_scene().map_err(err)?;
+    let materials = importer.materials();
+    let textures = textures(&document);
+    let images = images(&document, &buffers, &access, options)?;
+    let Importer {
+        builder,
+        mut warnings,
+        instances,
+        cameras,
+        lights,
+        primitive_count,
+        skipped_non_triangle,
+        singular_instances,
+        ..
+    } = importer;
+    if skipped_non_triangle > 0 {
+        warnings.push(format!(
+            "skipped {skipped_non_triangle} POINTS/LINES primitives (a ray tracer draws only triangles)"
+        ));
+    }
+    if singular_instances > 0 {
+        warnings.push(format!(
+            "skipped {singular_instances} mesh instances whose node transform is singular (zero scale) or not finite"
+        ));
+    }
+    warnings.extend(builder.dropped_warning());
+    let (soup, bounds) = builder.finish();
+    Ok(Scene {
+        source: path.to_path_buf(),
+        format,
+        soup,
+        materials,
+        textures,
+        images,
+        cameras,
+        lights,
+        instances,
+        mesh_count: document.meshes().len(),
+        primitive_count,
+        bounds: if bounds.is_empty() {
+            Bounds::EMPTY
+        } else {
+            bounds
+        },
+        warnings,
+    })
+}
+
+/// The `gltf` crate subtracts the header size from the declared length without checking it.
+fn check_glb_header(bytes: &[u8]) -> Result<(), LoadErrorKind> {
+    if !bytes.starts_with(b"glTF") {
+        return Ok(());
+    }
+    if bytes.len() < GLB_HEADER_BYTES {
+        return Err(LoadErrorKind::Glb(format!(
+            "file is {} bytes, shorter than the 12-byte GLB header",
+            bytes.len()
+        )));
+    }
+    let word = |i: usize| u32::from_le_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
+    let (version, length) = (word(4), word(8) as usize);
+    if version != 2 {
+        return Err(LoadErrorKind::Glb(format!(
+            "version {version}, only glTF 2 is supported"
+        )));
+    }
+    if length < GLB_HEADER_BYTES || length > bytes.len() {
+        return Err(LoadErrorKind::Glb(format!(
+            "header declares {length} bytes but the file has {} (truncated or corrupt)",
+            bytes.len()
+        )));
+    }
+    Ok(())
+}
+
+fn unsupported_extension(name: &str) -> LoadErrorKind {
+    let what = match name {
+        "KHR_draco_mesh_compression" => " (Draco mesh compression)",
+        "EXT_meshopt_compression" => " (meshoptimizer compression)",
+        "KHR_mesh_quantization" => " (quantized vertex attributes)",
+        "KHR_texture_basisu" => " (Basis Universal / KTX2 textures)",
+        "EXT_texture_webp" => " (WebP textures)",
+        _ => "",
+    };
+    LoadErrorKind::UnsupportedExtension {
+        name: name.to_string(),
+        what: what.to_string(),
+    }
+}
+
+fn convert(e: gltf::Error) -> LoadErrorKind {
+    match e {
+        gltf::Error::Binary(b) => LoadErrorKind::Glb(glb_error(&b)),
+        gltf::Error::Deserialize(d) => LoadErrorKind::Gltf(format!("JSON: {d}")),
+        gltf::Error::Validation(list) => {
+            let mut shown: Vec<String> = list
+                .iter()
+                .take(3)
+                .map(|(p, e)| format!("{}: {e}", p.as_str()))
+                .collect();
+            if list.len() > 3 {
+                shown.push(format!("and {} more", list.len() - 3));
+            }
+            LoadErrorKind::Gltf(shown.join("; "))
+        }
+        other => LoadErrorKind::Gltf(other.to_string()),
+    }
+}
+
+fn glb_error(e: &gltf::binary::Error) -> String {
+    use gltf::binary::Error as E;
+    match e {
+        E::Io(io) => format!("truncated: {io}"),
+        E::Version(v) => format!("version {v}, only glTF 2 is supported"),
+        E::Magic(m) => format!("bad magic {m:?}"),
+        E::Length {
+            length,
+            length_read,
+        } => format!("header declares {length} bytes of content but only {length_read} follow"),
+        E::ChunkLength {
+            ty,
+            length,
+            length_read,
+        } => format!(
+            "{ty:?} chunk declares {length} bytes but only {length_read} follow (truncated)"
+        ),
+        E::ChunkType(ty) => format!("unexpected {ty:?} chunk"),
+        E::UnknownChunkType(ty) => format!("unknown chunk type {ty:?}"),
+    }
+}
+
+/// Decodes a `data:` URI's base64 payload, refusing one larger than `max_bytes` before decoding.
+pub(crate) fn decode_data_uri(
+    what: &str,
+    uri: &str,
+    max_bytes: u64,
+) -> Result<(Option<String>, Vec<u8>), LoadErrorKind> {
+    let bad = |problem: &str| LoadErrorKind::DataUri {
+        what: what.to_string(),
+        problem: problem.to_string(),
+    };
+    let rest = uri
+        .strip_prefix("data:")
+        .ok_or_else(|| bad("not a data URI"))?;
+    let (header, payload) = rest
+        .split_once(',')
+        .ok_or_else(|| bad("no ',' before the payload"))?;
+    let mime = header
+        .strip_suffix(";base64")
+        .ok_or_else(|| bad("only base64 data URIs are allowed (glTF 2.0 §3.6.1.2)"))?;
+    let decoded_len = (payload.len() as u64 / 4) * 3;
+    if decoded_len > max_bytes {
+        return Err(bad(&format!(
+            "decodes to about {decoded_len} bytes, over the limit of {max_bytes}"
+        )));
+    }
+    let engine = base64::engine::GeneralPurpose::new(
+        &base64::alphabet::STANDARD,
+        base64::engine::GeneralPurposeConfig::new()
+            .with_decode_padding_mode(base64::engine::DecodePaddingMode::Indifferent),
+    );
+    let bytes = engine
+        .decode(payload.trim())
+        .map_err(|e| bad(&format!("base64: {e}")))?;
+    let mime = (!mime.is_empty()).then(|| mime.to_string());
+    Ok((mime, bytes))
+}
+
+fn load_buffers(
+    document: &gltf::Document,
+    mut blob: Option<Vec<u8>>,
+    access: &FileAccess,
+) -> Result<Vec<Vec<u8>>, LoadError> {
+    let model_err = |kind| LoadError::new(&access.model, kind);
+    let mut buffers = Vec::with_capacity(document.buffers().len());
+    for buffer in document.buffers() {
+        let index = buffer.index();
+        let what = format!("buffer {index}");
+        let data = match buffer.source() {
+            gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
+                model_err(LoadErrorKind::Buffer {
+                    buffer: index,
+                    problem: "refers to the GLB binary chunk, which is missing".to_string(),
+                })
+            })?,
+            gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
+                decode_data_uri(&what, uri, access.max_bytes)
+                    .map_err(model_err)?
+                    .1
+            }
+            gltf::buffer::Source::Uri(uri) => {
+                let file = access.resolve(&what, uri)?;
+                access.read(&file).map_err(|e| {
+                    model_err(LoadErrorKind::Buffer {
+                        buffer: index,
+                        problem: format!("cannot read '{}': {}", file.display(), e.kind),
+                    })
+                })?
+            }
+        };
+        if data.len() < buffer.length() {
+            return Err(model_err(LoadErrorKind::BufferTooShort {
+                buffer: index,
+                expected: buffer.length(),
+                actual: data.len(),
+            }));
+        }
+        buffers.push(data);
+    }
+    Ok(buffers)
+}
+
+fn check_views(document: &gltf::Document, buffers: &[Vec<u8>]) -> Result<(), LoadErrorKind> {
+    for view in document.views() {
+        let buffer = view.buffer().index();
+        let len = buffers.get(buffer).map_or(0, Vec::len);
+        let start = view.offset();
+        let end = start.checked_add(view.length()).unwrap_or(usize::MAX);
+        if end > len {
+            return Err(LoadErrorKind::ViewOutOfRange {
+                view: view.index(),
+                buffer,
+                start,
+                end,
+                len,
+            });
+        }
+    }
+    Ok(())
+}
+
+/// What an attribute accessor may be (glTF 2.0 §3.7.2.1, table "Attributes").
+struct Expect {
+    semantic: &'static str,
+    dims: &'static [Dimensions],
+    types: &'static [DataType],
+}
+
+const POSITION: Expect = Expect {
+    semantic: "POSITION",
+    dims: &[Dimensions::Vec3],
+    types: &[DataType::F32],
+};
+const NORMAL: Expect = Expect {
+    semantic: "NORMAL",
+    dims: &[Dimensions::Vec3],
+    types: &[DataType::F32],
+};
+const TANGENT: Expect = Expect {
+    semantic: "TANGENT",
+    dims: &[Dimensions::Vec4],
+    types: &[DataType::F32],
+};
+const TEXCOORD: Expect = Expect {
+    semantic: "TEXCOORD",
+    dims: &[Dimensions::Vec2],
+    types: &[DataType::F32, DataType::U8, DataType::U16],
+};
+const COLOR: Expect = Expect {
+    semantic: "COLOR_0",
+    dims: &[Dimensions::Vec3, Dimensions::Vec4],
+    types: &[DataType::F32, DataType::U8, DataType::U16],
+};
+const INDICES: Expect = Expect {
+    semantic: "indices",
+    dims: &[Dimensions::Scalar],
+    types: &[DataType::U8, DataType::U16, DataType::U32],
+};
+
+/// Checks that every byte the `gltf` crate's reader will touch for this accessor exists, and
+/// that its type is what the semantic allows. After this the reader cannot panic or read junk.
+fn check_accessor(
+    accessor: &gltf::Accessor,
+    at: PrimitiveAt,
+    expect: &Expect,
+) -> Result<(), LoadErrorKind> {
+    let fail = |problem: String| LoadErrorKind::Accessor {
+        at,
+        accessor: accessor.index(),
+        semantic: expect.semantic.to_string(),
+        problem,
+    };
+    if !expect.dims.contains(&accessor.dimensions())
+        || !expect.types.contains(&accessor.data_type())
+    {
+        return Err(fail(format!(
+            "type {:?} of {:?} is not allowed here (expected {:?} of {:?})",
+            accessor.dimensions(),
+            accessor.data_type(),
+            expect.dims,
+            expect.types
+        )));
+    }
+    if accessor.count() == 0 {
+        return Err(fail("count is 0".to_string()));
+    }
+    let element = accessor.size();
+    match accessor.view() {
+        Some(view) => check_range(&view, accessor.offset(), accessor.count(), element)
+            .map_err(|p| fail(format!("bufferView {}: {p}", view.index())))?,
+        None if accessor.sparse().is_none() => {
+            return Err(fail(
+                "has no bufferView (all-zero accessors are not supported)".to_string(),
+            ))
+        }
+        None => {}
+    }
+    if let Some(sparse) = accessor.sparse() {
+        let count = sparse.count();
+        if count == 0 || count > accessor.count() {
+            return Err(fail(format!(
+                "sparse count {count} is not in 1..={}",
+                accessor.count()
+            )));
+        }
+        let indices = sparse.indices();
+        let index_size = indices.index_type().size();
+        check_range(&indices.view(), indices.offset(), count, index_size)
+            .map_err(|p| fail(format!("sparse indices: {p}")))?;
+        let values = sparse.values();
+        check_range(&values.view(), values.offset(), count, element)
+            .map_err(|p| fail(format!("sparse values: {p}")))?;
+    }
+    Ok(())
+}
+
+/// `count` elements of `element` bytes from `offset` in `view`, at the view's stride.
+fn check_range(
+    view: &gltf::buffer::View,
+    offset: usize,
+    count: usize,
+    element: usize,
+) -> Result<(), String> {
+    let stride = view.stride().unwrap_or(element);
+    if stride < element {
+        return Err(format!(
+            "byteStride {stride} is smaller than the element size {element}"
+        ));
+    }
+    let end = stride
+        .checked_mul(count - 1)
+        .and_then(|v| v.checked_add(element))
+        .and_then(|v| v.checked_add(offset));
+    match end {
+        Some(end) if end <= view.length() => Ok(()),
+        _ => Err(format!(
+            "{count} elements of {element} bytes (stride {stride}) from offset {offset} do not fit its {} bytes",
+            view.length()
+        )),
+    }
+}
+
+/// The node walk's state.
+struct Importer<'a> {
+    document: &'a gltf::Document,
+    buffers: &'a [Vec<u8>],
+    builder: SoupBuilder,
+    warnings: Vec<String>,
+    instances: Vec<Instance>,
+    cameras: Vec<Camera>,
+    lights: Vec<Light>,
+    default_material: u32,
+    uses_default_material: bool,
+    primitive_count: usize,
+    skipped_non_triangle: usize,
+    singular_instances: usize,
+    warned_skin: bool,
+    warned_morph: bool,
+}
+
+/// One primitive's vertex data in world space.
+struct WorldVertices {
+    positions: Vec<Vec3>,
+    normals: Option<Vec<Vec3>>,
+    tangents: Option<Vec<Vec4>>,
+    uv0: Option<Vec<Vec2>>,
+    uv1: Option<Vec<Vec2>>,
+    colors: Option<Vec<Vec4>>,
+}
+
+impl Importer<'_> {
+    fn walk_default_scene(&mut self) -> Result<(), LoadErrorKind> {
+        // glTF 2.0 §3.5.1: `scene` names the default; without it, scene 0 is a reasonable choice.
+        let scene = self
+            .document
+            .default_scene()
+            .or_else(|| self.document.scenes().next())
+            .ok_or(LoadErrorKind::NoScene)?;
+        let nodes: Vec<gltf::Node> = self.document.nodes().collect();
+        let mut on_path = vec![false; nodes.len()];
+        let mut visits = 0usize;
+        // An explicit stack: a hostile hierarchy a million levels deep must not overflow ours.
+        enum Step {
+            Enter(usize, Mat4),
+            Leave(usize),
+        }
+        let mut stack: Vec<Step> = scene
+            .nodes()
+            .map(|n| Step::Enter(n.index(), Mat4::IDENTITY))
+            .collect();
+        stack.reverse();
+        while let Some(step) = stack.pop() {
+            let (index, parent) = match step {
+                Step::Leave(index) => {
+                    on_path[index] = false;
+                    continue;
+                }
+                Step::Enter(index, parent) => (index, parent),
+            };
+            let Some(node) = nodes.get(index) else {
+                continue;
+            };
+            if on_path[index] {
+                return Err(LoadErrorKind::NodeCycle { node: index });
+            }
+            visits += 1;
+            if visits > MAX_NODE_VISITS {
+                return Err(LoadErrorKind::Gltf(format!(
+                    "the node hierarchy expands to more than {MAX_NODE_VISITS} node instances (nodes shared by several parents)"
+                )));
+            }
+            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            self.visit(node, world)?;
+            on_path[index] = true;
+            stack.push(Step::Leave(index));
+            let children: Vec<usize> = node.children().map(|c| c.index()).collect();
+            for child in children.into_iter().rev() {
+                stack.push(Step::Enter(child, world));
+            }
+        }
+        Ok(())
+    }
+
+    fn visit(&mut self, node: &gltf::Node, world: Mat4) -> Result<(), LoadErrorKind> {
+        let name = node.name().map(str::to_string);
+        if let Some(camera) = node.camera() {
+            match place_camera(&camera, world, name.clone()) {
+                Some(c) => self.cameras.push(c),
+                None => self.warnings.push(format!(
+                    "camera on node {} skipped: its transform is not finite or is singular",
+                    node.index()
+                )),
+            }
+        }
+        if let Some(light) = node.light() {
+            match place_light(&light, world) {
+                Some(l) => self.lights.push(l),
+                None => self.warnings.push(format!(
+                    "light on node {} skipped: bad transform or parameters",
+                    node.index()
+                )),
+            }
+        }
+        if let Some(mesh) = node.mesh() {
+            if node.skin().is_some() && !self.warned_skin {
+                self.warned_skin = true;
+                self.warnings
+                    .push("skinned meshes are drawn in their bind pose, without animation".into());
+            }
+            let instance = self.instances.len() as u32;
+            self.instances.push(Instance {
+                node: Some(node.index()),
+                mesh: mesh.index(),
+                name: name.or_else(|| mesh.name().map(str::to_string)),
+            });
+            let det = world.determinant();
+            if !world.is_finite() || det == 0.0 || !det.is_finite() {
+                self.singular_instances += 1;
+                return Ok(());
+            }
+            for primitive in mesh.primitives() {
+                let at = PrimitiveAt {
+                    mesh: mesh.index(),
+                    primitive: primitive.index(),
+                };
+                self.add_primitive(&primitive, at, world, instance)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn add_primitive(
+        &mut self,
+        primitive: &gltf::Primitive,
+        at: PrimitiveAt,
+        world: Mat4,
+        instance: u32,
+    ) -> Result<(), LoadErrorKind> {
+        let mode = primitive.mode();
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            self.skipped_non_triangle += 1;
+            return Ok(());
+        }
+        self.primitive_count += 1;
+        if primitive.morph_targets().len() > 0 && !self.warned_morph {
+            self.warned_morph = true;
+            self.warnings
+                .push("morph targets are ignored; meshes are drawn in their base shape".into());
+        }
+        let vertices = self.read_vertices(primitive, at, world)?;
+        let vertex_count = vertices.positions.len();
+        let indices: Vec<u32> = match primitive.indices() {
+            Some(accessor) => {
+                check_accessor(&accessor, at, &INDICES)?;
+                let reader = primitive.reader(|b| self.buffers.get(b.index()).map(Vec::as_slice));
+                let indices: Vec<u32> = reader
+                    .read_indices()
+                    .map(|r| r.into_u32().collect())
+                    .unwrap_or_default();
+                if let Some(&bad) = indices.iter().find(|&&i| i as usize >= vertex_count) {
+                    return Err(LoadErrorKind::IndexOutOfRange {
+                        at,
+                        index: bad,
+                        vertex_count,
+                    });
+                }
+                indices
+            }
+            None => (0..vertex_count as u32).collect(),
+        };
+        let n = indices.len();
+        let triangle_count = match mode {
+            Mode::Triangles => n / 3,
+            _ => n.saturating_sub(2),
+        };
+        self.builder.reserve(triangle_count)?;
+        // glTF 2.0 §3.7.2.1: a mirroring transform turns counter-clockwise into clockwise.
+        let flip = world.determinant() < 0.0;
+        let material = match primitive.material().index() {
+            Some(i) => i as u32,
+            None => {
+                self.uses_default_material = true;
+                self.default_material
+            }
+        };
+        for t in 0..triangle_count {
+            let [a, b, c] = match mode {
+                Mode::Triangles => [3 * t, 3 * t + 1, 3 * t + 2],
+                Mode::TriangleStrip => [t, t + 1 + t % 2, t + 2 - t % 2],
+                _ => [t + 1, t + 2, 0],
+            };
+            let corners = if flip { [a, c, b] } else { [a, b, c] };
+            let v = corners.map(|k| indices[k] as usize);
+            let tri = TriangleIn {
+                positions: v.map(|i| vertices.positions[i]),
+                normals: vertices.normals.as_ref().map(|ns| v.map(|i| ns[i])),
+                uv0: vertices.uv0.as_ref().map(|uv| v.map(|i| uv[i])),
+                uv1: vertices.uv1.as_ref().map(|uv| v.map(|i| uv[i])),
+                colors: vertices.colors.as_ref().map(|cs| v.map(|i| cs[i])),
+                tangents: vertices.tangents.as_ref().map(|ts| v.map(|i| ts[i])),
+            };
+            self.builder.push(&tri, material, instance);
+        }
+        Ok(())
+    }
+
+    fn read_vertices(
+        &self,
+        primitive: &gltf::Primitive,
+        at: PrimitiveAt,
+        world: Mat4,
+    ) -> Result<WorldVertices, LoadErrorKind> {
+        use gltf::Semantic;
+        let position_accessor = primitive
+            .get(&Semantic::Positions)
+            .ok_or(LoadErrorKind::MissingPositions { at })?;
+        check_accessor(&position_accessor, at, &POSITION)?;
+        let count = position_accessor.count();
+        let optional = |semantic: Semantic, expect: &Expect| -> Result<bool, LoadErrorKind> {
+            match primitive.get(&semantic) {
+                None => Ok(false),
+                Some(accessor) => {
+                    check_accessor(&accessor, at, expect)?;
+                    if accessor.count() != count {
+                        return Err(LoadErrorKind::Accessor {
+                            at,
+                            accessor: accessor.index(),
+                            semantic: expect.semantic.to_string(),
+                            problem: format!(
+                                "count {} differs from POSITION's {count}",
+                                accessor.count()
+                            ),
+                        });
+                    }
+                    Ok(true)
+                }
+            }
+        };
+        let has_normals = optional(Semantic::Normals, &NORMAL)?;
+        let has_tangents = optional(Semantic::Tangents, &TANGENT)?;
+        let has_uv0 = optional(Semantic::TexCoords(0), &TEXCOORD)?;
+        let has_uv1 = optional(Semantic::TexCoords(1), &TEXCOORD)?;
+        let has_colors = optional(Semantic::Colors(0), &COLOR)?;
+
+        let reader = primitive.reader(|b| self.buffers.get(b.index()).map(Vec::as_slice));
+        let positions: Vec<Vec3> = reader
+            .read_positions()
+            .map(|it| it.map(|p| world.transform_point3(Vec3::from(p))).collect())
+            .unwrap_or_default();
+        if positions.len() != count {
+            return Err(LoadErrorKind::Accessor {
+                at,
+                accessor: position_accessor.index(),
+                semantic: "POSITION".into(),
+                problem: format!("read {} of {count} positions", positions.len()),
+            });
+        }
+        let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
+        let linear = Mat3::from_mat4(world);
+        let mirror = if world.determinant() < 0.0 { -1.0 } else { 1.0 };
+        let exact = |len: usize| len == count;
+        let normals = has_normals
+            .then(|| reader.read_normals())
+            .flatten()
+            .map(|it| {
+                it.map(|n| normal_matrix * Vec3::from(n))
+                    .collect::<Vec<_>>()
+            })
+            .filter(|v| exact(v.len()));
+        let tangents = has_tangents
+            .then(|| reader.read_tangents())
+            .flatten()
+            .map(|it| {
+                it.map(|t| {
+                    let xyz = (linear * Vec3::new(t[0], t[1], t[2])).normalize_or_zero();
+                    xyz.extend(t[3] * mirror)
+                })
+                .collect::<Vec<_>>()
+            })
+            .filter(|v| exact(v.len()));
+        let read_uv = |set: u32, has: bool| {
+            has.then(|| reader.read_tex_coords(set))
+                .flatten()
+                .map(|it| it.into_f32().map(Vec2::from).collect::<Vec<_>>())
+                .filter(|v| exact(v.len()))
+        };
+        let uv0 = read_uv(0, has_uv0);
+        let uv1 = read_uv(1, has_uv1);
+        let colors = has_colors
+            .then(|| reader.read_colors(0))
+            .flatten()
+            .map(|it| it.into_rgba_f32().map(Vec4::from).collect::<Vec<_>>())
+            .filter(|v| exact(v.len()));
+        Ok(WorldVertices {
+            positions,
+            normals,
+            tangents,
+            uv0,
+            uv1,
+            colors,
+        })
+    }
+
+    fn materials(&self) -> Vec<Material> {
+        let mut out: Vec<Material> = self.document.materials().map(|m| material(&m)).collect();
+        if self.uses_default_material {
+            out.push(Material::default());
+        }
+        out
+    }
+}
+
+fn texture_ref(info: Option<gltf::texture::Info>) -> Option<TextureRef> {
+    info.map(|info| {
+        let transform = info.texture_transform();
+        TextureRef {
+            texture: info.texture().index(),
+            tex_coord: transform
+                .as_ref()
+                .and_then(|t| t.tex_coord())
+                .unwrap_or(info.tex_coord()),
+            transform: transform.map(|t| TextureTransform {
+                offset: t.offset(),
+                rotation: t.rotation(),
+                scale: t.scale(),
+            }),
+        }
+    })
+}
+
+fn material(m: &gltf::Material) -> Material {
+    let pbr = m.pbr_metallic_roughness();
+    let normal = m.normal_texture();
+    let occlusion = m.occlusion_texture();
+    Material {
+        name: m.name().map(str::to_string),
+        base_color: Vec4::from(pbr.base_color_factor()),
+        base_color_texture: texture_ref(pbr.base_color_texture()),
+        metallic: pbr.metallic_factor(),
+        roughness: pbr.roughness_factor(),
+        metallic_roughness_texture: texture_ref(pbr.metallic_roughness_texture()),
+        normal_texture: normal.as_ref().map(|n| TextureRef {
+            texture: n.texture().index(),
+            tex_coord: n.tex_coord(),
+            transform: None,
+        }),
+        normal_scale: normal.as_ref().map_or(1.0, |n| n.scale()),
+        occlusion_texture: occlusion.as_ref().map(|o| TextureRef {
+            texture: o.texture().index(),
+            tex_coord: o.tex_coord(),
+            transform: None,
+        }),
+        occlusion_strength: occlusion.as_ref().map_or(1.0, |o| o.strength()),
+        emissive: Vec3::from(m.emissive_factor()),
+        emissive_strength: m.emissive_strength().unwrap_or(1.0),
+        emissive_texture: texture_ref(m.emissive_texture()),
+        alpha_mode: match m.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+            gltf::material::AlphaMode::Mask => AlphaMode::Mask,
+            gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+        },
+        alpha_cutoff: m.alpha_cutoff().unwrap_or(0.5),
+        double_sided: m.double_sided(),
+        specular: None,
+    }
+}
+
+fn textures(document: &gltf::Document) -> Vec<Texture> {
+    use gltf::texture::{MagFilter, MinFilter, WrappingMode};
+    let wrap = |w: WrappingMode| match w {
+        WrappingMode::ClampToEdge => Wrap::ClampToEdge,
+        WrappingMode::MirroredRepeat => Wrap::MirroredRepeat,
+        WrappingMode::Repeat => Wrap::Repeat,
+    };
+    document
+        .textures()
+        .map(|t| {
+            let s = t.sampler();
+            Texture {
+                name: t.name().map(str::to_string),
+                image: t.source().index(),
+                sampler: Sampler {
+                    mag_filter: match s.mag_filter() {
+                        Some(MagFilter::Nearest) => Filter::Nearest,
+                        _ => Filter::Linear,
+                    },
+                    min_filter: match s.min_filter() {
+                        Some(MinFilter::Nearest | MinFilter::NearestMipmapNearest) => {
+                            Filter::Nearest
+                        }
+                        _ => Filter::Linear,
+                    },
+                    wrap_s: wrap(s.wrap_s()),
+                    wrap_t: wrap(s.wrap_t()),
+                },
+            }
+        })
+        .collect()
+}
+
+fn images(
+    document: &gltf::Document,
+    buffers: &[Vec<u8>],
+    access: &FileAccess,
+    options: &LoadOptions,
+) -> Result<Vec<ImageSource>, LoadError> {
+    let mut out = Vec::with_capacity(document.images().len());
+    for image in document.images() {
+        let index = image.index();
+        let what = format!("image {index}");
+        let image_err = |problem: String| {
+            LoadError::new(
+                &access.model,
+                LoadErrorKind::Image {
+                    image: index,
+                    problem,
+                },
+            )
+        };
+        let source = match image.source() {
+            gltf::image::Source::View { view, mime_type } => {
+                let start = view.offset();
+                // check_views made sure this range exists.
+                let bytes = buffers
+                    .get(view.buffer().index())
+                    .and_then(|b| b.get(start..start + view.length()))
+                    .ok_or_else(|| {
+                        image_err(format!("bufferView {} is out of range", view.index()))
+                    })?;
+                ImageSource {
+                    origin: format!("bufferView {}", view.index()),
+                    mime_type: Some(mime_type.to_string()),
+                    path: None,
+                    bytes: Some(Arc::from(bytes)),
+                }
+            }
+            gltf::image::Source::Uri { uri, mime_type } if uri.starts_with("data:") => {
+                let (mime, bytes) = decode_data_uri(&what, uri, access.max_bytes)
+                    .map_err(|k| LoadError::new(&access.model, k))?;
+                ImageSource {
+                    origin: format!("{}...", &uri[..uri.len().min(32)]),
+                    mime_type: mime.or(mime_type.map(str::to_string)),
+                    path: None,
+                    bytes: Some(Arc::from(bytes)),
+                }
+            }
+            gltf::image::Source::Uri { uri, mime_type } => {
+                let path = access.resolve(&what, uri)?;
+                if !path.is_file() {
+                    return Err(image_err(format!("file '{}' not found", path.display())));
+                }
+                ImageSource {
+                    origin: uri.to_string(),
+                    mime_type: mime_type.map(str::to_string),
+                    path: Some(path),
+                    bytes: None,
+                }
+            }
+        };
+        check_image_header(&source, options.limits.max_image_pixels).map_err(image_err)?;
+        out.push(source);
+    }
+    Ok(out)
+}
+
+/// Reads only an image's header: refuses one that is not an image, or whose declared size is
+/// over the pixel budget, before anything decodes it.
+pub(crate) fn check_image_header(source: &ImageSource, max_pixels: u64) -> Result<(), String> {
+    let dims = match (&source.bytes, &source.path) {
+        (Some(bytes), _) => image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
+            .with_guessed_format()
+            .map_err(|e| e.to_string())?
+            .into_dimensions(),
+        (None, Some(path)) => image::ImageReader::open(path)
+            .map_err(|e| format!("'{}': {e}", path.display()))?
+            .with_guessed_format()
+            .map_err(|e| e.to_string())?
+            .into_dimensions(),
+        (None, None) => return Err("no data".to_string()),
+    };
+    let (w, h) = dims.map_err(|e| format!("not a readable PNG or JPEG image: {e}"))?;
+    let pixels = w as u64 * h as u64;
+    if pixels == 0 || pixels > max_pixels {
+        return Err(format!(
+            "declares {w}x{h} pixels, outside the limit of 1..={max_pixels} pixels"
+        ));
+    }
+    Ok(())
+}
+
+fn place_camera(camera: &gltf::Camera, world: Mat4, node_name: Option<String>) -> Option<Camera> {
+    let (position, forward, up) = frame(world)?;
+    let projection = match camera.projection() {
+        gltf::camera::Projection::Perspective(p) => Projection::Perspective {
+            yfov: p.yfov(),
+            aspect_ratio: p.aspect_ratio(),
+            znear: p.znear(),
+            zfar: p.zfar(),
+        },
+        gltf::camera::Projection::Orthographic(o) => Projection::Orthographic {
+            xmag: o.xmag(),
+            ymag: o.ymag(),
+            znear: o.znear(),
+            zfar: o.zfar(),
+        },
+    };
+    Some(Camera {
+        name: camera.name().map(str::to_string).or(node_name),
+        position,
+        forward,
+        up,
+        projection,
+    })
+}
+
+/// Position, forward (local -Z) and up (local +Y) of a node, with scale removed and up made
+/// orthogonal to forward. `None` when the transform is degenerate.
+fn frame(world: Mat4) -> Option<(Vec3, Vec3, Vec3)> {
+    let position = world.transform_point3(Vec3::ZERO);
+    let forward = world.transform_vector3(Vec3::NEG_Z).try_normalize()?;
+    let up_raw = world.transform_vector3(Vec3::Y);
+    let up = (up_raw - forward * up_raw.dot(forward)).try_normalize()?;
+    position.is_finite().then_some((position, forward, up))
+}
+
+fn place_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Option<Light> {
+    use gltf::khr_lights_punctual::Kind;
+    let position = world.transform_point3(Vec3::ZERO);
+    let direction = world.transform_vector3(Vec3::NEG_Z).try_normalize()?;
+    let intensity = light.intensity();
+    if !position.is_finite() || !intensity.is_finite() || intensity < 0.0 {
+        return None;
+    }
+    let kind = match light.kind() {
+        Kind::Directional => LightKind::Directional,
+        Kind::Point => LightKind::Point,
+        Kind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        } => LightKind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        },
+    };
+    Some(Light {
+        name: light.name().map(str::to_string),
+        kind,
+        color: Vec3::from(light.color()),
+        intensity,
+        range: light.range().filter(|r| *r > 0.0 && r.is_finite()),
+        position,
+        direction,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn data_uris_decode_and_are_size_checked() {
+        let (mime, bytes) =
+            decode_data_uri("buffer 0", "data:application/octet-stream;base64,AAEC", 100).unwrap();
+        assert_eq!(mime.as_deref(), Some("application/octet-stream"));
+        assert_eq!(bytes, vec![0, 1, 2]);
+        assert!(decode_data_uri("buffer 0", "data:;base64,AAECAAEC", 3).is_err());
+        assert!(decode_data_uri("buffer 0", "data:text/plain,hello", 100).is_err());
+        assert!(decode_data_uri("buffer 0", "data:;base64,!!!!", 100).is_err());
+    }
+
+    #[test]
+    fn glb_header_is_checked_before_the_gltf_crate_sees_it() {
+        assert!(check_glb_header(b"glTF").is_err());
+        let mut h = b"glTF".to_vec();
+        h.extend(2u32.to_le_bytes());
+        h.extend(4u32.to_le_bytes());
+        assert!(
+            check_glb_header(&h).is_err(),
+            "length below the header size"
+        );
+        let mut v1 = b"glTF".to_vec();
+        v1.extend(1u32.to_le_bytes());
+        v1.extend(12u32.to_le_bytes());
+        assert!(check_glb_header(&v1).is_err(), "glTF 1 binary");
+    }
+
+    #[test]
+    fn camera_frame_removes_scale_and_keeps_minus_z() {
+        let world = Mat4::from_scale_rotation_translation(
+            Vec3::splat(3.0),
+            glam::Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+            Vec3::new(1.0, 2.0, 3.0),
+        );
+        let (p, f, u) = frame(world).unwrap();
+        assert!((p - Vec3::new(1.0, 2.0, 3.0)).length() < 1e-6);
+        // Rotating -Z by +90° about Y gives -X.
+        assert!((f - Vec3::NEG_X).length() < 1e-6);
+        assert!((u - Vec3::Y).length() < 1e-6);
+        assert!(frame(Mat4::ZERO).is_none());
+    }
+}

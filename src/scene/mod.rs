@@ -1,0 +1,523 @@
+//! The scene as plain data: a world-space triangle soup with materials, cameras and lights.
+//!
+//! Importers ([`gltf`](self::gltf) and [`obj`]) turn a file into a [`Scene`]; nothing here knows
+//! about rays. Units are the glTF ones (glTF 2.0 §3.4): metres, radians, right-handed, +Y up.
+
+mod builder;
+mod error;
+pub mod gltf;
+pub mod obj;
+mod paths;
+
+pub use builder::{SoupBuilder, TriangleIn};
+pub use error::{LoadError, LoadErrorKind};
+pub use paths::{resolve_relative, FileAccess};
+
+use glam::{Vec2, Vec3, Vec4};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// Limits that keep a hostile file from exhausting the machine. Each has a documented default
+/// and can be raised by the user.
+#[derive(Clone, Copy, Debug)]
+pub struct LoadLimits {
+    /// Largest model or buffer file read, in bytes (default 2 GiB).
+    pub max_file_bytes: u64,
+    /// Most triangles the soup may hold after instancing (default 50 million: about 9 GB of soup).
+    pub max_triangles: u64,
+    /// Largest decoded image, in pixels (default 64 megapixels, e.g. 8192x8192).
+    pub max_image_pixels: u64,
+}
+
+impl Default for LoadLimits {
+    fn default() -> Self {
+        Self {
+            max_file_bytes: 2 << 30,
+            max_triangles: 50_000_000,
+            max_image_pixels: 64 << 20,
+        }
+    }
+}
+
+/// Options for [`Scene::load_with`].
+#[derive(Clone, Debug, Default)]
+pub struct LoadOptions {
+    /// Resource limits.
+    pub limits: LoadLimits,
+    /// Allow URIs that are absolute or escape the model's folder (`--allow-external-files`).
+    pub allow_external_files: bool,
+}
+
+/// The file formats meshtracer reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Format {
+    /// glTF 2.0 JSON (`.gltf`), with external or embedded buffers.
+    Gltf,
+    /// glTF 2.0 binary container (`.glb`).
+    Glb,
+    /// Wavefront OBJ with optional MTL.
+    Obj,
+}
+
+impl Format {
+    /// Guesses the format from the first bytes, falling back on the extension only for OBJ,
+    /// which has no magic number. A `.gltf` that is really a GLB (or the reverse) still loads.
+    pub fn sniff(path: &Path, head: &[u8]) -> Option<Format> {
+        if head.starts_with(b"glTF") {
+            return Some(Format::Glb);
+        }
+        let first = head
+            .iter()
+            .copied()
+            .skip_while(|b| b.is_ascii_whitespace() || *b == 0xEF || *b == 0xBB || *b == 0xBF)
+            .next();
+        if first == Some(b'{') {
+            return Some(Format::Gltf);
+        }
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(|e| e.to_ascii_lowercase());
+        match ext.as_deref() {
+            Some("obj") => Some(Format::Obj),
+            _ => None,
+        }
+    }
+}
+
+/// Every triangle of the scene in world space, as parallel per-triangle arrays.
+///
+/// Optional attributes (`uv0`, `uv1`, `colors`, `tangents`) are either empty, when no primitive
+/// had them, or exactly as long as `positions`, with defaults where a primitive lacked them.
+#[derive(Clone, Debug, Default)]
+pub struct TriangleSoup {
+    /// World-space vertex positions, counter-clockwise seen from the front face.
+    pub positions: Vec<[Vec3; 3]>,
+    /// World-space unit shading normals (flat normals where the file has none).
+    pub normals: Vec<[Vec3; 3]>,
+    /// Texture coordinate set 0 (glTF `TEXCOORD_0`; OBJ `vt`), (0,0) = image top-left.
+    pub uv0: Vec<[Vec2; 3]>,
+    /// Texture coordinate set 1 (glTF `TEXCOORD_1`).
+    pub uv1: Vec<[Vec2; 3]>,
+    /// Linear RGBA vertex colours (glTF `COLOR_0`), white where absent.
+    pub colors: Vec<[Vec4; 3]>,
+    /// World-space tangents with handedness in w (glTF `TANGENT`), zero where absent.
+    pub tangents: Vec<[Vec4; 3]>,
+    /// Index into [`Scene::materials`] for each triangle.
+    pub material: Vec<u32>,
+    /// Index into [`Scene::instances`] for each triangle.
+    pub instance: Vec<u32>,
+}
+
+impl TriangleSoup {
+    /// Number of triangles.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// True when the soup holds no triangle.
+    pub fn is_empty(&self) -> bool {
+        self.positions.is_empty()
+    }
+
+    /// Approximate heap size in bytes.
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(self.positions.as_slice())
+            + size_of_val(self.normals.as_slice())
+            + size_of_val(self.uv0.as_slice())
+            + size_of_val(self.uv1.as_slice())
+            + size_of_val(self.colors.as_slice())
+            + size_of_val(self.tangents.as_slice())
+            + size_of_val(self.material.as_slice())
+            + size_of_val(self.instance.as_slice())
+    }
+}
+
+/// How a material treats alpha (glTF 2.0 §3.9.4).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "UPPERCASE")]
+pub enum AlphaMode {
+    /// Alpha is ignored.
+    Opaque,
+    /// Alpha below the cutoff is fully transparent, otherwise opaque.
+    Mask,
+    /// Alpha blends with what is behind.
+    Blend,
+}
+
+/// A reference from a material to a texture.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct TextureRef {
+    /// Index into [`Scene::textures`].
+    pub texture: usize,
+    /// Which texture coordinate set (0 or 1) it reads.
+    pub tex_coord: u32,
+    /// `KHR_texture_transform`, if present.
+    pub transform: Option<TextureTransform>,
+}
+
+/// `KHR_texture_transform`: uv' = T(offset) · R(rotation) · S(scale) · uv.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct TextureTransform {
+    /// Translation in uv units.
+    pub offset: [f32; 2],
+    /// Counter-clockwise rotation in radians.
+    pub rotation: f32,
+    /// Per-axis scale.
+    pub scale: [f32; 2],
+}
+
+/// One material description for every format: the glTF 2.0 metallic-roughness model (§3.9.2).
+/// OBJ/MTL materials are mapped onto it by the OBJ importer.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Material {
+    /// Name from the file, if any.
+    pub name: Option<String>,
+    /// Linear RGBA base colour factor.
+    pub base_color: Vec4,
+    /// Base colour texture (sRGB encoded).
+    pub base_color_texture: Option<TextureRef>,
+    /// Metalness in [0, 1].
+    pub metallic: f32,
+    /// Perceptual roughness in [0, 1].
+    pub roughness: f32,
+    /// Metallic (B) and roughness (G) texture, linear.
+    pub metallic_roughness_texture: Option<TextureRef>,
+    /// Tangent-space normal map.
+    pub normal_texture: Option<TextureRef>,
+    /// Normal map scale.
+    pub normal_scale: f32,
+    /// Ambient occlusion texture (R channel).
+    pub occlusion_texture: Option<TextureRef>,
+    /// Occlusion strength.
+    pub occlusion_strength: f32,
+    /// Linear emissive colour factor.
+    pub emissive: Vec3,
+    /// `KHR_materials_emissive_strength` multiplier (1 when absent).
+    pub emissive_strength: f32,
+    /// Emissive texture (sRGB encoded).
+    pub emissive_texture: Option<TextureRef>,
+    /// Alpha handling.
+    pub alpha_mode: AlphaMode,
+    /// Cutoff for [`AlphaMode::Mask`].
+    pub alpha_cutoff: f32,
+    /// When false the back face is invisible (glTF 2.0 §3.9.6).
+    pub double_sided: bool,
+    /// Classic Phong specular colour, when the source had one (OBJ `Ks`); the Blinn-Phong
+    /// shader otherwise derives it from metallic/roughness.
+    pub specular: Option<Vec3>,
+}
+
+impl Default for Material {
+    /// The glTF default material (§3.9.1): white, fully metallic and fully rough, single-sided.
+    /// A metallic white with no environment renders black under punctual lights in a PBR shader,
+    /// but it is what the specification defines and what Blender's importer does too.
+    fn default() -> Self {
+        Self {
+            name: None,
+            base_color: Vec4::ONE,
+            base_color_texture: None,
+            metallic: 1.0,
+            roughness: 1.0,
+            metallic_roughness_texture: None,
+            normal_texture: None,
+            normal_scale: 1.0,
+            occlusion_texture: None,
+            occlusion_strength: 1.0,
+            emissive: Vec3::ZERO,
+            emissive_strength: 1.0,
+            emissive_texture: None,
+            alpha_mode: AlphaMode::Opaque,
+            alpha_cutoff: 0.5,
+            double_sided: false,
+            specular: None,
+        }
+    }
+}
+
+/// A texture: an image plus how it is sampled.
+#[derive(Clone, Debug, Serialize)]
+pub struct Texture {
+    /// Name from the file, if any.
+    pub name: Option<String>,
+    /// Index into [`Scene::images`].
+    pub image: usize,
+    /// Sampler state.
+    pub sampler: Sampler,
+}
+
+/// Texture wrap mode (glTF 2.0 §3.8.4.3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Wrap {
+    /// Tile.
+    Repeat,
+    /// Clamp to the edge texel.
+    ClampToEdge,
+    /// Tile, mirroring every other copy.
+    MirroredRepeat,
+}
+
+/// Texture filter (glTF 2.0 §3.8.4.2), simplified to what a ray tracer distinguishes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Filter {
+    /// Nearest texel.
+    Nearest,
+    /// Bilinear.
+    Linear,
+}
+
+/// Sampler state of a texture.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Sampler {
+    /// Magnification filter.
+    pub mag_filter: Filter,
+    /// Minification filter (mipmapped when the file asks for it).
+    pub min_filter: Filter,
+    /// Wrap along u.
+    pub wrap_s: Wrap,
+    /// Wrap along v.
+    pub wrap_t: Wrap,
+}
+
+impl Default for Sampler {
+    fn default() -> Self {
+        Self {
+            mag_filter: Filter::Linear,
+            min_filter: Filter::Linear,
+            wrap_s: Wrap::Repeat,
+            wrap_t: Wrap::Repeat,
+        }
+    }
+}
+
+/// Where an image's encoded bytes come from. Images are decoded by the renderer when it needs
+/// them, not at load time, so `info` stays fast.
+#[derive(Clone, Debug, Serialize)]
+pub struct ImageSource {
+    /// What the file says: a URI, `data:` URI (abbreviated) or `bufferView N`.
+    pub origin: String,
+    /// MIME type, if the file states it.
+    pub mime_type: Option<String>,
+    /// The resolved file, for external images.
+    pub path: Option<PathBuf>,
+    /// The encoded bytes, for embedded images (GLB buffer views and `data:` URIs).
+    #[serde(skip)]
+    pub bytes: Option<std::sync::Arc<[u8]>>,
+}
+
+/// Camera projection (glTF 2.0 §3.10).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(tag = "type", rename_all = "lowercase")]
+pub enum Projection {
+    /// Perspective: `yfov` is the vertical field of view in radians (glTF 2.0 §5.14).
+    Perspective {
+        /// Vertical field of view, radians.
+        yfov: f32,
+        /// Width / height, if the file sets it.
+        aspect_ratio: Option<f32>,
+        /// Near clip distance.
+        znear: f32,
+        /// Far clip distance; infinite when absent.
+        zfar: Option<f32>,
+    },
+    /// Orthographic: `xmag`/`ymag` are half the width/height of the view volume.
+    Orthographic {
+        /// Half width of the view, metres.
+        xmag: f32,
+        /// Half height of the view, metres.
+        ymag: f32,
+        /// Near clip distance.
+        znear: f32,
+        /// Far clip distance.
+        zfar: f32,
+    },
+}
+
+/// A camera placed in the world. glTF 2.0 §3.10.1: a camera looks down its node's local -Z with
+/// +Y up; node scale is removed.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Camera {
+    /// Name of the camera or its node.
+    pub name: Option<String>,
+    /// Eye position, world space.
+    pub position: Vec3,
+    /// Unit view direction (world-space image of local -Z).
+    pub forward: Vec3,
+    /// Unit up vector, orthogonal to `forward` (world-space image of local +Y).
+    pub up: Vec3,
+    /// Projection.
+    pub projection: Projection,
+}
+
+/// Type of a punctual light (`KHR_lights_punctual`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(tag = "type", rename_all = "lowercase")]
+pub enum LightKind {
+    /// Omnidirectional point light; intensity in candela.
+    Point,
+    /// Spot light; intensity in candela; cone angles in radians from the axis.
+    Spot {
+        /// Angle where falloff starts.
+        inner_cone_angle: f32,
+        /// Angle where the light reaches zero.
+        outer_cone_angle: f32,
+    },
+    /// Directional light; intensity in lux.
+    Directional,
+}
+
+/// A punctual light in world space (`KHR_lights_punctual`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Light {
+    /// Name from the file, if any.
+    pub name: Option<String>,
+    /// Type and cone.
+    pub kind: LightKind,
+    /// Linear RGB colour.
+    pub color: Vec3,
+    /// Candela for point and spot lights, lux for directional lights.
+    pub intensity: f32,
+    /// Distance beyond which the light has no effect (point and spot only).
+    pub range: Option<f32>,
+    /// World position (unused for directional lights).
+    pub position: Vec3,
+    /// Unit direction the light travels, world space (local -Z of its node).
+    pub direction: Vec3,
+}
+
+/// Axis-aligned bounds in world space.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Bounds {
+    /// Smallest corner.
+    pub min: Vec3,
+    /// Largest corner.
+    pub max: Vec3,
+}
+
+impl Bounds {
+    /// Bounds that contain nothing: growing them by a point gives that point.
+    pub const EMPTY: Bounds = Bounds {
+        min: Vec3::splat(f32::INFINITY),
+        max: Vec3::splat(f32::NEG_INFINITY),
+    };
+
+    /// Grows the box to contain `p`.
+    pub fn grow(&mut self, p: Vec3) {
+        self.min = self.min.min(p);
+        self.max = self.max.max(p);
+    }
+
+    /// Centre of the box.
+    pub fn center(&self) -> Vec3 {
+        (self.min + self.max) * 0.5
+    }
+
+    /// Radius of the bounding sphere around [`Bounds::center`].
+    pub fn radius(&self) -> f32 {
+        (self.max - self.min).length() * 0.5
+    }
+
+    /// True when the box contains no point.
+    pub fn is_empty(&self) -> bool {
+        !(self.min.x <= self.max.x && self.min.y <= self.max.y && self.min.z <= self.max.z)
+    }
+}
+
+/// One placement of a mesh in the scene: a node that references a mesh (glTF) or one OBJ object.
+#[derive(Clone, Debug, Serialize)]
+pub struct Instance {
+    /// glTF node index, if the instance comes from a node.
+    pub node: Option<usize>,
+    /// glTF mesh index, or the OBJ model index.
+    pub mesh: usize,
+    /// Node or object name.
+    pub name: Option<String>,
+}
+
+/// A scene ready to trace: plain data, printable and testable without rendering.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// The file it was loaded from.
+    pub source: PathBuf,
+    /// Detected format.
+    pub format: Format,
+    /// The triangles.
+    pub soup: TriangleSoup,
+    /// Materials; the last one is the default material when some primitive had none.
+    pub materials: Vec<Material>,
+    /// Textures referenced by materials.
+    pub textures: Vec<Texture>,
+    /// Encoded image sources referenced by textures.
+    pub images: Vec<ImageSource>,
+    /// Cameras in node order.
+    pub cameras: Vec<Camera>,
+    /// Lights in node order.
+    pub lights: Vec<Light>,
+    /// Mesh instances in node order.
+    pub instances: Vec<Instance>,
+    /// Number of distinct meshes in the file.
+    pub mesh_count: usize,
+    /// Number of primitives flattened (over all instances).
+    pub primitive_count: usize,
+    /// Bounds of all triangles.
+    pub bounds: Bounds,
+    /// Problems that did not stop loading.
+    pub warnings: Vec<String>,
+}
+
+impl Scene {
+    /// Loads a glTF (.gltf/.glb) or OBJ file with default options.
+    pub fn load(path: impl AsRef<Path>) -> Result<Scene, LoadError> {
+        Scene::load_with(path, &LoadOptions::default())
+    }
+
+    /// Loads a glTF (.gltf/.glb) or OBJ file. The format is decided by content (GLB magic, JSON),
+    /// then by the `.obj` extension.
+    pub fn load_with(path: impl AsRef<Path>, options: &LoadOptions) -> Result<Scene, LoadError> {
+        let path = path.as_ref();
+        let err = |kind| LoadError::new(path, kind);
+        let meta = std::fs::metadata(path).map_err(|e| err(LoadErrorKind::Io(e)))?;
+        if meta.is_dir() {
+            return Err(err(LoadErrorKind::IsDirectory));
+        }
+        if meta.len() > options.limits.max_file_bytes {
+            return Err(err(LoadErrorKind::FileTooLarge {
+                bytes: meta.len(),
+                limit: options.limits.max_file_bytes,
+            }));
+        }
+        let bytes = std::fs::read(path).map_err(|e| err(LoadErrorKind::Io(e)))?;
+        Scene::from_bytes(path, &bytes, options)
+    }
+
+    /// Loads a scene from bytes already in memory; `path` names the file in errors and anchors
+    /// relative URIs. This is the entry point the fuzz targets use.
+    pub fn from_bytes(
+        path: &Path,
+        bytes: &[u8],
+        options: &LoadOptions,
+    ) -> Result<Scene, LoadError> {
+        if bytes.is_empty() {
+            return Err(LoadError::new(path, LoadErrorKind::EmptyFile));
+        }
+        let head = &bytes[..bytes.len().min(64)];
+        let scene = match Format::sniff(path, head) {
+            Some(Format::Glb) | Some(Format::Gltf) => gltf::load(path, bytes, options)?,
+            Some(Format::Obj) => obj::load(path, bytes, options)?,
+            None => return Err(LoadError::new(path, LoadErrorKind::UnknownFormat)),
+        };
+        if scene.soup.is_empty() {
+            let detail = if scene.warnings.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", scene.warnings.join("; "))
+            };
+            return Err(LoadError::new(path, LoadErrorKind::NoTriangles(detail)));
+        }
+        Ok(scene)
+    }
+}

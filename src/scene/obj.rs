@@ -1,0 +1,333 @@
+//! Wavefront OBJ (+ MTL) -> [`Scene`], through `tobj`.
+//!
+//! Conventions: OBJ has no units and no camera; +Y is taken as up, like glTF. Polygons are
+//! fan-triangulated. OBJ's `vt` origin is the image's bottom-left; glTF's (and ours) is the
+//! top-left, so v is flipped. OBJ files rarely have consistent winding, so every OBJ material is
+//! double-sided.
+//!
+//! MTL mapping onto the glTF metallic-roughness [`Material`]:
+//! - `Kd` -> base colour, `map_Kd` -> base colour texture, `d` (or `1 - Tr`) -> alpha
+//!   (BLEND when below 1), `Ke` -> emissive.
+//! - `Ks` is kept as the Blinn-Phong specular colour; `Ns` (a Phong exponent) becomes roughness
+//!   through the usual exponent <-> GGX match `alpha² = 2 / (Ns + 2)`, roughness = sqrt(alpha).
+//! - metallic is 0: MTL has no metalness (mirrors, `illum 5`, are left to the specular term).
+//! - `map_Bump`/`bump`/`norm` -> normal map.
+
+use super::builder::TriangleIn;
+use super::{
+    AlphaMode, FileAccess, Format, ImageSource, Instance, LoadError, LoadErrorKind, LoadOptions,
+    Material, Sampler, Scene, SoupBuilder, Texture, TextureRef,
+};
+use glam::{Vec2, Vec3, Vec4};
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::io::BufReader;
+use std::path::Path;
+
+/// Loads an OBJ file whose bytes are already read.
+pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<Scene, LoadError> {
+    let err = |kind| LoadError::new(path, kind);
+    if std::str::from_utf8(bytes).is_err() {
+        // Latin-1 files exist, but tobj reads lines as UTF-8; say so instead of "read error".
+        return Err(err(LoadErrorKind::Obj(
+            "the file is not UTF-8 text (is it really an OBJ file?)".into(),
+        )));
+    }
+    let access = FileAccess::new(
+        path,
+        options.allow_external_files,
+        options.limits.max_file_bytes,
+    );
+    let mtl_error: RefCell<Option<LoadError>> = RefCell::new(None);
+    let load_options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+        ..Default::default()
+    };
+    let (models, materials) = tobj::load_obj_buf(
+        &mut BufReader::new(bytes),
+        &load_options,
+        |mtl_path: &Path| {
+            let name = mtl_path.to_string_lossy().into_owned();
+            let read = access
+                .resolve("mtllib", &name)
+                .and_then(|p| access.read(&p).map(|b| (p, b)));
+            match read {
+                Ok((_, bytes)) => {
+                    tobj::load_mtl_buf(&mut BufReader::new(&bytes[..])).map_err(|e| {
+                        *mtl_error.borrow_mut() = Some(err(LoadErrorKind::Mtl {
+                            mtl: name.clone(),
+                            problem: format!("{e}"),
+                        }));
+                        e
+                    })
+                }
+                Err(e) => {
+                    let problem = match e.kind {
+                        LoadErrorKind::Io(io) => format!("cannot read it: {io}"),
+                        other => other.to_string(),
+                    };
+                    *mtl_error.borrow_mut() = Some(err(LoadErrorKind::Mtl { mtl: name, problem }));
+                    Err(tobj::LoadError::OpenFileFailed)
+                }
+            }
+        },
+    )
+    .map_err(|e| err(obj_error(e)))?;
+    if let Some(e) = mtl_error.into_inner() {
+        return Err(e);
+    }
+    let mtl_materials = materials.unwrap_or_default();
+
+    let mut textures: Vec<Texture> = Vec::new();
+    let mut images: Vec<ImageSource> = Vec::new();
+    let mut image_index: HashMap<String, usize> = HashMap::new();
+    let mut texture =
+        |what: &str, name: &Option<String>| -> Result<Option<TextureRef>, LoadError> {
+            let Some(name) = name.as_deref().map(str::trim).filter(|n| !n.is_empty()) else {
+                return Ok(None);
+            };
+            // MTL texture statements may carry options ("-bm 1.0 file.png"): the file is last.
+            let file = name.split_whitespace().last().unwrap_or(name);
+            let index = match image_index.get(file) {
+                Some(&i) => i,
+                None => {
+                    let resolved = access.resolve(what, file)?;
+                    if !resolved.is_file() {
+                        return Err(err(LoadErrorKind::Image {
+                            image: images.len(),
+                            problem: format!("{what} texture '{}' not found", resolved.display()),
+                        }));
+                    }
+                    let source = ImageSource {
+                        origin: file.to_string(),
+                        mime_type: None,
+                        path: Some(resolved),
+                        bytes: None,
+                    };
+                    super::gltf::check_image_header(&source, options.limits.max_image_pixels)
+                        .map_err(|problem| {
+                            err(LoadErrorKind::Image {
+                                image: images.len(),
+                                problem,
+                            })
+                        })?;
+                    images.push(source);
+                    textures.push(Texture {
+                        name: Some(file.to_string()),
+                        image: images.len() - 1,
+                        sampler: Sampler::default(),
+                    });
+                    image_index.insert(file.to_string(), textures.len() - 1);
+                    textures.len() - 1
+                }
+            };
+            Ok(Some(TextureRef {
+                texture: index,
+                tex_coord: 0,
+                transform: None,
+            }))
+        };
+    let mut materials = Vec::with_capacity(mtl_materials.len() + 1);
+    for m in &mtl_materials {
+        let mut mat = mtl_material(m);
+        mat.base_color_texture = texture("map_Kd", &m.diffuse_texture)?;
+        mat.normal_texture = texture("map_Bump", &m.normal_texture)?;
+        materials.push(mat);
+    }
+    let default_material = materials.len() as u32;
+    let mut uses_default = false;
+
+    let mut builder = SoupBuilder::new(options.limits.max_triangles);
+    let mut instances = Vec::with_capacity(models.len());
+    for (model_index, model) in models.iter().enumerate() {
+        let mesh = &model.mesh;
+        let positions: Vec<Vec3> = mesh
+            .positions
+            .chunks_exact(3)
+            .map(|p| Vec3::new(p[0], p[1], p[2]))
+            .collect();
+        let normals: Vec<Vec3> = mesh
+            .normals
+            .chunks_exact(3)
+            .map(|n| Vec3::new(n[0], n[1], n[2]))
+            .collect();
+        let texcoords: Vec<Vec2> = mesh
+            .texcoords
+            .chunks_exact(2)
+            .map(|t| Vec2::new(t[0], 1.0 - t[1]))
+            .collect();
+        let check = |what: &'static str, indices: &[u32], count: usize| match indices
+            .iter()
+            .find(|&&i| i as usize >= count)
+        {
+            Some(&index) => Err(err(LoadErrorKind::ObjIndexOutOfRange {
+                model: model_index,
+                name: model.name.clone(),
+                what,
+                index,
+                count,
+            })),
+            None => Ok(()),
+        };
+        check("position", &mesh.indices, positions.len())?;
+        let has_normals = mesh.normal_indices.len() == mesh.indices.len() && !normals.is_empty();
+        let has_uvs = mesh.texcoord_indices.len() == mesh.indices.len() && !texcoords.is_empty();
+        if has_normals {
+            check("normal", &mesh.normal_indices, normals.len())?;
+        }
+        if has_uvs {
+            check("texcoord", &mesh.texcoord_indices, texcoords.len())?;
+        }
+        let material = match mesh.material_id {
+            Some(id) if id < materials.len() => id as u32,
+            _ => {
+                uses_default = true;
+                default_material
+            }
+        };
+        let instance = instances.len() as u32;
+        instances.push(Instance {
+            node: None,
+            mesh: model_index,
+            name: Some(model.name.clone()),
+        });
+        let triangles = mesh.indices.len() / 3;
+        builder.reserve(triangles).map_err(err)?;
+        for t in 0..triangles {
+            let corner = [3 * t, 3 * t + 1, 3 * t + 2];
+            let tri = TriangleIn {
+                positions: corner.map(|k| positions[mesh.indices[k] as usize]),
+                normals: has_normals
+                    .then(|| corner.map(|k| normals[mesh.normal_indices[k] as usize])),
+                uv0: has_uvs.then(|| corner.map(|k| texcoords[mesh.texcoord_indices[k] as usize])),
+                ..Default::default()
+            };
+            builder.push(&tri, material, instance);
+        }
+    }
+    if uses_default {
+        materials.push(obj_default_material());
+    }
+    let mut warnings: Vec<String> = builder.dropped_warning().into_iter().collect();
+    if models.iter().any(|m| m.mesh.material_id.is_none()) && !mtl_materials.is_empty() {
+        warnings.push("some faces use no material from the MTL; they get a grey default".into());
+    }
+    let (soup, bounds) = builder.finish();
+    Ok(Scene {
+        source: path.to_path_buf(),
+        format: Format::Obj,
+        soup,
+        materials,
+        textures,
+        images,
+        cameras: Vec::new(),
+        lights: Vec::new(),
+        mesh_count: models.len(),
+        primitive_count: models.len(),
+        instances,
+        bounds,
+        warnings,
+    })
+}
+
+fn obj_error(e: tobj::LoadError) -> LoadErrorKind {
+    use tobj::LoadError as E;
+    let what = match e {
+        E::OpenFileFailed => "cannot open the file",
+        E::ReadError => "read error (is it text?)",
+        E::UnrecognizedCharacter => "unrecognized character",
+        E::PositionParseError => "bad vertex position ('v' line)",
+        E::NormalParseError => "bad normal ('vn' line)",
+        E::TexcoordParseError => "bad texture coordinate ('vt' line)",
+        E::FaceParseError => {
+            "bad face ('f' line): index zero, not a number, or past the vertices read so far"
+        }
+        E::MaterialParseError => "bad material statement",
+        E::InvalidObjectName => "bad object name",
+        E::FaceVertexOutOfBounds => "a face refers to a vertex that does not exist",
+        E::FaceTexCoordOutOfBounds => "a face refers to a texture coordinate that does not exist",
+        E::FaceNormalOutOfBounds => "a face refers to a normal that does not exist",
+        E::FaceColorOutOfBounds => "a face refers to a vertex colour that does not exist",
+        E::InvalidPolygon => "a face has fewer than three vertices",
+        _ => return LoadErrorKind::Obj(format!("{e}")),
+    };
+    LoadErrorKind::Obj(what.to_string())
+}
+
+/// Grey, rough, double-sided: what an OBJ face without a material looks like.
+fn obj_default_material() -> Material {
+    Material {
+        name: Some("default".into()),
+        base_color: Vec4::new(0.8, 0.8, 0.8, 1.0),
+        metallic: 0.0,
+        roughness: 1.0,
+        double_sided: true,
+        ..Material::default()
+    }
+}
+
+/// Maps one MTL material onto the glTF model, as the module docs describe.
+fn mtl_material(m: &tobj::Material) -> Material {
+    let alpha = m
+        .dissolve
+        .or_else(|| {
+            m.unknown_param
+                .get("Tr")
+                .and_then(|t| t.trim().parse::<f32>().ok())
+                .map(|tr| 1.0 - tr)
+        })
+        .unwrap_or(1.0)
+        .clamp(0.0, 1.0);
+    let kd = m.diffuse.unwrap_or([0.8, 0.8, 0.8]);
+    let roughness = m
+        .shininess
+        .filter(|ns| ns.is_finite() && *ns >= 0.0)
+        .map_or(1.0, |ns| (2.0 / (ns + 2.0)).sqrt().sqrt());
+    Material {
+        name: Some(m.name.trim().to_string()),
+        base_color: Vec4::new(kd[0], kd[1], kd[2], alpha),
+        metallic: 0.0,
+        roughness,
+        emissive: m.emissive.map_or(Vec3::ZERO, Vec3::from),
+        alpha_mode: if alpha < 1.0 {
+            AlphaMode::Blend
+        } else {
+            AlphaMode::Opaque
+        },
+        double_sided: true,
+        specular: m.specular.map(Vec3::from),
+        ..Material::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn phong_exponent_maps_to_roughness() {
+        let mut m = tobj::Material {
+            shininess: Some(0.0),
+            ..Default::default()
+        };
+        assert!((mtl_material(&m).roughness - 1.0).abs() < 1e-6);
+        m.shininess = Some(1000.0);
+        let r = mtl_material(&m).roughness;
+        assert!(
+            r > 0.2 && r < 0.25,
+            "Ns 1000 is a mirror-like lobe, got {r}"
+        );
+    }
+
+    #[test]
+    fn transparency_from_tr() {
+        let mut m = tobj::Material::default();
+        m.unknown_param.insert("Tr".into(), "0.25".into());
+        let mat = mtl_material(&m);
+        assert_eq!(mat.base_color.w, 0.75);
+        assert_eq!(mat.alpha_mode, AlphaMode::Blend);
+    }
+}

@@ -1,0 +1,184 @@
+//! Resolving the URIs and paths a model file references, without escaping its folder.
+//!
+//! A downloaded model is untrusted: `"uri": "/etc/passwd"` or `"../../.ssh/id_rsa"` must not be
+//! read unless the user allows it. Symlinks are resolved before the check, so a link inside the
+//! folder that points outside is refused too.
+
+use super::{LoadError, LoadErrorKind};
+use std::path::{Path, PathBuf};
+
+/// Reads files referenced by a model, confined to the model's folder unless allowed otherwise.
+#[derive(Clone, Debug)]
+pub struct FileAccess {
+    /// The model file (for error messages).
+    pub model: PathBuf,
+    /// The folder relative URIs resolve against.
+    pub base: PathBuf,
+    /// Whether absolute URIs and `..` that escape `base` are allowed.
+    pub allow_external: bool,
+    /// Largest file read, in bytes.
+    pub max_bytes: u64,
+}
+
+impl FileAccess {
+    /// Access rooted at the folder of `model`.
+    pub fn new(model: &Path, allow_external: bool, max_bytes: u64) -> Self {
+        let base = model
+            .parent()
+            .map(Path::to_path_buf)
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or_else(|| PathBuf::from("."));
+        Self {
+            model: model.to_path_buf(),
+            base,
+            allow_external,
+            max_bytes,
+        }
+    }
+
+    /// Resolves `uri` (percent-decoded, relative to the model's folder) to a path, refusing one
+    /// that leaves the folder. `what` names the referencing object in errors (`buffer 0`).
+    pub fn resolve(&self, what: &str, uri: &str) -> Result<PathBuf, LoadError> {
+        let decoded = percent_decode(uri);
+        let external = || {
+            LoadError::new(
+                &self.model,
+                LoadErrorKind::ExternalFile {
+                    what: what.to_string(),
+                    uri: uri.to_string(),
+                },
+            )
+        };
+        let relative = resolve_relative(&decoded);
+        let path = match relative {
+            Some(rel) => self.base.join(rel),
+            None if self.allow_external => {
+                let p = decoded.strip_prefix("file://").unwrap_or(&decoded);
+                let p = Path::new(p);
+                if p.is_absolute() {
+                    p.to_path_buf()
+                } else {
+                    self.base.join(p)
+                }
+            }
+            None => return Err(external()),
+        };
+        if !self.allow_external {
+            // Symlinks: compare canonical forms when the file exists. A missing file is reported
+            // by the read that follows.
+            if let (Ok(real), Ok(base)) = (path.canonicalize(), self.base.canonicalize()) {
+                if !real.starts_with(&base) {
+                    return Err(external());
+                }
+            }
+        }
+        Ok(path)
+    }
+
+    /// Reads a resolved file, with the size limit applied before reading.
+    pub fn read(&self, path: &Path) -> Result<Vec<u8>, LoadError> {
+        let err = |kind| LoadError::new(path, kind);
+        let meta = std::fs::metadata(path).map_err(|e| err(LoadErrorKind::Io(e)))?;
+        if meta.is_dir() {
+            return Err(err(LoadErrorKind::IsDirectory));
+        }
+        if meta.len() > self.max_bytes {
+            return Err(err(LoadErrorKind::FileTooLarge {
+                bytes: meta.len(),
+                limit: self.max_bytes,
+            }));
+        }
+        std::fs::read(path).map_err(|e| err(LoadErrorKind::Io(e)))
+    }
+}
+
+/// Interprets `uri` as a relative path that stays inside its base folder: returns the cleaned
+/// relative path, or `None` when it is absolute, has a scheme or a drive, or climbs out with `..`.
+pub fn resolve_relative(uri: &str) -> Option<PathBuf> {
+    if uri.contains("://") || uri.starts_with('/') || uri.starts_with('\\') {
+        return None;
+    }
+    // A Windows drive letter ("C:") is absolute too, whatever platform reads the file.
+    let bytes = uri.as_bytes();
+    if bytes.len() >= 2 && bytes[1] == b':' && bytes[0].is_ascii_alphabetic() {
+        return None;
+    }
+    let mut out = PathBuf::new();
+    let mut depth = 0usize;
+    for part in uri.split(['/', '\\']) {
+        if part.is_empty() || part == "." {
+            continue;
+        }
+        if part == ".." {
+            if depth == 0 {
+                return None;
+            }
+            depth -= 1;
+            out.pop();
+        } else {
+            depth += 1;
+            out.push(part);
+        }
+    }
+    if depth == 0 {
+        return None;
+    }
+    Some(out)
+}
+
+/// Decodes `%XX` escapes (glTF URIs are RFC 3986 references). Invalid escapes stay as written.
+fn percent_decode(uri: &str) -> String {
+    let bytes = uri.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' && i + 2 < bytes.len() {
+            let hex = std::str::from_utf8(&bytes[i + 1..i + 3]).ok();
+            if let Some(v) = hex.and_then(|h| u8::from_str_radix(h, 16).ok()) {
+                out.push(v);
+                i += 3;
+                continue;
+            }
+        }
+        out.push(bytes[i]);
+        i += 1;
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn relative_paths_stay_inside() {
+        assert_eq!(resolve_relative("a.bin"), Some(PathBuf::from("a.bin")));
+        assert_eq!(
+            resolve_relative("./tex/a.png"),
+            Some(PathBuf::from("tex/a.png"))
+        );
+        assert_eq!(
+            resolve_relative("tex/../a.png"),
+            Some(PathBuf::from("a.png"))
+        );
+        assert_eq!(resolve_relative("../a.bin"), None);
+        assert_eq!(resolve_relative("tex/../../a.bin"), None);
+        assert_eq!(resolve_relative("/etc/passwd"), None);
+        assert_eq!(resolve_relative("C:\\x.bin"), None);
+        assert_eq!(resolve_relative("file:///etc/passwd"), None);
+        assert_eq!(resolve_relative(""), None);
+    }
+
+    #[test]
+    fn percent_escapes_decode() {
+        assert_eq!(percent_decode("my%20file.bin"), "my file.bin");
+        assert_eq!(percent_decode("100%"), "100%");
+        assert_eq!(percent_decode("%2e%2e/x"), "../x");
+    }
+
+    #[test]
+    fn escaped_dot_dot_is_refused() {
+        let access = FileAccess::new(Path::new("/tmp/m/model.gltf"), false, 1 << 20);
+        assert!(access.resolve("buffer 0", "%2e%2e/secret.bin").is_err());
+    }
+}
