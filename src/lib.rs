@@ -3,12 +3,22 @@
 //! The program is a pipeline of phases that hand over plain data:
 //!
 //! ```text
-//! Scene::load(path)  ->  Accel::build(&soup)  ->  render(&scene, &accel, &options)  ->  Image::save
+//! Scene::load(path)  ->  Accel::build(&soup)  ->  render(&scene, &accel, &settings)  ->  PendingOutput::commit
 //! ```
 //!
 //! Importers ([`scene`]) never call the tracer; the tracer never sees a glTF or OBJ type.
 #![deny(missing_docs)]
 
+pub mod accel;
+pub mod app;
+pub mod camera;
+pub mod cli;
+pub mod geometry;
+pub mod image;
+pub mod light;
+pub mod render;
+pub mod sampling;
 pub mod scene;
+pub mod shading;
 
 pub use scene::{LoadError, LoadErrorKind, LoadOptions, Scene};

@@ -306,7 +306,7 @@ fn check_views(document: &gltf::Document, buffers: &[Vec<u8>]) -> Result<(), Loa
         let buffer = view.buffer().index();
         let len = buffers.get(buffer).map_or(0, Vec::len);
         let start = view.offset();
-        let end = start.checked_add(view.length()).unwrap_or(usize::MAX);
+        let end = start.saturating_add(view.length());
         if end > len {
             return Err(LoadErrorKind::ViewOutOfRange {
                 view: view.index(),

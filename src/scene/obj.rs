@@ -44,7 +44,6 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         single_index: false,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let (models, materials) = tobj::load_obj_buf(
         &mut BufReader::new(bytes),
@@ -56,12 +55,11 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
                 .and_then(|p| access.read(&p).map(|b| (p, b)));
             match read {
                 Ok((_, bytes)) => {
-                    tobj::load_mtl_buf(&mut BufReader::new(&bytes[..])).map_err(|e| {
+                    tobj::load_mtl_buf(&mut BufReader::new(&bytes[..])).inspect_err(|e| {
                         *mtl_error.borrow_mut() = Some(err(LoadErrorKind::Mtl {
                             mtl: name.clone(),
                             problem: format!("{e}"),
                         }));
-                        e
                     })
                 }
                 Err(e) => {

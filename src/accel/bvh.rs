@@ -1,0 +1,103 @@
+//! The obvhs compressed wide BVH (CWBVH): built with PLOC and reinsertion, traversed eight
+//! children at a time with obvhs's `traverse!` macro and our own triangle test.
+
+use super::{Accel, AccelKind, Closest};
+use crate::geometry::{PreparedTriangle, Ray, EDGE_EPSILON};
+use crate::scene::TriangleSoup;
+use glam::{UVec2, Vec3, Vec3A};
+use std::time::Duration;
+
+pub(super) fn build(
+    soup: &TriangleSoup,
+    prepared: &[PreparedTriangle],
+    single_sided: &[bool],
+    params: obvhs::BvhBuildParams,
+) -> Accel {
+    // The triangle test accepts hits up to EDGE_EPSILON outside each edge (in barycentric
+    // units): that region is the triangle scaled by 1 + 3·EDGE_EPSILON about its centroid. The
+    // BVH is built over triangles scaled a little more, so its boxes contain every hit the test
+    // can report and the BVH finds exactly what the linear scan finds.
+    let grow = 1.0 + 4.0 * EDGE_EPSILON;
+    let tris: Vec<obvhs::triangle::Triangle> = soup
+        .positions
+        .iter()
+        .map(|[a, b, c]| {
+            let centroid = (*a + *b + *c) / 3.0;
+            let scaled = |p: Vec3| Vec3A::from(centroid + (p - centroid) * grow);
+            obvhs::triangle::Triangle {
+                v0: scaled(*a),
+                v1: scaled(*b),
+                v2: scaled(*c),
+            }
+        })
+        .collect();
+    let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(&tris, params, &mut Duration::default());
+    // Store triangles in leaf order so traversal reads them sequentially, without an
+    // indirection (with spatial splits a triangle may appear in several leaves).
+    let ids = bvh.primitive_indices.clone();
+    let triangles = ids.iter().map(|&i| prepared[i as usize]).collect();
+    let single_sided = ids.iter().map(|&i| single_sided[i as usize]).collect();
+    Accel {
+        kind: AccelKind::Bvh,
+        triangles,
+        ids,
+        single_sided,
+        bvh: Some(bvh),
+        build_time: Duration::ZERO,
+    }
+}
+
+fn to_obvhs(ray: &Ray, tmax: f32) -> obvhs::ray::Ray {
+    obvhs::ray::Ray::new(ray.origin, ray.direction, ray.tmin, tmax)
+}
+
+pub(super) fn closest(accel: &Accel, bvh: &obvhs::cwbvh::CwBvh, ray: &Ray) -> Option<Closest> {
+    let mut best: Option<Closest> = None;
+    let mut node_ray = to_obvhs(ray, ray.tmax);
+    let mut local = *ray;
+    let mut state = bvh.new_traversal(ray.direction);
+    let mut node;
+    obvhs::traverse!(
+        bvh,
+        node,
+        state,
+        node.intersect_ray(&node_ray, state.oct_inv4),
+        {
+            let slot = state.primitive_id as usize;
+            let t = accel.test(slot, &local);
+            if t < f32::INFINITY {
+                Closest::offer(&mut best, t, accel.ids[slot], slot);
+                if let Some(b) = best {
+                    // Keep hits at exactly the best t (for the tie rule) but cull everything
+                    // farther: the next float up is the tightest such bound.
+                    local.tmax = b.t.next_up();
+                    node_ray.tmax = local.tmax;
+                }
+            }
+        }
+    );
+    best
+}
+
+pub(super) fn occluded(accel: &Accel, bvh: &obvhs::cwbvh::CwBvh, ray: &Ray) -> bool {
+    let node_ray = to_obvhs(ray, ray.tmax);
+    let mut state = bvh.new_traversal(ray.direction);
+    let mut node;
+    let mut blocked = false;
+    // A plain `break` would only leave the macro's inner primitive loop.
+    'traversal: {
+        obvhs::traverse!(
+            bvh,
+            node,
+            state,
+            node.intersect_ray(&node_ray, state.oct_inv4),
+            {
+                if accel.test(state.primitive_id as usize, ray) < f32::INFINITY {
+                    blocked = true;
+                    break 'traversal;
+                }
+            }
+        );
+    }
+    blocked
+}

@@ -1,0 +1,19 @@
+//! The linear scan: every triangle, every ray. O(n) per ray, and obviously correct.
+
+use super::{Accel, Closest};
+use crate::geometry::Ray;
+
+pub(super) fn closest(accel: &Accel, ray: &Ray) -> Option<Closest> {
+    let mut best = None;
+    for slot in 0..accel.triangles.len() {
+        let t = accel.test(slot, ray);
+        if t < f32::INFINITY {
+            Closest::offer(&mut best, t, accel.ids[slot], slot);
+        }
+    }
+    best
+}
+
+pub(super) fn occluded(accel: &Accel, ray: &Ray) -> bool {
+    (0..accel.triangles.len()).any(|slot| accel.test(slot, ray) < f32::INFINITY)
+}

@@ -1,0 +1,206 @@
+//! Ray queries over the triangle soup: [`Accel::intersect`] (closest hit) and
+//! [`Accel::occluded`] (any hit), answered by an obvhs CWBVH or by a linear scan of every
+//! triangle. The linear scan is the slow, obviously correct reference the BVH is tested against,
+//! and the baseline of the benchmarks.
+//!
+//! Both use the same triangle test and the same tie rule (equal `t` goes to the lower triangle
+//! index), so they return the same closest triangle for every ray and render identical images.
+
+mod bvh;
+mod linear;
+
+use crate::geometry::{PreparedTriangle, Ray};
+use crate::scene::{Material, TriangleSoup};
+use glam::Vec3;
+use std::time::{Duration, Instant};
+
+/// Which acceleration structure answers ray queries.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum AccelKind {
+    /// obvhs compressed wide BVH (CWBVH, eight-way).
+    #[default]
+    Bvh,
+    /// Test every triangle (the reference and benchmark baseline).
+    Linear,
+}
+
+/// obvhs build presets, from fastest build to fastest traversal.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum BvhPreset {
+    /// `BvhBuildParams::fastest_build`.
+    Fastest,
+    /// `BvhBuildParams::very_fast_build`.
+    VeryFast,
+    /// `BvhBuildParams::fast_build`.
+    Fast,
+    /// `BvhBuildParams::medium_build`.
+    #[default]
+    Medium,
+    /// `BvhBuildParams::slow_build` (spatial pre-splits).
+    Slow,
+    /// `BvhBuildParams::very_slow_build`.
+    VerySlow,
+}
+
+impl BvhPreset {
+    /// The obvhs parameters for this preset.
+    pub fn params(self) -> obvhs::BvhBuildParams {
+        use obvhs::BvhBuildParams as P;
+        match self {
+            BvhPreset::Fastest => P::fastest_build(),
+            BvhPreset::VeryFast => P::very_fast_build(),
+            BvhPreset::Fast => P::fast_build(),
+            BvhPreset::Medium => P::medium_build(),
+            BvhPreset::Slow => P::slow_build(),
+            BvhPreset::VerySlow => P::very_slow_build(),
+        }
+    }
+}
+
+/// The closest hit of a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Index of the triangle in the soup.
+    pub triangle: u32,
+    /// Ray parameter of the hit.
+    pub t: f32,
+    /// Barycentric weights of the triangle's three vertices.
+    pub barycentric: Vec3,
+    /// True when the ray met the counter-clockwise (front) face.
+    pub front: bool,
+}
+
+/// Ray queries over a triangle soup.
+pub struct Accel {
+    kind: AccelKind,
+    /// Triangles in traversal order (BVH leaf order, or soup order for the linear scan).
+    triangles: Vec<PreparedTriangle>,
+    /// Soup index of each entry of `triangles`.
+    ids: Vec<u32>,
+    /// Whether each entry of `triangles` is single-sided (invisible from behind).
+    single_sided: Vec<bool>,
+    bvh: Option<obvhs::cwbvh::CwBvh>,
+    build_time: Duration,
+}
+
+impl Accel {
+    /// Builds the structure over `soup`. `materials` decides which triangles are single-sided
+    /// (glTF 2.0 §3.9.6: `doubleSided: false` surfaces are invisible from behind).
+    pub fn build(
+        soup: &TriangleSoup,
+        materials: &[Material],
+        kind: AccelKind,
+        preset: BvhPreset,
+    ) -> Accel {
+        let start = Instant::now();
+        let prepared: Vec<PreparedTriangle> = soup
+            .positions
+            .iter()
+            .map(|[a, b, c]| PreparedTriangle::new(*a, *b, *c).unwrap_or(PreparedTriangle::NEVER))
+            .collect();
+        let single_sided: Vec<bool> = soup
+            .material
+            .iter()
+            .map(|&m| materials.get(m as usize).is_some_and(|m| !m.double_sided))
+            .collect();
+        let mut accel = match kind {
+            AccelKind::Linear => Accel {
+                kind,
+                ids: (0..prepared.len() as u32).collect(),
+                triangles: prepared,
+                single_sided,
+                bvh: None,
+                build_time: Duration::ZERO,
+            },
+            AccelKind::Bvh => bvh::build(soup, &prepared, &single_sided, preset.params()),
+        };
+        accel.build_time = start.elapsed();
+        accel
+    }
+
+    /// The structure's kind.
+    pub fn kind(&self) -> AccelKind {
+        self.kind
+    }
+
+    /// Wall time of [`Accel::build`], including triangle preparation.
+    pub fn build_time(&self) -> Duration {
+        self.build_time
+    }
+
+    /// Number of triangles the structure holds (leaf references, for a BVH with splits).
+    pub fn len(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// True when it holds nothing.
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    /// The closest hit in (`ray.tmin`, `ray.tmax`), or `None`.
+    pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        let closest = match &self.bvh {
+            Some(bvh) => bvh::closest(self, bvh, ray),
+            None => linear::closest(self, ray),
+        }?;
+        let tri = &self.triangles[closest.slot];
+        let hit = tri.hit_at(ray, closest.t);
+        Some(Hit {
+            triangle: self.ids[closest.slot],
+            t: closest.t,
+            barycentric: hit.barycentric,
+            front: hit.front,
+        })
+    }
+
+    /// True when anything blocks the ray within (`ray.tmin`, `ray.tmax`): the shadow-ray query,
+    /// which stops at the first blocker it finds.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        match &self.bvh {
+            Some(bvh) => bvh::occluded(self, bvh, ray),
+            None => linear::occluded(self, ray),
+        }
+    }
+
+    /// The hit parameter of the triangle in `slot`, with back-face culling applied;
+    /// `f32::INFINITY` for a miss. The one place both structures test a triangle.
+    #[inline(always)]
+    fn test(&self, slot: usize, ray: &Ray) -> f32 {
+        let tri = &self.triangles[slot];
+        let t = tri.intersect_t(ray);
+        if t < f32::INFINITY
+            && self.single_sided[slot]
+            && glam::Vec3A::from(tri.normal()).dot(ray.direction) > 0.0
+        {
+            return f32::INFINITY;
+        }
+        t
+    }
+}
+
+/// The best candidate found so far by a closest-hit query.
+#[derive(Clone, Copy, Debug)]
+struct Closest {
+    t: f32,
+    id: u32,
+    slot: usize,
+}
+
+impl Closest {
+    /// Keeps the nearer of the current best and a new hit; equal `t` goes to the lower soup
+    /// index, so the answer does not depend on traversal order.
+    #[inline(always)]
+    fn offer(best: &mut Option<Closest>, t: f32, id: u32, slot: usize) {
+        let better = match best {
+            None => true,
+            Some(b) => t < b.t || (t == b.t && id < b.id),
+        };
+        if better {
+            *best = Some(Closest { t, id, slot });
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

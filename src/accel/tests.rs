@@ -1,0 +1,172 @@
+//! The BVH against the linear-scan reference, with seeded rays.
+
+use super::*;
+use crate::sampling::Rng;
+use crate::scene::SoupBuilder;
+use crate::scene::TriangleIn;
+use glam::vec3;
+
+/// A scene with structure and trouble: a tessellated sphere (shared edges everywhere), a
+/// ground quad, and random triangles of all sizes, some single-sided.
+fn test_soup() -> (TriangleSoup, Vec<Material>) {
+    let mut b = SoupBuilder::new(1_000_000);
+    let mut push = |p: [Vec3; 3], material: u32| {
+        b.push(
+            &TriangleIn {
+                positions: p,
+                ..Default::default()
+            },
+            material,
+            0,
+        )
+    };
+    let (rings, segments) = (24, 48);
+    let point = |i: u32, j: u32| {
+        let theta = std::f32::consts::PI * i as f32 / rings as f32;
+        let phi = std::f32::consts::TAU * j as f32 / segments as f32;
+        vec3(
+            theta.sin() * phi.cos(),
+            theta.cos(),
+            theta.sin() * phi.sin(),
+        )
+    };
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b, c, d) = (
+                point(i, j),
+                point(i + 1, j),
+                point(i + 1, j + 1),
+                point(i, j + 1),
+            );
+            push([a, b, c], 0);
+            push([a, c, d], 0);
+        }
+    }
+    push(
+        [
+            vec3(-5.0, -1.0, -5.0),
+            vec3(-5.0, -1.0, 5.0),
+            vec3(5.0, -1.0, 5.0),
+        ],
+        1,
+    );
+    push(
+        [
+            vec3(-5.0, -1.0, -5.0),
+            vec3(5.0, -1.0, 5.0),
+            vec3(5.0, -1.0, -5.0),
+        ],
+        1,
+    );
+    let mut rng = Rng::new(42);
+    for k in 0..2000 {
+        let centre = vec3(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 8.0 - 4.0;
+        let size = 0.01 + rng.next_f32() * if k % 10 == 0 { 3.0 } else { 0.3 };
+        let mut corner =
+            || centre + (vec3(rng.next_f32(), rng.next_f32(), rng.next_f32()) - 0.5) * size;
+        push([corner(), corner(), corner()], k % 2);
+    }
+    let (soup, _) = b.finish();
+    let materials = vec![
+        Material {
+            double_sided: true,
+            ..Material::default()
+        },
+        Material::default(),
+    ];
+    (soup, materials)
+}
+
+fn random_rays(n: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = Rng::new(seed);
+    let mut rays = Vec::with_capacity(n);
+    for i in 0..n {
+        let origin = vec3(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 12.0 - 6.0;
+        let mut dir = vec3(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0;
+        match i % 5 {
+            // Axis-parallel: two zero components (inverse direction is infinite).
+            0 => dir = [Vec3::X, Vec3::NEG_Y, Vec3::Z][i % 3],
+            // One zero component.
+            1 => dir.y = 0.0,
+            // Grazing the ground plane at y = -1.
+            2 => {
+                dir.y = 1e-4;
+                rays.push(Ray::new(
+                    vec3(origin.x, -1.0 + 1e-5, origin.z),
+                    dir.normalize(),
+                    0.0,
+                    f32::INFINITY,
+                ));
+                continue;
+            }
+            _ => {}
+        }
+        if dir.length_squared() < 1e-6 {
+            dir = Vec3::X;
+        }
+        rays.push(Ray::new(origin, dir.normalize(), 0.0, f32::INFINITY));
+    }
+    rays
+}
+
+#[test]
+fn bvh_matches_linear_scan_for_closest_and_any_hit() {
+    let (soup, materials) = test_soup();
+    let linear = Accel::build(&soup, &materials, AccelKind::Linear, BvhPreset::Medium);
+    for preset in [BvhPreset::Fastest, BvhPreset::Medium, BvhPreset::Slow] {
+        let bvh = Accel::build(&soup, &materials, AccelKind::Bvh, preset);
+        let mut hits = 0;
+        for (i, ray) in random_rays(20_000, 9).iter().enumerate() {
+            let a = linear.intersect(ray);
+            let b = bvh.intersect(ray);
+            assert_eq!(
+                a.map(|h| (h.triangle, h.t)),
+                b.map(|h| (h.triangle, h.t)),
+                "ray {i} {ray:?} preset {preset:?}"
+            );
+            assert_eq!(linear.occluded(ray), bvh.occluded(ray), "ray {i}");
+            if let Some(h) = a {
+                hits += 1;
+                // A shadow ray stopped short of the hit sees nothing in between closer than
+                // the closest hit, and one reaching past it is blocked.
+                let mut short = *ray;
+                short.tmax = h.t * 0.99;
+                assert!(!linear.occluded(&short) && !bvh.occluded(&short), "ray {i}");
+                let mut long = *ray;
+                long.tmax = h.t * 1.01;
+                assert!(linear.occluded(&long) && bvh.occluded(&long), "ray {i}");
+            }
+        }
+        assert!(
+            hits > 3_000,
+            "the test rays must actually hit things ({hits})"
+        );
+    }
+}
+
+#[test]
+fn single_sided_triangles_are_invisible_from_behind() {
+    let mut b = SoupBuilder::new(10);
+    b.push(
+        &TriangleIn {
+            positions: [Vec3::ZERO, Vec3::X, Vec3::Y],
+            ..Default::default()
+        },
+        0,
+        0,
+    );
+    let (soup, _) = b.finish();
+    for kind in [AccelKind::Bvh, AccelKind::Linear] {
+        let single = Accel::build(&soup, &[Material::default()], kind, BvhPreset::Medium);
+        let front = Ray::new(vec3(0.2, 0.2, 1.0), Vec3::NEG_Z, 0.0, f32::INFINITY);
+        let back = Ray::new(vec3(0.2, 0.2, -1.0), Vec3::Z, 0.0, f32::INFINITY);
+        assert!(single.intersect(&front).is_some_and(|h| h.front));
+        assert!(single.intersect(&back).is_none());
+        let double = Material {
+            double_sided: true,
+            ..Material::default()
+        };
+        let both = Accel::build(&soup, &[double], kind, BvhPreset::Medium);
+        assert!(both.intersect(&back).is_some_and(|h| !h.front));
+    }
+}

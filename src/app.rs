@@ -1,0 +1,360 @@
+//! The commands: glue between the CLI and the library phases.
+
+use crate::accel::{Accel, AccelKind};
+use crate::camera::{auto_camera, look_at, View};
+use crate::cli::{Command, InfoArgs, LoadArgs, RenderArgs};
+use crate::image::PendingOutput;
+use crate::render::{default_rig, render, RenderSettings};
+use crate::scene::{Camera, LightKind, LoadOptions, Projection, Scene};
+use anyhow::{bail, Context, Result};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Default image width.
+const DEFAULT_WIDTH: u32 = 1024;
+/// Default image height when the camera gives no aspect ratio.
+const DEFAULT_HEIGHT: u32 = 768;
+
+/// Runs one command.
+pub fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Info(args) => info(&args),
+        Command::Render(args) => render_command(&args),
+    }
+}
+
+fn load_options(args: &LoadArgs) -> LoadOptions {
+    let mut options = LoadOptions {
+        allow_external_files: args.allow_external_files,
+        ..Default::default()
+    };
+    options.limits.max_triangles = args.max_triangles;
+    options
+}
+
+fn info(args: &InfoArgs) -> Result<()> {
+    let start = Instant::now();
+    let scene = Scene::load_with(&args.model, &load_options(&args.load))?;
+    let load_time = start.elapsed();
+    let json = info_json(&scene);
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&json)?);
+        return Ok(());
+    }
+    let b = &scene.bounds;
+    println!("file        {}", scene.source.display());
+    println!("format      {}", json["format"].as_str().unwrap_or("?"));
+    println!("triangles   {}", scene.soup.len());
+    println!(
+        "meshes      {} ({} instances, {} triangle primitives flattened)",
+        scene.mesh_count,
+        scene.instances.len(),
+        scene.primitive_count
+    );
+    println!("materials   {}", scene.materials.len());
+    println!(
+        "textures    {} ({} images)",
+        scene.textures.len(),
+        scene.images.len()
+    );
+    println!("cameras     {}", scene.cameras.len());
+    for (i, c) in scene.cameras.iter().enumerate() {
+        let projection = match c.projection {
+            Projection::Perspective {
+                yfov, aspect_ratio, ..
+            } => format!(
+                "perspective yfov {:.4} rad ({:.1}°){}",
+                yfov,
+                yfov.to_degrees(),
+                aspect_ratio.map_or(String::new(), |a| format!(", aspect {a:.4}"))
+            ),
+            Projection::Orthographic { xmag, ymag, .. } => {
+                format!("orthographic xmag {xmag} ymag {ymag}")
+            }
+        };
+        println!(
+            "  [{i}] {projection} at {:.3?} looking {:.3?}{}",
+            c.position.to_array(),
+            c.forward.to_array(),
+            c.name
+                .as_deref()
+                .map_or(String::new(), |n| format!(" '{n}'"))
+        );
+    }
+    println!("lights      {}", scene.lights.len());
+    for (i, l) in scene.lights.iter().enumerate() {
+        let (kind, unit) = match l.kind {
+            LightKind::Point => ("point".to_string(), "cd"),
+            LightKind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => (
+                format!("spot (cone {inner_cone_angle:.3}..{outer_cone_angle:.3} rad)"),
+                "cd",
+            ),
+            LightKind::Directional => ("directional".to_string(), "lux"),
+        };
+        let place = match l.kind {
+            LightKind::Directional => format!("direction {:.3?}", l.direction.to_array()),
+            _ => format!("at {:.3?}", l.position.to_array()),
+        };
+        println!(
+            "  [{i}] {kind} colour {:.3?} intensity {} {unit} {place}",
+            l.color.to_array(),
+            l.intensity
+        );
+    }
+    println!(
+        "bounds      min {:.4?} max {:.4?}",
+        b.min.to_array(),
+        b.max.to_array()
+    );
+    for w in &scene.warnings {
+        println!("warning     {w}");
+    }
+    println!(
+        "loaded in   {:.1} ms ({:.1} MB of triangle data)",
+        load_time.as_secs_f64() * 1e3,
+        scene.soup.heap_bytes() as f64 / 1e6
+    );
+    Ok(())
+}
+
+/// The `info --json` object.
+pub fn info_json(scene: &Scene) -> serde_json::Value {
+    serde_json::json!({
+        "file": scene.source,
+        "format": scene.format,
+        "triangles": scene.soup.len(),
+        "meshes": scene.mesh_count,
+        "primitives": scene.primitive_count,
+        "instances": scene.instances.len(),
+        "materials": scene.materials.len(),
+        "textures": scene.textures.len(),
+        "images": scene.images.len(),
+        "cameras": scene.cameras,
+        "lights": scene.lights,
+        "bounds": scene.bounds,
+        "warnings": scene.warnings,
+        "material_list": scene.materials,
+    })
+}
+
+/// Image size from the options and the camera: `--height` wins, then the camera's
+/// `aspectRatio` (glTF 2.0 §5.13), then the default.
+fn image_size(args: &RenderArgs, camera: Option<&Camera>) -> (u32, u32) {
+    let width = args.width.unwrap_or(DEFAULT_WIDTH);
+    let aspect = camera.and_then(|c| match c.projection {
+        Projection::Perspective { aspect_ratio, .. } => aspect_ratio,
+        Projection::Orthographic { .. } => None,
+    });
+    let height = match (args.height, aspect) {
+        (Some(h), _) => h,
+        (None, Some(a)) if a.is_finite() && a > 0.0 => ((width as f32 / a).round() as u32).max(1),
+        (None, _) if args.width.is_some() => {
+            ((width as u64 * DEFAULT_HEIGHT as u64) / DEFAULT_WIDTH as u64).max(1) as u32
+        }
+        (None, _) => DEFAULT_HEIGHT,
+    };
+    (width, height)
+}
+
+fn check_size(args: &RenderArgs, width: u32, height: u32) -> Result<()> {
+    let pixels = u64::from(width) * u64::from(height);
+    if width == 0 || height == 0 {
+        bail!("image size {width}x{height}: width and height must be at least 1");
+    }
+    if pixels > args.max_pixels {
+        bail!(
+            "image size {width}x{height} is {pixels} pixels, over the limit of {} (raise it with --max-pixels)",
+            args.max_pixels
+        );
+    }
+    Ok(())
+}
+
+fn render_command(args: &RenderArgs) -> Result<()> {
+    // Everything that can be refused is refused before any work: options, output, then model.
+    if args.spp == 0 || args.spp > args.max_spp {
+        bail!(
+            "--spp {}: must be between 1 and {} (raise the limit with --max-spp)",
+            args.spp,
+            args.max_spp
+        );
+    }
+    if !args.exposure.is_finite() {
+        bail!("--exposure must be a finite number");
+    }
+    if let Some(yfov) = args.yfov {
+        if !(yfov > 0.0 && yfov < 180.0) {
+            bail!("--yfov {yfov}: must be between 0 and 180 degrees");
+        }
+    }
+    if let (Some(w), Some(h)) = (args.width, args.height) {
+        check_size(args, w, h)?;
+    } else if args.width == Some(0) || args.height == Some(0) {
+        bail!("image width and height must be at least 1");
+    }
+    let output = PendingOutput::reserve(&args.output, args.no_clobber)?;
+    let threads = if args.threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        args.threads
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("cannot start worker threads")?;
+
+    let load_start = Instant::now();
+    let scene = Scene::load_with(&args.model, &load_options(&args.load))?;
+    let load_time = load_start.elapsed();
+    if !args.quiet {
+        for w in &scene.warnings {
+            eprintln!("warning: {}: {w}", args.model.display());
+        }
+    }
+
+    let file_camera = match args.camera {
+        Some(i) => Some(scene.cameras.get(i).with_context(|| {
+            format!(
+                "{}: --camera {i}: the file has {} camera(s)",
+                args.model.display(),
+                scene.cameras.len()
+            )
+        })?),
+        None => scene.cameras.first(),
+    };
+    let (width, height) = image_size(
+        args,
+        if args.look_from.is_some() {
+            None
+        } else {
+            file_camera
+        },
+    );
+    check_size(args, width, height)?;
+    let aspect = width as f32 / height as f32;
+    let camera = choose_camera(args, &scene, file_camera, aspect);
+    let view = View::from_camera(&camera, width, height);
+
+    let (lights, default_ambient) = if !scene.lights.is_empty() {
+        (scene.lights.clone(), glam::Vec3::splat(0.03))
+    } else if args.no_default_lights {
+        (Vec::new(), glam::Vec3::ZERO)
+    } else {
+        default_rig(&view)
+    };
+    if lights.is_empty() && !args.quiet {
+        eprintln!(
+            "warning: no lights (--no-default-lights): only ambient and emissive light the scene"
+        );
+    }
+    let settings = RenderSettings {
+        view,
+        spp: args.spp,
+        seed: args.seed,
+        lights,
+        ambient: args.ambient.unwrap_or(default_ambient),
+        exposure: args.exposure,
+    };
+
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let cancel = Arc::clone(&cancel);
+        // If a handler cannot be installed, Ctrl-C simply kills the process; the output file is
+        // still safe because it is only renamed into place after a complete write.
+        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
+    }
+    let (accel, (image, stats)) = pool.install(|| -> Result<_> {
+        let accel = Accel::build(&scene.soup, &scene.materials, args.accel, args.bvh_preset);
+        let bar = progress_bar(args.quiet);
+        let result = render(&scene, &accel, &settings, &cancel, &|done, total| {
+            bar.set_length(total);
+            bar.set_position(done);
+        });
+        bar.finish_and_clear();
+        Ok((accel, result?))
+    })?;
+    let background = args.background;
+    output.commit(&image, background)?;
+    if !args.quiet {
+        let structure = match accel.kind() {
+            AccelKind::Bvh => format!(
+                "BVH ({:?}) built in {:.1} ms",
+                args.bvh_preset,
+                accel.build_time().as_secs_f64() * 1e3
+            ),
+            AccelKind::Linear => "linear scan (no BVH)".to_string(),
+        };
+        eprintln!(
+            "{}: {} triangles, loaded in {:.1} ms, {structure}, {width}x{height} at {} spp rendered in {:.3} s: {} rays ({} primary, {} shadow), {:.2} Mrays/s on {threads} threads -> {}",
+            args.model.display(),
+            scene.soup.len(),
+            load_time.as_secs_f64() * 1e3,
+            args.spp,
+            stats.time.as_secs_f64(),
+            stats.rays(),
+            stats.primary_rays,
+            stats.shadow_rays,
+            stats.mrays_per_second(),
+            args.output.display()
+        );
+    }
+    Ok(())
+}
+
+fn choose_camera(
+    args: &RenderArgs,
+    scene: &Scene,
+    file_camera: Option<&Camera>,
+    aspect: f32,
+) -> Camera {
+    let bounds = &scene.bounds;
+    if let Some(from) = args.look_from {
+        let at = args.look_at.unwrap_or(bounds.center());
+        let distance = (at - from).length();
+        let yfov = args.yfov.unwrap_or(45.0).to_radians();
+        let mut camera = look_at(
+            from,
+            at,
+            args.up.unwrap_or(glam::Vec3::Y),
+            yfov,
+            distance,
+            bounds.radius(),
+        );
+        // The scene may surround the eye: clip only very close to it.
+        if let Projection::Perspective { znear, .. } = &mut camera.projection {
+            let to_centre = (bounds.center() - from).length();
+            if to_centre <= bounds.radius() {
+                *znear = bounds.radius() * 1e-5;
+            }
+        }
+        return camera;
+    }
+    let mut camera = match file_camera {
+        Some(c) => c.clone(),
+        None => auto_camera(bounds, aspect),
+    };
+    if let (Some(deg), Projection::Perspective { yfov, .. }) = (args.yfov, &mut camera.projection) {
+        *yfov = deg.to_radians();
+    }
+    camera
+}
+
+fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
+    if quiet {
+        return indicatif::ProgressBar::hidden();
+    }
+    // indicatif draws only when stderr is a terminal.
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} rendering [{bar:40}] {percent}% tiles {pos}/{len} eta {eta}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    bar
+}

@@ -1,0 +1,231 @@
+//! Eye rays from a camera basis (u, v, w).
+//!
+//! The camera sits at `eye` and looks down -w, with u to the right and v up (glTF 2.0 §3.10.1:
+//! a camera looks down its local -Z with +Y up, so u, v, w are the node's local X, Y, Z).
+//! For a perspective camera the view rectangle lies one unit in front of the eye, with height
+//! `H = 2·tan(yfov/2)` and width `W = aspect·H`; the ray through image coordinates
+//! (s, t) ∈ [0,1]² (s to the right, t up) passes through
+//! `eye - w + (s - 1/2)·W·u + (t - 1/2)·H·v`. An orthographic camera shoots parallel rays along
+//! -w from the points `eye + (s - 1/2)·2·xmag·u + (t - 1/2)·2·ymag·v`.
+
+use crate::geometry::Ray;
+use crate::scene::{Bounds, Camera, Projection};
+use glam::Vec3;
+
+/// A camera ready to generate rays for an image of a given size.
+#[derive(Clone, Debug, PartialEq)]
+pub struct View {
+    /// Eye position.
+    pub eye: Vec3,
+    /// Right.
+    pub u: Vec3,
+    /// Up.
+    pub v: Vec3,
+    /// Backwards: the camera looks down -w.
+    pub w: Vec3,
+    /// Projection, with the image aspect resolved.
+    pub lens: Lens,
+    /// Near clip distance along the view axis.
+    pub znear: f32,
+    /// Far clip distance along the view axis (infinite when the file sets none).
+    pub zfar: f32,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+}
+
+/// The projection with sizes resolved for the image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Lens {
+    /// View rectangle of `width` x `height` at distance 1.
+    Perspective {
+        /// Rectangle width, `aspect · height`.
+        width: f32,
+        /// Rectangle height, `2·tan(yfov/2)`.
+        height: f32,
+    },
+    /// View rectangle of `width` x `height` at the eye.
+    Orthographic {
+        /// Full width.
+        width: f32,
+        /// Full height.
+        height: f32,
+    },
+}
+
+impl View {
+    /// A view from a scene camera for an image of `width` x `height` pixels.
+    ///
+    /// The image aspect wins over the camera's `aspectRatio` (the caller sizes the image from it
+    /// when the user gives only a width): like glTF viewers, `yfov` (or `ymag`) is kept and the
+    /// horizontal extent follows the image.
+    pub fn from_camera(camera: &Camera, width: u32, height: u32) -> View {
+        let aspect = width as f32 / height as f32;
+        let w = -camera.forward;
+        let v = camera.up;
+        let u = v.cross(w);
+        let (lens, znear, zfar) = match camera.projection {
+            Projection::Perspective {
+                yfov, znear, zfar, ..
+            } => {
+                let h = 2.0 * (yfov * 0.5).tan();
+                (
+                    Lens::Perspective {
+                        width: aspect * h,
+                        height: h,
+                    },
+                    znear,
+                    zfar.unwrap_or(f32::INFINITY),
+                )
+            }
+            Projection::Orthographic {
+                ymag, znear, zfar, ..
+            } => (
+                Lens::Orthographic {
+                    width: 2.0 * ymag * aspect,
+                    height: 2.0 * ymag,
+                },
+                znear,
+                zfar,
+            ),
+        };
+        View {
+            eye: camera.position,
+            u,
+            v,
+            w,
+            lens,
+            znear,
+            zfar,
+            width,
+            height,
+        }
+    }
+
+    /// The eye ray through continuous pixel coordinates (`px`, `py`), with (0, 0) the top-left
+    /// corner of the image and (width, height) the bottom-right; pixel (i, j)'s centre is at
+    /// (i + 0.5, j + 0.5). Its direction is unit length and its interval is the near/far clip
+    /// range measured along the view axis.
+    pub fn ray(&self, px: f32, py: f32) -> Ray {
+        let s = px / self.width as f32 - 0.5;
+        let t = 0.5 - py / self.height as f32;
+        match self.lens {
+            Lens::Perspective { width, height } => {
+                let through = -self.w + s * width * self.u + t * height * self.v;
+                let direction = through.normalize();
+                // Along the ray, view-axis distance z is reached at t = z / cos(angle to -w).
+                let cos = direction.dot(-self.w);
+                Ray::new(self.eye, direction, self.znear / cos, self.zfar / cos)
+            }
+            Lens::Orthographic { width, height } => {
+                let origin = self.eye + s * width * self.u + t * height * self.v;
+                Ray::new(origin, -self.w, self.znear, self.zfar)
+            }
+        }
+    }
+}
+
+/// A camera that frames the bounding sphere of `bounds`: yfov 45°, looking at the centre from
+/// the front (+Z, the glTF "forward" of an asset), above and to the right, far enough that the
+/// sphere fits both the vertical and the horizontal field of view.
+pub fn auto_camera(bounds: &Bounds, aspect: f32) -> Camera {
+    let yfov = 45f32.to_radians();
+    let center = bounds.center();
+    let radius = bounds.radius().max(1e-6);
+    let half_h = (yfov * 0.5).tan();
+    let half_fov = half_h.min(half_h * aspect).atan();
+    let distance = radius / half_fov.sin() * 1.05;
+    let direction = Vec3::new(0.55, 0.45, 1.0).normalize();
+    look_at(
+        center + direction * distance,
+        center,
+        Vec3::Y,
+        yfov,
+        distance,
+        radius,
+    )
+}
+
+/// A perspective camera at `from` looking at `at` with `up`; near and far planes bracket a
+/// sphere of `radius` at `distance`.
+pub fn look_at(from: Vec3, at: Vec3, up: Vec3, yfov: f32, distance: f32, radius: f32) -> Camera {
+    let forward = (at - from).try_normalize().unwrap_or(Vec3::NEG_Z);
+    let up = (up - forward * up.dot(forward))
+        .try_normalize()
+        .or_else(|| (Vec3::Z - forward * forward.z).try_normalize())
+        .unwrap_or(Vec3::Y);
+    Camera {
+        name: Some("auto".into()),
+        position: from,
+        forward,
+        up,
+        projection: Projection::Perspective {
+            yfov,
+            aspect_ratio: None,
+            znear: ((distance - radius) * 0.5).max(distance * 1e-4),
+            zfar: None,
+        },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera(projection: Projection) -> Camera {
+        Camera {
+            name: None,
+            position: Vec3::new(0.0, 0.0, 5.0),
+            forward: Vec3::NEG_Z,
+            up: Vec3::Y,
+            projection,
+        }
+    }
+
+    #[test]
+    fn perspective_centre_and_corners() {
+        let cam = camera(Projection::Perspective {
+            yfov: 90f32.to_radians(),
+            aspect_ratio: None,
+            znear: 0.1,
+            zfar: None,
+        });
+        let view = View::from_camera(&cam, 200, 100);
+        let centre = view.ray(100.0, 50.0);
+        assert!((Vec3::from(centre.direction) - Vec3::NEG_Z).length() < 1e-6);
+        // yfov 90°: the top edge is 45° up; aspect 2 puts the right edge at x = 2 on the unit plane.
+        let top_right = Vec3::from(view.ray(200.0, 0.0).direction);
+        let expected = Vec3::new(2.0, 1.0, -1.0).normalize();
+        assert!((top_right - expected).length() < 1e-6, "{top_right}");
+        assert!((centre.tmin - 0.1).abs() < 1e-6);
+    }
+
+    #[test]
+    fn orthographic_rays_are_parallel() {
+        let cam = camera(Projection::Orthographic {
+            xmag: 2.0,
+            ymag: 1.0,
+            znear: 0.0,
+            zfar: 100.0,
+        });
+        let view = View::from_camera(&cam, 200, 100);
+        let r = view.ray(0.0, 0.0);
+        assert_eq!(Vec3::from(r.direction), Vec3::NEG_Z);
+        assert!((Vec3::from(r.origin) - Vec3::new(-2.0, 1.0, 5.0)).length() < 1e-6);
+    }
+
+    #[test]
+    fn auto_camera_sees_the_whole_sphere() {
+        let bounds = Bounds {
+            min: Vec3::splat(-1.0),
+            max: Vec3::splat(1.0),
+        };
+        let cam = auto_camera(&bounds, 4.0 / 3.0);
+        let to_centre = (bounds.center() - cam.position).normalize();
+        assert!((to_centre - cam.forward).length() < 1e-5);
+        let distance = (bounds.center() - cam.position).length();
+        let half = 22.5f32.to_radians();
+        assert!(bounds.radius() / distance <= half.sin() + 1e-6);
+    }
+}

@@ -1,0 +1,175 @@
+//! Command-line definitions (clap). Parsing only: the commands run in [`crate::app`].
+
+use crate::accel::{AccelKind, BvhPreset};
+use clap::{Args, Parser, Subcommand};
+use glam::Vec3;
+use std::path::PathBuf;
+
+/// A CPU ray tracer for glTF 2.0 and Wavefront OBJ assets.
+#[derive(Debug, Parser)]
+#[command(name = "meshtracer", version, about, propagate_version = true)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Render a model to an image (.png 8-bit sRGB, .exr/.hdr linear float).
+    Render(RenderArgs),
+    /// Show what the importer read from a model: triangles, materials, cameras, lights, bounds.
+    Info(InfoArgs),
+}
+
+/// Options shared by every command that loads a model.
+#[derive(Debug, Args, Clone)]
+pub struct LoadArgs {
+    /// Allow URIs that are absolute or point outside the model's folder (off by default: a
+    /// downloaded model must not read your files).
+    #[arg(long)]
+    pub allow_external_files: bool,
+    /// Refuse scenes with more triangles than this, after instancing.
+    #[arg(long, default_value_t = 50_000_000, value_name = "N")]
+    pub max_triangles: u64,
+}
+
+/// `meshtracer info`.
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// The model: .gltf, .glb or .obj.
+    pub model: PathBuf,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Loading options.
+    #[command(flatten)]
+    pub load: LoadArgs,
+}
+
+/// `meshtracer render`.
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// The model: .gltf, .glb or .obj.
+    pub model: PathBuf,
+    /// Output image: .png (8-bit sRGB with alpha), .exr or .hdr (linear float).
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// Image width in pixels [default: 1024].
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height in pixels [default: from the camera's aspectRatio, else 768].
+    #[arg(long)]
+    pub height: Option<u32>,
+    /// Samples per pixel: 1 shoots through pixel centres; N > 1 takes stratified jittered
+    /// samples (square numbers stratify best).
+    #[arg(long, default_value_t = 4)]
+    pub spp: u32,
+    /// Seed of the sample pattern (the output is identical for the same seed).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Use the file's camera with this index (in node order) instead of the first.
+    #[arg(long, value_name = "INDEX")]
+    pub camera: Option<usize>,
+    /// Place the camera here instead (X,Y,Z); with --look-at, --up and --yfov.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub look_from: Option<Vec3>,
+    /// Point the camera at this point (X,Y,Z) [default: the scene's centre].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub look_at: Option<Vec3>,
+    /// Camera up vector (X,Y,Z) [default: 0,1,0].
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub up: Option<Vec3>,
+    /// Vertical field of view in degrees [default: 45, or the file camera's].
+    #[arg(long, value_name = "DEG")]
+    pub yfov: Option<f32>,
+    /// Acceleration structure: the BVH, or a linear scan of every triangle (the baseline).
+    #[arg(long, value_enum, default_value_t = AccelKind::Bvh)]
+    pub accel: AccelKind,
+    /// obvhs build preset for the BVH.
+    #[arg(long, value_enum, default_value_t = BvhPreset::Medium)]
+    pub bvh_preset: BvhPreset,
+    /// Worker threads (0 = one per core).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Exposure in stops: linear radiance is multiplied by 2^EV before encoding.
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        value_name = "EV",
+        allow_hyphen_values = true
+    )]
+    pub exposure: f32,
+    /// Fill pixels where nothing was hit with this linear colour (R,G,B) instead of leaving
+    /// them transparent.
+    #[arg(long, value_name = "R,G,B", value_parser = parse_vec3)]
+    pub background: Option<Vec3>,
+    /// Ambient radiance factor (R,G,B or one value) [default: 0.08 with the default rig,
+    /// 0.03 with the file's lights].
+    #[arg(long, value_name = "R,G,B", value_parser = parse_vec3_or_scalar)]
+    pub ambient: Option<Vec3>,
+    /// Do not add the default key and fill lights when the file has no lights.
+    #[arg(long)]
+    pub no_default_lights: bool,
+    /// Refuse images with more pixels than this.
+    #[arg(long, default_value_t = 8192 * 8192, value_name = "N")]
+    pub max_pixels: u64,
+    /// Refuse more samples per pixel than this.
+    #[arg(long, default_value_t = 4096, value_name = "N")]
+    pub max_spp: u32,
+    /// Refuse to overwrite an existing output file.
+    #[arg(long)]
+    pub no_clobber: bool,
+    /// No progress bar and no summary.
+    #[arg(short, long)]
+    pub quiet: bool,
+    /// Loading options.
+    #[command(flatten)]
+    pub load: LoadArgs,
+}
+
+/// Parses `X,Y,Z` into a vector of three finite numbers.
+pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!("expected three numbers X,Y,Z, got '{s}'"));
+    }
+    let mut v = [0.0f32; 3];
+    for (slot, part) in v.iter_mut().zip(&parts) {
+        *slot = part
+            .parse::<f32>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("'{part}' is not a finite number"))?;
+    }
+    Ok(Vec3::from(v))
+}
+
+/// Parses `X,Y,Z` or a single number `A` (meaning A,A,A).
+pub fn parse_vec3_or_scalar(s: &str) -> Result<Vec3, String> {
+    match s.trim().parse::<f32>() {
+        Ok(a) if a.is_finite() => Ok(Vec3::splat(a)),
+        _ => parse_vec3(s),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vectors_parse_strictly() {
+        assert_eq!(parse_vec3("1, -2,3.5"), Ok(Vec3::new(1.0, -2.0, 3.5)));
+        assert!(parse_vec3("1,2").is_err());
+        assert!(parse_vec3("1,2,nan").is_err());
+        assert!(parse_vec3("1,2,inf").is_err());
+        assert_eq!(parse_vec3_or_scalar("0.5"), Ok(Vec3::splat(0.5)));
+    }
+
+    #[test]
+    fn cli_definition_is_consistent() {
+        use clap::CommandFactory;
+        Cli::command().debug_assert();
+    }
+}

@@ -1,0 +1,309 @@
+//! The rendered image (linear RGBA f32, premultiplied alpha) and how it is written.
+//!
+//! `.png` is 8-bit sRGB (the piecewise IEC 61966-2-1 curve) with straight alpha; `.exr` is linear
+//! float RGBA (premultiplied, the OpenEXR convention); `.hdr` is linear RGB over black. Every
+//! write goes to a temporary file in the destination folder that is renamed into place, so a
+//! failed or interrupted write never leaves a partial file or clobbers an existing one.
+
+use glam::{Vec3, Vec4};
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+/// A linear RGBA image with premultiplied alpha, row-major from the top-left pixel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `width * height` pixels.
+    pub pixels: Vec<Vec4>,
+}
+
+/// Output file formats, chosen by extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutputFormat {
+    /// 8-bit sRGB PNG with alpha.
+    Png,
+    /// Linear float OpenEXR.
+    Exr,
+    /// Linear Radiance RGBE.
+    Hdr,
+}
+
+/// Why an image could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum SaveError {
+    /// The extension is not one we write.
+    #[error("{}: unknown output format (use .png, .exr or .hdr)", .0.display())]
+    UnknownFormat(PathBuf),
+    /// The destination folder cannot take a file.
+    #[error("{}: cannot write here: {source}", path.display())]
+    Unwritable {
+        /// The output path.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+    /// The file exists and clobbering was refused.
+    #[error("{}: already exists (--no-clobber)", .0.display())]
+    Exists(PathBuf),
+    /// Encoding failed.
+    #[error("{}: encoding failed: {source}", path.display())]
+    Encode {
+        /// The output path.
+        path: PathBuf,
+        /// The encoder's error.
+        source: image::ImageError,
+    },
+}
+
+impl OutputFormat {
+    /// The format for a path's extension.
+    pub fn from_path(path: &Path) -> Result<OutputFormat, SaveError> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("png") => Ok(OutputFormat::Png),
+            Some("exr") => Ok(OutputFormat::Exr),
+            Some("hdr") => Ok(OutputFormat::Hdr),
+            _ => Err(SaveError::UnknownFormat(path.to_path_buf())),
+        }
+    }
+}
+
+/// Linear -> sRGB transfer function (IEC 61966-2-1), for values in [0, 1].
+pub fn linear_to_srgb(c: f32) -> f32 {
+    if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// sRGB -> linear transfer function (IEC 61966-2-1), for values in [0, 1].
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.040_45 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Quantises [0, 1] to 8 bits, clamping (never wrapping) out-of-range and NaN values.
+fn to_u8(c: f32) -> u8 {
+    // NaN.clamp gives NaN, and `as u8` turns NaN into 0.
+    (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
+/// An output file reserved before rendering: the temporary file is created in the destination
+/// folder up front, so an unwritable destination fails before any work, and the finished image
+/// is renamed over the destination in one step.
+pub struct PendingOutput {
+    path: PathBuf,
+    format: OutputFormat,
+    file: tempfile::NamedTempFile,
+    no_clobber: bool,
+}
+
+impl PendingOutput {
+    /// Checks the extension and reserves a temporary file beside `path`.
+    pub fn reserve(path: &Path, no_clobber: bool) -> Result<PendingOutput, SaveError> {
+        let format = OutputFormat::from_path(path)?;
+        if no_clobber && path.exists() {
+            return Err(SaveError::Exists(path.to_path_buf()));
+        }
+        if path.is_dir() {
+            return Err(SaveError::Unwritable {
+                path: path.to_path_buf(),
+                source: std::io::Error::other("is a directory"),
+            });
+        }
+        let dir = match path.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        let file = tempfile::Builder::new()
+            .prefix(".meshtracer-")
+            .suffix(".partial")
+            .tempfile_in(&dir)
+            .map_err(|source| SaveError::Unwritable {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        Ok(PendingOutput {
+            path: path.to_path_buf(),
+            format,
+            file,
+            no_clobber,
+        })
+    }
+
+    /// The destination path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Encodes `image`, flushes it to disk and renames it over the destination. `background`
+    /// fills uncovered pixels (PNG and HDR) instead of leaving them transparent.
+    pub fn commit(self, image: &Image, background: Option<Vec3>) -> Result<(), SaveError> {
+        let path = self.path.clone();
+        let io_err = |source: std::io::Error| SaveError::Unwritable {
+            path: path.clone(),
+            source,
+        };
+        let enc_err = |source: image::ImageError| SaveError::Encode {
+            path: path.clone(),
+            source,
+        };
+        {
+            let mut out = BufWriter::new(self.file.as_file());
+            let (w, h) = (image.width, image.height);
+            match self.format {
+                OutputFormat::Png => {
+                    let bytes = image.to_srgb8(background);
+                    image::ImageEncoder::write_image(
+                        image::codecs::png::PngEncoder::new(&mut out),
+                        &bytes,
+                        w,
+                        h,
+                        image::ExtendedColorType::Rgba8,
+                    )
+                    .map_err(enc_err)?;
+                }
+                OutputFormat::Exr => {
+                    let floats: Vec<f32> = image
+                        .pixels
+                        .iter()
+                        .flat_map(|p| composite(*p, background).to_array())
+                        .collect();
+                    image::ImageEncoder::write_image(
+                        image::codecs::openexr::OpenExrEncoder::new(&mut out),
+                        bytemuck_f32(&floats),
+                        w,
+                        h,
+                        image::ExtendedColorType::Rgba32F,
+                    )
+                    .map_err(enc_err)?;
+                }
+                OutputFormat::Hdr => {
+                    let rgb: Vec<image::Rgb<f32>> = image
+                        .pixels
+                        .iter()
+                        .map(|p| image::Rgb(composite(*p, background).truncate().to_array()))
+                        .collect();
+                    image::codecs::hdr::HdrEncoder::new(&mut out)
+                        .encode(&rgb, w as usize, h as usize)
+                        .map_err(enc_err)?;
+                }
+            }
+            out.flush().map_err(io_err)?;
+        }
+        self.file.as_file().sync_all().map_err(io_err)?;
+        let result = if self.no_clobber {
+            self.file.persist_noclobber(&self.path)
+        } else {
+            self.file.persist(&self.path)
+        };
+        result.map_err(|e| io_err(e.error))?;
+        Ok(())
+    }
+}
+
+/// A premultiplied pixel over an optional opaque background.
+fn composite(p: Vec4, background: Option<Vec3>) -> Vec4 {
+    match background {
+        Some(bg) => (p.truncate() + bg * (1.0 - p.w)).extend(1.0),
+        None => p,
+    }
+}
+
+/// Views f32s as bytes, native endian, as the image encoders expect.
+fn bytemuck_f32(v: &[f32]) -> &[u8] {
+    // SAFETY: f32 has no padding and any byte pattern of it is a valid u8 sequence; the slice
+    // covers exactly the same memory with alignment 1.
+    unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<u8>(), std::mem::size_of_val(v)) }
+}
+
+impl Image {
+    /// A transparent black image.
+    pub fn new(width: u32, height: u32) -> Image {
+        Image {
+            width,
+            height,
+            pixels: vec![Vec4::ZERO; width as usize * height as usize],
+        }
+    }
+
+    /// The pixel at column `x`, row `y` (row 0 at the top).
+    pub fn get(&self, x: u32, y: u32) -> Vec4 {
+        self.pixels[(y * self.width + x) as usize]
+    }
+
+    /// 8-bit sRGB RGBA with straight alpha: colour is un-premultiplied before encoding, or
+    /// composited over `background` (then alpha is 255).
+    pub fn to_srgb8(&self, background: Option<Vec3>) -> Vec<u8> {
+        let mut out = Vec::with_capacity(self.pixels.len() * 4);
+        for &p in &self.pixels {
+            let p = composite(p, background);
+            let rgb = if p.w > 0.0 {
+                p.truncate() / p.w
+            } else {
+                Vec3::ZERO
+            };
+            out.extend(
+                rgb.to_array()
+                    .map(|c| to_u8(linear_to_srgb(c.clamp(0.0, 1.0)))),
+            );
+            out.push(to_u8(p.w));
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn srgb_round_trips_and_clamps() {
+        for i in 0..=255 {
+            let c = i as f32 / 255.0;
+            assert!((srgb_to_linear(linear_to_srgb(c)) - c).abs() < 1e-5);
+        }
+        assert_eq!(to_u8(linear_to_srgb(0.5)), 188);
+        assert_eq!(to_u8(2.0), 255);
+        assert_eq!(to_u8(-1.0), 0);
+        assert_eq!(to_u8(f32::NAN), 0);
+    }
+
+    #[test]
+    fn png_alpha_is_straight_and_background_fills() {
+        let mut img = Image::new(2, 1);
+        img.pixels[0] = Vec4::new(0.5, 0.5, 0.5, 0.5);
+        let bytes = img.to_srgb8(None);
+        assert_eq!(&bytes[..4], &[255, 255, 255, 128]);
+        assert_eq!(&bytes[4..], &[0, 0, 0, 0]);
+        let filled = img.to_srgb8(Some(Vec3::ONE));
+        assert_eq!(&filled[4..], &[255, 255, 255, 255]);
+    }
+
+    #[test]
+    fn failed_reservation_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        assert!(matches!(
+            PendingOutput::reserve(&dir.path().join("x.bmp"), false),
+            Err(SaveError::UnknownFormat(_))
+        ));
+        assert!(PendingOutput::reserve(&dir.path().join("missing/x.png"), false).is_err());
+        let pending = PendingOutput::reserve(&dir.path().join("x.png"), false).unwrap();
+        drop(pending);
+        assert_eq!(
+            std::fs::read_dir(dir.path()).unwrap().count(),
+            0,
+            "temp file removed"
+        );
+    }
+}
