@@ -32,12 +32,42 @@ impl MeshData {
     fn cuboid(h: Vec3) -> MeshData {
         let mut m = MeshData::default();
         let p = |x: f32, y: f32, z: f32| Vec3::new(x * h.x, y * h.y, z * h.z);
-        m.quad([p(-1., -1., 1.), p(1., -1., 1.), p(1., 1., 1.), p(-1., 1., 1.)]); // +Z
-        m.quad([p(1., -1., -1.), p(-1., -1., -1.), p(-1., 1., -1.), p(1., 1., -1.)]); // -Z
-        m.quad([p(1., -1., 1.), p(1., -1., -1.), p(1., 1., -1.), p(1., 1., 1.)]); // +X
-        m.quad([p(-1., -1., -1.), p(-1., -1., 1.), p(-1., 1., 1.), p(-1., 1., -1.)]); // -X
-        m.quad([p(-1., 1., 1.), p(1., 1., 1.), p(1., 1., -1.), p(-1., 1., -1.)]); // +Y
-        m.quad([p(-1., -1., -1.), p(1., -1., -1.), p(1., -1., 1.), p(-1., -1., 1.)]); // -Y
+        m.quad([
+            p(-1., -1., 1.),
+            p(1., -1., 1.),
+            p(1., 1., 1.),
+            p(-1., 1., 1.),
+        ]); // +Z
+        m.quad([
+            p(1., -1., -1.),
+            p(-1., -1., -1.),
+            p(-1., 1., -1.),
+            p(1., 1., -1.),
+        ]); // -Z
+        m.quad([
+            p(1., -1., 1.),
+            p(1., -1., -1.),
+            p(1., 1., -1.),
+            p(1., 1., 1.),
+        ]); // +X
+        m.quad([
+            p(-1., -1., -1.),
+            p(-1., -1., 1.),
+            p(-1., 1., 1.),
+            p(-1., 1., -1.),
+        ]); // -X
+        m.quad([
+            p(-1., 1., 1.),
+            p(1., 1., 1.),
+            p(1., 1., -1.),
+            p(-1., 1., -1.),
+        ]); // +Y
+        m.quad([
+            p(-1., -1., -1.),
+            p(1., -1., -1.),
+            p(1., -1., 1.),
+            p(-1., -1., 1.),
+        ]); // -Y
         m
     }
 
@@ -48,7 +78,11 @@ impl MeshData {
             let theta = std::f32::consts::PI * i as f32 / rings as f32;
             for j in 0..=segments {
                 let phi = std::f32::consts::TAU * j as f32 / segments as f32;
-                let n = Vec3::new(theta.sin() * phi.sin(), theta.cos(), theta.sin() * phi.cos());
+                let n = Vec3::new(
+                    theta.sin() * phi.sin(),
+                    theta.cos(),
+                    theta.sin() * phi.cos(),
+                );
                 m.positions.push(n * r);
                 m.normals.push(n);
             }
@@ -148,27 +182,57 @@ fn cornell_box() -> String {
     let (white, red, green, gloss, plaster, lamp) = (0, 1, 2, 3, 4, 5);
     let mut walls = MeshData::default();
     let p = Vec3::new;
-    walls.quad([p(-1., 0., 1.), p(1., 0., 1.), p(1., 0., -1.), p(-1., 0., -1.)]); // floor, +Y
-    walls.quad([p(-1., 2., -1.), p(1., 2., -1.), p(1., 2., 1.), p(-1., 2., 1.)]); // ceiling, -Y
-    walls.quad([p(-1., 0., -1.), p(1., 0., -1.), p(1., 2., -1.), p(-1., 2., -1.)]); // back, +Z
+    walls.quad([
+        p(-1., 0., 1.),
+        p(1., 0., 1.),
+        p(1., 0., -1.),
+        p(-1., 0., -1.),
+    ]); // floor, +Y
+    walls.quad([
+        p(-1., 2., -1.),
+        p(1., 2., -1.),
+        p(1., 2., 1.),
+        p(-1., 2., 1.),
+    ]); // ceiling, -Y
+    walls.quad([
+        p(-1., 0., -1.),
+        p(1., 0., -1.),
+        p(1., 2., -1.),
+        p(-1., 2., -1.),
+    ]); // back, +Z
     let mut left = MeshData::default();
-    left.quad([p(-1., 0., 1.), p(-1., 0., -1.), p(-1., 2., -1.), p(-1., 2., 1.)]); // +X
+    left.quad([
+        p(-1., 0., 1.),
+        p(-1., 0., -1.),
+        p(-1., 2., -1.),
+        p(-1., 2., 1.),
+    ]); // +X
     let mut right = MeshData::default();
     right.quad([p(1., 0., -1.), p(1., 0., 1.), p(1., 2., 1.), p(1., 2., -1.)]); // -X
     let mut panel = MeshData::default();
-    panel.quad([p(-0.2, 1.999, -0.2), p(0.2, 1.999, -0.2), p(0.2, 1.999, 0.2), p(-0.2, 1.999, 0.2)]);
+    panel.quad([
+        p(-0.2, 1.999, -0.2),
+        p(0.2, 1.999, -0.2),
+        p(0.2, 1.999, 0.2),
+        p(-0.2, 1.999, 0.2),
+    ]);
 
     let walls_mesh = w.mesh("walls", &walls, white);
     let left_mesh = w.mesh("left wall", &left, red);
     let right_mesh = w.mesh("right wall", &right, green);
-    let tall_mesh = w.mesh("tall box", &MeshData::cuboid(Vec3::new(0.3, 0.6, 0.3)), plaster);
+    let tall_mesh = w.mesh(
+        "tall box",
+        &MeshData::cuboid(Vec3::new(0.3, 0.6, 0.3)),
+        plaster,
+    );
     let short_mesh = w.mesh("short box", &MeshData::cuboid(Vec3::splat(0.3)), plaster);
     let sphere_mesh = w.mesh("sphere", &MeshData::sphere(0.25, 24, 48), gloss);
     let panel_mesh = w.mesh("lamp panel", &panel, lamp);
 
     let spot_position = Vec3::new(-0.75, 1.85, 0.85);
     let spot_target = Vec3::new(0.35, 0.85, 0.3);
-    let spot_rotation = Quat::from_rotation_arc(Vec3::NEG_Z, (spot_target - spot_position).normalize());
+    let spot_rotation =
+        Quat::from_rotation_arc(Vec3::NEG_Z, (spot_target - spot_position).normalize());
 
     let data_uri = format!(
         "data:application/octet-stream;base64,{}",
@@ -228,32 +292,70 @@ fn cornell_box() -> String {
 fn shapes_obj() -> (String, String) {
     let mut obj = String::from("# meshtracer bundled OBJ scene (CC0-1.0), written by examples/make_assets.rs\nmtllib shapes.mtl\n");
     let mut vertex_count = 0;
-    let mut object = |obj: &mut String, name: &str, material: &str, verts: &[[f32; 3]], faces: &[&[usize]]| {
-        let _ = writeln!(obj, "o {name}\nusemtl {material}");
-        for v in verts {
-            let _ = writeln!(obj, "v {} {} {}", v[0], v[1], v[2]);
-        }
-        for f in faces {
-            let idx: Vec<String> = f.iter().map(|i| (i + 1 + vertex_count).to_string()).collect();
-            let _ = writeln!(obj, "f {}", idx.join(" "));
-        }
-        vertex_count += verts.len();
-    };
-    object(&mut obj, "ground", "ground", &[[-3., 0., -3.], [-3., 0., 3.], [3., 0., 3.], [3., 0., -3.]], &[&[0, 1, 2, 3]]);
+    let mut object =
+        |obj: &mut String, name: &str, material: &str, verts: &[[f32; 3]], faces: &[&[usize]]| {
+            let _ = writeln!(obj, "o {name}\nusemtl {material}");
+            for v in verts {
+                let _ = writeln!(obj, "v {} {} {}", v[0], v[1], v[2]);
+            }
+            for f in faces {
+                let idx: Vec<String> = f
+                    .iter()
+                    .map(|i| (i + 1 + vertex_count).to_string())
+                    .collect();
+                let _ = writeln!(obj, "f {}", idx.join(" "));
+            }
+            vertex_count += verts.len();
+        };
+    object(
+        &mut obj,
+        "ground",
+        "ground",
+        &[[-3., 0., -3.], [-3., 0., 3.], [3., 0., 3.], [3., 0., -3.]],
+        &[&[0, 1, 2, 3]],
+    );
     let c = |x: f32, y: f32, z: f32| [x * 0.5 - 0.8, y * 0.5 + 0.5, z * 0.5];
     object(
         &mut obj,
         "cube",
         "blue",
-        &[c(-1., -1., -1.), c(1., -1., -1.), c(1., 1., -1.), c(-1., 1., -1.), c(-1., -1., 1.), c(1., -1., 1.), c(1., 1., 1.), c(-1., 1., 1.)],
-        &[&[4, 5, 6, 7], &[1, 0, 3, 2], &[5, 1, 2, 6], &[0, 4, 7, 3], &[7, 6, 2, 3], &[0, 1, 5, 4]],
+        &[
+            c(-1., -1., -1.),
+            c(1., -1., -1.),
+            c(1., 1., -1.),
+            c(-1., 1., -1.),
+            c(-1., -1., 1.),
+            c(1., -1., 1.),
+            c(1., 1., 1.),
+            c(-1., 1., 1.),
+        ],
+        &[
+            &[4, 5, 6, 7],
+            &[1, 0, 3, 2],
+            &[5, 1, 2, 6],
+            &[0, 4, 7, 3],
+            &[7, 6, 2, 3],
+            &[0, 1, 5, 4],
+        ],
     );
     object(
         &mut obj,
         "pyramid",
         "gold",
-        &[[0.4, 0., -0.5], [1.4, 0., -0.5], [1.4, 0., 0.5], [0.4, 0., 0.5], [0.9, 1.2, 0.]],
-        &[&[0, 1, 2, 3], &[3, 2, 4], &[2, 1, 4], &[1, 0, 4], &[0, 3, 4]],
+        &[
+            [0.4, 0., -0.5],
+            [1.4, 0., -0.5],
+            [1.4, 0., 0.5],
+            [0.4, 0., 0.5],
+            [0.9, 1.2, 0.],
+        ],
+        &[
+            &[0, 1, 2, 3],
+            &[3, 2, 4],
+            &[2, 1, 4],
+            &[1, 0, 4],
+            &[0, 3, 4],
+        ],
     );
     let mtl = "# meshtracer bundled OBJ materials (CC0-1.0)\n\
 newmtl ground\nKd 0.6 0.6 0.6\nKs 0.0 0.0 0.0\nNs 1\nillum 1\n\n\

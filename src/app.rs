@@ -45,7 +45,16 @@ fn info(args: &InfoArgs) -> Result<()> {
     let b = &scene.bounds;
     println!("file        {}", scene.source.display());
     println!("format      {}", json["format"].as_str().unwrap_or("?"));
-    println!("triangles   {}", scene.soup.len());
+    if scene.file_triangles == scene.soup.len() {
+        println!("triangles   {}", scene.soup.len());
+    } else {
+        println!(
+            "triangles   {} ({} traced, {} degenerate or non-finite dropped)",
+            scene.file_triangles,
+            scene.soup.len(),
+            scene.file_triangles - scene.soup.len()
+        );
+    }
     println!(
         "meshes      {} ({} instances, {} triangle primitives flattened)",
         scene.mesh_count,
@@ -126,7 +135,9 @@ pub fn info_json(scene: &Scene) -> serde_json::Value {
     serde_json::json!({
         "file": scene.source,
         "format": scene.format,
-        "triangles": scene.soup.len(),
+        "triangles": scene.file_triangles,
+        "traced_triangles": scene.soup.len(),
+        "dropped_triangles": scene.file_triangles - scene.soup.len(),
         "meshes": scene.mesh_count,
         "primitives": scene.primitive_count,
         "instances": scene.instances.len(),

@@ -113,6 +113,11 @@ impl SoupBuilder {
         self.soup.is_empty()
     }
 
+    /// Triangles offered to [`SoupBuilder::push`], kept or dropped.
+    pub fn offered(&self) -> usize {
+        self.soup.len() + self.degenerate + self.non_finite
+    }
+
     /// A warning line for what was dropped, if anything was.
     pub fn dropped_warning(&self) -> Option<String> {
         match (self.degenerate, self.non_finite) {

@@ -115,6 +115,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         ));
     }
     warnings.extend(builder.dropped_warning());
+    let file_triangles = builder.offered();
     let (soup, bounds) = builder.finish();
     Ok(Scene {
         source: path.to_path_buf(),
@@ -127,6 +128,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         lights,
         instances,
         mesh_count: document.meshes().len(),
+        file_triangles,
         primitive_count,
         bounds: if bounds.is_empty() {
             Bounds::EMPTY

@@ -460,6 +460,10 @@ pub struct Scene {
     pub instances: Vec<Instance>,
     /// Number of distinct meshes in the file.
     pub mesh_count: usize,
+    /// Triangles in the file after instancing, by the counting rules of glTF primitives
+    /// (TRIANGLES: count/3, strips and fans: count - 2) and OBJ fan triangulation, before
+    /// degenerate and non-finite ones are dropped. `soup.len()` is what is traced.
+    pub file_triangles: usize,
     /// Number of primitives flattened (over all instances).
     pub primitive_count: usize,
     /// Bounds of all triangles.

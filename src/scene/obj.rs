@@ -213,6 +213,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     if models.iter().any(|m| m.mesh.material_id.is_none()) && !mtl_materials.is_empty() {
         warnings.push("some faces use no material from the MTL; they get a grey default".into());
     }
+    let file_triangles = builder.offered();
     let (soup, bounds) = builder.finish();
     Ok(Scene {
         source: path.to_path_buf(),
@@ -224,6 +225,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         cameras: Vec::new(),
         lights: Vec::new(),
         mesh_count: models.len(),
+        file_triangles,
         primitive_count: models.len(),
         instances,
         bounds,

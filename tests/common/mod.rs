@@ -1,0 +1,146 @@
+//! Helpers for integration tests: run the real binary, find the sample models, read images.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// The compiled `meshtracer` binary.
+pub fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_meshtracer"))
+}
+
+/// Runs the binary; on an unexpected outcome, panics with the command, stdout and stderr.
+pub fn run(args: &[&str], expect_success: bool) -> Output {
+    let out = bin().args(args).output().expect("the binary runs");
+    if out.status.success() != expect_success {
+        panic!(
+            "meshtracer {}\nexpected success = {expect_success}, got {}\n--- stdout\n{}\n--- stderr\n{}",
+            args.join(" "),
+            out.status,
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    out
+}
+
+/// Standard error as text.
+pub fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// The shared sample models (`MESHTRACER_SAMPLES`), or `None` with a printed notice.
+pub fn samples(test: &str) -> Option<PathBuf> {
+    match std::env::var_os("MESHTRACER_SAMPLES") {
+        Some(dir) if Path::new(&dir).is_dir() => Some(PathBuf::from(dir)),
+        _ => {
+            // Straight to stderr: the test harness captures eprintln! of passing tests.
+            use std::io::Write;
+            let _ = writeln!(
+                std::io::stderr(),
+                "SKIPPED {test}: set MESHTRACER_SAMPLES to the shared sample models folder"
+            );
+            None
+        }
+    }
+}
+
+/// The repository root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A path as a &str (test paths are UTF-8).
+pub fn s(p: &Path) -> &str {
+    p.to_str().expect("UTF-8 path")
+}
+
+/// Reads an image as linear-or-not f32 RGBA exactly as stored (PNG: 8-bit values / 255;
+/// EXR: linear floats).
+pub fn read_rgba(path: &Path) -> (u32, u32, Vec<[f32; 4]>) {
+    let img = image::open(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .to_rgba32f();
+    let (w, h) = img.dimensions();
+    (w, h, img.pixels().map(|p| p.0).collect())
+}
+
+/// Writes a glTF JSON document with one embedded buffer built from `bin`.
+pub fn write_gltf(path: &Path, mut json: serde_json::Value, bin: &[u8]) {
+    use base64::Engine;
+    json["buffers"] = serde_json::json!([{
+        "byteLength": bin.len(),
+        "uri": format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(bin))
+    }]);
+    std::fs::write(path, serde_json::to_string_pretty(&json).unwrap()).unwrap();
+}
+
+/// Little-endian bytes of f32s.
+pub fn f32_bytes(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// A glTF scene of quads: each quad is (4 corners CCW from the front, material index). Returns
+/// the JSON (without buffers) and the binary data. `extra` is merged into the top level.
+pub fn quads_gltf(
+    quads: &[([[f32; 3]; 4], usize)],
+    extra: serde_json::Value,
+) -> (serde_json::Value, Vec<u8>) {
+    let mut bin = Vec::new();
+    let mut accessors = Vec::new();
+    let mut views = Vec::new();
+    let mut meshes = Vec::new();
+    let mut nodes = Vec::new();
+    for (i, (corners, material)) in quads.iter().enumerate() {
+        let flat: Vec<f32> = corners.iter().flatten().copied().collect();
+        let bytes = f32_bytes(&flat);
+        views.push(
+            serde_json::json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": bytes.len()}),
+        );
+        bin.extend(bytes);
+        let min: Vec<f32> = (0..3)
+            .map(|k| corners.iter().map(|c| c[k]).fold(f32::INFINITY, f32::min))
+            .collect();
+        let max: Vec<f32> = (0..3)
+            .map(|k| {
+                corners
+                    .iter()
+                    .map(|c| c[k])
+                    .fold(f32::NEG_INFINITY, f32::max)
+            })
+            .collect();
+        accessors.push(serde_json::json!({"bufferView": views.len() - 1, "componentType": 5126, "count": 4, "type": "VEC3", "min": min, "max": max}));
+        let indices: Vec<u8> = [0u16, 1, 2, 0, 2, 3]
+            .iter()
+            .flat_map(|x| x.to_le_bytes())
+            .collect();
+        views.push(
+            serde_json::json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": indices.len()}),
+        );
+        bin.extend(indices);
+        accessors.push(serde_json::json!({"bufferView": views.len() - 1, "componentType": 5123, "count": 6, "type": "SCALAR"}));
+        meshes.push(serde_json::json!({"primitives": [{"attributes": {"POSITION": 2 * i}, "indices": 2 * i + 1, "material": material}]}));
+        nodes.push(serde_json::json!({"mesh": i}));
+    }
+    let mut json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "accessors": accessors,
+        "bufferViews": views,
+        "meshes": meshes,
+        "nodes": nodes,
+    });
+    if let serde_json::Value::Object(extra) = extra {
+        for (k, v) in extra {
+            if k == "nodes" {
+                let list = json["nodes"].as_array_mut().unwrap();
+                list.extend(v.as_array().unwrap().iter().cloned());
+            } else {
+                json[k] = v;
+            }
+        }
+    }
+    let count = json["nodes"].as_array().unwrap().len();
+    json["scenes"] = serde_json::json!([{"nodes": (0..count).collect::<Vec<_>>()}]);
+    json["scene"] = serde_json::json!(0);
+    (json, bin)
+}
