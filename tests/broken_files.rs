@@ -1,0 +1,721 @@
+//! The broken-file corpus: small malformed, truncated and hostile files that the test writes
+//! itself. Every case must give the exact error kind through the library, and through the binary
+//! a non-zero exit with one message that names the file, never a panic.
+//!
+//! `MESHTRACER_WRITE_CORPUS=DIR cargo test --test broken_files` also writes every case to DIR
+//! (the fuzzers' seed corpus).
+
+mod common;
+
+use base64::Engine;
+use meshtracer::LoadErrorKind as K;
+use meshtracer::Scene;
+use serde_json::{json, Value};
+use std::path::Path;
+
+/// One broken input: the files to write, which one to load, and the error kind expected.
+struct Case {
+    name: &'static str,
+    files: Vec<(String, Vec<u8>)>,
+    model: String,
+    expect: fn(&K) -> bool,
+}
+
+/// A valid one-triangle glTF with its buffer in `tri.bin`: the base most cases break.
+fn base() -> (Value, Vec<u8>) {
+    let mut bin = common::f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    bin.extend([0u16, 1, 2].iter().flat_map(|i| i.to_le_bytes()));
+    bin.extend([0, 0]);
+    let json = json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+             "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]},
+            {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 6}
+        ],
+        "buffers": [{"byteLength": 44, "uri": "tri.bin"}]
+    });
+    (json, bin)
+}
+
+fn gltf_case(name: &'static str, json: Value, bin: Vec<u8>, expect: fn(&K) -> bool) -> Case {
+    Case {
+        name,
+        files: vec![
+            (
+                "model.gltf".into(),
+                serde_json::to_vec_pretty(&json).unwrap(),
+            ),
+            ("tri.bin".into(), bin),
+        ],
+        model: "model.gltf".into(),
+        expect,
+    }
+}
+
+/// `base()` modified by `edit`.
+fn edited(
+    name: &'static str,
+    edit: impl FnOnce(&mut Value, &mut Vec<u8>),
+    expect: fn(&K) -> bool,
+) -> Case {
+    let (mut json, mut bin) = base();
+    edit(&mut json, &mut bin);
+    gltf_case(name, json, bin, expect)
+}
+
+/// The base triangle as a GLB with the buffer in its BIN chunk.
+fn glb() -> Vec<u8> {
+    let (mut json, bin) = base();
+    json["buffers"] = json!([{"byteLength": 44}]);
+    let mut text = serde_json::to_vec(&json).unwrap();
+    while text.len() % 4 != 0 {
+        text.push(b' ');
+    }
+    let total = 12 + 8 + text.len() + 8 + bin.len();
+    let mut out = b"glTF".to_vec();
+    out.extend(2u32.to_le_bytes());
+    out.extend((total as u32).to_le_bytes());
+    out.extend((text.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(&text);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(&bin);
+    out
+}
+
+fn glb_case(name: &'static str, bytes: Vec<u8>, expect: fn(&K) -> bool) -> Case {
+    Case {
+        name,
+        files: vec![("model.glb".into(), bytes)],
+        model: "model.glb".into(),
+        expect,
+    }
+}
+
+fn obj_case(
+    name: &'static str,
+    obj: &[u8],
+    extra: Vec<(String, Vec<u8>)>,
+    expect: fn(&K) -> bool,
+) -> Case {
+    let mut files = vec![("model.obj".to_string(), obj.to_vec())];
+    files.extend(extra);
+    Case {
+        name,
+        files,
+        model: "model.obj".into(),
+        expect,
+    }
+}
+
+/// CRC-32 (IEEE), for writing PNG chunks by hand.
+fn crc32(data: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in data {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}
+
+/// A PNG whose header declares `w` x `h` pixels (the image data itself is absent).
+fn png_header(w: u32, h: u32) -> Vec<u8> {
+    let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut ihdr = b"IHDR".to_vec();
+    ihdr.extend(w.to_be_bytes());
+    ihdr.extend(h.to_be_bytes());
+    ihdr.extend([8, 6, 0, 0, 0]);
+    out.extend(13u32.to_be_bytes());
+    out.extend(&ihdr);
+    out.extend(crc32(&ihdr).to_be_bytes());
+    for chunk in [&b"IDAT"[..], &b"IEND"[..]] {
+        out.extend(0u32.to_be_bytes());
+        out.extend(chunk);
+        out.extend(crc32(chunk).to_be_bytes());
+    }
+    out
+}
+
+/// A valid 1x1 PNG.
+fn png_1x1() -> Vec<u8> {
+    let mut bytes = Vec::new();
+    image::RgbaImage::from_pixel(1, 1, image::Rgba([255, 0, 0, 255]))
+        .write_to(
+            &mut std::io::Cursor::new(&mut bytes),
+            image::ImageFormat::Png,
+        )
+        .unwrap();
+    bytes
+}
+
+fn with_image(json: &mut Value, uri: &str) {
+    json["images"] = json!([{"uri": uri}]);
+    json["textures"] = json!([{"source": 0}]);
+    json["materials"] = json!([{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]);
+    json["meshes"][0]["primitives"][0]["material"] = json!(0);
+}
+
+fn cases() -> Vec<Case> {
+    let glb_bytes = glb();
+    let json_len = u32::from_le_bytes(glb_bytes[12..16].try_into().unwrap()) as usize;
+    let bin_chunk = 20 + json_len;
+    let mut cases = vec![
+        // Files that are not models at all.
+        Case {
+            name: "zero-byte file",
+            files: vec![("model.gltf".into(), vec![])],
+            model: "model.gltf".into(),
+            expect: |k| matches!(k, K::EmptyFile),
+        },
+        Case {
+            name: "text that is not JSON",
+            files: vec![("model.gltf".into(), b"hello".to_vec())],
+            model: "model.gltf".into(),
+            expect: |k| matches!(k, K::UnknownFormat),
+        },
+        Case {
+            name: "JSON that is not glTF",
+            files: vec![("model.gltf".into(), b"{\"hello\": 1}".to_vec())],
+            model: "model.gltf".into(),
+            expect: |k| matches!(k, K::Gltf(_)),
+        },
+        Case {
+            name: "truncated JSON",
+            files: vec![(
+                "model.gltf".into(),
+                b"{\"asset\": {\"version\": \"2.".to_vec(),
+            )],
+            model: "model.gltf".into(),
+            expect: |k| matches!(k, K::Gltf(_)),
+        },
+        Case {
+            name: "a directory given as the model",
+            files: vec![("model.gltf/x".into(), vec![1])],
+            model: "model.gltf".into(),
+            expect: |k| matches!(k, K::IsDirectory),
+        },
+        Case {
+            name: "missing file",
+            files: vec![],
+            model: "nothing.gltf".into(),
+            expect: |k| matches!(k, K::Io(_)),
+        },
+        // GLB container.
+        glb_case(
+            "GLB truncated inside the header",
+            glb_bytes[..8].to_vec(),
+            |k| matches!(k, K::Glb(_)),
+        ),
+        glb_case(
+            "GLB truncated after the header",
+            glb_bytes[..12].to_vec(),
+            |k| matches!(k, K::Glb(_)),
+        ),
+        glb_case(
+            "GLB truncated inside the JSON chunk header",
+            glb_bytes[..16].to_vec(),
+            |k| matches!(k, K::Glb(_)),
+        ),
+        glb_case(
+            "GLB truncated inside the JSON chunk",
+            glb_bytes[..40].to_vec(),
+            |k| matches!(k, K::Glb(_)),
+        ),
+        glb_case(
+            "GLB truncated at the BIN chunk",
+            glb_bytes[..bin_chunk].to_vec(),
+            |k| matches!(k, K::Glb(_) | K::Buffer { .. }),
+        ),
+        glb_case(
+            "GLB truncated inside the BIN chunk header",
+            glb_bytes[..bin_chunk + 4].to_vec(),
+            |k| matches!(k, K::Glb(_)),
+        ),
+        glb_case(
+            "GLB truncated inside the BIN chunk",
+            glb_bytes[..glb_bytes.len() - 10].to_vec(),
+            |k| matches!(k, K::Glb(_)),
+        ),
+        glb_case(
+            "GLB with version 1",
+            {
+                let mut b = glb_bytes.clone();
+                b[4] = 1;
+                b
+            },
+            |k| matches!(k, K::Glb(_)),
+        ),
+        glb_case(
+            "GLB length field below the header size",
+            {
+                let mut b = glb_bytes.clone();
+                b[8..12].copy_from_slice(&4u32.to_le_bytes());
+                b
+            },
+            |k| matches!(k, K::Glb(_)),
+        ),
+        glb_case(
+            "GLB length field past the end",
+            {
+                let mut b = glb_bytes.clone();
+                b[8..12].copy_from_slice(&u32::MAX.to_le_bytes());
+                b
+            },
+            |k| matches!(k, K::Glb(_)),
+        ),
+        glb_case(
+            "GLB chunk length past the end",
+            {
+                let mut b = glb_bytes.clone();
+                b[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
+                b
+            },
+            |k| matches!(k, K::Glb(_)),
+        ),
+        glb_case(
+            "GLB with wrong magic",
+            {
+                let mut b = glb_bytes.clone();
+                b[3] = b'X';
+                b
+            },
+            |k| matches!(k, K::UnknownFormat),
+        ),
+        // Buffers.
+        gltf_case("missing .bin", base().0, vec![], |_| false),
+        edited(
+            "buffer shorter than declared",
+            |_, bin| bin.truncate(20),
+            |k| {
+                matches!(
+                    k,
+                    K::BufferTooShort {
+                        buffer: 0,
+                        expected: 44,
+                        actual: 20
+                    }
+                )
+            },
+        ),
+        edited(
+            "base64 that does not decode",
+            |j, _| j["buffers"][0]["uri"] = json!("data:application/octet-stream;base64,@@@@"),
+            |k| matches!(k, K::DataUri { .. }),
+        ),
+        edited(
+            "empty buffer",
+            |j, bin| {
+                bin.clear();
+                j["buffers"][0]["byteLength"] = json!(0);
+            },
+            |k| matches!(k, K::Gltf(_) | K::ViewOutOfRange { .. }),
+        ),
+        edited(
+            "buffer URI escaping the folder",
+            |j, _| j["buffers"][0]["uri"] = json!("../tri.bin"),
+            |k| matches!(k, K::ExternalFile { .. }),
+        ),
+        edited(
+            "absolute buffer URI",
+            |j, _| j["buffers"][0]["uri"] = json!("/etc/passwd"),
+            |k| matches!(k, K::ExternalFile { .. }),
+        ),
+        edited(
+            "bufferView past the buffer",
+            |j, _| j["bufferViews"][1]["byteOffset"] = json!(40),
+            |k| matches!(k, K::ViewOutOfRange { view: 1, .. }),
+        ),
+        // Accessors and indices.
+        edited(
+            "accessor count past the view",
+            |j, _| j["accessors"][0]["count"] = json!(300),
+            |k| matches!(k, K::Accessor { accessor: 0, .. }),
+        ),
+        edited(
+            "accessor offset past the view",
+            |j, _| j["accessors"][0]["byteOffset"] = json!(32),
+            |k| matches!(k, K::Accessor { accessor: 0, .. }),
+        ),
+        edited(
+            "accessor stride smaller than the element",
+            |j, _| j["bufferViews"][0]["byteStride"] = json!(4),
+            |k| matches!(k, K::Accessor { .. } | K::Gltf(_)),
+        ),
+        edited(
+            "accessor count zero",
+            |j, _| j["accessors"][1]["count"] = json!(0),
+            |k| matches!(k, K::Accessor { .. } | K::Gltf(_)),
+        ),
+        edited(
+            "index past the vertex count",
+            |_, bin| bin[40..42].copy_from_slice(&7u16.to_le_bytes()),
+            |k| {
+                matches!(
+                    k,
+                    K::IndexOutOfRange {
+                        index: 7,
+                        vertex_count: 3,
+                        ..
+                    }
+                )
+            },
+        ),
+        edited(
+            "POSITION with an integer component type",
+            |j, _| j["accessors"][0]["componentType"] = json!(5121),
+            |k| matches!(k, K::Accessor { .. }),
+        ),
+        edited(
+            "indices of type VEC2",
+            |j, _| j["accessors"][1]["type"] = json!("VEC2"),
+            |k| matches!(k, K::Accessor { .. }),
+        ),
+        edited(
+            "mesh without POSITION",
+            |j, _| j["meshes"][0]["primitives"][0]["attributes"] = json!({"NORMAL": 0}),
+            |k| matches!(k, K::MissingPositions { .. } | K::Gltf(_)),
+        ),
+        edited(
+            "accessor index that does not exist",
+            |j, _| j["meshes"][0]["primitives"][0]["indices"] = json!(9),
+            |k| matches!(k, K::Gltf(_)),
+        ),
+        // Values.
+        edited(
+            "NaN positions",
+            |_, bin| bin[0..4].copy_from_slice(&f32::NAN.to_le_bytes()),
+            |k| matches!(k, K::NoTriangles(d) if d.contains("NaN")),
+        ),
+        edited(
+            "infinite positions",
+            |_, bin| bin[12..16].copy_from_slice(&f32::INFINITY.to_le_bytes()),
+            |k| matches!(k, K::NoTriangles(_)),
+        ),
+        edited(
+            "degenerate triangle",
+            |_, bin| bin[24..36].copy_from_slice(&common::f32_bytes(&[2.0, 0.0, 0.0])),
+            |k| matches!(k, K::NoTriangles(d) if d.contains("degenerate")),
+        ),
+        edited(
+            "NaN in a node matrix",
+            |j, _| j["nodes"][0]["scale"] = json!([1.0, 1e39, 1.0]),
+            |k| matches!(k, K::NoTriangles(_) | K::Gltf(_)),
+        ),
+        edited(
+            "zero-scale node",
+            |j, _| j["nodes"][0]["scale"] = json!([0.0, 0.0, 0.0]),
+            |k| matches!(k, K::NoTriangles(d) if d.contains("singular")),
+        ),
+        edited(
+            "singular node matrix",
+            |j, _| {
+                j["nodes"][0]["matrix"] = json!([
+                    1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0
+                ])
+            },
+            |k| matches!(k, K::NoTriangles(_)),
+        ),
+        // Scene structure.
+        edited(
+            "node that is its own ancestor",
+            |j, _| {
+                j["nodes"] = json!([{"mesh": 0, "children": [1]}, {"children": [0]}]);
+            },
+            |k| matches!(k, K::NodeCycle { .. } | K::Gltf(_)),
+        ),
+        edited(
+            "node that is its own child",
+            |j, _| {
+                j["nodes"] = json!([{"mesh": 0, "children": [0]}]);
+            },
+            |k| matches!(k, K::NodeCycle { .. } | K::Gltf(_)),
+        ),
+        edited(
+            "shared nodes expanding exponentially",
+            |j, _| {
+                let mut nodes: Vec<Value> = (0..40)
+                    .map(|i| json!({"children": [i + 1, i + 1]}))
+                    .collect();
+                nodes.push(json!({"mesh": 0}));
+                j["nodes"] = json!(nodes);
+            },
+            |k| {
+                matches!(k, K::Gltf(m) if m.contains("node instances"))
+                    || matches!(k, K::TooManyTriangles { .. })
+            },
+        ),
+        edited(
+            "scene with no nodes",
+            |j, _| j["scenes"] = json!([{"nodes": []}]),
+            |k| matches!(k, K::NoTriangles(_)),
+        ),
+        edited(
+            "no scenes",
+            |j, _| {
+                j.as_object_mut().unwrap().remove("scenes");
+                j.as_object_mut().unwrap().remove("scene");
+            },
+            |k| matches!(k, K::NoScene),
+        ),
+        edited(
+            "scene index out of range",
+            |j, _| j["scene"] = json!(5),
+            |k| matches!(k, K::Gltf(_)),
+        ),
+        edited(
+            "required Draco extension",
+            |j, _| {
+                j["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
+                j["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+            },
+            |k| matches!(k, K::UnsupportedExtension { name, what } if name == "KHR_draco_mesh_compression" && what.contains("Draco")),
+        ),
+        // Images.
+        edited(
+            "missing image file",
+            |j, _| with_image(j, "missing.png"),
+            |k| matches!(k, K::Image { image: 0, .. }),
+        ),
+        edited(
+            "image that is not an image",
+            |j, _| with_image(j, "data:image/png;base64,aGVsbG8gd29ybGQ="),
+            |k| matches!(k, K::Image { image: 0, .. }),
+        ),
+        edited(
+            "image declaring 100000x100000 pixels",
+            |j, _| {
+                let png =
+                    base64::engine::general_purpose::STANDARD.encode(png_header(100_000, 100_000));
+                with_image(j, &format!("data:image/png;base64,{png}"));
+            },
+            |k| matches!(k, K::Image { problem, .. } if problem.contains("100000x100000")),
+        ),
+        edited(
+            "image URI escaping the folder",
+            |j, _| with_image(j, "../../secret.png"),
+            |k| matches!(k, K::ExternalFile { .. }),
+        ),
+        // OBJ.
+        obj_case(
+            "OBJ index past the vertices",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
+            vec![],
+            |k| matches!(k, K::Obj(_) | K::ObjIndexOutOfRange { .. }),
+        ),
+        obj_case(
+            "OBJ index zero",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n",
+            vec![],
+            |k| matches!(k, K::Obj(_)),
+        ),
+        obj_case(
+            "OBJ negative index past the start",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -9\n",
+            vec![],
+            |k| matches!(k, K::Obj(_) | K::ObjIndexOutOfRange { .. }),
+        ),
+        obj_case(
+            "OBJ face with two vertices",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n",
+            vec![],
+            |k| matches!(k, K::Obj(_) | K::NoTriangles(_)),
+        ),
+        obj_case(
+            "OBJ normal index past the normals",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//5\n",
+            vec![],
+            |k| matches!(k, K::Obj(_) | K::ObjIndexOutOfRange { .. }),
+        ),
+        obj_case(
+            "OBJ with a missing MTL",
+            b"mtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            vec![],
+            |k| matches!(k, K::Mtl { mtl, .. } if mtl == "gone.mtl"),
+        ),
+        obj_case(
+            "OBJ MTL escaping the folder",
+            b"mtllib ../x.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            vec![],
+            |k| matches!(k, K::Mtl { .. }),
+        ),
+        obj_case(
+            "OBJ with a missing texture",
+            b"mtllib m.mtl\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            vec![("m.mtl".into(), b"newmtl a\nmap_Kd gone.png\n".to_vec())],
+            |k| matches!(k, K::Image { problem, .. } if problem.contains("gone.png")),
+        ),
+        obj_case(
+            "OBJ that is not UTF-8",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\n# \xff\xfe\nf 1 2 3\n",
+            vec![],
+            |k| matches!(k, K::Obj(m) if m.contains("UTF-8")),
+        ),
+        obj_case("OBJ with no faces", b"v 0 0 0\nv 1 0 0\n", vec![], |k| {
+            matches!(k, K::NoTriangles(_))
+        }),
+        obj_case(
+            "OBJ with a bad number",
+            b"v 0 zero 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            vec![],
+            |k| matches!(k, K::Obj(_)),
+        ),
+        obj_case(
+            "OBJ with NaN coordinates",
+            b"v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            vec![],
+            |k| matches!(k, K::NoTriangles(_) | K::Obj(_)),
+        ),
+    ];
+    // The missing-.bin case: the base with no tri.bin written.
+    cases[18].files.truncate(1);
+    cases[18].expect = |k| matches!(k, K::Buffer { buffer: 0, .. });
+    cases
+}
+
+fn write_case(dir: &Path, case: &Case) {
+    for (rel, bytes) in &case.files {
+        let path = dir.join(rel);
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, bytes).unwrap();
+    }
+}
+
+#[test]
+fn every_broken_file_gets_its_error_kind() {
+    let mut failures = Vec::new();
+    let cases = cases();
+    for case in &cases {
+        let dir = tempfile::tempdir().unwrap();
+        let inner = dir.path().join("case");
+        std::fs::create_dir(&inner).unwrap();
+        write_case(&inner, case);
+        let model = inner.join(&case.model);
+        match Scene::load(&model) {
+            Ok(scene) => failures.push(format!(
+                "{}: loaded ({} triangles)",
+                case.name,
+                scene.soup.len()
+            )),
+            Err(e) => {
+                if !(case.expect)(&e.kind) {
+                    failures.push(format!(
+                        "{}: unexpected error kind: {e} ({:?})",
+                        case.name, e.kind
+                    ));
+                }
+                let message = e.to_string();
+                let names_file = message.contains(&*model.to_string_lossy())
+                    || e.path.parent() == Some(inner.as_path())
+                        && message.contains(&*e.path.to_string_lossy());
+                if !names_file {
+                    failures.push(format!(
+                        "{}: message does not name the file: {message}",
+                        case.name
+                    ));
+                }
+            }
+        }
+        if let Some(out) = std::env::var_os("MESHTRACER_WRITE_CORPUS") {
+            let slug: String = case
+                .name
+                .chars()
+                .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+                .collect();
+            let target = Path::new(&out).join(slug);
+            std::fs::create_dir_all(&target).unwrap();
+            write_case(&target, case);
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} of {} cases failed:\n{}",
+        failures.len(),
+        cases.len(),
+        failures.join("\n")
+    );
+    assert!(cases.len() >= 60, "the corpus keeps its size");
+}
+
+#[test]
+fn the_binary_exits_non_zero_with_one_message_naming_the_file() {
+    for case in cases() {
+        let dir = tempfile::tempdir().unwrap();
+        write_case(dir.path(), &case);
+        let model = dir.path().join(&case.model);
+        let out = common::run(&["info", common::s(&model)], false);
+        let err = common::stderr(&out);
+        assert_eq!(out.status.code(), Some(1), "{}: {err}", case.name);
+        assert!(!err.contains("panicked"), "{}: {err}", case.name);
+        assert_eq!(
+            err.trim_end().lines().count(),
+            1,
+            "{}: one line: {err}",
+            case.name
+        );
+        assert!(
+            err.contains(&*dir.path().to_string_lossy()),
+            "{}: names the file: {err}",
+            case.name
+        );
+    }
+}
+
+#[test]
+fn the_valid_bases_load() {
+    let dir = tempfile::tempdir().unwrap();
+    let (json, bin) = base();
+    write_case(dir.path(), &gltf_case("base", json, bin, |_| true));
+    assert_eq!(
+        Scene::load(dir.path().join("model.gltf"))
+            .unwrap()
+            .soup
+            .len(),
+        1
+    );
+    std::fs::write(dir.path().join("model.glb"), glb()).unwrap();
+    assert_eq!(
+        Scene::load(dir.path().join("model.glb"))
+            .unwrap()
+            .soup
+            .len(),
+        1
+    );
+    // A GLB named .gltf and a glTF named .glb still load: the content decides.
+    std::fs::write(dir.path().join("swapped.gltf"), glb()).unwrap();
+    assert_eq!(
+        Scene::load(dir.path().join("swapped.gltf")).unwrap().format,
+        meshtracer::scene::Format::Glb
+    );
+    // A 1-pixel texture is fine.
+    let (mut json, bin) = base();
+    with_image(&mut json, "one.png");
+    write_case(dir.path(), &gltf_case("1px", json, bin, |_| true));
+    std::fs::write(dir.path().join("one.png"), png_1x1()).unwrap();
+    let scene = Scene::load(dir.path().join("model.gltf")).unwrap();
+    assert_eq!(scene.images.len(), 1);
+    // A hierarchy 100,000 nodes deep loads without exhausting the stack.
+    let (mut json, bin) = base();
+    let depth = 100_000;
+    let mut nodes: Vec<Value> = (0..depth).map(|i| json!({"children": [i + 1]})).collect();
+    nodes.push(json!({"mesh": 0, "translation": [1.0, 0.0, 0.0]}));
+    json["nodes"] = json!(nodes);
+    write_case(dir.path(), &gltf_case("deep", json, bin, |_| true));
+    let scene = Scene::load(dir.path().join("model.gltf")).unwrap();
+    assert_eq!(scene.bounds.min.x, 1.0);
+}
