@@ -47,15 +47,19 @@ pub(super) fn build(
     }
 }
 
+/// The ray as obvhs sees it. Adding +0.0 turns a -0.0 direction component into +0.0: obvhs's
+/// `safe_inverse` gives -0.0 a negative inverse while its octant code counts it as positive,
+/// and the mismatch makes box tests miss (a shadow ray along (-1, -0, 1) passed straight
+/// through an occluder before this).
 fn to_obvhs(ray: &Ray, tmax: f32) -> obvhs::ray::Ray {
-    obvhs::ray::Ray::new(ray.origin, ray.direction, ray.tmin, tmax)
+    obvhs::ray::Ray::new(ray.origin, ray.direction + Vec3A::ZERO, ray.tmin, tmax)
 }
 
 pub(super) fn closest(accel: &Accel, bvh: &obvhs::cwbvh::CwBvh, ray: &Ray) -> Option<Closest> {
     let mut best: Option<Closest> = None;
     let mut node_ray = to_obvhs(ray, ray.tmax);
     let mut local = *ray;
-    let mut state = bvh.new_traversal(ray.direction);
+    let mut state = bvh.new_traversal(node_ray.direction);
     let mut node;
     obvhs::traverse!(
         bvh,
@@ -64,7 +68,7 @@ pub(super) fn closest(accel: &Accel, bvh: &obvhs::cwbvh::CwBvh, ray: &Ray) -> Op
         node.intersect_ray(&node_ray, state.oct_inv4),
         {
             let slot = state.primitive_id as usize;
-            let t = accel.test(slot, &local);
+            let t = accel.test(slot, &local, true);
             if t < f32::INFINITY {
                 Closest::offer(&mut best, t, accel.ids[slot], slot);
                 if let Some(b) = best {
@@ -81,7 +85,7 @@ pub(super) fn closest(accel: &Accel, bvh: &obvhs::cwbvh::CwBvh, ray: &Ray) -> Op
 
 pub(super) fn occluded(accel: &Accel, bvh: &obvhs::cwbvh::CwBvh, ray: &Ray) -> bool {
     let node_ray = to_obvhs(ray, ray.tmax);
-    let mut state = bvh.new_traversal(ray.direction);
+    let mut state = bvh.new_traversal(node_ray.direction);
     let mut node;
     let mut blocked = false;
     // A plain `break` would only leave the macro's inner primitive loop.
@@ -92,7 +96,7 @@ pub(super) fn occluded(accel: &Accel, bvh: &obvhs::cwbvh::CwBvh, ray: &Ray) -> b
             state,
             node.intersect_ray(&node_ray, state.oct_inv4),
             {
-                if accel.test(state.primitive_id as usize, ray) < f32::INFINITY {
+                if accel.test(state.primitive_id as usize, ray, false) < f32::INFINITY {
                     blocked = true;
                     break 'traversal;
                 }

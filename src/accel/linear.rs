@@ -6,7 +6,7 @@ use crate::geometry::Ray;
 pub(super) fn closest(accel: &Accel, ray: &Ray) -> Option<Closest> {
     let mut best = None;
     for slot in 0..accel.triangles.len() {
-        let t = accel.test(slot, ray);
+        let t = accel.test(slot, ray, true);
         if t < f32::INFINITY {
             Closest::offer(&mut best, t, accel.ids[slot], slot);
         }
@@ -15,5 +15,5 @@ pub(super) fn closest(accel: &Accel, ray: &Ray) -> Option<Closest> {
 }
 
 pub(super) fn occluded(accel: &Accel, ray: &Ray) -> bool {
-    (0..accel.triangles.len()).any(|slot| accel.test(slot, ray) < f32::INFINITY)
+    (0..accel.triangles.len()).any(|slot| accel.test(slot, ray, false) < f32::INFINITY)
 }

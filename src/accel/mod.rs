@@ -138,7 +138,8 @@ impl Accel {
         self.triangles.is_empty()
     }
 
-    /// The closest hit in (`ray.tmin`, `ray.tmax`), or `None`.
+    /// The closest hit in (`ray.tmin`, `ray.tmax`), or `None`. Single-sided triangles seen from
+    /// behind are not hit (glTF 2.0 §3.9.6: back-face culling).
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
         let closest = match &self.bvh {
             Some(bvh) => bvh::closest(self, bvh, ray),
@@ -155,7 +156,9 @@ impl Accel {
     }
 
     /// True when anything blocks the ray within (`ray.tmin`, `ray.tmax`): the shadow-ray query,
-    /// which stops at the first blocker it finds.
+    /// which stops at the first blocker it finds. Every triangle blocks light from both sides:
+    /// `doubleSided` is about what the camera sees (as in rasterisers and Cycles), and a
+    /// single-sided ground plane or leaf must still cast a shadow.
     pub fn occluded(&self, ray: &Ray) -> bool {
         match &self.bvh {
             Some(bvh) => bvh::occluded(self, bvh, ray),
@@ -163,13 +166,15 @@ impl Accel {
         }
     }
 
-    /// The hit parameter of the triangle in `slot`, with back-face culling applied;
-    /// `f32::INFINITY` for a miss. The one place both structures test a triangle.
+    /// The hit parameter of the triangle in `slot`, `f32::INFINITY` for a miss; with `cull`,
+    /// the back faces of single-sided triangles are misses. The one place both structures
+    /// test a triangle.
     #[inline(always)]
-    fn test(&self, slot: usize, ray: &Ray) -> f32 {
+    fn test(&self, slot: usize, ray: &Ray, cull: bool) -> f32 {
         let tri = &self.triangles[slot];
         let t = tri.intersect_t(ray);
-        if t < f32::INFINITY
+        if cull
+            && t < f32::INFINITY
             && self.single_sided[slot]
             && glam::Vec3A::from(tri.normal()).dot(ray.direction) > 0.0
         {

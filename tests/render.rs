@@ -1,0 +1,660 @@
+//! The renderer through the real binary: analytic radiance, a shadow of known shape, camera
+//! conventions, determinism, every sample model, and refusals of bad options.
+
+mod common;
+
+use common::{quads_gltf, read_rgba, run, s, samples, write_gltf};
+use serde_json::json;
+use std::f32::consts::PI;
+use std::path::{Path, PathBuf};
+
+/// Relative tolerance for analytic radiance: the renderer computes in f32 and EXR stores f32,
+/// so the only error is rounding in a few dozen operations (~1e-6); 1e-4 leaves margin.
+const RADIANCE_TOLERANCE: f32 = 1e-4;
+
+fn white(double_sided: bool) -> serde_json::Value {
+    json!({"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0}, "doubleSided": double_sided})
+}
+
+/// An orthographic camera node at `z` looking down -Z, seeing [-mag, mag]².
+fn ortho_camera_from_above(z: f32, mag: f32) -> serde_json::Value {
+    json!({
+        "cameras": [{"type": "orthographic", "orthographic": {"xmag": mag, "ymag": mag, "znear": 0.01, "zfar": 100.0}}],
+        "nodes": [{"camera": 0, "translation": [0.0, 0.0, z]}]
+    })
+}
+
+fn merge(mut a: serde_json::Value, b: serde_json::Value) -> serde_json::Value {
+    for (k, v) in b.as_object().unwrap() {
+        if k == "nodes" {
+            let mut list = a
+                .get("nodes")
+                .and_then(|n| n.as_array().cloned())
+                .unwrap_or_default();
+            list.extend(v.as_array().unwrap().iter().cloned());
+            a["nodes"] = json!(list);
+        } else {
+            a[k] = v.clone();
+        }
+    }
+    a
+}
+
+fn render_to(dir: &Path, model: &Path, name: &str, extra: &[&str]) -> PathBuf {
+    let out = dir.join(name);
+    let mut args = vec!["render", s(model), "-o", s(&out), "--quiet"];
+    args.extend_from_slice(extra);
+    run(&args, true);
+    out
+}
+
+/// A white Lambertian quad 2 m under a 4 cd point light, seen from straight above by an
+/// orthographic camera: every pixel must equal the closed form of the shading model,
+/// L = (1/π + 0.04·(e+8)/(8π)·(n·h)^e)·(I/d²)·cosθ with e = 1 for roughness 1.
+#[test]
+fn lambertian_quad_under_a_point_light_matches_the_closed_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let (h, intensity) = (2.0f32, 4.0f32);
+    let extra = merge(
+        ortho_camera_from_above(5.0, 2.0),
+        json!({
+            "materials": [white(false)],
+            "extensionsUsed": ["KHR_lights_punctual"],
+            "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": intensity}]}},
+            "nodes": [{"translation": [0.0, 0.0, h], "extensions": {"KHR_lights_punctual": {"light": 0}}}]
+        }),
+    );
+    let quad = [
+        [-2.0, -2.0, 0.0],
+        [2.0, -2.0, 0.0],
+        [2.0, 2.0, 0.0],
+        [-2.0, 2.0, 0.0],
+    ];
+    let (json, bin) = quads_gltf(&[(quad, 0)], extra);
+    let model = dir.path().join("quad.gltf");
+    write_gltf(&model, json, &bin);
+    let out = render_to(
+        dir.path(),
+        &model,
+        "quad.exr",
+        &[
+            "--width",
+            "64",
+            "--height",
+            "64",
+            "--spp",
+            "1",
+            "--ambient",
+            "0",
+        ],
+    );
+    let (w, hgt, pixels) = read_rgba(&out);
+    assert_eq!((w, hgt), (64, 64));
+    let mut worst = 0.0f32;
+    for j in 0..64 {
+        for i in 0..64 {
+            let x = -2.0 + (i as f32 + 0.5) * 4.0 / 64.0;
+            let y = 2.0 - (j as f32 + 0.5) * 4.0 / 64.0;
+            let d2 = x * x + y * y + h * h;
+            let d = d2.sqrt();
+            let cos = h / d;
+            let to_light = glam::Vec3::new(-x, -y, h) / d;
+            let half = (to_light + glam::Vec3::Z).normalize();
+            let expected = (1.0 / PI + 0.04 * 9.0 / (8.0 * PI) * half.z) * intensity / d2 * cos;
+            let got = pixels[(j * 64 + i) as usize];
+            assert_eq!(got[3], 1.0, "covered");
+            let rel = (got[0] - expected).abs() / expected;
+            worst = worst.max(rel);
+        }
+    }
+    assert!(worst < RADIANCE_TOLERANCE, "worst relative error {worst}");
+}
+
+/// A 1x1 occluder 1 m above a ground plane under a directional light at 45° casts a 1x1 shadow
+/// shifted 1 m along +X: pixels clearly inside it are black (no ambient), pixels clearly outside
+/// it and the occluder are lit.
+#[test]
+fn occluder_casts_a_shadow_of_known_shape() {
+    let dir = tempfile::tempdir().unwrap();
+    let travel = glam::Vec3::new(1.0, 0.0, -1.0).normalize();
+    let rotation = glam::Quat::from_rotation_arc(glam::Vec3::NEG_Z, travel);
+    let extra = merge(
+        ortho_camera_from_above(5.0, 3.0),
+        json!({
+            "materials": [white(false)],
+            "extensionsUsed": ["KHR_lights_punctual"],
+            "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 2.0}]}},
+            "nodes": [{"rotation": rotation.to_array(), "extensions": {"KHR_lights_punctual": {"light": 0}}}]
+        }),
+    );
+    let ground = [
+        [-3.0, -3.0, 0.0],
+        [3.0, -3.0, 0.0],
+        [3.0, 3.0, 0.0],
+        [-3.0, 3.0, 0.0],
+    ];
+    let occluder = [
+        [-0.5, -0.5, 1.0],
+        [0.5, -0.5, 1.0],
+        [0.5, 0.5, 1.0],
+        [-0.5, 0.5, 1.0],
+    ];
+    let (json, bin) = quads_gltf(&[(ground, 0), (occluder, 0)], extra);
+    let model = dir.path().join("shadow.gltf");
+    write_gltf(&model, json, &bin);
+    let n = 120u32;
+    let out = render_to(
+        dir.path(),
+        &model,
+        "shadow.exr",
+        &[
+            "--width",
+            "120",
+            "--height",
+            "120",
+            "--spp",
+            "1",
+            "--ambient",
+            "0",
+        ],
+    );
+    let (_, _, pixels) = read_rgba(&out);
+    let pixel = 6.0 / n as f32;
+    let (mut shadowed, mut lit) = (0, 0);
+    for j in 0..n {
+        for i in 0..n {
+            let x = -3.0 + (i as f32 + 0.5) * pixel;
+            let y = 3.0 - (j as f32 + 0.5) * pixel;
+            let v = pixels[(j * n + i) as usize][0];
+            let inside =
+                |x0: f32, x1: f32| x > x0 + pixel && x < x1 - pixel && y.abs() < 0.5 - pixel;
+            let outside =
+                |x0: f32, x1: f32| x < x0 - pixel || x > x1 + pixel || y.abs() > 0.5 + pixel;
+            if inside(0.5, 1.5) {
+                assert_eq!(v, 0.0, "pixel ({i},{j}) at x {x} y {y} is in the shadow");
+                shadowed += 1;
+            } else if outside(0.5, 1.5) && outside(-0.5, 0.5) {
+                // E = 2 lux · cos 45°, Lambertian plus the 4% lobe: at least 2·0.707/π.
+                assert!(v > 0.44, "pixel ({i},{j}) at x {x} y {y} is lit, got {v}");
+                lit += 1;
+            }
+        }
+    }
+    assert!(
+        shadowed > 250 && lit > 10_000,
+        "{shadowed} shadowed, {lit} lit"
+    );
+}
+
+/// glTF 2.0 §3.10: a camera looks down its local -Z with +Y up. A camera node turned 90° about
+/// +Y looks down world -X with world -Z to its right; a quad placed up and to the right must
+/// fill exactly the top-right quadrant, for both projections.
+#[test]
+fn camera_conventions_put_a_quad_where_expected() {
+    let dir = tempfile::tempdir().unwrap();
+    let rotation = glam::Quat::from_rotation_y(std::f32::consts::FRAC_PI_2).to_array();
+    // Seen from +X: right is -Z, up is +Y; corners counter-clockwise in that view.
+    let quad = [
+        [-2.0, 0.0, 0.0],
+        [-2.0, 0.0, -2.0],
+        [-2.0, 2.0, -2.0],
+        [-2.0, 2.0, 0.0],
+    ];
+    for (name, camera) in [
+        (
+            "perspective",
+            json!({"type": "perspective", "perspective": {"yfov": std::f32::consts::FRAC_PI_2, "znear": 0.1}}),
+        ),
+        (
+            "orthographic",
+            json!({"type": "orthographic", "orthographic": {"xmag": 2.0, "ymag": 2.0, "znear": 0.1, "zfar": 50.0}}),
+        ),
+    ] {
+        let extra = json!({
+            "materials": [white(false)],
+            "cameras": [camera],
+            "nodes": [{"camera": 0, "rotation": rotation}]
+        });
+        let (json, bin) = quads_gltf(&[(quad, 0)], extra);
+        let model = dir.path().join(format!("{name}.gltf"));
+        write_gltf(&model, json, &bin);
+        let out = render_to(
+            dir.path(),
+            &model,
+            &format!("{name}.png"),
+            &["--width", "64", "--height", "64", "--spp", "1"],
+        );
+        let (_, _, pixels) = read_rgba(&out);
+        for j in 0..64 {
+            for i in 0..64 {
+                let covered = pixels[j * 64 + i][3] > 0.0;
+                let expected = i >= 32 && j < 32;
+                assert_eq!(covered, expected, "{name}: pixel ({i},{j})");
+            }
+        }
+    }
+}
+
+fn coverage(path: &Path) -> f32 {
+    let (_, _, pixels) = read_rgba(path);
+    pixels.iter().map(|p| p[3]).sum::<f32>() / pixels.len() as f32
+}
+
+#[test]
+fn the_cameras_asset_renders_through_both_of_its_cameras() {
+    let Some(samples) = samples("the_cameras_asset_renders_through_both_of_its_cameras") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let model = samples.join("Cameras/glTF/Cameras.gltf");
+    // The file: a unit quad in XY turned -45° about X, both cameras at (0.5, 0.5, 3) looking
+    // down -Z. Its projected outline is a trapezoid whose area, over the view's, is the
+    // expected coverage (computed here from the file's numbers, not from the renderer).
+    let rotation = glam::Quat::from_xyzw(-0.383, 0.0, 0.0, 0.92375).normalize();
+    let corners = [
+        glam::Vec3::ZERO,
+        glam::Vec3::X,
+        glam::Vec3::new(1.0, 1.0, 0.0),
+        glam::Vec3::Y,
+    ]
+    .map(|c| rotation * c);
+    let eye = glam::Vec3::new(0.5, 0.5, 3.0);
+    let area = |project: &dyn Fn(glam::Vec3) -> glam::Vec2| {
+        let p = corners.map(|c| project(c - eye));
+        (0..4)
+            .map(|i| p[i].perp_dot(p[(i + 1) % 4]))
+            .sum::<f32>()
+            .abs()
+            / 2.0
+    };
+    let half = 0.35f32.tan(); // yfov 0.7, aspect 1
+    let perspective_expected = area(&|v| glam::Vec2::new(v.x, v.y) / (-v.z * half)) / 4.0;
+    let ortho_expected = area(&|v| glam::Vec2::new(v.x, v.y)) / 4.0; // xmag = ymag = 1
+    let perspective = render_to(
+        dir.path(),
+        &model,
+        "p.png",
+        &["--camera", "0", "--width", "200", "--spp", "16"],
+    );
+    let c = coverage(&perspective);
+    assert!(
+        (c - perspective_expected).abs() < 0.005,
+        "perspective coverage {c}, expected {perspective_expected}"
+    );
+    let ortho = render_to(
+        dir.path(),
+        &model,
+        "o.png",
+        &[
+            "--camera", "1", "--width", "200", "--height", "200", "--spp", "16",
+        ],
+    );
+    let c = coverage(&ortho);
+    assert!(
+        (c - ortho_expected).abs() < 0.005,
+        "orthographic coverage {c}, expected {ortho_expected}"
+    );
+    // Without --camera the first camera is used.
+    let default = render_to(
+        dir.path(),
+        &model,
+        "d.png",
+        &["--width", "200", "--spp", "16"],
+    );
+    assert_eq!(
+        std::fs::read(default).unwrap(),
+        std::fs::read(perspective).unwrap()
+    );
+}
+
+fn cornell() -> PathBuf {
+    common::root().join("assets/cornell-box.gltf")
+}
+
+#[test]
+fn bvh_and_linear_scan_give_identical_images() {
+    let dir = tempfile::tempdir().unwrap();
+    let small = ["--width", "96", "--height", "72", "--spp", "2"];
+    let bvh = render_to(dir.path(), &cornell(), "bvh.png", &small);
+    let mut linear_args = small.to_vec();
+    linear_args.extend(["--accel", "linear"]);
+    let linear = render_to(dir.path(), &cornell(), "linear.png", &linear_args);
+    assert_eq!(std::fs::read(bvh).unwrap(), std::fs::read(linear).unwrap());
+}
+
+#[test]
+fn output_is_identical_for_any_thread_count_and_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = |t: &'static str| {
+        vec![
+            "--width",
+            "120",
+            "--height",
+            "90",
+            "--spp",
+            "4",
+            "--threads",
+            t,
+        ]
+    };
+    let one = render_to(dir.path(), &cornell(), "one.png", &args("1"));
+    let two = render_to(dir.path(), &cornell(), "two.png", &args("2"));
+    let again = render_to(dir.path(), &cornell(), "again.png", &args("2"));
+    let one = std::fs::read(one).unwrap();
+    assert_eq!(one, std::fs::read(two).unwrap());
+    assert_eq!(one, std::fs::read(again).unwrap());
+}
+
+#[test]
+fn the_bundled_scenes_render_with_their_lights_and_shadows() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = render_to(
+        dir.path(),
+        &cornell(),
+        "cb.png",
+        &["--width", "160", "--spp", "1"],
+    );
+    let (w, h, pixels) = read_rgba(&out);
+    assert_eq!(
+        (w, h),
+        (160, 120),
+        "the camera's aspectRatio 4:3 sets the height"
+    );
+    let covered = pixels.iter().filter(|p| p[3] > 0.0).count();
+    assert!(
+        covered > (w * h) as usize / 2,
+        "the room fills most of the frame"
+    );
+    // The red wall is red, the green wall green (left and right thirds, mid-height).
+    let px = |x: u32, y: u32| pixels[(y * w + x) as usize];
+    let left = px(22, 50);
+    let right = px(137, 50);
+    assert!(left[0] > 2.0 * left[1], "left wall {left:?}");
+    assert!(right[1] > 1.5 * right[0], "right wall {right:?}");
+    // Somewhere is in shadow: some covered pixel is much darker than the median.
+    let mut lum: Vec<f32> = pixels
+        .iter()
+        .filter(|p| p[3] > 0.0)
+        .map(|p| p[0] + p[1] + p[2])
+        .collect();
+    lum.sort_by(f32::total_cmp);
+    assert!(
+        lum[lum.len() / 50] < 0.25 * lum[lum.len() / 2],
+        "shadows exist"
+    );
+
+    let obj = render_to(
+        dir.path(),
+        &common::root().join("assets/shapes.obj"),
+        "shapes.png",
+        &["--width", "160", "--spp", "1"],
+    );
+    assert!(coverage(&obj) > 0.1);
+}
+
+#[test]
+fn linear_float_outputs_are_written() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["cb.exr", "cb.hdr"] {
+        let out = render_to(
+            dir.path(),
+            &cornell(),
+            name,
+            &["--width", "40", "--spp", "1"],
+        );
+        let (w, h, pixels) = read_rgba(&out);
+        assert_eq!((w, h), (40, 30));
+        assert!(pixels.iter().any(|p| p[0] > 0.05), "{name} has content");
+    }
+}
+
+/// Every sample model renders with visible, non-black content; where the file has a camera,
+/// it is the one used.
+#[test]
+fn every_sample_model_renders_visible_content() {
+    let Some(samples) = samples("every_sample_model_renders_visible_content") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let mut problems = Vec::new();
+    for (model, _) in MODELS {
+        let path = samples.join(model);
+        let out = dir.path().join("out.png");
+        let result = common::bin()
+            .args([
+                "render",
+                s(&path),
+                "-o",
+                s(&out),
+                "--width",
+                "64",
+                "--height",
+                "48",
+                "--spp",
+                "1",
+                "--quiet",
+            ])
+            .output()
+            .unwrap();
+        if !result.status.success() {
+            problems.push(format!("{model}: {}", common::stderr(&result)));
+            continue;
+        }
+        let (_, _, pixels) = read_rgba(&out);
+        let covered = pixels.iter().filter(|p| p[3] > 0.0).count();
+        let bright = pixels
+            .iter()
+            .filter(|p| p[3] > 0.0 && p[0].max(p[1]).max(p[2]) > 10.0 / 255.0)
+            .count();
+        if covered < 10 || bright < 5 {
+            problems.push(format!(
+                "{model}: {covered} covered and {bright} non-black pixels"
+            ));
+        }
+    }
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+    // Duck has a camera: the default render is the render through camera 0.
+    let duck = samples.join("Duck/glTF/Duck.gltf");
+    let a = render_to(dir.path(), &duck, "a.png", &["--width", "64", "--spp", "1"]);
+    let b = render_to(
+        dir.path(),
+        &duck,
+        "b.png",
+        &["--width", "64", "--spp", "1", "--camera", "0"],
+    );
+    assert_eq!(std::fs::read(a).unwrap(), std::fs::read(b).unwrap());
+}
+
+/// Model list shared with the import tests (paths only are used here).
+const MODELS: &[(&str, usize)] = &[
+    ("Avocado/glTF/Avocado.gltf", 682),
+    ("Box/glTF-Binary/Box.glb", 12),
+    ("BoxInterleaved/glTF/BoxInterleaved.gltf", 12),
+    ("BoxTextured/glTF/BoxTextured.gltf", 12),
+    ("Cameras/glTF/Cameras.gltf", 2),
+    ("CesiumMilkTruck/glTF-Binary/CesiumMilkTruck.glb", 3624),
+    ("CornellBox-OBJ/CornellBox-Mirror.obj", 36),
+    ("CornellBox-OBJ/CornellBox-Original.obj", 36),
+    ("CornellBox-OBJ/CornellBox-Sphere.obj", 2188),
+    ("DamagedHelmet/glTF/DamagedHelmet.gltf", 15452),
+    ("Duck/glTF/Duck.gltf", 4212),
+    ("Lantern/glTF/Lantern.gltf", 5394),
+    ("LightsPunctualLamp/glTF/LightsPunctualLamp.gltf", 6000),
+    ("MeshPrimitiveModes/glTF/MeshPrimitiveModes.gltf", 16),
+    (
+        "MetalRoughSpheresNoTextures/glTF-Binary/MetalRoughSpheresNoTextures.glb",
+        1_040_409,
+    ),
+    ("MultipleScenes/glTF/MultipleScenes.gltf", 2),
+    ("OrientationTest/glTF/OrientationTest.gltf", 524),
+    ("SimpleSparseAccessor/glTF/SimpleSparseAccessor.gltf", 12),
+    ("StanfordBunny-OBJ/stanford-bunny.obj", 69_451),
+    ("Suzanne/glTF/Suzanne.gltf", 3936),
+    ("TextureCoordinateTest/glTF/TextureCoordinateTest.gltf", 10),
+    ("Triangle/glTF/Triangle.gltf", 1),
+    ("TriangleWithoutIndices/glTF/TriangleWithoutIndices.gltf", 1),
+    ("VikingRoom-OBJ/viking_room.obj", 3828),
+];
+
+#[test]
+fn bad_options_are_refused_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = cornell();
+    let out = |name: &str| dir.path().join(name);
+    let refuse = |args: &[&str], needle: &str| {
+        let result = run(args, false);
+        let err = common::stderr(&result);
+        assert!(
+            err.contains(needle),
+            "{args:?}: expected '{needle}' in: {err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+    };
+    // Decided before loading: the model does not even exist.
+    refuse(
+        &["render", "no-such-model.gltf", "-o", s(&out("x.bmp"))],
+        "unknown output format",
+    );
+    refuse(
+        &[
+            "render",
+            s(&model),
+            "-o",
+            s(&out("x.png")),
+            "--width",
+            "0",
+            "--height",
+            "10",
+        ],
+        "at least 1",
+    );
+    refuse(
+        &[
+            "render",
+            s(&model),
+            "-o",
+            s(&out("x.png")),
+            "--width",
+            "100000",
+            "--height",
+            "100000",
+        ],
+        "over the limit",
+    );
+    refuse(
+        &["render", s(&model), "-o", s(&out("x.png")), "--spp", "0"],
+        "--spp",
+    );
+    refuse(
+        &[
+            "render",
+            s(&model),
+            "-o",
+            s(&dir.path().join("missing/dir/x.png")),
+        ],
+        "cannot write here",
+    );
+    refuse(
+        &["render", s(&model), "-o", s(&out("x.png")), "--camera", "7"],
+        "--camera 7",
+    );
+    refuse(
+        &[
+            "render",
+            s(&model),
+            "-o",
+            s(&out("x.png")),
+            "--look-from",
+            "1,2",
+        ],
+        "X,Y,Z",
+    );
+    // Nothing was left behind by the refusals.
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert!(left.is_empty(), "files left behind: {left:?}");
+}
+
+#[test]
+fn a_failed_render_keeps_the_existing_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("keep.png");
+    std::fs::write(&out, b"previous image").unwrap();
+    let broken = dir.path().join("broken.gltf");
+    std::fs::write(&broken, b"{\"asset\": 1}").unwrap();
+    run(&["render", s(&broken), "-o", s(&out)], false);
+    run(
+        &["render", s(&cornell()), "-o", s(&out), "--camera", "3"],
+        false,
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous image");
+    // --no-clobber refuses to replace it even when the render would succeed.
+    let result = run(
+        &[
+            "render",
+            s(&cornell()),
+            "-o",
+            s(&out),
+            "--no-clobber",
+            "--width",
+            "8",
+        ],
+        false,
+    );
+    assert!(common::stderr(&result).contains("already exists"));
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous image");
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(names.len(), 2, "no temporary files left: {names:?}");
+}
+
+#[test]
+fn the_summary_reports_what_the_render_did() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.png");
+    let result = run(
+        &[
+            "render",
+            s(&cornell()),
+            "-o",
+            s(&out),
+            "--width",
+            "32",
+            "--spp",
+            "1",
+        ],
+        true,
+    );
+    let err = common::stderr(&result);
+    for needle in [
+        "2244 triangles",
+        "BVH",
+        "built in",
+        "rendered in",
+        "rays",
+        "Mrays/s",
+    ] {
+        assert!(err.contains(needle), "'{needle}' missing from: {err}");
+    }
+    let quiet = run(
+        &[
+            "render",
+            s(&cornell()),
+            "-o",
+            s(&out),
+            "--width",
+            "32",
+            "--spp",
+            "1",
+            "--quiet",
+        ],
+        true,
+    );
+    assert!(quiet.stderr.is_empty());
+}
