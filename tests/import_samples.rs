@@ -123,7 +123,7 @@ fn cameras_and_lights_come_from_nodes() {
         Projection::Perspective {
             yfov, aspect_ratio, ..
         } => {
-            assert!((yfov - 0.660_592_66).abs() < 1e-6);
+            assert!((yfov - 0.660_592_7).abs() < 1e-6);
             assert_eq!(aspect_ratio, Some(1.5));
         }
         other => panic!("Duck's camera is perspective, got {other:?}"),
