@@ -391,6 +391,12 @@ fn cases() -> Vec<Case> {
             |j, _| j["meshes"][0]["primitives"][0]["attributes"] = json!({"NORMAL": 0}),
             |k| matches!(k, K::MissingPositions { .. } | K::Gltf(_)),
         ),
+        // Found by fuzzing: gltf-json's validation indexed accessors[POSITION] unchecked.
+        edited(
+            "POSITION accessor that does not exist",
+            |j, _| j["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = json!(9),
+            |k| matches!(k, K::Gltf(m) if m.contains("accessor 9")),
+        ),
         edited(
             "accessor index that does not exist",
             |j, _| j["meshes"][0]["primitives"][0]["indices"] = json!(9),

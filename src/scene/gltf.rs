@@ -64,8 +64,9 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         }
     }
     let blob = gltf.blob;
-    let document =
-        gltf::Document::from_json(gltf.document.into_json()).map_err(|e| err(convert(e)))?;
+    let root = gltf.document.into_json();
+    check_attribute_indices(&root).map_err(err)?;
+    let document = gltf::Document::from_json(root).map_err(|e| err(convert(e)))?;
     let access = FileAccess::new(
         path,
         options.allow_external_files,
@@ -162,6 +163,29 @@ fn check_glb_header(bytes: &[u8]) -> Result<(), LoadErrorKind> {
             "header declares {length} bytes but the file has {} (truncated or corrupt)",
             bytes.len()
         )));
+    }
+    Ok(())
+}
+
+/// gltf-json 1.4's validation indexes `accessors[POSITION]` before checking that the index
+/// exists (found by fuzzing): check every primitive's accessor references first.
+fn check_attribute_indices(root: &gltf::json::Root) -> Result<(), LoadErrorKind> {
+    let count = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let referenced = primitive
+                .attributes
+                .values()
+                .chain(primitive.indices.iter())
+                .map(|i| i.value());
+            for index in referenced {
+                if index >= count {
+                    return Err(LoadErrorKind::Gltf(format!(
+                        "meshes[{m}].primitives[{p}] refers to accessor {index}, but the file has {count}"
+                    )));
+                }
+            }
+        }
     }
     Ok(())
 }

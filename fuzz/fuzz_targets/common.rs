@@ -1,0 +1,31 @@
+//! Shared by the fuzz targets: load bytes through the public `Scene::from_bytes` path.
+
+use meshtracer::scene::{LoadLimits, LoadOptions};
+use meshtracer::Scene;
+use std::path::Path;
+
+/// Loads `data` as if it were the file `name` in a folder that does not exist, so relative
+/// URIs in the input resolve to nothing on this machine. Limits are small so that a valid but
+/// huge input is refused quickly instead of timing out the fuzzer.
+pub fn load(name: &str, data: &[u8]) {
+    let options = LoadOptions {
+        limits: LoadLimits {
+            max_file_bytes: 16 << 20,
+            max_triangles: 1 << 20,
+            max_image_pixels: 16 << 20,
+        },
+        allow_external_files: false,
+    };
+    let path = Path::new("/nonexistent-meshtracer-fuzz").join(name);
+    if let Ok(scene) = Scene::from_bytes(&path, data, &options) {
+        // Whatever loads must be a soup the tracer can trust.
+        assert!(!scene.soup.is_empty());
+        assert_eq!(scene.soup.normals.len(), scene.soup.len());
+        for tri in &scene.soup.positions {
+            assert!(tri.iter().all(|p| p.is_finite()));
+        }
+        for &m in &scene.soup.material {
+            assert!((m as usize) < scene.materials.len());
+        }
+    }
+}
