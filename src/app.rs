@@ -28,7 +28,12 @@ pub fn run(command: Command) -> Result<()> {
 /// one in gltf-json's validation); it is reported as an error naming the file instead of
 /// aborting, while the fuzz targets, which call the library directly, still see it.
 fn load(path: &std::path::Path, options: &LoadOptions) -> Result<Scene> {
+    // Loading runs on this thread alone, before any worker starts: silencing the panic hook
+    // for its duration keeps the report to one message.
+    let previous_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(|_| {}));
     let result = std::panic::catch_unwind(|| Scene::load_with(path, options));
+    std::panic::set_hook(previous_hook);
     match result {
         Ok(loaded) => Ok(loaded?),
         Err(panic) => {

@@ -6,11 +6,6 @@ use std::process::ExitCode;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    // Panics are bugs; the loader turns one into an error message, so keep the default hook's
-    // backtrace text for RUST_BACKTRACE users only.
-    if std::env::var_os("RUST_BACKTRACE").is_none() {
-        std::panic::set_hook(Box::new(|_| {}));
-    }
     match meshtracer::app::run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
