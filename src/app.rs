@@ -21,6 +21,7 @@ pub fn run(command: Command) -> Result<()> {
     match command {
         Command::Info(args) => info(&args),
         Command::Render(args) => render_command(&args),
+        Command::Bench(args) => bench_command(&args),
     }
 }
 
@@ -394,4 +395,122 @@ fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
         .progress_chars("=> "),
     );
     bar
+}
+
+fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
+    use crate::bench::{generated_mesh, markdown_table, measure, scene_from_soup, BenchOptions};
+    for path in [&args.report, &args.plot].into_iter().flatten() {
+        if path.is_dir() {
+            bail!("{}: is a directory", path.display());
+        }
+    }
+    if args.side == 0 || args.side > 8192 {
+        bail!("--side {}: must be between 1 and 8192", args.side);
+    }
+    if let Some(&n) = args
+        .sizes
+        .iter()
+        .find(|&&n| n < 8 || n as u64 > args.load.max_triangles)
+    {
+        bail!("--sizes: {n} is outside 8..={}", args.load.max_triangles);
+    }
+    let threads = if args.threads == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        args.threads
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("cannot start worker threads")?;
+    let options = BenchOptions {
+        kind: args.rays,
+        side: args.side,
+        runs: args.runs.max(1),
+        linear_budget: args.linear_budget,
+        preset: args.bvh_preset,
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    {
+        let stop = Arc::clone(&stop);
+        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
+    }
+    let mut rows = Vec::new();
+    let mut generated_rows = Vec::new();
+    let jobs: Vec<(String, Option<usize>, Option<&std::path::PathBuf>)> = args
+        .sizes
+        .iter()
+        .map(|&n| (format!("generated {n}"), Some(n), None))
+        .chain(args.models.iter().map(|p| {
+            let name = p.file_name().map_or_else(
+                || p.display().to_string(),
+                |n| n.to_string_lossy().into_owned(),
+            );
+            (name, None, Some(p))
+        }))
+        .collect();
+    for (i, (name, size, path)) in jobs.iter().enumerate() {
+        if stop.load(Ordering::SeqCst) {
+            eprintln!("stopped: printing the {} finished measurements", rows.len());
+            break;
+        }
+        if !args.quiet {
+            eprintln!("[{}/{}] {name}: building and tracing...", i + 1, jobs.len());
+        }
+        let scene = match (size, path) {
+            (Some(n), _) => scene_from_soup(generated_mesh(*n, 1), name),
+            (None, Some(p)) => load(p, &load_options(&args.load))?,
+            (None, None) => continue,
+        };
+        let row = pool.install(|| measure(&scene, name, &options))?;
+        if !args.quiet {
+            eprintln!(
+                "      {} triangles: build {:.1} ms, BVH {:.2} Mrays/s{}",
+                row.triangles,
+                row.build.as_secs_f64() * 1e3,
+                row.bvh_mrays,
+                row.linear_mrays
+                    .map_or(String::new(), |l| format!(", linear {l:.4} Mrays/s"))
+            );
+        }
+        if size.is_some() {
+            generated_rows.push(row.clone());
+        }
+        rows.push(row);
+    }
+    let table = markdown_table(&rows);
+    println!("{table}");
+    let settings = format!(
+        "{:?} rays ({} primary rays per run, shadow/diffuse rays from their hits), median of {} runs, {threads} threads, obvhs preset {:?}, linear scan budget {} triangle tests; CPU: {}",
+        args.rays,
+        u64::from(args.side) * u64::from(args.side),
+        options.runs,
+        args.bvh_preset,
+        args.linear_budget,
+        cpu_name()
+    );
+    println!("{settings}");
+    if let Some(path) = &args.report {
+        let report = format!("# meshtracer bench\n\n{settings}\n\n{table}");
+        crate::image::write_atomic(path, report.as_bytes())?;
+    }
+    if let Some(path) = &args.plot {
+        let title = format!("time per {:?} ray vs triangles", args.rays).to_lowercase();
+        let png = crate::plot::scaling_plot(&generated_rows, &title);
+        crate::image::write_atomic(path, &png)?;
+    }
+    Ok(())
+}
+
+/// The CPU model, for reports.
+fn cpu_name() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|info| {
+            info.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown".into())
 }

@@ -21,6 +21,9 @@ pub enum Command {
     Render(RenderArgs),
     /// Show what the importer read from a model: triangles, materials, cameras, lights, bounds.
     Info(InfoArgs),
+    /// Measure BVH build time and BVH vs. linear-scan throughput on generated meshes of growing
+    /// size and on models; print a table, optionally write a Markdown report and a log-log plot.
+    Bench(BenchArgs),
 }
 
 /// Options shared by every command that loads a model.
@@ -122,6 +125,51 @@ pub struct RenderArgs {
     #[arg(long)]
     pub no_clobber: bool,
     /// No progress bar and no summary.
+    #[arg(short, long)]
+    pub quiet: bool,
+    /// Loading options.
+    #[command(flatten)]
+    pub load: LoadArgs,
+}
+
+/// `meshtracer bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// Models to measure besides the generated meshes.
+    pub models: Vec<PathBuf>,
+    /// Triangle counts of the generated meshes (seeded bumpy spheres); empty for none.
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "1000,10000,100000,1000000"
+    )]
+    pub sizes: Vec<usize>,
+    /// Ray coherence: camera rays, shadow rays toward a light, or random diffuse bounces.
+    #[arg(long, value_enum, default_value_t = crate::bench::RayKind::Primary)]
+    pub rays: crate::bench::RayKind,
+    /// Camera rays per image side (side² primary rays per run).
+    #[arg(long, default_value_t = 512)]
+    pub side: u32,
+    /// Timed runs per measurement (the median is reported).
+    #[arg(long, default_value_t = 3)]
+    pub runs: usize,
+    /// Triangle tests the linear scan may spend per measurement (it traces a subset of the rays
+    /// so that it finishes); 0 skips the linear scan.
+    #[arg(long, default_value_t = 2_000_000_000)]
+    pub linear_budget: u64,
+    /// obvhs build preset.
+    #[arg(long, value_enum, default_value_t = BvhPreset::Medium)]
+    pub bvh_preset: BvhPreset,
+    /// Worker threads (0 = one per core).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Write the table and the settings as Markdown here.
+    #[arg(long, value_name = "FILE")]
+    pub report: Option<PathBuf>,
+    /// Draw time per ray against triangle count (log-log) to this PNG.
+    #[arg(long, value_name = "FILE")]
+    pub plot: Option<PathBuf>,
+    /// No progress lines.
     #[arg(short, long)]
     pub quiet: bool,
     /// Loading options.

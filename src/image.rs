@@ -212,6 +212,28 @@ impl PendingOutput {
     }
 }
 
+/// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so the
+/// destination is either untouched or complete.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SaveError> {
+    let io_err = |source: std::io::Error| SaveError::Unwritable {
+        path: path.to_path_buf(),
+        source,
+    };
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let mut file = tempfile::Builder::new()
+        .prefix(".meshtracer-")
+        .suffix(".partial")
+        .tempfile_in(&dir)
+        .map_err(io_err)?;
+    file.write_all(bytes).map_err(io_err)?;
+    file.as_file().sync_all().map_err(io_err)?;
+    file.persist(path).map_err(|e| io_err(e.error))?;
+    Ok(())
+}
+
 /// A premultiplied pixel over an optional opaque background.
 fn composite(p: Vec4, background: Option<Vec3>) -> Vec4 {
     match background {

@@ -11,11 +11,13 @@
 
 pub mod accel;
 pub mod app;
+pub mod bench;
 pub mod camera;
 pub mod cli;
 pub mod geometry;
 pub mod image;
 pub mod light;
+pub mod plot;
 pub mod render;
 pub mod sampling;
 pub mod scene;

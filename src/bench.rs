@@ -1,0 +1,384 @@
+//! Benchmark workloads shared by `meshtracer bench` and the criterion benches: seeded generated
+//! meshes, ray sets of three coherences, and timed query loops that check their own results.
+//!
+//! - **Generated meshes**: a unit sphere of `rings × 2·rings` quads split into triangles, its
+//!   radius modulated by `1 + 0.05·sin(7θ + a)·sin(9φ + b)` (a, b from the seed) so that no two
+//!   triangles are coplanar. `rings` is chosen so the count is within 1% of the request.
+//! - **Primary rays**: one per pixel of a square image from the automatic camera, in scanline
+//!   order (coherent). **Shadow rays**: from each primary hit toward a point light above and in
+//!   front of the scene (any-hit queries, coherent-ish). **Diffuse rays**: from each primary hit
+//!   in a cosine-distributed random direction about the normal (closest-hit, incoherent).
+
+use crate::accel::{Accel, AccelKind, BvhPreset};
+use crate::camera::{auto_camera, View};
+use crate::geometry::Ray;
+use crate::sampling::Rng;
+use crate::scene::{Material, Scene, SoupBuilder, TriangleIn, TriangleSoup};
+use glam::Vec3;
+use rayon::prelude::*;
+use std::time::{Duration, Instant};
+
+/// Ray coherence of a workload.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum RayKind {
+    /// Camera rays in scanline order; closest hit.
+    Primary,
+    /// From primary hits toward a light; any hit.
+    Shadow,
+    /// From primary hits in random cosine-weighted directions; closest hit.
+    Diffuse,
+}
+
+/// A seeded bumpy sphere with about `triangles` triangles (see the module docs).
+pub fn generated_mesh(triangles: usize, seed: u64) -> TriangleSoup {
+    let rings = ((triangles as f64 / 4.0).sqrt().round() as u32).max(2);
+    let segments = 2 * rings;
+    let mut rng = Rng::new(seed);
+    let (a, b) = (
+        rng.next_f32() * std::f32::consts::TAU,
+        rng.next_f32() * std::f32::consts::TAU,
+    );
+    let point = |i: u32, j: u32| {
+        let theta = std::f32::consts::PI * i as f32 / rings as f32;
+        let phi = std::f32::consts::TAU * j as f32 / segments as f32;
+        let r = 1.0 + 0.05 * (7.0 * theta + a).sin() * (9.0 * phi + b).sin();
+        Vec3::new(
+            theta.sin() * phi.cos(),
+            theta.cos(),
+            theta.sin() * phi.sin(),
+        ) * r
+    };
+    let mut builder = SoupBuilder::new(u64::MAX);
+    for i in 0..rings {
+        for j in 0..segments {
+            let (p00, p10, p11, p01) = (
+                point(i, j),
+                point(i + 1, j),
+                point(i + 1, j + 1),
+                point(i, j + 1),
+            );
+            for positions in [[p00, p01, p11], [p00, p11, p10]] {
+                builder.push(
+                    &TriangleIn {
+                        positions,
+                        ..Default::default()
+                    },
+                    0,
+                    0,
+                );
+            }
+        }
+    }
+    builder.finish().0
+}
+
+/// A scene around a soup, with one double-sided grey material (so nothing is culled and the
+/// BVH and linear scan do the same work).
+pub fn scene_from_soup(soup: TriangleSoup, name: &str) -> Scene {
+    let mut bounds = crate::scene::Bounds::EMPTY;
+    for tri in &soup.positions {
+        for p in tri {
+            bounds.grow(*p);
+        }
+    }
+    Scene {
+        source: name.into(),
+        format: crate::scene::Format::Gltf,
+        file_triangles: soup.len(),
+        soup,
+        materials: vec![Material {
+            double_sided: true,
+            metallic: 0.0,
+            ..Material::default()
+        }],
+        textures: Vec::new(),
+        images: Vec::new(),
+        cameras: Vec::new(),
+        lights: Vec::new(),
+        instances: Vec::new(),
+        mesh_count: 1,
+        primitive_count: 1,
+        bounds,
+        warnings: Vec::new(),
+    }
+}
+
+/// Builds rays of `kind` for `scene`: `side × side` primary rays, and for shadow and diffuse
+/// rays one per primary hit. `reference` answers the primary queries.
+pub fn make_rays(
+    scene: &Scene,
+    reference: &Accel,
+    kind: RayKind,
+    side: u32,
+    seed: u64,
+) -> Vec<Ray> {
+    let camera = auto_camera(&scene.bounds, 1.0);
+    let view = View::from_camera(&camera, side, side);
+    let primary: Vec<Ray> = (0..side)
+        .flat_map(|y| (0..side).map(move |x| (x, y)))
+        .map(|(x, y)| view.ray(x as f32 + 0.5, y as f32 + 0.5))
+        .collect();
+    if kind == RayKind::Primary {
+        return primary;
+    }
+    let offset = scene.bounds.radius() * 1e-4;
+    let light = scene.bounds.center() + Vec3::new(0.3, 1.0, 0.8) * scene.bounds.radius() * 3.0;
+    let mut rng = Rng::new(seed);
+    primary
+        .iter()
+        .filter_map(|ray| reference.intersect(ray).map(|hit| (ray, hit)))
+        .map(|(ray, hit)| {
+            let [a, b, c] = scene.soup.positions[hit.triangle as usize];
+            let mut n = (b - a).cross(c - a).normalize();
+            if n.dot(Vec3::from(ray.direction)) > 0.0 {
+                n = -n;
+            }
+            let origin = ray.at(hit.t) + n * offset;
+            match kind {
+                RayKind::Shadow => {
+                    let to_light = light - origin;
+                    let distance = to_light.length();
+                    Ray::new(origin, to_light / distance, 0.0, distance)
+                }
+                _ => {
+                    // Cosine-weighted hemisphere about n (Malley's method).
+                    let (u1, u2) = (rng.next_f32(), rng.next_f32());
+                    let r = u1.sqrt();
+                    let phi = std::f32::consts::TAU * u2;
+                    let (t, bt) = n.any_orthonormal_pair();
+                    let dir =
+                        t * (r * phi.cos()) + bt * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt();
+                    Ray::new(origin, dir.normalize(), 0.0, f32::INFINITY)
+                }
+            }
+        })
+        .collect()
+}
+
+/// The answer a ray set must give, to check a timed run against: hits and the sum of hit
+/// triangle indices (closest-hit kinds), or the number of blocked rays (shadow).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Checksum {
+    /// Rays that hit (or are blocked).
+    pub hits: u64,
+    /// Sum of the indices of the triangles hit (0 for shadow rays).
+    pub triangle_sum: u64,
+}
+
+/// Runs every ray of `rays` through `accel` once on the current rayon pool.
+pub fn trace(accel: &Accel, rays: &[Ray], kind: RayKind) -> Checksum {
+    let chunk = |rays: &[Ray]| {
+        let mut c = Checksum::default();
+        for ray in rays {
+            if kind == RayKind::Shadow {
+                c.hits += u64::from(accel.occluded(ray));
+            } else if let Some(hit) = accel.intersect(ray) {
+                c.hits += 1;
+                c.triangle_sum += u64::from(hit.triangle);
+            }
+        }
+        c
+    };
+    rays.par_chunks(4096)
+        .map(chunk)
+        .reduce(Checksum::default, |a, b| Checksum {
+            hits: a.hits + b.hits,
+            triangle_sum: a.triangle_sum + b.triangle_sum,
+        })
+}
+
+/// One row of the benchmark table.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Row {
+    /// Model name or `generated N`.
+    pub name: String,
+    /// Triangles traced.
+    pub triangles: usize,
+    /// BVH build time (median of the runs).
+    pub build: Duration,
+    /// BVH throughput, million rays per second over all threads.
+    pub bvh_mrays: f64,
+    /// Linear-scan throughput, if measured.
+    pub linear_mrays: Option<f64>,
+    /// Rays traced per BVH run.
+    pub rays: usize,
+    /// Threads used.
+    pub threads: usize,
+}
+
+impl Row {
+    /// BVH nanoseconds per ray per thread.
+    pub fn bvh_ns_per_ray(&self) -> f64 {
+        1e3 / self.bvh_mrays * self.threads as f64
+    }
+
+    /// Linear nanoseconds per ray per thread.
+    pub fn linear_ns_per_ray(&self) -> Option<f64> {
+        self.linear_mrays.map(|m| 1e3 / m * self.threads as f64)
+    }
+
+    /// BVH speed-up over the linear scan.
+    pub fn speedup(&self) -> Option<f64> {
+        self.linear_mrays.map(|l| self.bvh_mrays / l)
+    }
+}
+
+/// Options of one measurement.
+#[derive(Clone, Copy, Debug)]
+pub struct BenchOptions {
+    /// Ray coherence.
+    pub kind: RayKind,
+    /// Primary rays per axis (side² rays).
+    pub side: u32,
+    /// Timed repetitions; the median is reported.
+    pub runs: usize,
+    /// Triangle tests the linear scan may spend per measurement; it traces a subset of the rays
+    /// so that O(n) per ray still finishes (0 disables the linear scan).
+    pub linear_budget: u64,
+    /// BVH build preset.
+    pub preset: BvhPreset,
+}
+
+impl Default for BenchOptions {
+    fn default() -> Self {
+        Self {
+            kind: RayKind::Primary,
+            side: 512,
+            runs: 3,
+            linear_budget: 2_000_000_000,
+            preset: BvhPreset::Medium,
+        }
+    }
+}
+
+fn median(mut v: Vec<Duration>) -> Duration {
+    v.sort();
+    v[v.len() / 2]
+}
+
+/// Why a measurement could not be trusted.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}: the BVH and the linear scan disagree ({1:?} vs {2:?}): a bug")]
+pub struct Mismatch(String, Checksum, Checksum);
+
+/// Measures build time and BVH (and linear) throughput on `scene`. The BVH is built outside
+/// the timed traversal, every run is checked against the first, and the linear scan's answers
+/// on its subset of rays must equal the BVH's.
+pub fn measure(scene: &Scene, name: &str, options: &BenchOptions) -> Result<Row, Mismatch> {
+    let threads = rayon::current_num_threads();
+    let mut builds = Vec::new();
+    let mut accel = None;
+    for _ in 0..options.runs.max(1) {
+        let start = Instant::now();
+        let built = Accel::build(
+            &scene.soup,
+            &scene.materials,
+            AccelKind::Bvh,
+            options.preset,
+        );
+        builds.push(start.elapsed());
+        accel = Some(built);
+    }
+    let Some(bvh) = accel else {
+        unreachable!("runs >= 1")
+    };
+    let rays = make_rays(scene, &bvh, options.kind, options.side, 7);
+    // Warm-up run, which is also the reference answer.
+    let expected = trace(&bvh, &rays, options.kind);
+    let mut times = Vec::new();
+    for _ in 0..options.runs.max(1) {
+        let start = Instant::now();
+        let got = trace(&bvh, &rays, options.kind);
+        times.push(start.elapsed());
+        if got != expected {
+            return Err(Mismatch(name.into(), got, expected));
+        }
+    }
+    let bvh_time = median(times);
+    let linear_rays = (options.linear_budget / scene.soup.len().max(1) as u64) as usize;
+    let linear_mrays = (linear_rays >= 64).then(|| {
+        let subset = &rays[..linear_rays.min(rays.len())];
+        let linear = Accel::build(
+            &scene.soup,
+            &scene.materials,
+            AccelKind::Linear,
+            options.preset,
+        );
+        let start = Instant::now();
+        let got = trace(&linear, subset, options.kind);
+        let time = start.elapsed();
+        let want = trace(&bvh, subset, options.kind);
+        (got, want, subset.len() as f64 / time.as_secs_f64() / 1e6)
+    });
+    if let Some((got, want, _)) = linear_mrays {
+        if got != want {
+            return Err(Mismatch(name.into(), got, want));
+        }
+    }
+    Ok(Row {
+        name: name.into(),
+        triangles: scene.soup.len(),
+        build: median(builds),
+        bvh_mrays: rays.len() as f64 / bvh_time.as_secs_f64().max(1e-9) / 1e6,
+        linear_mrays: linear_mrays.map(|(_, _, m)| m),
+        rays: rays.len(),
+        threads,
+    })
+}
+
+/// The table as Markdown.
+pub fn markdown_table(rows: &[Row]) -> String {
+    let mut out = String::from(
+        "| scene | triangles | build ms | BVH Mrays/s | linear Mrays/s | speedup | BVH ns/ray/thread | linear ns/ray/thread |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        let opt =
+            |v: Option<f64>, digits: usize| v.map_or("-".to_string(), |v| format!("{v:.digits$}"));
+        out.push_str(&format!(
+            "| {} | {} | {:.1} | {:.2} | {} | {} | {:.0} | {} |\n",
+            r.name,
+            r.triangles,
+            r.build.as_secs_f64() * 1e3,
+            r.bvh_mrays,
+            opt(r.linear_mrays, 4),
+            opt(r.speedup(), 0),
+            r.bvh_ns_per_ray(),
+            opt(r.linear_ns_per_ray(), 0),
+        ));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn generated_mesh_has_about_the_requested_size() {
+        for n in [1_000, 10_000, 100_000] {
+            let soup = generated_mesh(n, 1);
+            let err = (soup.len() as f64 - n as f64).abs() / n as f64;
+            assert!(err < 0.05, "{n}: {}", soup.len());
+        }
+        assert_eq!(
+            generated_mesh(1000, 3).positions,
+            generated_mesh(1000, 3).positions
+        );
+    }
+
+    #[test]
+    fn measurement_checks_bvh_against_linear() {
+        let scene = scene_from_soup(generated_mesh(2_000, 1), "test");
+        for kind in [RayKind::Primary, RayKind::Shadow, RayKind::Diffuse] {
+            let options = BenchOptions {
+                kind,
+                side: 32,
+                runs: 1,
+                ..BenchOptions::default()
+            };
+            let row = measure(&scene, "test", &options).unwrap();
+            assert!(row.rays > 100, "{kind:?}: {}", row.rays);
+            assert!(row.linear_mrays.is_some());
+        }
+    }
+}

@@ -1,0 +1,187 @@
+//! A log-log line plot of time per ray against triangle count, as a PNG.
+//!
+//! One plot with two series does not justify a plotting stack (plotters needs system fonts or a
+//! bundled TTF); lines and axes are drawn here, glyphs come from the `font8x8` bitmap font.
+
+use crate::bench::Row;
+use image::{Rgb, RgbImage};
+
+const WIDTH: u32 = 880;
+const HEIGHT: u32 = 600;
+const LEFT: i32 = 100;
+const RIGHT: i32 = 30;
+const TOP: i32 = 60;
+const BOTTOM: i32 = 80;
+const BVH_COLOR: Rgb<u8> = Rgb([30, 90, 200]);
+const LINEAR_COLOR: Rgb<u8> = Rgb([210, 60, 40]);
+const GRID: Rgb<u8> = Rgb([225, 225, 225]);
+const INK: Rgb<u8> = Rgb([20, 20, 20]);
+
+/// Draws `text` with its top-left corner at (x, y), each font pixel `scale` pixels wide.
+fn text(img: &mut RgbImage, x: i32, y: i32, text: &str, scale: i32, color: Rgb<u8>) {
+    for (i, ch) in text.chars().enumerate() {
+        let glyph = font8x8::legacy::BASIC_LEGACY
+            .get(ch as usize)
+            .copied()
+            .unwrap_or([0; 8]);
+        for (row, bits) in glyph.iter().enumerate() {
+            for col in 0..8 {
+                if bits & (1 << col) != 0 {
+                    let gx = x + (i as i32 * 8 + col) * scale;
+                    let gy = y + row as i32 * scale;
+                    fill(img, gx, gy, scale, scale, color);
+                }
+            }
+        }
+    }
+}
+
+fn fill(img: &mut RgbImage, x: i32, y: i32, w: i32, h: i32, color: Rgb<u8>) {
+    for yy in y.max(0)..(y + h).min(img.height() as i32) {
+        for xx in x.max(0)..(x + w).min(img.width() as i32) {
+            img.put_pixel(xx as u32, yy as u32, color);
+        }
+    }
+}
+
+/// A line of the given thickness, by stepping along its longer axis.
+fn line(
+    img: &mut RgbImage,
+    (x0, y0): (f32, f32),
+    (x1, y1): (f32, f32),
+    thick: i32,
+    color: Rgb<u8>,
+) {
+    let steps = (x1 - x0).abs().max((y1 - y0).abs()).ceil().max(1.0) as i32;
+    for s in 0..=steps {
+        let t = s as f32 / steps as f32;
+        let (x, y) = (x0 + (x1 - x0) * t, y0 + (y1 - y0) * t);
+        fill(
+            img,
+            x as i32 - thick / 2,
+            y as i32 - thick / 2,
+            thick,
+            thick,
+            color,
+        );
+    }
+}
+
+/// Renders the plot of nanoseconds per ray (per thread) against triangles for the BVH and the
+/// linear scan, both axes logarithmic, and returns the PNG bytes.
+pub fn scaling_plot(rows: &[Row], title: &str) -> Vec<u8> {
+    let mut img = RgbImage::from_pixel(WIDTH, HEIGHT, Rgb([255, 255, 255]));
+    let points = |f: &dyn Fn(&Row) -> Option<f64>| -> Vec<(f64, f64)> {
+        rows.iter()
+            .filter_map(|r| {
+                f(r).map(|v| ((r.triangles.max(1) as f64).log10(), v.max(1e-3).log10()))
+            })
+            .collect()
+    };
+    let bvh = points(&|r| Some(r.bvh_ns_per_ray()));
+    let linear = points(&|r| r.linear_ns_per_ray());
+    let all: Vec<&(f64, f64)> = bvh.iter().chain(&linear).collect();
+    let (x_lo, x_hi) = bounds(all.iter().map(|p| p.0));
+    let (y_lo, y_hi) = bounds(all.iter().map(|p| p.1));
+    let (pw, ph) = (
+        (WIDTH as i32 - LEFT - RIGHT) as f64,
+        (HEIGHT as i32 - TOP - BOTTOM) as f64,
+    );
+    let map = |(x, y): (f64, f64)| {
+        (
+            (LEFT as f64 + (x - x_lo) / (x_hi - x_lo) * pw) as f32,
+            (TOP as f64 + (y_hi - y) / (y_hi - y_lo) * ph) as f32,
+        )
+    };
+    for d in x_lo as i32..=x_hi as i32 {
+        let (x, _) = map((d as f64, y_lo));
+        line(
+            &mut img,
+            (x, TOP as f32),
+            (x, (HEIGHT as i32 - BOTTOM) as f32),
+            1,
+            GRID,
+        );
+        text(
+            &mut img,
+            x as i32 - 16,
+            HEIGHT as i32 - BOTTOM + 10,
+            &format!("1e{d}"),
+            2,
+            INK,
+        );
+    }
+    for d in y_lo as i32..=y_hi as i32 {
+        let (_, y) = map((x_lo, d as f64));
+        line(
+            &mut img,
+            (LEFT as f32, y),
+            ((WIDTH as i32 - RIGHT) as f32, y),
+            1,
+            GRID,
+        );
+        text(&mut img, LEFT - 70, y as i32 - 8, &format!("1e{d}"), 2, INK);
+    }
+    let (x0, y0) = map((x_lo, y_lo));
+    let (x1, y1) = map((x_hi, y_hi));
+    line(&mut img, (x0, y0), (x1, y0), 2, INK);
+    line(&mut img, (x0, y0), (x0, y1), 2, INK);
+    for (series, color) in [(&linear, LINEAR_COLOR), (&bvh, BVH_COLOR)] {
+        for pair in series.windows(2) {
+            line(&mut img, map(pair[0]), map(pair[1]), 3, color);
+        }
+        for &p in series.iter() {
+            let (x, y) = map(p);
+            fill(&mut img, x as i32 - 5, y as i32 - 5, 10, 10, color);
+        }
+    }
+    text(&mut img, LEFT, 6, title, 2, INK);
+    text(
+        &mut img,
+        LEFT + (pw as i32) / 2 - 120,
+        HEIGHT as i32 - 36,
+        "triangles (log)",
+        2,
+        INK,
+    );
+    text(&mut img, 8, TOP - 26, "ns per ray per thread (log)", 2, INK);
+    fill(&mut img, WIDTH as i32 - 260, TOP + 10, 16, 16, LINEAR_COLOR);
+    text(
+        &mut img,
+        WIDTH as i32 - 236,
+        TOP + 10,
+        "linear O(n)",
+        2,
+        INK,
+    );
+    fill(&mut img, WIDTH as i32 - 260, TOP + 36, 16, 16, BVH_COLOR);
+    text(
+        &mut img,
+        WIDTH as i32 - 236,
+        TOP + 36,
+        "BVH O(log n)",
+        2,
+        INK,
+    );
+    let mut bytes = Vec::new();
+    // Encoding an in-memory RGB image into a Vec cannot fail.
+    let _ = img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    );
+    bytes
+}
+
+/// Whole decades around the values, at least one decade wide.
+fn bounds(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in values {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let (lo, hi) = (lo.floor(), hi.ceil());
+    (lo, if hi > lo { hi } else { lo + 1.0 })
+}
