@@ -1,0 +1,82 @@
+//! What a hostile environment must not achieve: reading files outside the model's folder
+//! through a symlink, or losing the user's previous output to an interrupted render.
+
+mod common;
+
+use common::{run, s};
+use meshtracer::{LoadErrorKind, Scene};
+
+#[test]
+fn a_symlink_out_of_the_model_folder_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let outside = dir.path().join("outside");
+    let model_dir = dir.path().join("model");
+    std::fs::create_dir_all(&outside).unwrap();
+    std::fs::create_dir_all(&model_dir).unwrap();
+    // A real triangle buffer, kept outside; the model folder only has a link to it.
+    let mut bin = common::f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    bin.extend([0u8; 4]);
+    std::fs::write(outside.join("secret.bin"), &bin).unwrap();
+    std::os::unix::fs::symlink(outside.join("secret.bin"), model_dir.join("tri.bin")).unwrap();
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "buffers": [{"byteLength": 36, "uri": "tri.bin"}]
+    });
+    let model = model_dir.join("model.gltf");
+    std::fs::write(&model, serde_json::to_vec(&json).unwrap()).unwrap();
+    let err = Scene::load(&model).expect_err("the link leaves the folder");
+    assert!(
+        matches!(err.kind, LoadErrorKind::ExternalFile { .. }),
+        "{err}"
+    );
+    let out = run(&["info", s(&model)], false);
+    assert!(common::stderr(&out).contains("--allow-external-files"));
+    // The user can allow it.
+    run(&["info", s(&model), "--allow-external-files"], true);
+}
+
+#[test]
+fn ctrl_c_during_a_render_keeps_the_previous_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("image.png");
+    std::fs::write(&out, b"previous image").unwrap();
+    let model = common::root().join("assets/cornell-box.gltf");
+    // Far more work than can finish before the signal: 4096x3072 at 64 spp.
+    let child = common::bin()
+        .args([
+            "render",
+            s(&model),
+            "-o",
+            s(&out),
+            "--width",
+            "4096",
+            "--spp",
+            "64",
+            "--quiet",
+        ])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1500));
+    let status = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let output = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(130), "{err}");
+    assert!(err.contains("interrupted"), "{err}");
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous image");
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert_eq!(names.len(), 1, "no temporary file left: {names:?}");
+}
