@@ -43,7 +43,7 @@ const SUPPORTED_REQUIRED: &[&str] = &[
 
 /// Most node visits a hierarchy may expand to. A node shared by two parents is instanced twice,
 /// so 30 levels of sharing would be 2^30 visits: refuse such files instead of hanging.
-const MAX_NODE_VISITS: usize = 4_000_000;
+const MAX_NODE_VISITS: usize = 1_000_000;
 
 /// GLB header: magic, version, length (glTF 2.0 §4.4.2).
 const GLB_HEADER_BYTES: usize = 12;
