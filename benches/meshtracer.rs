@@ -326,11 +326,13 @@ fn render(c: &mut Criterion) {
         lights: scene.lights.clone(),
         ambient: Vec3::splat(0.03),
         exposure: 0.0,
+        shading: meshtracer::shading::ShadingModel::Pbr,
     };
+    let textures = meshtracer::texture::TextureSet::default();
     let cancel = std::sync::atomic::AtomicBool::new(false);
     let pool = one_thread();
     let reference = pool
-        .install(|| render(&scene, &accel, &settings, &cancel, &|_, _| {}))
+        .install(|| render(&scene, &accel, &textures, &settings, &cancel, &|_, _| {}))
         .expect("renders")
         .0;
     let mut group = c.benchmark_group("render");
@@ -340,7 +342,7 @@ fn render(c: &mut Criterion) {
     group.bench_function("cornell-box 256x192 1spp, 1 thread", |b| {
         b.iter(|| {
             let (image, _) = pool
-                .install(|| render(&scene, &accel, &settings, &cancel, &|_, _| {}))
+                .install(|| render(&scene, &accel, &textures, &settings, &cancel, &|_, _| {}))
                 .expect("renders");
             assert!(image == reference);
         })

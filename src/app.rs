@@ -296,7 +296,21 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         lights,
         ambient: args.ambient.unwrap_or(default_ambient),
         exposure: args.exposure,
+        shading: args.shading,
     };
+    let texture_start = Instant::now();
+    let mut texture_warnings = Vec::new();
+    let textures = crate::texture::TextureSet::load(
+        &scene,
+        args.max_texture_memory.saturating_mul(1 << 20),
+        &mut texture_warnings,
+    )?;
+    let texture_time = texture_start.elapsed();
+    if !args.quiet {
+        for w in &texture_warnings {
+            eprintln!("warning: {}: {w}", args.model.display());
+        }
+    }
 
     let cancel = Arc::new(AtomicBool::new(false));
     {
@@ -308,10 +322,17 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let (accel, (image, stats)) = pool.install(|| -> Result<_> {
         let accel = Accel::build(&scene.soup, &scene.materials, args.accel, args.bvh_preset);
         let bar = progress_bar(args.quiet);
-        let result = render(&scene, &accel, &settings, &cancel, &|done, total| {
-            bar.set_length(total);
-            bar.set_position(done);
-        });
+        let result = render(
+            &scene,
+            &accel,
+            &textures,
+            &settings,
+            &cancel,
+            &|done, total| {
+                bar.set_length(total);
+                bar.set_position(done);
+            },
+        );
         bar.finish_and_clear();
         Ok((accel, result?))
     })?;
@@ -327,10 +348,12 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             AccelKind::Linear => "linear scan (no BVH)".to_string(),
         };
         eprintln!(
-            "{}: {} triangles, loaded in {:.1} ms, {structure}, {width}x{height} at {} spp rendered in {:.3} s: {} rays ({} primary, {} shadow), {:.2} Mrays/s on {threads} threads -> {}",
+            "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {} spp rendered in {:.3} s: {} rays ({} primary, {} shadow), {:.2} Mrays/s on {threads} threads -> {}",
             args.model.display(),
             scene.soup.len(),
             load_time.as_secs_f64() * 1e3,
+            textures.bytes >> 20,
+            texture_time.as_secs_f64() * 1e3,
             args.spp,
             stats.time.as_secs_f64(),
             stats.rays(),

@@ -112,6 +112,13 @@ pub struct RenderArgs {
     /// 0.03 with the file's lights].
     #[arg(long, value_name = "R,G,B", value_parser = parse_vec3_or_scalar)]
     pub ambient: Option<Vec3>,
+    /// Shading model: the glTF metallic-roughness BRDF, or classic Blinn-Phong.
+    #[arg(long, value_enum, default_value_t = crate::shading::ShadingModel::Pbr)]
+    pub shading: crate::shading::ShadingModel,
+    /// Decoded texture memory budget in MiB; larger images are halved until they fit, with a
+    /// warning.
+    #[arg(long, default_value_t = 2048, value_name = "MIB")]
+    pub max_texture_memory: usize,
     /// Do not add the default key and fill lights when the file has no lights.
     #[arg(long)]
     pub no_default_lights: bool,

@@ -22,5 +22,6 @@ pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod shading;
+pub mod texture;
 
 pub use scene::{LoadError, LoadErrorKind, LoadOptions, Scene};

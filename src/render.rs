@@ -1,4 +1,10 @@
-//! The renderer: eye rays per pixel, closest hit, one shadow ray per light, Blinn-Phong shading.
+//! The renderer: eye rays per pixel, closest hit, one shadow ray per light, glTF
+//! metallic-roughness (or Blinn-Phong) shading with textures, normal maps and alpha.
+//!
+//! Alpha (glTF 2.0 §3.9.4): OPAQUE ignores alpha; MASK surfaces below `alphaCutoff` are absent
+//! for camera and shadow rays alike (tested inside traversal); BLEND surfaces are composited
+//! front to back along the eye ray (up to [`MAX_BLEND_LAYERS`]) and attenuate shadow rays by
+//! (1 - alpha) each: an approximation that ignores their colour and the order of layers.
 //!
 //! Work is split into square tiles rendered in parallel with rayon. Every pixel's samples come
 //! from a generator keyed by (seed, x, y), so the image is the same, byte for byte, whatever the
@@ -10,16 +16,23 @@ use crate::geometry::Ray;
 use crate::image::Image;
 use crate::light::incident;
 use crate::sampling::Rng;
+use crate::scene::{AlphaMode, Material, TextureRef};
 use crate::scene::{Light, LightKind, Scene};
-use crate::shading::{blinn_phong, SurfaceMaterial};
+use crate::shading::{shade, ShadingModel, SurfaceMaterial};
+use crate::texture::{transform_uv, TextureSet};
+use glam::Vec2;
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
+use std::cell::Cell;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// Tile edge in pixels: small enough to balance load over cores, large enough that per-tile
 /// overhead vanishes.
 pub const TILE_SIZE: u32 = 32;
+
+/// Most BLEND surfaces an eye ray composites before it stops.
+pub const MAX_BLEND_LAYERS: usize = 16;
 
 /// Everything the renderer needs besides the scene and the acceleration structure.
 #[derive(Clone, Debug)]
@@ -36,6 +49,8 @@ pub struct RenderSettings {
     pub ambient: Vec3,
     /// Exposure in stops: radiance is scaled by 2^exposure before output.
     pub exposure: f32,
+    /// Shading model.
+    pub shading: ShadingModel,
 }
 
 /// What a render did.
@@ -94,6 +109,7 @@ pub fn default_rig(view: &View) -> (Vec<Light>, Vec3) {
 pub fn render(
     scene: &Scene,
     accel: &Accel,
+    textures: &TextureSet,
     settings: &RenderSettings,
     cancel: &AtomicBool,
     progress: &(dyn Fn(u64, u64) + Sync),
@@ -104,7 +120,7 @@ pub fn render(
     let tiles_y = height.div_ceil(TILE_SIZE);
     let total = u64::from(tiles_x) * u64::from(tiles_y);
     let done = std::sync::atomic::AtomicU64::new(0);
-    let tracer = Tracer::new(scene, accel, settings);
+    let tracer = Tracer::new(scene, accel, textures, settings);
     let tiles: Vec<(u32, u32)> = (0..tiles_y)
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
         .collect();
@@ -149,6 +165,7 @@ struct Tile {
 struct Tracer<'a> {
     scene: &'a Scene,
     accel: &'a Accel,
+    textures: &'a TextureSet,
     settings: &'a RenderSettings,
     /// How far shadow rays start off the surface, along the geometric normal, to escape the
     /// surface they leave despite rounding in the hit point: 1e-5 of the scene's extent
@@ -158,21 +175,56 @@ struct Tracer<'a> {
     scale: f32,
     /// Strata per axis for jittered sampling.
     strata: (u32, u32),
+    /// Ray-cone footprint of a pixel: width at distance t is `spread.0 + spread.1 · t`
+    /// (perspective: angle per pixel; orthographic: pixel size).
+    spread: (f32, f32),
+    /// Whether any material is not OPAQUE (else the alpha machinery is skipped).
+    any_alpha: bool,
+}
+
+/// Everything shading needs about a hit point.
+struct Surface<'m> {
+    point: Vec3,
+    /// Geometric normal facing the incoming ray.
+    geometric: Vec3,
+    /// Shading normal (interpolated, normal-mapped) on the geometric normal's side.
+    normal: Vec3,
+    material: SurfaceMaterial,
+    emissive: Vec3,
+    occlusion: f32,
+    alpha: f32,
+    source: &'m Material,
 }
 
 impl<'a> Tracer<'a> {
-    fn new(scene: &'a Scene, accel: &'a Accel, settings: &'a RenderSettings) -> Self {
+    fn new(
+        scene: &'a Scene,
+        accel: &'a Accel,
+        textures: &'a TextureSet,
+        settings: &'a RenderSettings,
+    ) -> Self {
         let b = &scene.bounds;
         let extent = b.min.abs().max(b.max.abs()).max_element() + b.radius();
         let sx = (settings.spp as f32).sqrt().floor().max(1.0) as u32;
         let sy = settings.spp.div_ceil(sx);
+        let view = &settings.view;
+        let spread = match view.lens {
+            crate::camera::Lens::Perspective { height, .. } => (0.0, height / view.height as f32),
+            crate::camera::Lens::Orthographic { height, .. } => (height / view.height as f32, 0.0),
+        };
         Self {
             scene,
             accel,
+            textures,
             settings,
             ray_offset: (extent * 1e-5).max(f32::MIN_POSITIVE),
             scale: settings.exposure.exp2(),
             strata: (sx, sy),
+            spread,
+            any_alpha: scene
+                .materials
+                .iter()
+                .any(|m| m.alpha_mode != AlphaMode::Opaque),
         }
     }
 
@@ -205,10 +257,8 @@ impl<'a> Tracer<'a> {
                         )
                     };
                     let ray = view.ray(x as f32 + dx, y as f32 + dy);
-                    tile.primary_rays += 1;
-                    if let Some(color) = self.radiance(&ray, &mut tile.shadow_rays) {
-                        sum += (color * self.scale).extend(1.0);
-                    }
+                    let (color, coverage) = self.radiance(&ray, &mut tile);
+                    sum += (color * self.scale).extend(coverage);
                 }
                 tile.pixels.push(sum / spp as f32);
             }
@@ -216,23 +266,92 @@ impl<'a> Tracer<'a> {
         tile
     }
 
-    /// Radiance along an eye ray, or `None` when it hits nothing.
-    fn radiance(&self, ray: &Ray, shadow_rays: &mut u64) -> Option<Vec3> {
-        let hit = self.accel.intersect(ray)?;
+    /// Alpha of a MASK or BLEND surface at a candidate hit: base colour factor × texture ×
+    /// vertex colour (the texture at full resolution: this runs inside traversal).
+    fn alpha_at(&self, triangle: u32, barycentric: Vec3) -> f32 {
+        let soup = &self.scene.soup;
+        let tri = triangle as usize;
+        let Some(material) = self.scene.materials.get(soup.material[tri] as usize) else {
+            return 1.0;
+        };
+        let mut alpha = material.base_color.w;
+        if let Some([a, b, c]) = soup.colors.get(tri) {
+            alpha *= a.w * barycentric.x + b.w * barycentric.y + c.w * barycentric.z;
+        }
+        if let Some(r) = &material.base_color_texture {
+            if let Some((image, sampler)) = self.textures.lookup(self.scene, r) {
+                let uv = transform_uv(r, self.uv(tri, r.tex_coord, barycentric));
+                alpha *= image.sample(uv, 0.0, sampler, false).w;
+            }
+        }
+        alpha
+    }
+
+    /// MASK surfaces exist where alpha reaches the cutoff; BLEND surfaces are always hit by
+    /// eye rays (and composited).
+    fn accept_for_camera(&self, triangle: u32, barycentric: Vec3) -> bool {
+        let material = &self.scene.materials[self.scene.soup.material[triangle as usize] as usize];
+        material.alpha_mode != AlphaMode::Mask
+            || self.alpha_at(triangle, barycentric) >= material.alpha_cutoff
+    }
+
+    fn uv(&self, tri: usize, set: u32, b: Vec3) -> Vec2 {
+        let uvs = if set == 1 {
+            &self.scene.soup.uv1
+        } else {
+            &self.scene.soup.uv0
+        };
+        match uvs.get(tri) {
+            Some([ua, ub, uc]) => *ua * b.x + *ub * b.y + *uc * b.z,
+            None => Vec2::ZERO,
+        }
+    }
+
+    /// Samples a texture at a hit with a mip level from the ray cone (Akenine-Möller et al.,
+    /// "Texture Level of Detail Strategies for Real-Time Ray Tracing", 2019):
+    /// lod = ½·log2(texels · uv area / world area) + log2(cone width / |n·d|).
+    fn sample(
+        &self,
+        r: &TextureRef,
+        tri: usize,
+        b: Vec3,
+        cone: f32,
+        cos: f32,
+        srgb: bool,
+    ) -> Option<Vec4> {
+        let (image, sampler) = self.textures.lookup(self.scene, r)?;
+        let uvs = if r.tex_coord == 1 {
+            &self.scene.soup.uv1
+        } else {
+            &self.scene.soup.uv0
+        };
+        let [pa, pb, pc] = self.scene.soup.positions[tri];
+        let lod = match uvs.get(tri) {
+            Some([ua, ub, uc]) => {
+                let world = (pb - pa).cross(pc - pa).length();
+                let uv_area = (*ub - *ua).perp_dot(*uc - *ua).abs();
+                let (w, h) = image.size();
+                let density = (w as f32 * h as f32 * uv_area / world.max(f32::MIN_POSITIVE)).sqrt();
+                (density * cone / cos.abs().max(1e-3)).log2()
+            }
+            None => 0.0,
+        };
+        let uv = transform_uv(r, self.uv(tri, r.tex_coord, b));
+        Some(image.sample(uv, lod, sampler, srgb))
+    }
+
+    fn surface(&self, ray: &Ray, hit: &crate::accel::Hit, cone: f32) -> Surface<'a> {
         let soup = &self.scene.soup;
         let tri = hit.triangle as usize;
         let b = hit.barycentric;
         let [pa, pb, pc] = soup.positions[tri];
         let point = pa * b.x + pb * b.y + pc * b.z;
         let direction = Vec3::from(ray.direction);
-        let to_eye = -direction;
-        // Geometric normal, turned to face the incoming ray.
         let mut geometric = (pb - pa).cross(pc - pa).normalize_or_zero();
         if geometric.dot(direction) > 0.0 {
             geometric = -geometric;
         }
-        // Shading normal on the same side as the geometric one: handles back faces of
-        // double-sided surfaces and files whose normals disagree with their winding.
+        let cos = geometric.dot(direction);
         let [na, nb, nc] = soup.normals[tri];
         let mut normal = (na * b.x + nb * b.y + nc * b.z)
             .try_normalize()
@@ -240,30 +359,176 @@ impl<'a> Tracer<'a> {
         if normal.dot(geometric) < 0.0 {
             normal = -normal;
         }
+        static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
         let material = self
             .scene
             .materials
             .get(soup.material[tri] as usize)
-            .cloned()
-            .unwrap_or_default();
+            .unwrap_or_else(|| DEFAULT.get_or_init(Material::default));
         let mut base = material.base_color;
         if let Some([ca, cb, cc]) = soup.colors.get(tri) {
             base *= *ca * b.x + *cb * b.y + *cc * b.z;
         }
-        let surface = SurfaceMaterial {
-            base_color: base.truncate(),
-            metallic: material.metallic.clamp(0.0, 1.0),
-            roughness: material.roughness.clamp(0.0, 1.0),
-            specular: material.specular,
+        let sample = |r: &Option<TextureRef>, srgb: bool| {
+            r.as_ref()
+                .and_then(|r| self.sample(r, tri, b, cone, cos, srgb))
         };
-        let mut color = self.settings.ambient * surface.base_color
-            + material.emissive * material.emissive_strength;
-        let origin = point + geometric * self.ray_offset;
+        if let Some(t) = sample(&material.base_color_texture, true) {
+            base *= t;
+        }
+        let (mut metallic, mut roughness) = (material.metallic, material.roughness);
+        if let Some(t) = sample(&material.metallic_roughness_texture, false) {
+            // glTF 2.0 §3.9.2: roughness in G, metalness in B.
+            roughness *= t.y;
+            metallic *= t.z;
+        }
+        let mut emissive = material.emissive * material.emissive_strength;
+        if let Some(t) = sample(&material.emissive_texture, true) {
+            emissive *= t.truncate();
+        }
+        let occlusion = match sample(&material.occlusion_texture, false) {
+            // glTF 2.0 §3.9.3: occluded = 1 + strength · (sample - 1), from the R channel.
+            Some(t) => 1.0 + material.occlusion_strength * (t.x - 1.0),
+            None => 1.0,
+        };
+        if let (Some(r), Some(t)) = (
+            &material.normal_texture,
+            sample(&material.normal_texture, false),
+        ) {
+            normal = self.normal_mapped(tri, b, r, normal, geometric, t, material.normal_scale);
+        }
+        Surface {
+            point,
+            geometric,
+            normal,
+            material: SurfaceMaterial {
+                base_color: base.truncate(),
+                metallic: metallic.clamp(0.0, 1.0),
+                roughness: roughness.clamp(0.0, 1.0),
+                specular: material.specular,
+            },
+            emissive,
+            occlusion,
+            alpha: if material.alpha_mode == AlphaMode::Opaque {
+                1.0
+            } else {
+                base.w.clamp(0.0, 1.0)
+            },
+            source: material,
+        }
+    }
+
+    /// Perturbs the shading normal by a tangent-space normal map (glTF 2.0 §3.9.3): n =
+    /// normalize(T·x + B·y + N·z) with (x, y, z) = (2·rgb - 1)·(scale, scale, 1), B = (N × T)·w.
+    /// Tangents come from the file's TANGENT, else from the triangle's UV gradient (a
+    /// per-triangle frame, not MikkTSpace).
+    #[allow(clippy::too_many_arguments)]
+    fn normal_mapped(
+        &self,
+        tri: usize,
+        b: Vec3,
+        r: &TextureRef,
+        n: Vec3,
+        geometric: Vec3,
+        texel: Vec4,
+        scale: f32,
+    ) -> Vec3 {
+        let soup = &self.scene.soup;
+        let from_file = soup.tangents.get(tri).and_then(|[ta, tb, tc]| {
+            let t = *ta * b.x + *tb * b.y + *tc * b.z;
+            (ta.w != 0.0).then(|| (t.truncate(), if ta.w < 0.0 { -1.0 } else { 1.0 }))
+        });
+        let frame = from_file.or_else(|| {
+            let uvs = if r.tex_coord == 1 {
+                &soup.uv1
+            } else {
+                &soup.uv0
+            };
+            let [ua, ub, uc] = *uvs.get(tri)?;
+            let [pa, pb, pc] = soup.positions[tri];
+            let (e1, e2) = (pb - pa, pc - pa);
+            let (d1, d2) = (ub - ua, uc - ua);
+            let det = d1.x * d2.y - d2.x * d1.y;
+            if det.abs() < 1e-20 {
+                return None;
+            }
+            let tangent = (e1 * d2.y - e2 * d1.y) / det;
+            let bitangent = (e2 * d1.x - e1 * d2.x) / det;
+            // glTF UVs have v down, so the bitangent points along -v in texture terms.
+            let w = if n.cross(tangent).dot(bitangent) < 0.0 {
+                1.0
+            } else {
+                -1.0
+            };
+            Some((tangent, w))
+        });
+        let Some((tangent, w)) = frame else {
+            return n;
+        };
+        let t = (tangent - n * n.dot(tangent)).try_normalize();
+        let Some(t) = t else {
+            return n;
+        };
+        let bt = n.cross(t) * w;
+        let m = Vec3::new(
+            (2.0 * texel.x - 1.0) * scale,
+            (2.0 * texel.y - 1.0) * scale,
+            2.0 * texel.z - 1.0,
+        );
+        let mapped = (t * m.x + bt * m.y + n * m.z).try_normalize().unwrap_or(n);
+        if mapped.dot(geometric) <= 0.0 {
+            n
+        } else {
+            mapped
+        }
+    }
+
+    /// Radiance and coverage along an eye ray: (premultiplied colour, alpha).
+    fn radiance(&self, ray: &Ray, tile: &mut Tile) -> (Vec3, f32) {
+        let accept = |tri: u32, b: Vec3| self.accept_for_camera(tri, b);
+        let mut color = Vec3::ZERO;
+        let mut transmittance = 1.0f32;
+        let mut ray = *ray;
+        for _ in 0..MAX_BLEND_LAYERS {
+            tile.primary_rays += 1;
+            let hit = if self.any_alpha {
+                self.accel.intersect_filtered(&ray, Some(&accept))
+            } else {
+                self.accel.intersect(&ray)
+            };
+            let Some(hit) = hit else {
+                break;
+            };
+            let cone = self.spread.0 + self.spread.1 * hit.t;
+            let surface = self.surface(&ray, &hit, cone);
+            let shaded = self.shade(&ray, &surface, &mut tile.shadow_rays);
+            let alpha = if surface.source.alpha_mode == AlphaMode::Blend {
+                surface.alpha
+            } else {
+                1.0
+            };
+            color += shaded * alpha * transmittance;
+            transmittance *= 1.0 - alpha;
+            if transmittance < 1e-3 {
+                transmittance = 0.0;
+                break;
+            }
+            ray.tmin = hit.t;
+        }
+        (color, 1.0 - transmittance)
+    }
+
+    /// Direct lighting of a surface point: ambient (with occlusion), emission, and each light
+    /// through a shadow ray.
+    fn shade(&self, ray: &Ray, s: &Surface, shadow_rays: &mut u64) -> Vec3 {
+        let to_eye = -Vec3::from(ray.direction);
+        let mut color = self.settings.ambient * s.material.base_color * s.occlusion + s.emissive;
+        let origin = s.point + s.geometric * self.ray_offset;
         for light in &self.settings.lights {
-            let Some(incoming) = incident(light, point) else {
+            let Some(incoming) = incident(light, s.point) else {
                 continue;
             };
-            if incoming.to_light.dot(geometric) <= 0.0 || incoming.to_light.dot(normal) <= 0.0 {
+            if incoming.to_light.dot(s.geometric) <= 0.0 || incoming.to_light.dot(s.normal) <= 0.0 {
                 continue;
             }
             *shadow_rays += 1;
@@ -273,17 +538,50 @@ impl<'a> Tracer<'a> {
                 f32::INFINITY
             };
             let shadow = Ray::new(origin, incoming.to_light, 0.0, tmax);
-            if self.accel.occluded(&shadow) {
+            let transmittance = self.shadow_transmittance(&shadow);
+            if transmittance <= 0.0 {
                 continue;
             }
-            color += blinn_phong(
-                &surface,
-                normal,
-                incoming.to_light,
-                to_eye,
-                incoming.irradiance,
-            );
+            color += transmittance
+                * shade(
+                    self.settings.shading,
+                    &s.material,
+                    s.normal,
+                    incoming.to_light,
+                    to_eye,
+                    incoming.irradiance,
+                );
         }
-        Some(color)
+        color
+    }
+
+    /// 1 for an unblocked shadow ray, 0 for a blocked one, the product of (1 - alpha) over
+    /// BLEND surfaces in between otherwise.
+    fn shadow_transmittance(&self, shadow: &Ray) -> f32 {
+        if !self.any_alpha {
+            return if self.accel.occluded(shadow) {
+                0.0
+            } else {
+                1.0
+            };
+        }
+        let transmittance = Cell::new(1.0f32);
+        let accept = |tri: u32, b: Vec3| {
+            let material = &self.scene.materials[self.scene.soup.material[tri as usize] as usize];
+            match material.alpha_mode {
+                AlphaMode::Mask => self.alpha_at(tri, b) >= material.alpha_cutoff,
+                AlphaMode::Blend => {
+                    let alpha = self.alpha_at(tri, b).clamp(0.0, 1.0);
+                    transmittance.set(transmittance.get() * (1.0 - alpha));
+                    transmittance.get() < 1e-3
+                }
+                AlphaMode::Opaque => true,
+            }
+        };
+        if self.accel.occluded_filtered(shadow, Some(&accept)) {
+            0.0
+        } else {
+            transmittance.get()
+        }
     }
 }

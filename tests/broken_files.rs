@@ -512,6 +512,23 @@ fn cases() -> Vec<Case> {
             },
             |k| matches!(k, K::Image { problem, .. } if problem.contains("100000x100000")),
         ),
+        // Found by fuzzing: the gltf crate unwrapped these.
+        edited(
+            "image with a bufferView but no mimeType",
+            |j, _| {
+                with_image(j, "x.png");
+                j["images"] = json!([{"bufferView": 0}]);
+            },
+            |k| matches!(k, K::Image { problem, .. } if problem.contains("mimeType")),
+        ),
+        edited(
+            "image with neither uri nor bufferView",
+            |j, _| {
+                with_image(j, "x.png");
+                j["images"] = json!([{"name": "nothing"}]);
+            },
+            |k| matches!(k, K::Image { problem, .. } if problem.contains("neither")),
+        ),
         edited(
             "image URI escaping the folder",
             |j, _| with_image(j, "../../secret.png"),

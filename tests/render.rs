@@ -48,11 +48,14 @@ fn render_to(dir: &Path, model: &Path, name: &str, extra: &[&str]) -> PathBuf {
     out
 }
 
-/// A white Lambertian quad 2 m under a 4 cd point light, seen from straight above by an
-/// orthographic camera: every pixel must equal the closed form of the shading model,
-/// L = (1/π + 0.04·(e+8)/(8π)·(n·h)^e)·(I/d²)·cosθ with e = 1 for roughness 1.
+/// A white rough dielectric quad 2 m under a 4 cd point light, seen from straight above by an
+/// orthographic camera (v = +Z everywhere): every pixel must equal the closed form of each
+/// shading model with E = I/d², cosθ = h/d, h = normalize(l + v):
+/// - glTF BRDF, roughness 1 (α = 1, so D = 1/π and V = 1/(2(n·l + n·v))), metallic 0:
+///   L = ((1 - F)/π + F·D·V)·E·cosθ with F = 0.04 + 0.96·(1 - v·h)⁵;
+/// - Blinn-Phong, exponent 1: L = (1/π + 0.04·9/(8π)·(n·h))·E·cosθ.
 #[test]
-fn lambertian_quad_under_a_point_light_matches_the_closed_form() {
+fn quad_under_a_point_light_matches_the_closed_form() {
     let dir = tempfile::tempdir().unwrap();
     let (h, intensity) = (2.0f32, 4.0f32);
     let extra = merge(
@@ -73,11 +76,9 @@ fn lambertian_quad_under_a_point_light_matches_the_closed_form() {
     let (json, bin) = quads_gltf(&[(quad, 0)], extra);
     let model = dir.path().join("quad.gltf");
     write_gltf(&model, json, &bin);
-    let out = render_to(
-        dir.path(),
-        &model,
-        "quad.exr",
-        &[
+    for shading in ["pbr", "phong"] {
+        let name = format!("quad-{shading}.exr");
+        let args = [
             "--width",
             "64",
             "--height",
@@ -86,28 +87,39 @@ fn lambertian_quad_under_a_point_light_matches_the_closed_form() {
             "1",
             "--ambient",
             "0",
-        ],
-    );
-    let (w, hgt, pixels) = read_rgba(&out);
-    assert_eq!((w, hgt), (64, 64));
-    let mut worst = 0.0f32;
-    for j in 0..64 {
-        for i in 0..64 {
-            let x = -2.0 + (i as f32 + 0.5) * 4.0 / 64.0;
-            let y = 2.0 - (j as f32 + 0.5) * 4.0 / 64.0;
-            let d2 = x * x + y * y + h * h;
-            let d = d2.sqrt();
-            let cos = h / d;
-            let to_light = glam::Vec3::new(-x, -y, h) / d;
-            let half = (to_light + glam::Vec3::Z).normalize();
-            let expected = (1.0 / PI + 0.04 * 9.0 / (8.0 * PI) * half.z) * intensity / d2 * cos;
-            let got = pixels[(j * 64 + i) as usize];
-            assert_eq!(got[3], 1.0, "covered");
-            let rel = (got[0] - expected).abs() / expected;
-            worst = worst.max(rel);
+            "--shading",
+            shading,
+        ];
+        let out = render_to(dir.path(), &model, &name, &args);
+        let (w, hgt, pixels) = read_rgba(&out);
+        assert_eq!((w, hgt), (64, 64));
+        let mut worst = 0.0f32;
+        for j in 0..64 {
+            for i in 0..64 {
+                let x = -2.0 + (i as f32 + 0.5) * 4.0 / 64.0;
+                let y = 2.0 - (j as f32 + 0.5) * 4.0 / 64.0;
+                let d2 = x * x + y * y + h * h;
+                let d = d2.sqrt();
+                let cos = h / d;
+                let to_light = glam::Vec3::new(-x, -y, h) / d;
+                let half = (to_light + glam::Vec3::Z).normalize();
+                let brdf = if shading == "pbr" {
+                    let fresnel = 0.04 + 0.96 * (1.0 - half.z).powi(5);
+                    (1.0 - fresnel) / PI + fresnel * (1.0 / PI) * 0.5 / (cos + 1.0)
+                } else {
+                    1.0 / PI + 0.04 * 9.0 / (8.0 * PI) * half.z
+                };
+                let expected = brdf * intensity / d2 * cos;
+                let got = pixels[(j * 64 + i) as usize];
+                assert_eq!(got[3], 1.0, "covered");
+                worst = worst.max((got[0] - expected).abs() / expected);
+            }
         }
+        assert!(
+            worst < RADIANCE_TOLERANCE,
+            "{shading}: worst relative error {worst}"
+        );
     }
-    assert!(worst < RADIANCE_TOLERANCE, "worst relative error {worst}");
 }
 
 /// A 1x1 occluder 1 m above a ground plane under a directional light at 45° casts a 1x1 shadow
@@ -174,8 +186,8 @@ fn occluder_casts_a_shadow_of_known_shape() {
                 assert_eq!(v, 0.0, "pixel ({i},{j}) at x {x} y {y} is in the shadow");
                 shadowed += 1;
             } else if outside(0.5, 1.5) && outside(-0.5, 0.5) {
-                // E = 2 lux · cos 45°, Lambertian plus the 4% lobe: at least 2·0.707/π.
-                assert!(v > 0.44, "pixel ({i},{j}) at x {x} y {y} is lit, got {v}");
+                // E = 2 lux · cos 45° = 1.41 lux on a white rough dielectric: about 0.31.
+                assert!(v > 0.25, "pixel ({i},{j}) at x {x} y {y} is lit, got {v}");
                 lit += 1;
             }
         }

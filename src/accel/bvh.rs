@@ -1,7 +1,7 @@
 //! The obvhs compressed wide BVH (CWBVH): built with PLOC and reinsertion, traversed eight
 //! children at a time with obvhs's `traverse!` macro and our own triangle test.
 
-use super::{Accel, AccelKind, Closest};
+use super::{Accel, AccelKind, Accept, Closest};
 use crate::geometry::{PreparedTriangle, Ray, EDGE_EPSILON};
 use crate::scene::TriangleSoup;
 use glam::{UVec2, Vec3, Vec3A};
@@ -11,6 +11,7 @@ pub(super) fn build(
     soup: &TriangleSoup,
     prepared: &[PreparedTriangle],
     single_sided: &[bool],
+    alpha_tested: &[bool],
     params: obvhs::BvhBuildParams,
 ) -> Accel {
     // The triangle test accepts hits up to EDGE_EPSILON outside each edge (in barycentric
@@ -37,11 +38,13 @@ pub(super) fn build(
     let ids = bvh.primitive_indices.clone();
     let triangles = ids.iter().map(|&i| prepared[i as usize]).collect();
     let single_sided = ids.iter().map(|&i| single_sided[i as usize]).collect();
+    let alpha_tested = ids.iter().map(|&i| alpha_tested[i as usize]).collect();
     Accel {
         kind: AccelKind::Bvh,
         triangles,
         ids,
         single_sided,
+        alpha_tested,
         bvh: Some(bvh),
         build_time: Duration::ZERO,
     }
@@ -55,7 +58,12 @@ fn to_obvhs(ray: &Ray, tmax: f32) -> obvhs::ray::Ray {
     obvhs::ray::Ray::new(ray.origin, ray.direction + Vec3A::ZERO, ray.tmin, tmax)
 }
 
-pub(super) fn closest(accel: &Accel, bvh: &obvhs::cwbvh::CwBvh, ray: &Ray) -> Option<Closest> {
+pub(super) fn closest(
+    accel: &Accel,
+    bvh: &obvhs::cwbvh::CwBvh,
+    ray: &Ray,
+    accept: Option<&Accept>,
+) -> Option<Closest> {
     let mut best: Option<Closest> = None;
     let mut node_ray = to_obvhs(ray, ray.tmax);
     let mut local = *ray;
@@ -68,7 +76,7 @@ pub(super) fn closest(accel: &Accel, bvh: &obvhs::cwbvh::CwBvh, ray: &Ray) -> Op
         node.intersect_ray(&node_ray, state.oct_inv4),
         {
             let slot = state.primitive_id as usize;
-            let t = accel.test(slot, &local, true);
+            let t = accel.test(slot, &local, true, accept);
             if t < f32::INFINITY {
                 Closest::offer(&mut best, t, accel.ids[slot], slot);
                 if let Some(b) = best {
@@ -83,7 +91,12 @@ pub(super) fn closest(accel: &Accel, bvh: &obvhs::cwbvh::CwBvh, ray: &Ray) -> Op
     best
 }
 
-pub(super) fn occluded(accel: &Accel, bvh: &obvhs::cwbvh::CwBvh, ray: &Ray) -> bool {
+pub(super) fn occluded(
+    accel: &Accel,
+    bvh: &obvhs::cwbvh::CwBvh,
+    ray: &Ray,
+    accept: Option<&Accept>,
+) -> bool {
     let node_ray = to_obvhs(ray, ray.tmax);
     let mut state = bvh.new_traversal(node_ray.direction);
     let mut node;
@@ -96,7 +109,7 @@ pub(super) fn occluded(accel: &Accel, bvh: &obvhs::cwbvh::CwBvh, ray: &Ray) -> b
             state,
             node.intersect_ray(&node_ray, state.oct_inv4),
             {
-                if accel.test(state.primitive_id as usize, ray, false) < f32::INFINITY {
+                if accel.test(state.primitive_id as usize, ray, false, accept) < f32::INFINITY {
                     blocked = true;
                     break 'traversal;
                 }

@@ -1,12 +1,12 @@
 //! The linear scan: every triangle, every ray. O(n) per ray, and obviously correct.
 
-use super::{Accel, Closest};
+use super::{Accel, Accept, Closest};
 use crate::geometry::Ray;
 
-pub(super) fn closest(accel: &Accel, ray: &Ray) -> Option<Closest> {
+pub(super) fn closest(accel: &Accel, ray: &Ray, accept: Option<&Accept>) -> Option<Closest> {
     let mut best = None;
     for slot in 0..accel.triangles.len() {
-        let t = accel.test(slot, ray, true);
+        let t = accel.test(slot, ray, true, accept);
         if t < f32::INFINITY {
             Closest::offer(&mut best, t, accel.ids[slot], slot);
         }
@@ -14,6 +14,6 @@ pub(super) fn closest(accel: &Accel, ray: &Ray) -> Option<Closest> {
     best
 }
 
-pub(super) fn occluded(accel: &Accel, ray: &Ray) -> bool {
-    (0..accel.triangles.len()).any(|slot| accel.test(slot, ray, false) < f32::INFINITY)
+pub(super) fn occluded(accel: &Accel, ray: &Ray, accept: Option<&Accept>) -> bool {
+    (0..accel.triangles.len()).any(|slot| accel.test(slot, ray, false, accept) < f32::INFINITY)
 }

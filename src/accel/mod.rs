@@ -79,6 +79,8 @@ pub struct Accel {
     ids: Vec<u32>,
     /// Whether each entry of `triangles` is single-sided (invisible from behind).
     single_sided: Vec<bool>,
+    /// Whether each entry needs the caller's alpha test (MASK and BLEND materials).
+    alpha_tested: Vec<bool>,
     bvh: Option<obvhs::cwbvh::CwBvh>,
     build_time: Duration,
 }
@@ -103,16 +105,32 @@ impl Accel {
             .iter()
             .map(|&m| materials.get(m as usize).is_some_and(|m| !m.double_sided))
             .collect();
+        let alpha_tested: Vec<bool> = soup
+            .material
+            .iter()
+            .map(|&m| {
+                materials
+                    .get(m as usize)
+                    .is_some_and(|m| m.alpha_mode != crate::scene::AlphaMode::Opaque)
+            })
+            .collect();
         let mut accel = match kind {
             AccelKind::Linear => Accel {
                 kind,
                 ids: (0..prepared.len() as u32).collect(),
                 triangles: prepared,
                 single_sided,
+                alpha_tested,
                 bvh: None,
                 build_time: Duration::ZERO,
             },
-            AccelKind::Bvh => bvh::build(soup, &prepared, &single_sided, preset.params()),
+            AccelKind::Bvh => bvh::build(
+                soup,
+                &prepared,
+                &single_sided,
+                &alpha_tested,
+                preset.params(),
+            ),
         };
         accel.build_time = start.elapsed();
         accel
@@ -141,9 +159,15 @@ impl Accel {
     /// The closest hit in (`ray.tmin`, `ray.tmax`), or `None`. Single-sided triangles seen from
     /// behind are not hit (glTF 2.0 §3.9.6: back-face culling).
     pub fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        self.intersect_filtered(ray, None)
+    }
+
+    /// [`Accel::intersect`] where a candidate hit on a MASK or BLEND triangle counts only if
+    /// `accept(triangle, barycentric)` says so (alpha testing). Opaque triangles never call it.
+    pub fn intersect_filtered(&self, ray: &Ray, accept: Option<&Accept>) -> Option<Hit> {
         let closest = match &self.bvh {
-            Some(bvh) => bvh::closest(self, bvh, ray),
-            None => linear::closest(self, ray),
+            Some(bvh) => bvh::closest(self, bvh, ray, accept),
+            None => linear::closest(self, ray, accept),
         }?;
         let tri = &self.triangles[closest.slot];
         let hit = tri.hit_at(ray, closest.t);
@@ -160,9 +184,15 @@ impl Accel {
     /// `doubleSided` is about what the camera sees (as in rasterisers and Cycles), and a
     /// single-sided ground plane or leaf must still cast a shadow.
     pub fn occluded(&self, ray: &Ray) -> bool {
+        self.occluded_filtered(ray, None)
+    }
+
+    /// [`Accel::occluded`] where a MASK or BLEND triangle blocks only if `accept` says so.
+    /// `accept` may be called for several candidates, in any order, before one blocks.
+    pub fn occluded_filtered(&self, ray: &Ray, accept: Option<&Accept>) -> bool {
         match &self.bvh {
-            Some(bvh) => bvh::occluded(self, bvh, ray),
-            None => linear::occluded(self, ray),
+            Some(bvh) => bvh::occluded(self, bvh, ray, accept),
+            None => linear::occluded(self, ray, accept),
         }
     }
 
@@ -170,19 +200,30 @@ impl Accel {
     /// the back faces of single-sided triangles are misses. The one place both structures
     /// test a triangle.
     #[inline(always)]
-    fn test(&self, slot: usize, ray: &Ray, cull: bool) -> f32 {
+    fn test(&self, slot: usize, ray: &Ray, cull: bool, accept: Option<&Accept>) -> f32 {
         let tri = &self.triangles[slot];
         let t = tri.intersect_t(ray);
+        if t == f32::INFINITY {
+            return t;
+        }
         if cull
-            && t < f32::INFINITY
             && self.single_sided[slot]
             && glam::Vec3A::from(tri.normal()).dot(ray.direction) > 0.0
         {
             return f32::INFINITY;
         }
+        if let Some(accept) = accept {
+            if self.alpha_tested[slot] && !accept(self.ids[slot], tri.hit_at(ray, t).barycentric) {
+                return f32::INFINITY;
+            }
+        }
         t
     }
 }
+
+/// An alpha test: given a soup triangle index and the barycentric coordinates of a candidate
+/// hit, whether the surface is there.
+pub type Accept<'a> = dyn Fn(u32, Vec3) -> bool + 'a;
 
 /// The best candidate found so far by a closest-hit query.
 #[derive(Clone, Copy, Debug)]

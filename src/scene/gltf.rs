@@ -167,9 +167,21 @@ fn check_glb_header(bytes: &[u8]) -> Result<(), LoadErrorKind> {
     Ok(())
 }
 
-/// gltf-json 1.4's validation indexes `accessors[POSITION]` before checking that the index
-/// exists (found by fuzzing): check every primitive's accessor references first.
+/// What the `gltf` crate assumes but does not validate (both found by fuzzing): gltf-json 1.4's
+/// validation indexes `accessors[POSITION]` before checking that the index exists, and
+/// `Image::source` unwraps `mimeType` (required with `bufferView`) and `uri` (required without).
 fn check_attribute_indices(root: &gltf::json::Root) -> Result<(), LoadErrorKind> {
+    for (index, image) in root.images.iter().enumerate() {
+        let problem = match (&image.buffer_view, &image.mime_type, &image.uri) {
+            (Some(_), None, _) => "has a bufferView but no mimeType",
+            (None, _, None) => "has neither a uri nor a bufferView",
+            _ => continue,
+        };
+        return Err(LoadErrorKind::Image {
+            image: index,
+            problem: problem.to_string(),
+        });
+    }
     let count = root.accessors.len();
     for (m, mesh) in root.meshes.iter().enumerate() {
         for (p, primitive) in mesh.primitives.iter().enumerate() {

@@ -45,8 +45,9 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         ignore_points: true,
         ignore_lines: true,
     };
+    let text = carry_materials_across_objects(bytes);
     let (models, materials) = tobj::load_obj_buf(
-        &mut BufReader::new(bytes),
+        &mut BufReader::new(text.as_bytes()),
         &load_options,
         |mtl_path: &Path| {
             let name = mtl_path.to_string_lossy().into_owned();
@@ -137,6 +138,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     }
     let default_material = materials.len() as u32;
     let mut uses_default = false;
+    let mut lone_material_fallback = false;
 
     let mut builder = SoupBuilder::new(options.limits.max_triangles);
     let mut instances = Vec::with_capacity(models.len());
@@ -181,6 +183,12 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         }
         let material = match mesh.material_id {
             Some(id) if id < materials.len() => id as u32,
+            // A `usemtl` naming nothing in the MTL (VikingRoom says `usemtl Texture1`, its MTL
+            // defines only `room`): with a single material in the library, that is the one meant.
+            _ if mtl_materials.len() == 1 => {
+                lone_material_fallback = true;
+                0
+            }
             _ => {
                 uses_default = true;
                 default_material
@@ -210,7 +218,13 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         materials.push(obj_default_material());
     }
     let mut warnings: Vec<String> = builder.dropped_warning().into_iter().collect();
-    if models.iter().any(|m| m.mesh.material_id.is_none()) && !mtl_materials.is_empty() {
+    if lone_material_fallback {
+        warnings.push(format!(
+            "faces use a material the MTL does not define; its only material '{}' is used",
+            mtl_materials[0].name.trim()
+        ));
+    }
+    if uses_default && !mtl_materials.is_empty() {
         warnings.push("some faces use no material from the MTL; they get a grey default".into());
     }
     let file_triangles = builder.offered();
@@ -231,6 +245,40 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         bounds,
         warnings,
     })
+}
+
+/// OBJ material state persists across `o` and `g` statements (as in Blender and
+/// tinyobjloader), but tobj starts every object without a material: VikingRoom's
+/// `usemtl room` precedes its `o room` and would be lost. Repeating the current `usemtl`
+/// after each `o`/`g` line makes tobj see the state the file means.
+fn carry_materials_across_objects(bytes: &[u8]) -> std::borrow::Cow<'_, str> {
+    // The caller checked UTF-8 already; a lossy view is only a fallback.
+    let text = String::from_utf8_lossy(bytes);
+    if !text.contains("usemtl") {
+        return text;
+    }
+    let mut out = String::with_capacity(text.len() + 256);
+    let mut current: Option<&str> = None;
+    for line in text.lines() {
+        out.push_str(line);
+        out.push('\n');
+        let trimmed = line.trim_start();
+        if let Some(name) = trimmed.strip_prefix("usemtl") {
+            let name = name.trim();
+            current = (!name.is_empty()).then_some(name);
+        } else if trimmed.starts_with("o ")
+            || trimmed.starts_with("g ")
+            || trimmed == "o"
+            || trimmed == "g"
+        {
+            if let Some(name) = current {
+                out.push_str("usemtl ");
+                out.push_str(name);
+                out.push('\n');
+            }
+        }
+    }
+    std::borrow::Cow::Owned(out)
 }
 
 fn obj_error(e: tobj::LoadError) -> LoadErrorKind {
@@ -319,6 +367,15 @@ mod tests {
         assert!(
             r > 0.2 && r < 0.25,
             "Ns 1000 is a mirror-like lobe, got {r}"
+        );
+    }
+
+    #[test]
+    fn material_state_carries_across_objects() {
+        let text = carry_materials_across_objects(b"usemtl a\no x\nf 1 2 3\ng y\nusemtl b\n");
+        assert_eq!(
+            text,
+            "usemtl a\no x\nusemtl a\nf 1 2 3\ng y\nusemtl a\nusemtl b\n"
         );
     }
 

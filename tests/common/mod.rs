@@ -80,7 +80,22 @@ pub fn f32_bytes(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
 }
 
-/// A glTF scene of quads: each quad is (4 corners CCW from the front, material index). Returns
+/// A PNG as a `data:` URI.
+pub fn png_data_uri(img: &image::RgbaImage) -> String {
+    use base64::Engine;
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .unwrap();
+    format!(
+        "data:image/png;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(bytes)
+    )
+}
+
+/// A glTF scene of quads (each with TEXCOORD_0 spanning the unit square): each quad is (4 corners CCW from the front, material index). Returns
 /// the JSON (without buffers) and the binary data. `extra` is merged into the top level.
 pub fn quads_gltf(
     quads: &[([[f32; 3]; 4], usize)],
@@ -110,6 +125,13 @@ pub fn quads_gltf(
             })
             .collect();
         accessors.push(serde_json::json!({"bufferView": views.len() - 1, "componentType": 5126, "count": 4, "type": "VEC3", "min": min, "max": max}));
+        // TEXCOORD_0: u along corner 0 -> 1, v from corner 3 (v = 0, top) to corner 0 (v = 1).
+        let uv = f32_bytes(&[0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0]);
+        views.push(
+            serde_json::json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": uv.len()}),
+        );
+        bin.extend(uv);
+        accessors.push(serde_json::json!({"bufferView": views.len() - 1, "componentType": 5126, "count": 4, "type": "VEC2"}));
         let indices: Vec<u8> = [0u16, 1, 2, 0, 2, 3]
             .iter()
             .flat_map(|x| x.to_le_bytes())
@@ -119,7 +141,7 @@ pub fn quads_gltf(
         );
         bin.extend(indices);
         accessors.push(serde_json::json!({"bufferView": views.len() - 1, "componentType": 5123, "count": 6, "type": "SCALAR"}));
-        meshes.push(serde_json::json!({"primitives": [{"attributes": {"POSITION": 2 * i}, "indices": 2 * i + 1, "material": material}]}));
+        meshes.push(serde_json::json!({"primitives": [{"attributes": {"POSITION": 3 * i, "TEXCOORD_0": 3 * i + 1}, "indices": 3 * i + 2, "material": material}]}));
         nodes.push(serde_json::json!({"mesh": i}));
     }
     let mut json = serde_json::json!({

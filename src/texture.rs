@@ -1,0 +1,428 @@
+//! Decoded textures and how they are sampled (glTF 2.0 §3.8).
+//!
+//! Every image is decoded once into RGBA8 (4 bytes a texel, shared by every texture and material
+//! that uses it) with a box-filtered mip chain (+1/3 memory). Colour textures (base colour,
+//! emissive) are sRGB-decoded per texel through a 256-entry table before filtering; data
+//! textures (metallic-roughness, normal, occlusion) are used as stored. Mip levels are averaged
+//! in stored values, an approximation for sRGB data that only affects minified texels.
+//!
+//! Texture coordinates follow glTF: (0, 0) is the image's top-left texel corner, u to the right,
+//! v down. Wrap modes apply per axis; magnification is NEAREST or LINEAR as the sampler says;
+//! minification picks a mip level from the ray footprint (trilinear, or nearest texel on the
+//! nearest level for NEAREST samplers), so distant surfaces do not alias.
+
+use crate::scene::{Filter, ImageSource, Sampler, Scene, TextureRef, Wrap};
+use glam::{Vec2, Vec4};
+use std::sync::{Arc, OnceLock};
+
+/// One mip level.
+#[derive(Clone, Debug)]
+struct Level {
+    width: u32,
+    height: u32,
+    texels: Vec<[u8; 4]>,
+}
+
+/// A decoded image with its mip chain; level 0 is full size.
+#[derive(Clone, Debug)]
+pub struct MipImage {
+    levels: Vec<Level>,
+}
+
+/// Why textures could not be prepared.
+#[derive(Debug, thiserror::Error)]
+pub enum TextureError {
+    /// An image failed to decode.
+    #[error("{file}: image {image} ({origin}): {problem}")]
+    Decode {
+        /// The model file.
+        file: String,
+        /// Image index.
+        image: usize,
+        /// URI or buffer view.
+        origin: String,
+        /// The decoder's message.
+        problem: String,
+    },
+}
+
+/// Every image of a scene, decoded.
+#[derive(Clone, Debug, Default)]
+pub struct TextureSet {
+    images: Vec<Option<Arc<MipImage>>>,
+    /// Decoded bytes in total (all levels).
+    pub bytes: usize,
+}
+
+fn srgb_table() -> &'static [f32; 256] {
+    static TABLE: OnceLock<[f32; 256]> = OnceLock::new();
+    TABLE.get_or_init(|| std::array::from_fn(|i| crate::image::srgb_to_linear(i as f32 / 255.0)))
+}
+
+impl MipImage {
+    /// Builds the mip chain of an RGBA8 image.
+    pub fn new(width: u32, height: u32, texels: Vec<[u8; 4]>) -> MipImage {
+        let mut levels = vec![Level {
+            width,
+            height,
+            texels,
+        }];
+        while let Some(last) = levels.last() {
+            if last.width == 1 && last.height == 1 {
+                break;
+            }
+            let (w, h) = ((last.width / 2).max(1), (last.height / 2).max(1));
+            let mut texels = Vec::with_capacity((w * h) as usize);
+            for y in 0..h {
+                for x in 0..w {
+                    let mut sum = [0u32; 4];
+                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        let sx = (2 * x + dx).min(last.width - 1);
+                        let sy = (2 * y + dy).min(last.height - 1);
+                        let t = last.texels[(sy * last.width + sx) as usize];
+                        for c in 0..4 {
+                            sum[c] += u32::from(t[c]);
+                        }
+                    }
+                    texels.push(sum.map(|s| ((s + 2) / 4) as u8));
+                }
+            }
+            levels.push(Level {
+                width: w,
+                height: h,
+                texels,
+            });
+        }
+        MipImage { levels }
+    }
+
+    /// Size of level 0.
+    pub fn size(&self) -> (u32, u32) {
+        (self.levels[0].width, self.levels[0].height)
+    }
+
+    fn bytes(&self) -> usize {
+        self.levels.iter().map(|l| l.texels.len() * 4).sum()
+    }
+
+    fn texel(&self, level: usize, x: i64, y: i64, sampler: &Sampler, srgb: bool) -> Vec4 {
+        let l = &self.levels[level];
+        let x = wrap(x, l.width, sampler.wrap_s);
+        let y = wrap(y, l.height, sampler.wrap_t);
+        let t = l.texels[(y * l.width + x) as usize];
+        if srgb {
+            let table = srgb_table();
+            Vec4::new(
+                table[t[0] as usize],
+                table[t[1] as usize],
+                table[t[2] as usize],
+                f32::from(t[3]) / 255.0,
+            )
+        } else {
+            Vec4::from_array(t.map(|c| f32::from(c) / 255.0))
+        }
+    }
+
+    fn sample_level(
+        &self,
+        level: usize,
+        uv: Vec2,
+        sampler: &Sampler,
+        linear: bool,
+        srgb: bool,
+    ) -> Vec4 {
+        let l = &self.levels[level];
+        let x = uv.x * l.width as f32;
+        let y = uv.y * l.height as f32;
+        if !linear {
+            return self.texel(level, x.floor() as i64, y.floor() as i64, sampler, srgb);
+        }
+        // Texel centres sit at half-integers.
+        let (x, y) = (x - 0.5, y - 0.5);
+        let (x0, y0) = (x.floor(), y.floor());
+        let (fx, fy) = (x - x0, y - y0);
+        let (x0, y0) = (x0 as i64, y0 as i64);
+        let a = self.texel(level, x0, y0, sampler, srgb);
+        let b = self.texel(level, x0 + 1, y0, sampler, srgb);
+        let c = self.texel(level, x0, y0 + 1, sampler, srgb);
+        let d = self.texel(level, x0 + 1, y0 + 1, sampler, srgb);
+        a.lerp(b, fx).lerp(c.lerp(d, fx), fy)
+    }
+
+    /// Samples at `uv` with mip level of detail `lod` (0 = full size; fractional values blend
+    /// levels). `srgb` decodes colour channels to linear.
+    pub fn sample(&self, uv: Vec2, lod: f32, sampler: &Sampler, srgb: bool) -> Vec4 {
+        // Coordinates far outside [0, 1] lose precision in f32; wrap them close to it first
+        // where the mode is periodic (the result is the same texel).
+        let uv = Vec2::new(reduce(uv.x, sampler.wrap_s), reduce(uv.y, sampler.wrap_t));
+        if !uv.is_finite() {
+            return self.texel(0, 0, 0, sampler, srgb);
+        }
+        let max_level = (self.levels.len() - 1) as f32;
+        // NaN (a degenerate footprint) counts as magnification.
+        if lod.is_nan() || lod <= 0.0 {
+            return self.sample_level(0, uv, sampler, sampler.mag_filter == Filter::Linear, srgb);
+        }
+        let lod = lod.min(max_level);
+        if sampler.min_filter == Filter::Nearest {
+            return self.sample_level(lod.round() as usize, uv, sampler, false, srgb);
+        }
+        let lo = lod.floor();
+        let a = self.sample_level(lo as usize, uv, sampler, true, srgb);
+        if lod == lo {
+            return a;
+        }
+        let b = self.sample_level(lo as usize + 1, uv, sampler, true, srgb);
+        a.lerp(b, lod - lo)
+    }
+}
+
+/// Moves a periodic coordinate into [-2, 2) without changing which texel it selects.
+fn reduce(c: f32, mode: Wrap) -> f32 {
+    match mode {
+        Wrap::Repeat => c - c.floor(),
+        Wrap::MirroredRepeat => c - 2.0 * (c * 0.5).floor(),
+        Wrap::ClampToEdge => c.clamp(-1.0, 2.0),
+    }
+}
+
+/// A texel index wrapped into [0, size) by the glTF wrap mode.
+fn wrap(i: i64, size: u32, mode: Wrap) -> u32 {
+    let n = i64::from(size);
+    let r = match mode {
+        Wrap::ClampToEdge => i.clamp(0, n - 1),
+        Wrap::Repeat => i.rem_euclid(n),
+        Wrap::MirroredRepeat => {
+            let period = i.rem_euclid(2 * n);
+            if period < n {
+                period
+            } else {
+                2 * n - 1 - period
+            }
+        }
+    };
+    r as u32
+}
+
+/// Most bytes a decoder may allocate. The importer has already refused images whose header
+/// declares more than its pixel limit (64 Mpixels by default, 256 MB as RGBA8); this bounds
+/// what a lying header could still make the decoder allocate.
+const MAX_DECODE_BYTES: u64 = 2 << 30;
+
+/// Decodes one image source to RGBA8.
+fn decode(source: &ImageSource) -> Result<image::RgbaImage, String> {
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(MAX_DECODE_BYTES);
+    let reader = match (&source.bytes, &source.path) {
+        (Some(bytes), _) => {
+            let mut r = image::ImageReader::new(std::io::Cursor::new(bytes.to_vec()))
+                .with_guessed_format()
+                .map_err(|e| e.to_string())?;
+            r.limits(limits);
+            r.decode()
+        }
+        (None, Some(path)) => {
+            let mut r = image::ImageReader::open(path)
+                .map_err(|e| e.to_string())?
+                .with_guessed_format()
+                .map_err(|e| e.to_string())?;
+            r.limits(limits);
+            r.decode()
+        }
+        (None, None) => return Err("no image data".into()),
+    };
+    Ok(reader.map_err(|e| e.to_string())?.to_rgba8())
+}
+
+impl TextureSet {
+    /// Decodes every image a material uses. Images whose decoded size would push the total
+    /// over `budget_bytes` are halved until they fit, with a warning; an image that fails to
+    /// decode is an error naming the file and the image.
+    pub fn load(
+        scene: &Scene,
+        budget_bytes: usize,
+        warnings: &mut Vec<String>,
+    ) -> Result<TextureSet, TextureError> {
+        let mut used = vec![false; scene.images.len()];
+        for m in &scene.materials {
+            for r in [
+                m.base_color_texture,
+                m.metallic_roughness_texture,
+                m.normal_texture,
+                m.occlusion_texture,
+                m.emissive_texture,
+            ]
+            .into_iter()
+            .flatten()
+            {
+                if let Some(t) = scene.textures.get(r.texture) {
+                    if let Some(u) = used.get_mut(t.image) {
+                        *u = true;
+                    }
+                }
+            }
+        }
+        let mut set = TextureSet {
+            images: vec![None; scene.images.len()],
+            bytes: 0,
+        };
+        for (index, source) in scene.images.iter().enumerate() {
+            if !used[index] {
+                continue;
+            }
+            let decoded = decode(source).map_err(|problem| TextureError::Decode {
+                file: scene.source.display().to_string(),
+                image: index,
+                origin: source.origin.clone(),
+                problem,
+            })?;
+            let (mut w, mut h) = decoded.dimensions();
+            let mut img = decoded;
+            let remaining = budget_bytes.saturating_sub(set.bytes);
+            let mut halvings = 0;
+            // Level 0 plus the chain is at most 4/3 of level 0.
+            while (w as usize * h as usize * 4 * 4 / 3) > remaining && (w > 1 || h > 1) {
+                w = (w / 2).max(1);
+                h = (h / 2).max(1);
+                img = image::imageops::resize(&img, w, h, image::imageops::FilterType::Triangle);
+                halvings += 1;
+            }
+            if halvings > 0 {
+                warnings.push(format!(
+                    "image {index} ({}) downscaled {halvings}x by half to fit the texture memory budget of {} MB",
+                    source.origin,
+                    budget_bytes >> 20
+                ));
+            }
+            let texels: Vec<[u8; 4]> = img.pixels().map(|p| p.0).collect();
+            let mip = MipImage::new(w, h, texels);
+            set.bytes += mip.bytes();
+            set.images[index] = Some(Arc::new(mip));
+        }
+        Ok(set)
+    }
+
+    /// The decoded image behind a texture reference, with its sampler.
+    pub fn lookup<'a>(
+        &'a self,
+        scene: &'a Scene,
+        r: &TextureRef,
+    ) -> Option<(&'a MipImage, &'a Sampler)> {
+        let texture = scene.textures.get(r.texture)?;
+        let image = self.images.get(texture.image)?.as_deref()?;
+        Some((image, &texture.sampler))
+    }
+}
+
+/// Applies `KHR_texture_transform` to a texture coordinate: uv' = T(offset)·R(rotation)·S(scale)·uv,
+/// with R = [[cos, sin], [-sin, cos]] as the extension defines it.
+pub fn transform_uv(r: &TextureRef, uv: Vec2) -> Vec2 {
+    match &r.transform {
+        None => uv,
+        Some(t) => {
+            let s = Vec2::from(t.scale) * uv;
+            let (sin, cos) = t.rotation.sin_cos();
+            Vec2::new(cos * s.x + sin * s.y, -sin * s.x + cos * s.y) + Vec2::from(t.offset)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sampler(wrap_mode: Wrap, filter: Filter) -> Sampler {
+        Sampler {
+            mag_filter: filter,
+            min_filter: filter,
+            wrap_s: wrap_mode,
+            wrap_t: wrap_mode,
+        }
+    }
+
+    /// A 4x2 image whose texel (x, y) has red = 10x + 100y, generated so every texel is distinct.
+    fn ramp() -> MipImage {
+        let texels = (0..2)
+            .flat_map(|y| (0..4).map(move |x| [(10 * x + 100 * y) as u8, 0, 0, 255]))
+            .collect();
+        MipImage::new(4, 2, texels)
+    }
+
+    fn red(img: &MipImage, u: f32, v: f32, s: &Sampler) -> u8 {
+        (img.sample(Vec2::new(u, v), 0.0, s, false).x * 255.0).round() as u8
+    }
+
+    #[test]
+    fn texel_exact_orientation_and_wrap_modes() {
+        let img = ramp();
+        let nearest = |w| sampler(w, Filter::Nearest);
+        // (0, 0) is the top-left texel; v grows downward.
+        assert_eq!(red(&img, 0.1, 0.1, &nearest(Wrap::Repeat)), 0);
+        assert_eq!(red(&img, 0.9, 0.1, &nearest(Wrap::Repeat)), 30);
+        assert_eq!(red(&img, 0.1, 0.9, &nearest(Wrap::Repeat)), 100);
+        // REPEAT tiles, CLAMP_TO_EDGE holds the edge, MIRRORED_REPEAT reflects.
+        assert_eq!(red(&img, 1.1, 0.1, &nearest(Wrap::Repeat)), 0);
+        assert_eq!(red(&img, 1.1, 0.1, &nearest(Wrap::ClampToEdge)), 30);
+        assert_eq!(red(&img, 1.1, 0.1, &nearest(Wrap::MirroredRepeat)), 30);
+        assert_eq!(red(&img, 1.3, 0.1, &nearest(Wrap::MirroredRepeat)), 20);
+        assert_eq!(red(&img, -0.1, 0.1, &nearest(Wrap::MirroredRepeat)), 0);
+        assert_eq!(red(&img, -0.1, 0.1, &nearest(Wrap::Repeat)), 30);
+        assert_eq!(red(&img, -0.1, -0.4, &nearest(Wrap::ClampToEdge)), 0);
+    }
+
+    #[test]
+    fn bilinear_blends_between_texel_centres() {
+        let img = ramp();
+        let s = sampler(Wrap::ClampToEdge, Filter::Linear);
+        // Halfway between the centres of texels 0 and 1 (u = 0.25 is their shared edge).
+        assert_eq!(red(&img, 0.25, 0.25, &s), 5);
+        // At a texel centre, exactly that texel.
+        assert_eq!(red(&img, 0.375, 0.25, &s), 10);
+    }
+
+    #[test]
+    fn mip_chain_averages_and_minification_blurs() {
+        let texels = (0..16)
+            .map(|i| {
+                if i % 2 == 0 {
+                    [255, 255, 255, 255]
+                } else {
+                    [0, 0, 0, 255]
+                }
+            })
+            .collect();
+        let img = MipImage::new(4, 4, texels);
+        assert_eq!(img.levels.len(), 3);
+        let s = sampler(Wrap::Repeat, Filter::Linear);
+        let far = img.sample(Vec2::new(0.3, 0.3), 2.0, &s, false);
+        assert!(
+            (far.x - 0.5).abs() < 0.01,
+            "a checkerboard seen from afar is grey: {far}"
+        );
+    }
+
+    #[test]
+    fn srgb_textures_decode_to_linear() {
+        let img = MipImage::new(1, 1, vec![[188, 255, 0, 128]]);
+        let s = sampler(Wrap::Repeat, Filter::Nearest);
+        let c = img.sample(Vec2::new(0.5, 0.5), 0.0, &s, true);
+        assert!((c.x - 0.5).abs() < 0.003 && c.y == 1.0 && c.z == 0.0);
+        assert!((c.w - 128.0 / 255.0).abs() < 1e-6, "alpha stays linear");
+    }
+
+    #[test]
+    fn texture_transform_follows_the_extension() {
+        let r = TextureRef {
+            texture: 0,
+            tex_coord: 0,
+            transform: Some(crate::scene::TextureTransform {
+                offset: [0.5, 0.0],
+                rotation: std::f32::consts::FRAC_PI_2,
+                scale: [2.0, 2.0],
+            }),
+        };
+        // S: (1, 0) -> (2, 0); R(90°): (cos·2, -sin·2) = (0, -2); T: (0.5, -2).
+        let uv = transform_uv(&r, Vec2::new(1.0, 0.0));
+        assert!((uv - Vec2::new(0.5, -2.0)).length() < 1e-5, "{uv}");
+    }
+}

@@ -1,0 +1,264 @@
+//! Materials through the real binary: alpha MASK lets light through where the texture is
+//! transparent, a normal map shades like the geometry it imitates, UVs are oriented as glTF
+//! says, and the textured sample models render with their textures.
+
+mod common;
+
+use common::{png_data_uri, quads_gltf, read_rgba, run, s, samples, write_gltf};
+use serde_json::json;
+use std::path::Path;
+
+fn render(dir: &Path, model: &Path, name: &str, extra: &[&str]) -> Vec<[f32; 4]> {
+    let out = dir.join(name);
+    let mut args = vec![
+        "render",
+        s(model),
+        "-o",
+        s(&out),
+        "--quiet",
+        "--spp",
+        "1",
+        "--ambient",
+        "0",
+    ];
+    args.extend_from_slice(extra);
+    run(&args, true);
+    read_rgba(&out).2
+}
+
+/// A 1x1 occluder 1 m over the ground, lit at 45° so its shadow falls beside it (x in
+/// [0.5, 1.5]). Its MASK texture is transparent on the left half (u < 0.5, x < 0): the left half
+/// of the shadow must be lit, the right half dark, and the camera sees the ground through the
+/// transparent half.
+#[test]
+fn alpha_mask_lets_light_and_eye_rays_through_transparent_texels() {
+    let dir = tempfile::tempdir().unwrap();
+    let texture = image::RgbaImage::from_fn(8, 8, |x, _| {
+        if x < 4 {
+            image::Rgba([255, 255, 255, 0])
+        } else {
+            image::Rgba([255, 255, 255, 255])
+        }
+    });
+    let rotation = glam::Quat::from_rotation_arc(
+        glam::Vec3::NEG_Z,
+        glam::Vec3::new(1.0, 0.0, -1.0).normalize(),
+    );
+    let extra = json!({
+        "materials": [
+            {"pbrMetallicRoughness": {"metallicFactor": 0.0}},
+            {"pbrMetallicRoughness": {"metallicFactor": 0.0, "baseColorTexture": {"index": 0}},
+             "alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": true}
+        ],
+        "images": [{"uri": png_data_uri(&texture)}],
+        "samplers": [{"magFilter": 9728, "minFilter": 9728}],
+        "textures": [{"source": 0, "sampler": 0}],
+        "cameras": [{"type": "orthographic", "orthographic": {"xmag": 3.0, "ymag": 3.0, "znear": 0.01, "zfar": 100.0}}],
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 2.0}]}},
+        "nodes": [
+            {"camera": 0, "translation": [0.0, 0.0, 5.0]},
+            {"rotation": rotation.to_array(), "extensions": {"KHR_lights_punctual": {"light": 0}}}
+        ]
+    });
+    let ground = [
+        [-3.0, -3.0, 0.0],
+        [3.0, -3.0, 0.0],
+        [3.0, 3.0, 0.0],
+        [-3.0, 3.0, 0.0],
+    ];
+    let occluder = [
+        [-0.5, -0.5, 1.0],
+        [0.5, -0.5, 1.0],
+        [0.5, 0.5, 1.0],
+        [-0.5, 0.5, 1.0],
+    ];
+    let (gltf, bin) = quads_gltf(&[(ground, 0), (occluder, 1)], extra);
+    let model = dir.path().join("mask.gltf");
+    write_gltf(&model, gltf, &bin);
+    let n = 120usize;
+    let pixels = render(
+        dir.path(),
+        &model,
+        "mask.exr",
+        &["--width", "120", "--height", "120"],
+    );
+    let at = |x: f32, y: f32| {
+        let i = ((x + 3.0) / 6.0 * n as f32) as usize;
+        let j = ((3.0 - y) / 6.0 * n as f32) as usize;
+        pixels[j * n + i][0]
+    };
+    let lit = at(2.5, 0.0);
+    assert!(lit > 0.2, "open ground is lit: {lit}");
+    // Shadow of the transparent half (x in [0.5, 1.0]): lit like open ground.
+    assert!(
+        (at(0.75, 0.0) - lit).abs() < 1e-3 * lit,
+        "light passes the transparent half: {}",
+        at(0.75, 0.0)
+    );
+    // Shadow of the opaque half (x in [1.0, 1.5]): dark.
+    assert_eq!(at(1.25, 0.0), 0.0, "the opaque half casts a shadow");
+    // Through the transparent half the camera sees the ground (lit: its shadow is at x > 0.5).
+    assert!(
+        (at(-0.25, 0.0) - lit).abs() < 1e-3 * lit,
+        "the eye sees through: {}",
+        at(-0.25, 0.0)
+    );
+}
+
+/// A flat quad with a constant normal map tilting its normal 30° toward +X shades, at its
+/// centre, like a quad actually turned 30° about +Y (normal (sin 30°, 0, cos 30°)).
+#[test]
+fn a_normal_mapped_quad_shades_like_the_tilted_geometry() {
+    let dir = tempfile::tempdir().unwrap();
+    let (sin, cos) = 30f32.to_radians().sin_cos();
+    let encode = |c: f32| ((c * 0.5 + 0.5) * 255.0).round() as u8;
+    let normal_map = image::RgbaImage::from_pixel(
+        1,
+        1,
+        image::Rgba([encode(sin), encode(0.0), encode(cos), 255]),
+    );
+    let lights = json!({
+        "cameras": [{"type": "orthographic", "orthographic": {"xmag": 1.0, "ymag": 1.0, "znear": 0.01, "zfar": 100.0}}],
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 3.0}]}},
+        "nodes": [
+            {"camera": 0, "translation": [0.0, 0.0, 5.0]},
+            {"rotation": glam::Quat::from_rotation_arc(glam::Vec3::NEG_Z, glam::Vec3::new(-0.6, -0.2, -1.0).normalize()).to_array(),
+             "extensions": {"KHR_lights_punctual": {"light": 0}}}
+        ]
+    });
+    let material = json!({"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.8, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.6}});
+    let mut mapped_material = material.clone();
+    mapped_material["normalTexture"] = json!({"index": 0});
+    let mut extra = lights.clone();
+    extra["materials"] = json!([mapped_material]);
+    extra["images"] = json!([{"uri": png_data_uri(&normal_map)}]);
+    extra["textures"] = json!([{"source": 0}]);
+    let flat = [
+        [-1.0, -1.0, 0.0],
+        [1.0, -1.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [-1.0, 1.0, 0.0],
+    ];
+    let (gltf, bin) = quads_gltf(&[(flat, 0)], extra);
+    let mapped_model = dir.path().join("mapped.gltf");
+    write_gltf(&mapped_model, gltf, &bin);
+    // The real thing: the same quad turned 30° about +Y (x' = x cos, z' = -x sin).
+    let tilted = [
+        [-cos, -1.0, sin],
+        [cos, -1.0, -sin],
+        [cos, 1.0, -sin],
+        [-cos, 1.0, sin],
+    ];
+    let mut extra = lights;
+    extra["materials"] = json!([material]);
+    let (gltf, bin) = quads_gltf(&[(tilted, 0)], extra);
+    let tilted_model = dir.path().join("tilted.gltf");
+    write_gltf(&tilted_model, gltf, &bin);
+    let size = ["--width", "33", "--height", "33"];
+    let a = render(dir.path(), &mapped_model, "mapped.exr", &size)[16 * 33 + 16];
+    let b = render(dir.path(), &tilted_model, "tilted.exr", &size)[16 * 33 + 16];
+    // 8-bit normal encoding moves the normal by up to ~0.4%: 2% covers it.
+    assert!(
+        (a[0] - b[0]).abs() < 0.02 * b[0],
+        "normal-mapped {} vs tilted {}",
+        a[0],
+        b[0]
+    );
+    assert!(b[0] > 0.05, "the tilted quad is lit: {}", b[0]);
+}
+
+/// TextureCoordinateTest: the image's top-left corner is mapped to the model's top-left
+/// square, which must come out yellow ("Top Left"), and so on around the model.
+#[test]
+fn texture_coordinates_are_oriented_as_gltf_says() {
+    let Some(samples) = samples("texture_coordinates_are_oriented_as_gltf_says") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let model = samples.join("TextureCoordinateTest/glTF/TextureCoordinateTest.gltf");
+    let out = dir.path().join("tc.png");
+    let look = ["--look-from", "0,0,6", "--look-at", "0,0,0", "--yfov", "40"];
+    let mut args = vec![
+        "render",
+        s(&model),
+        "-o",
+        s(&out),
+        "--quiet",
+        "--width",
+        "100",
+        "--height",
+        "100",
+        "--spp",
+        "4",
+    ];
+    args.extend_from_slice(&look);
+    run(&args, true);
+    let (_, _, px) = read_rgba(&out);
+    let at = |x: usize, y: usize| px[y * 100 + x];
+    let (tl, tr, bl, br) = (at(32, 32), at(68, 32), at(32, 68), at(68, 68));
+    assert!(
+        tl[0] > 0.5 && tl[1] > 0.5 && tl[2] < 0.3,
+        "top left is yellow: {tl:?}"
+    );
+    assert!(
+        tr[0] > 0.5 && tr[1] < 0.5 && tr[2] < 0.3,
+        "top right is red-orange: {tr:?}"
+    );
+    assert!(bl[2] > 0.5 && bl[0] < 0.3, "bottom left is blue: {bl:?}");
+    assert!(
+        br[1] > 0.5 && br[0] < 0.3 && br[2] < 0.3,
+        "bottom right is green: {br:?}"
+    );
+}
+
+/// The textured sample models render with their textures: the image differs from the same
+/// model whose textures are shrunk to one texel each (--max-texture-memory 0).
+#[test]
+fn textured_samples_render_with_their_textures() {
+    let Some(samples) = samples("textured_samples_render_with_their_textures") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    for model in [
+        "DamagedHelmet/glTF/DamagedHelmet.gltf",
+        "Suzanne/glTF/Suzanne.gltf",
+        "Avocado/glTF/Avocado.gltf",
+        "BoxTextured/glTF/BoxTextured.gltf",
+        "CesiumMilkTruck/glTF/CesiumMilkTruck.gltf",
+        "VikingRoom-OBJ/viking_room.obj",
+    ] {
+        let path = samples.join(model);
+        let full = dir.path().join("full.png");
+        let tiny = dir.path().join("tiny.png");
+        let base = [
+            "render",
+            s(&path),
+            "--quiet",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--spp",
+            "1",
+        ];
+        let mut a = base.to_vec();
+        a.extend(["-o", s(&full)]);
+        run(&a, true);
+        let mut b = base.to_vec();
+        b.extend(["-o", s(&tiny), "--max-texture-memory", "0"]);
+        run(&b, true);
+        let (_, _, p) = read_rgba(&full);
+        let (_, _, q) = read_rgba(&tiny);
+        let differing = p
+            .iter()
+            .zip(&q)
+            .filter(|(x, y)| (x[0] - y[0]).abs() + (x[1] - y[1]).abs() + (x[2] - y[2]).abs() > 0.05)
+            .count();
+        assert!(
+            differing > 20,
+            "{model}: textures change only {differing} pixels"
+        );
+    }
+}
