@@ -22,6 +22,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::Info(args) => info(&args),
         Command::Render(args) => render_command(&args),
         Command::Bench(args) => bench_command(&args),
+        Command::Compare(args) => compare_command(&args),
     }
 }
 
@@ -536,4 +537,105 @@ fn cpu_name() -> String {
                 .map(|(_, v)| v.trim().to_string())
         })
         .unwrap_or_else(|| "unknown".into())
+}
+
+fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
+    use crate::compare::{compare_files, side_by_side};
+    for (metric, _) in &args.fail_above {
+        if !["flip", "rmse", "max_abs"].contains(&metric.as_str()) {
+            bail!("--fail-above {metric}: use --fail-below for psnr, ssim and coverage_iou");
+        }
+    }
+    for (metric, _) in &args.fail_below {
+        if !["psnr", "ssim", "coverage_iou"].contains(&metric.as_str()) {
+            bail!("--fail-below {metric}: use --fail-above for flip, rmse and max_abs");
+        }
+    }
+    let background = args.background.map(|c| {
+        // Accept 0-1 or 0-255 components.
+        let scale = if c.max_element() <= 1.0 { 255.0 } else { 1.0 };
+        (c * scale)
+            .clamp(glam::Vec3::ZERO, glam::Vec3::splat(255.0))
+            .round()
+            .to_array()
+            .map(|v| v as u8)
+    });
+    let (metrics, a, b, heat) = compare_files(&args.a, &args.b, background)?;
+    if let Some(path) = &args.diff_out {
+        let mut png = Vec::new();
+        heat.write_to(
+            &mut std::io::Cursor::new(&mut png),
+            ::image::ImageFormat::Png,
+        )
+        .context("encoding the heatmap")?;
+        crate::image::write_atomic(path, &png)?;
+    }
+    if let Some(path) = &args.side_by_side {
+        let name = |p: &std::path::Path| {
+            p.file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+        };
+        let flip_label = format!("FLIP {:.3}", metrics.flip);
+        let strip = side_by_side(
+            &a,
+            &b,
+            &heat,
+            [&name(&args.a), &name(&args.b), &flip_label],
+            background,
+        );
+        let mut png = Vec::new();
+        strip
+            .write_to(
+                &mut std::io::Cursor::new(&mut png),
+                ::image::ImageFormat::Png,
+            )
+            .context("encoding the side-by-side image")?;
+        crate::image::write_atomic(path, &png)?;
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&metrics)?);
+    } else {
+        println!(
+            "{} vs {} ({}x{})",
+            args.a.display(),
+            args.b.display(),
+            metrics.width,
+            metrics.height
+        );
+        println!("PSNR          {:.2} dB", metrics.psnr);
+        println!("SSIM          {:.4}", metrics.ssim);
+        println!("FLIP (mean)   {:.4}", metrics.flip);
+        println!("RMSE          {:.4}", metrics.rmse);
+        println!("max abs error {:.4}", metrics.max_abs);
+        println!("coverage IoU  {:.4}", metrics.coverage_iou);
+    }
+    let value = |m: &str| match m {
+        "psnr" => metrics.psnr,
+        "ssim" => metrics.ssim,
+        "flip" => metrics.flip,
+        "rmse" => metrics.rmse,
+        "max_abs" => metrics.max_abs,
+        _ => metrics.coverage_iou,
+    };
+    let mut failed = Vec::new();
+    for (m, limit) in &args.fail_above {
+        if value(m) > *limit {
+            failed.push(format!("{m} {:.4} > {limit}", value(m)));
+        }
+    }
+    for (m, limit) in &args.fail_below {
+        // NaN (no score) fails too.
+        if value(m).partial_cmp(limit) != Some(std::cmp::Ordering::Greater) && value(m) != *limit {
+            failed.push(format!("{m} {:.4} < {limit}", value(m)));
+        }
+    }
+    if !failed.is_empty() {
+        bail!(
+            "{} vs {}: {}",
+            args.a.display(),
+            args.b.display(),
+            failed.join(", ")
+        );
+    }
+    Ok(())
 }

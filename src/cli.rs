@@ -24,6 +24,9 @@ pub enum Command {
     /// Measure BVH build time and BVH vs. linear-scan throughput on generated meshes of growing
     /// size and on models; print a table, optionally write a Markdown report and a log-log plot.
     Bench(BenchArgs),
+    /// Compare two images (A is the reference): PSNR, SSIM, mean FLIP, RMSE, max error and
+    /// coverage IoU; optionally a FLIP heatmap and an A | B | heatmap strip.
+    Compare(CompareArgs),
 }
 
 /// Options shared by every command that loads a model.
@@ -182,6 +185,54 @@ pub struct BenchArgs {
     /// Loading options.
     #[command(flatten)]
     pub load: LoadArgs,
+}
+
+/// `meshtracer compare`.
+#[derive(Debug, Args)]
+pub struct CompareArgs {
+    /// The reference image.
+    pub a: PathBuf,
+    /// The image under test.
+    pub b: PathBuf,
+    /// Print the metrics as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the per-pixel FLIP error as a heatmap PNG.
+    #[arg(long, value_name = "FILE")]
+    pub diff_out: Option<PathBuf>,
+    /// Write A | B | heatmap side by side, labelled, as a PNG.
+    #[arg(long, value_name = "FILE")]
+    pub side_by_side: Option<PathBuf>,
+    /// Composite both over this sRGB colour (0-255 or 0-1 components, R,G,B) before comparing;
+    /// for images without alpha it also marks uncovered pixels [default: black].
+    #[arg(long, value_name = "R,G,B", value_parser = parse_vec3)]
+    pub background: Option<Vec3>,
+    /// Exit with status 1 when an error metric exceeds a value: flip, rmse or max_abs
+    /// (e.g. --fail-above flip=0.1); may be repeated.
+    #[arg(long, value_name = "METRIC=VALUE", value_parser = parse_threshold)]
+    pub fail_above: Vec<(String, f64)>,
+    /// Exit with status 1 when a quality metric falls below a value: psnr, ssim or
+    /// coverage_iou (e.g. --fail-below psnr=30); may be repeated.
+    #[arg(long, value_name = "METRIC=VALUE", value_parser = parse_threshold)]
+    pub fail_below: Vec<(String, f64)>,
+}
+
+/// Parses `METRIC=VALUE`.
+pub fn parse_threshold(s: &str) -> Result<(String, f64), String> {
+    let (metric, value) = s
+        .split_once('=')
+        .ok_or_else(|| format!("expected METRIC=VALUE, got '{s}'"))?;
+    let metric = metric.trim().to_ascii_lowercase();
+    if !["psnr", "ssim", "flip", "rmse", "max_abs", "coverage_iou"].contains(&metric.as_str()) {
+        return Err(format!(
+            "unknown metric '{metric}' (psnr, ssim, flip, rmse, max_abs, coverage_iou)"
+        ));
+    }
+    let value: f64 = value
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{value}' is not a number"))?;
+    Ok((metric, value))
 }
 
 /// Parses `X,Y,Z` into a vector of three finite numbers.

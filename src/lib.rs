@@ -14,6 +14,7 @@ pub mod app;
 pub mod bench;
 pub mod camera;
 pub mod cli;
+pub mod compare;
 pub mod geometry;
 pub mod image;
 pub mod light;

@@ -17,8 +17,9 @@ const LINEAR_COLOR: Rgb<u8> = Rgb([210, 60, 40]);
 const GRID: Rgb<u8> = Rgb([225, 225, 225]);
 const INK: Rgb<u8> = Rgb([20, 20, 20]);
 
-/// Draws `text` with its top-left corner at (x, y), each font pixel `scale` pixels wide.
-fn text(img: &mut RgbImage, x: i32, y: i32, text: &str, scale: i32, color: Rgb<u8>) {
+/// Draws `text` with its top-left corner at (x, y), each font pixel `scale` pixels wide
+/// (printable ASCII; other characters draw blank).
+pub fn draw_text(img: &mut RgbImage, x: i32, y: i32, text: &str, scale: i32, color: Rgb<u8>) {
     for (i, ch) in text.chars().enumerate() {
         let glyph = font8x8::legacy::BASIC_LEGACY
             .get(ch as usize)
@@ -29,14 +30,15 @@ fn text(img: &mut RgbImage, x: i32, y: i32, text: &str, scale: i32, color: Rgb<u
                 if bits & (1 << col) != 0 {
                     let gx = x + (i as i32 * 8 + col) * scale;
                     let gy = y + row as i32 * scale;
-                    fill(img, gx, gy, scale, scale, color);
+                    fill_rect(img, gx, gy, scale, scale, color);
                 }
             }
         }
     }
 }
 
-fn fill(img: &mut RgbImage, x: i32, y: i32, w: i32, h: i32, color: Rgb<u8>) {
+/// Fills a rectangle, clipped to the image.
+pub fn fill_rect(img: &mut RgbImage, x: i32, y: i32, w: i32, h: i32, color: Rgb<u8>) {
     for yy in y.max(0)..(y + h).min(img.height() as i32) {
         for xx in x.max(0)..(x + w).min(img.width() as i32) {
             img.put_pixel(xx as u32, yy as u32, color);
@@ -56,7 +58,7 @@ fn line(
     for s in 0..=steps {
         let t = s as f32 / steps as f32;
         let (x, y) = (x0 + (x1 - x0) * t, y0 + (y1 - y0) * t);
-        fill(
+        fill_rect(
             img,
             x as i32 - thick / 2,
             y as i32 - thick / 2,
@@ -102,7 +104,7 @@ pub fn scaling_plot(rows: &[Row], title: &str) -> Vec<u8> {
             1,
             GRID,
         );
-        text(
+        draw_text(
             &mut img,
             x as i32 - 16,
             HEIGHT as i32 - BOTTOM + 10,
@@ -120,7 +122,7 @@ pub fn scaling_plot(rows: &[Row], title: &str) -> Vec<u8> {
             1,
             GRID,
         );
-        text(&mut img, LEFT - 70, y as i32 - 8, &format!("1e{d}"), 2, INK);
+        draw_text(&mut img, LEFT - 70, y as i32 - 8, &format!("1e{d}"), 2, INK);
     }
     let (x0, y0) = map((x_lo, y_lo));
     let (x1, y1) = map((x_hi, y_hi));
@@ -132,11 +134,11 @@ pub fn scaling_plot(rows: &[Row], title: &str) -> Vec<u8> {
         }
         for &p in series.iter() {
             let (x, y) = map(p);
-            fill(&mut img, x as i32 - 5, y as i32 - 5, 10, 10, color);
+            fill_rect(&mut img, x as i32 - 5, y as i32 - 5, 10, 10, color);
         }
     }
-    text(&mut img, LEFT, 6, title, 2, INK);
-    text(
+    draw_text(&mut img, LEFT, 6, title, 2, INK);
+    draw_text(
         &mut img,
         LEFT + (pw as i32) / 2 - 120,
         HEIGHT as i32 - 36,
@@ -144,9 +146,9 @@ pub fn scaling_plot(rows: &[Row], title: &str) -> Vec<u8> {
         2,
         INK,
     );
-    text(&mut img, 8, TOP - 26, "ns per ray per thread (log)", 2, INK);
-    fill(&mut img, WIDTH as i32 - 260, TOP + 10, 16, 16, LINEAR_COLOR);
-    text(
+    draw_text(&mut img, 8, TOP - 26, "ns per ray per thread (log)", 2, INK);
+    fill_rect(&mut img, WIDTH as i32 - 260, TOP + 10, 16, 16, LINEAR_COLOR);
+    draw_text(
         &mut img,
         WIDTH as i32 - 236,
         TOP + 10,
@@ -154,8 +156,8 @@ pub fn scaling_plot(rows: &[Row], title: &str) -> Vec<u8> {
         2,
         INK,
     );
-    fill(&mut img, WIDTH as i32 - 260, TOP + 36, 16, 16, BVH_COLOR);
-    text(
+    fill_rect(&mut img, WIDTH as i32 - 260, TOP + 36, 16, 16, BVH_COLOR);
+    draw_text(
         &mut img,
         WIDTH as i32 - 236,
         TOP + 36,

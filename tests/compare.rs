@@ -1,0 +1,134 @@
+//! `meshtracer compare` through the binary: metrics, outputs, thresholds and refusals.
+
+mod common;
+
+use common::{run, s};
+
+fn write(path: &std::path::Path, img: &image::RgbaImage) {
+    img.save(path).unwrap();
+}
+
+#[test]
+fn compare_reports_metrics_writes_images_and_fails_on_thresholds() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.png");
+    let b = dir.path().join("b.png");
+    write(
+        &a,
+        &image::RgbaImage::from_pixel(40, 30, image::Rgba([100, 100, 100, 255])),
+    );
+    write(
+        &b,
+        &image::RgbaImage::from_pixel(40, 30, image::Rgba([110, 100, 100, 255])),
+    );
+    let diff = dir.path().join("diff.png");
+    let strip = dir.path().join("strip.png");
+    let out = run(
+        &[
+            "compare",
+            s(&a),
+            s(&b),
+            "--json",
+            "--diff-out",
+            s(&diff),
+            "--side-by-side",
+            s(&strip),
+        ],
+        true,
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in ["psnr", "ssim", "flip", "rmse", "max_abs", "coverage_iou"] {
+        assert!(v[key].is_number(), "{key}: {v}");
+    }
+    // One channel off by 10 codes: RMSE = sqrt((10/255)²/3).
+    let rmse = v["rmse"].as_f64().unwrap();
+    assert!(
+        (rmse - (10.0f64 / 255.0) / 3f64.sqrt()).abs() < 1e-9,
+        "{rmse}"
+    );
+    assert_eq!(image::open(&diff).unwrap().width(), 40);
+    assert_eq!(image::open(&strip).unwrap().width(), 120);
+    // Thresholds: the same pair fails a strict FLIP bound and passes a loose PSNR one.
+    let failed = run(
+        &["compare", s(&a), s(&b), "--fail-above", "flip=0.0001"],
+        false,
+    );
+    assert!(common::stderr(&failed).contains("flip"));
+    run(&["compare", s(&a), s(&b), "--fail-below", "psnr=20"], true);
+    run(
+        &[
+            "compare",
+            s(&a),
+            s(&a),
+            "--fail-above",
+            "flip=0",
+            "--fail-below",
+            "ssim=0.999",
+        ],
+        true,
+    );
+}
+
+#[test]
+fn images_of_different_sizes_are_an_error_not_a_resample() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.png");
+    let b = dir.path().join("b.png");
+    write(&a, &image::RgbaImage::new(40, 30));
+    write(&b, &image::RgbaImage::new(41, 30));
+    let out = run(&["compare", s(&a), s(&b)], false);
+    let err = common::stderr(&out);
+    assert!(err.contains("40x30") && err.contains("41x30"), "{err}");
+    let missing = run(&["compare", s(&a), "nope.png"], false);
+    assert!(common::stderr(&missing).contains("nope.png"));
+}
+
+#[test]
+fn a_render_compared_with_itself_across_accelerators_is_perfect() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = common::root().join("assets/cornell-box.gltf");
+    let a = dir.path().join("bvh.png");
+    let b = dir.path().join("linear.png");
+    run(
+        &[
+            "render",
+            s(&model),
+            "-o",
+            s(&a),
+            "--width",
+            "64",
+            "--spp",
+            "1",
+            "-q",
+        ],
+        true,
+    );
+    run(
+        &[
+            "render",
+            s(&model),
+            "-o",
+            s(&b),
+            "--width",
+            "64",
+            "--spp",
+            "1",
+            "-q",
+            "--accel",
+            "linear",
+        ],
+        true,
+    );
+    run(
+        &[
+            "compare",
+            s(&a),
+            s(&b),
+            "--fail-above",
+            "max_abs=0",
+            "--fail-below",
+            "coverage_iou=1",
+        ],
+        true,
+    );
+}
