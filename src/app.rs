@@ -235,6 +235,13 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     } else if args.width == Some(0) || args.height == Some(0) {
         bail!("image width and height must be at least 1");
     }
+    let view_file = match &args.view {
+        Some(path) => Some(crate::view::View::read(path)?),
+        None => None,
+    };
+    if let Some(v) = &view_file {
+        check_size(args, v.image.width, v.image.height)?;
+    }
     let output = PendingOutput::reserve(&args.output, args.no_clobber)?;
     let threads = if args.threads == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
@@ -265,20 +272,29 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         })?),
         None => scene.cameras.first(),
     };
-    let (width, height) = image_size(
-        args,
-        if args.look_from.is_some() {
-            None
-        } else {
-            file_camera
-        },
-    );
+    let (width, height) = match &view_file {
+        Some(v) => (v.image.width, v.image.height),
+        None => image_size(
+            args,
+            if args.look_from.is_some() {
+                None
+            } else {
+                file_camera
+            },
+        ),
+    };
     check_size(args, width, height)?;
     let aspect = width as f32 / height as f32;
-    let camera = choose_camera(args, &scene, file_camera, aspect);
+    let camera = match &view_file {
+        Some(v) => v.camera()?,
+        None => choose_camera(args, &scene, file_camera, aspect),
+    };
     let view = View::from_camera(&camera, width, height);
 
-    let (lights, default_ambient) = if !scene.lights.is_empty() {
+    let using_rig = view_file.is_none() && scene.lights.is_empty() && !args.no_default_lights;
+    let (lights, default_ambient) = if let Some(v) = &view_file {
+        (v.lights(), glam::Vec3::from(v.ambient))
+    } else if !scene.lights.is_empty() {
         (scene.lights.clone(), glam::Vec3::splat(0.03))
     } else if args.no_default_lights {
         (Vec::new(), glam::Vec3::ZERO)
@@ -339,6 +355,17 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     })?;
     let background = args.background;
     output.commit(&image, background)?;
+    if let Some(path) = &args.view_out {
+        crate::view::View::new(
+            &camera,
+            width,
+            height,
+            &settings.lights,
+            settings.ambient,
+            using_rig,
+        )
+        .write(path)?;
+    }
     if !args.quiet {
         let structure = match accel.kind() {
             AccelKind::Bvh => format!(

@@ -125,6 +125,13 @@ pub struct RenderArgs {
     /// Do not add the default key and fill lights when the file has no lights.
     #[arg(long)]
     pub no_default_lights: bool,
+    /// Write the camera and lights actually used as JSON (the schema is in the README).
+    #[arg(long, value_name = "FILE")]
+    pub view_out: Option<PathBuf>,
+    /// Render with exactly the camera, lights, ambient and image size of a view file written
+    /// by --view-out (overrides --camera, --look-from and the file's lights).
+    #[arg(long, value_name = "FILE")]
+    pub view: Option<PathBuf>,
     /// Refuse images with more pixels than this.
     #[arg(long, default_value_t = 8192 * 8192, value_name = "N")]
     pub max_pixels: u64,

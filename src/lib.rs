@@ -24,5 +24,6 @@ pub mod sampling;
 pub mod scene;
 pub mod shading;
 pub mod texture;
+pub mod view;
 
 pub use scene::{LoadError, LoadErrorKind, LoadOptions, Scene};

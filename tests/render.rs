@@ -670,3 +670,52 @@ fn the_summary_reports_what_the_render_did() {
     );
     assert!(quiet.stderr.is_empty());
 }
+
+/// `--view-out` then `--view` renders the same image, byte for byte, for a file camera with
+/// file lights, and for the automatic camera with the default rig.
+#[test]
+fn the_view_round_trips() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, model) in [
+        ("cornell", cornell()),
+        ("shapes", common::root().join("assets/shapes.obj")),
+    ] {
+        let view = dir.path().join(format!("{name}.json"));
+        let first = render_to(
+            dir.path(),
+            &model,
+            &format!("{name}-1.png"),
+            &["--width", "96", "--spp", "2", "--view-out", s(&view)],
+        );
+        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&view).unwrap()).unwrap();
+        assert_eq!(v["meshtracer_view"], 1);
+        assert_eq!(v["image"]["width"], 96);
+        assert!(!v["lights"].as_array().unwrap().is_empty());
+        assert_eq!(v["default_lights"], name == "shapes");
+        let second = render_to(
+            dir.path(),
+            &model,
+            &format!("{name}-2.png"),
+            &["--spp", "2", "--view", s(&view)],
+        );
+        assert_eq!(
+            std::fs::read(first).unwrap(),
+            std::fs::read(second).unwrap(),
+            "{name}"
+        );
+    }
+    let bad = dir.path().join("bad.json");
+    std::fs::write(&bad, b"{\"meshtracer_view\": 1}").unwrap();
+    let out = run(
+        &[
+            "render",
+            s(&cornell()),
+            "-o",
+            s(&dir.path().join("x.png")),
+            "--view",
+            s(&bad),
+        ],
+        false,
+    );
+    assert!(common::stderr(&out).contains("bad.json"));
+}

@@ -1,0 +1,295 @@
+//! The view as data: the camera and lights a render actually used, as JSON that
+//! `render --view` reads back and the reference scripts (pyrender, Blender) read to render the
+//! same view. The schema is documented in the README.
+//!
+//! Units are glTF's: metres, radians, candela (point, spot), lux (directional). Directions are
+//! unit vectors in world space; a light's `direction` is the way its light travels.
+
+use crate::scene::{Camera, Light, LightKind, Projection};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Version of the schema written in `meshtracer_view`.
+pub const VIEW_VERSION: u32 = 1;
+
+/// Image size.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ImageSize {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+}
+
+/// The camera, as a look-at frame plus projection.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ViewCamera {
+    /// `perspective` or `orthographic`.
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// Eye position.
+    pub position: [f32; 3],
+    /// A point on the view axis, one unit ahead.
+    pub look_at: [f32; 3],
+    /// Up vector, orthogonal to the view axis.
+    pub up: [f32; 3],
+    /// Vertical field of view in radians (perspective).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub yfov: Option<f32>,
+    /// Half height of the view volume (orthographic).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ymag: Option<f32>,
+    /// Half width of the view volume as rendered, `ymag · aspect` (orthographic).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub xmag: Option<f32>,
+    /// Width / height of the image.
+    pub aspect: f32,
+    /// Near clip distance along the view axis.
+    pub znear: f32,
+    /// Far clip distance; null for infinite.
+    pub zfar: Option<f32>,
+}
+
+/// One light, in glTF units.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ViewLight {
+    /// `point`, `spot` or `directional`.
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// Name, if any.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// World position (ignored for directional lights).
+    pub position: [f32; 3],
+    /// Direction the light travels.
+    pub direction: [f32; 3],
+    /// Linear RGB colour.
+    pub color: [f32; 3],
+    /// Candela (point, spot) or lux (directional).
+    pub intensity: f32,
+    /// Range, or null for infinite.
+    #[serde(default)]
+    pub range: Option<f32>,
+    /// Spot inner cone angle in radians.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub inner_cone_angle: Option<f32>,
+    /// Spot outer cone angle in radians.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub outer_cone_angle: Option<f32>,
+}
+
+/// Everything needed to render the same view again, here or in another renderer.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct View {
+    /// Schema version ([`VIEW_VERSION`]).
+    pub meshtracer_view: u32,
+    /// Image size.
+    pub image: ImageSize,
+    /// The camera.
+    pub camera: ViewCamera,
+    /// Every light used, default rig included.
+    pub lights: Vec<ViewLight>,
+    /// Ambient radiance factor.
+    pub ambient: [f32; 3],
+    /// Whether the lights are meshtracer's default rig rather than the file's.
+    pub default_lights: bool,
+}
+
+/// Why a view file was refused.
+#[derive(Debug, thiserror::Error)]
+#[error("{path}: {problem}")]
+pub struct ViewError {
+    path: String,
+    problem: String,
+}
+
+impl View {
+    /// The view of a render.
+    pub fn new(
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        lights: &[Light],
+        ambient: Vec3,
+        default_lights: bool,
+    ) -> View {
+        let aspect = width as f32 / height as f32;
+        let (kind, yfov, xmag, ymag, znear, zfar) = match camera.projection {
+            Projection::Perspective {
+                yfov, znear, zfar, ..
+            } => ("perspective", Some(yfov), None, None, znear, zfar),
+            Projection::Orthographic {
+                ymag, znear, zfar, ..
+            } => (
+                "orthographic",
+                None,
+                Some(ymag * aspect),
+                Some(ymag),
+                znear,
+                Some(zfar),
+            ),
+        };
+        View {
+            meshtracer_view: VIEW_VERSION,
+            image: ImageSize { width, height },
+            camera: ViewCamera {
+                kind: kind.into(),
+                position: camera.position.to_array(),
+                look_at: (camera.position + camera.forward).to_array(),
+                up: camera.up.to_array(),
+                yfov,
+                xmag,
+                ymag,
+                aspect,
+                znear,
+                zfar: zfar.filter(|z| z.is_finite()),
+            },
+            lights: lights.iter().map(view_light).collect(),
+            ambient: ambient.to_array(),
+            default_lights,
+        }
+    }
+
+    /// Reads and checks a view file.
+    pub fn read(path: &Path) -> Result<View, ViewError> {
+        let err = |problem: String| ViewError {
+            path: path.display().to_string(),
+            problem,
+        };
+        let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
+        let view: View =
+            serde_json::from_str(&text).map_err(|e| err(format!("not a meshtracer view: {e}")))?;
+        if view.meshtracer_view != VIEW_VERSION {
+            return Err(err(format!(
+                "view version {} (this meshtracer reads {VIEW_VERSION})",
+                view.meshtracer_view
+            )));
+        }
+        let finite = |v: [f32; 3]| v.iter().all(|x| x.is_finite());
+        if !(finite(view.camera.position) && finite(view.camera.look_at) && finite(view.camera.up))
+        {
+            return Err(err("camera vectors must be finite".into()));
+        }
+        if view.image.width == 0 || view.image.height == 0 {
+            return Err(err("image width and height must be at least 1".into()));
+        }
+        view.camera()?;
+        for l in &view.lights {
+            to_light(l).map_err(err)?;
+        }
+        Ok(view)
+    }
+
+    /// The camera this view describes.
+    pub fn camera(&self) -> Result<Camera, ViewError> {
+        let c = &self.camera;
+        let err = |problem: &str| ViewError {
+            path: "view".into(),
+            problem: problem.into(),
+        };
+        let position = Vec3::from(c.position);
+        let forward = (Vec3::from(c.look_at) - position)
+            .try_normalize()
+            .ok_or_else(|| err("look_at equals position"))?;
+        let up = Vec3::from(c.up);
+        let up = (up - forward * up.dot(forward))
+            .try_normalize()
+            .ok_or_else(|| err("up is parallel to the view direction"))?;
+        let projection = match c.kind.as_str() {
+            "perspective" => Projection::Perspective {
+                yfov: c
+                    .yfov
+                    .filter(|y| *y > 0.0 && *y < std::f32::consts::PI)
+                    .ok_or_else(|| err("perspective camera needs yfov in (0, π)"))?,
+                aspect_ratio: Some(c.aspect),
+                znear: c.znear,
+                zfar: c.zfar,
+            },
+            "orthographic" => Projection::Orthographic {
+                xmag: c.xmag.unwrap_or(1.0),
+                ymag: c
+                    .ymag
+                    .filter(|m| *m > 0.0)
+                    .ok_or_else(|| err("orthographic camera needs ymag > 0"))?,
+                znear: c.znear,
+                zfar: c.zfar.unwrap_or(f32::INFINITY),
+            },
+            other => return Err(err(&format!("unknown camera type '{other}'"))),
+        };
+        Ok(Camera {
+            name: Some("view".into()),
+            position,
+            forward,
+            up,
+            projection,
+        })
+    }
+
+    /// The lights this view describes.
+    pub fn lights(&self) -> Vec<Light> {
+        self.lights
+            .iter()
+            .filter_map(|l| to_light(l).ok())
+            .collect()
+    }
+
+    /// Writes the view as pretty JSON, atomically.
+    pub fn write(&self, path: &Path) -> Result<(), crate::image::SaveError> {
+        let mut text = serde_json::to_string_pretty(self).unwrap_or_default();
+        text.push('\n');
+        crate::image::write_atomic(path, text.as_bytes())
+    }
+}
+
+fn view_light(l: &Light) -> ViewLight {
+    let (kind, inner, outer) = match l.kind {
+        LightKind::Point => ("point", None, None),
+        LightKind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        } => ("spot", Some(inner_cone_angle), Some(outer_cone_angle)),
+        LightKind::Directional => ("directional", None, None),
+    };
+    ViewLight {
+        kind: kind.into(),
+        name: l.name.clone(),
+        position: l.position.to_array(),
+        direction: l.direction.to_array(),
+        color: l.color.to_array(),
+        intensity: l.intensity,
+        range: l.range,
+        inner_cone_angle: inner,
+        outer_cone_angle: outer,
+    }
+}
+
+fn to_light(l: &ViewLight) -> Result<Light, String> {
+    let kind = match l.kind.as_str() {
+        "point" => LightKind::Point,
+        "directional" => LightKind::Directional,
+        "spot" => LightKind::Spot {
+            inner_cone_angle: l.inner_cone_angle.unwrap_or(0.0),
+            outer_cone_angle: l.outer_cone_angle.unwrap_or(std::f32::consts::FRAC_PI_4),
+        },
+        other => return Err(format!("unknown light type '{other}'")),
+    };
+    let direction = Vec3::from(l.direction)
+        .try_normalize()
+        .ok_or_else(|| "a light direction is zero or not finite".to_string())?;
+    if !(l.intensity.is_finite() && l.intensity >= 0.0)
+        || !Vec3::from(l.position).is_finite()
+        || !Vec3::from(l.color).is_finite()
+    {
+        return Err("a light has a non-finite or negative value".into());
+    }
+    Ok(Light {
+        name: l.name.clone(),
+        kind,
+        color: Vec3::from(l.color),
+        intensity: l.intensity,
+        range: l.range,
+        position: Vec3::from(l.position),
+        direction,
+    })
+}
