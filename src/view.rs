@@ -277,10 +277,11 @@ fn to_light(l: &ViewLight) -> Result<Light, String> {
     let direction = Vec3::from(l.direction)
         .try_normalize()
         .ok_or_else(|| "a light direction is zero or not finite".to_string())?;
-    if !(l.intensity.is_finite() && l.intensity >= 0.0)
-        || !Vec3::from(l.position).is_finite()
-        || !Vec3::from(l.color).is_finite()
-    {
+    let valid = l.intensity.is_finite()
+        && l.intensity >= 0.0
+        && Vec3::from(l.position).is_finite()
+        && Vec3::from(l.color).is_finite();
+    if !valid {
         return Err("a light has a non-finite or negative value".into());
     }
     Ok(Light {
