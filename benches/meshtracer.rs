@@ -327,6 +327,7 @@ fn render(c: &mut Criterion) {
         ambient: Vec3::splat(0.03),
         exposure: 0.0,
         shading: meshtracer::shading::ShadingModel::Pbr,
+        aovs: false,
     };
     let textures = meshtracer::texture::TextureSet::default();
     let cancel = std::sync::atomic::AtomicBool::new(false);
@@ -341,7 +342,7 @@ fn render(c: &mut Criterion) {
         .throughput(Throughput::Elements(256 * 192));
     group.bench_function("cornell-box 256x192 1spp, 1 thread", |b| {
         b.iter(|| {
-            let (image, _) = pool
+            let (image, _, _) = pool
                 .install(|| render(&scene, &accel, &textures, &settings, &cancel, &|_, _| {}))
                 .expect("renders");
             assert!(image == reference);

@@ -242,6 +242,19 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     if let Some(v) = &view_file {
         check_size(args, v.image.width, v.image.height)?;
     }
+    for (path, allowed) in [
+        (&args.depth_out, &["exr", "npy", "png"][..]),
+        (&args.normal_out, &["exr", "npy", "png"][..]),
+        (&args.mask_out, &["npy", "png"][..]),
+        (&args.segmentation_out, &["npy", "png"][..]),
+    ] {
+        if let Some(p) = path {
+            crate::aov::check(p, allowed)?;
+        }
+    }
+    if !(args.depth_scale > 0.0 && args.depth_scale.is_finite()) {
+        bail!("--depth-scale must be a positive number");
+    }
     let output = PendingOutput::reserve(&args.output, args.no_clobber)?;
     let threads = if args.threads == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
@@ -314,6 +327,9 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         ambient: args.ambient.unwrap_or(default_ambient),
         exposure: args.exposure,
         shading: args.shading,
+        aovs: args.depth_out.is_some()
+            || args.normal_out.is_some()
+            || args.segmentation_out.is_some(),
     };
     let texture_start = Instant::now();
     let mut texture_warnings = Vec::new();
@@ -336,7 +352,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         // still safe because it is only renamed into place after a complete write.
         let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
     }
-    let (accel, (image, stats)) = pool.install(|| -> Result<_> {
+    let (accel, (image, stats, aovs)) = pool.install(|| -> Result<_> {
         let accel = Accel::build(&scene.soup, &scene.materials, args.accel, args.bvh_preset);
         let bar = progress_bar(args.quiet);
         let result = render(
@@ -355,16 +371,43 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     })?;
     let background = args.background;
     output.commit(&image, background)?;
+    if let Some(a) = &aovs {
+        if let Some(p) = &args.depth_out {
+            crate::aov::write_depth(p, width, height, &a.depth, args.depth_scale)?;
+        }
+        if let Some(p) = &args.normal_out {
+            crate::aov::write_normals(p, width, height, &a.normal)?;
+        }
+        if let Some(p) = &args.segmentation_out {
+            crate::aov::write_segmentation(p, width, height, &a.instance)?;
+        }
+    }
+    if let Some(p) = &args.mask_out {
+        let coverage: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();
+        crate::aov::write_mask(p, width, height, &coverage)?;
+    }
     if let Some(path) = &args.view_out {
-        crate::view::View::new(
+        let mut view = crate::view::View::new(
             &camera,
             width,
             height,
             &settings.lights,
             settings.ambient,
             using_rig,
-        )
-        .write(path)?;
+        );
+        view.segmentation = scene
+            .instances
+            .iter()
+            .enumerate()
+            .map(|(i, inst)| crate::view::SegmentId {
+                id: i as u32 + 1,
+                node: inst.node,
+                mesh: inst.mesh,
+                name: inst.name.clone(),
+            })
+            .collect();
+        view.depth_png_scale = args.depth_scale;
+        view.write(path)?;
     }
     if !args.quiet {
         let structure = match accel.kind() {

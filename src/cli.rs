@@ -18,7 +18,7 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Render a model to an image (.png 8-bit sRGB, .exr/.hdr linear float).
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Show what the importer read from a model: triangles, materials, cameras, lights, bounds.
     Info(InfoArgs),
     /// Measure BVH build time and BVH vs. linear-scan throughput on generated meshes of growing
@@ -125,6 +125,23 @@ pub struct RenderArgs {
     /// Do not add the default key and fill lights when the file has no lights.
     #[arg(long)]
     pub no_default_lights: bool,
+    /// Write camera-space depth (distance along the view axis, 0 = no hit): .exr, .npy, or
+    /// 16-bit .png in units of --depth-scale.
+    #[arg(long, value_name = "FILE")]
+    pub depth_out: Option<PathBuf>,
+    /// Metres per unit of a 16-bit PNG depth map (default 0.001: millimetres).
+    #[arg(long, default_value_t = 0.001)]
+    pub depth_scale: f32,
+    /// Write world-space shading normals: .exr, .npy or .png.
+    #[arg(long, value_name = "FILE")]
+    pub normal_out: Option<PathBuf>,
+    /// Write coverage (the image's alpha): .png or .npy.
+    #[arg(long, value_name = "FILE")]
+    pub mask_out: Option<PathBuf>,
+    /// Write mesh-instance ids (0 = background, no blending across edges): 16-bit .png or
+    /// .npy; the id table is in the --view-out JSON.
+    #[arg(long, value_name = "FILE")]
+    pub segmentation_out: Option<PathBuf>,
     /// Write the camera and lights actually used as JSON (the schema is in the README).
     #[arg(long, value_name = "FILE")]
     pub view_out: Option<PathBuf>,

@@ -10,6 +10,7 @@
 #![deny(missing_docs)]
 
 pub mod accel;
+pub mod aov;
 pub mod app;
 pub mod bench;
 pub mod camera;

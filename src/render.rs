@@ -51,6 +51,21 @@ pub struct RenderSettings {
     pub exposure: f32,
     /// Shading model.
     pub shading: ShadingModel,
+    /// Also compute the per-pixel AOVs (depth, normal, instance id) from pixel-centre rays.
+    pub aovs: bool,
+}
+
+/// Arbitrary output variables, from one ray through each pixel's centre (no anti-aliasing,
+/// so ids never blend across boundaries), row-major from the top-left pixel.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Aovs {
+    /// Camera-space depth: distance along the view axis (as pyrender's), 0 where nothing is hit.
+    pub depth: Vec<f32>,
+    /// World-space unit shading normal facing the camera (interpolated, before normal maps);
+    /// zero where nothing is hit.
+    pub normal: Vec<Vec3>,
+    /// Mesh instance id + 1 (index into `Scene::instances`), 0 where nothing is hit.
+    pub instance: Vec<u32>,
 }
 
 /// What a render did.
@@ -113,7 +128,7 @@ pub fn render(
     settings: &RenderSettings,
     cancel: &AtomicBool,
     progress: &(dyn Fn(u64, u64) + Sync),
-) -> Result<(Image, RenderStats), Cancelled> {
+) -> Result<(Image, RenderStats, Option<Aovs>), Cancelled> {
     let start = Instant::now();
     let (width, height) = (settings.view.width, settings.view.height);
     let tiles_x = width.div_ceil(TILE_SIZE);
@@ -136,6 +151,12 @@ pub fn render(
         })
         .collect();
     let mut image = Image::new(width, height);
+    let pixel_count = width as usize * height as usize;
+    let mut aovs = settings.aovs.then(|| Aovs {
+        depth: vec![0.0; pixel_count],
+        normal: vec![Vec3::ZERO; pixel_count],
+        instance: vec![0; pixel_count],
+    });
     let mut stats = RenderStats::default();
     for tile in results {
         let tile = tile.ok_or(Cancelled)?;
@@ -145,10 +166,17 @@ pub fn render(
             let y = tile.y + row as u32;
             let begin = (y * width + tile.x) as usize;
             image.pixels[begin..begin + chunk.len()].copy_from_slice(chunk);
+            if let Some(a) = aovs.as_mut() {
+                let at = row * tile.width as usize;
+                let n = chunk.len();
+                a.depth[begin..begin + n].copy_from_slice(&tile.aovs.depth[at..at + n]);
+                a.normal[begin..begin + n].copy_from_slice(&tile.aovs.normal[at..at + n]);
+                a.instance[begin..begin + n].copy_from_slice(&tile.aovs.instance[at..at + n]);
+            }
         }
     }
     stats.time = start.elapsed();
-    Ok((image, stats))
+    Ok((image, stats, aovs))
 }
 
 /// One finished tile.
@@ -157,6 +185,7 @@ struct Tile {
     y: u32,
     width: u32,
     pixels: Vec<Vec4>,
+    aovs: Aovs,
     primary_rays: u64,
     shadow_rays: u64,
 }
@@ -237,6 +266,7 @@ impl<'a> Tracer<'a> {
             y: y0,
             width: x1 - x0,
             pixels: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
+            aovs: Aovs::default(),
             primary_rays: 0,
             shadow_rays: 0,
         };
@@ -261,9 +291,43 @@ impl<'a> Tracer<'a> {
                     sum += (color * self.scale).extend(coverage);
                 }
                 tile.pixels.push(sum / spp as f32);
+                if self.settings.aovs {
+                    self.aov(&view.ray(x as f32 + 0.5, y as f32 + 0.5), &mut tile.aovs);
+                }
             }
         }
         tile
+    }
+
+    /// Depth, normal and instance id of the first surface along a pixel-centre ray.
+    fn aov(&self, ray: &Ray, out: &mut Aovs) {
+        let accept = |tri: u32, b: Vec3| self.accept_for_camera(tri, b);
+        let hit = self.accel.intersect_filtered(ray, Some(&accept));
+        match hit {
+            Some(hit) => {
+                let soup = &self.scene.soup;
+                let tri = hit.triangle as usize;
+                let b = hit.barycentric;
+                let [na, nb, nc] = soup.normals[tri];
+                let [pa, pb, pc] = soup.positions[tri];
+                let direction = Vec3::from(ray.direction);
+                let mut n = (na * b.x + nb * b.y + nc * b.z)
+                    .try_normalize()
+                    .unwrap_or((pb - pa).cross(pc - pa).normalize_or_zero());
+                if n.dot(direction) > 0.0 {
+                    n = -n;
+                }
+                out.depth.push(hit.t * direction.dot(-self.settings.view.w));
+                out.normal.push(n);
+                out.instance
+                    .push(soup.instance.get(tri).map_or(0, |i| i + 1));
+            }
+            None => {
+                out.depth.push(0.0);
+                out.normal.push(Vec3::ZERO);
+                out.instance.push(0);
+            }
+        }
     }
 
     /// Alpha of a MASK or BLEND surface at a candidate hit: base colour factor × texture ×

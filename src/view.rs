@@ -94,6 +94,29 @@ pub struct View {
     pub ambient: [f32; 3],
     /// Whether the lights are meshtracer's default rig rather than the file's.
     pub default_lights: bool,
+    /// Metres per unit of a 16-bit PNG depth map.
+    #[serde(default = "default_depth_scale")]
+    pub depth_png_scale: f32,
+    /// Segmentation ids: instance id -> glTF node and mesh (OBJ: object index as mesh).
+    #[serde(default)]
+    pub segmentation: Vec<SegmentId>,
+}
+
+fn default_depth_scale() -> f32 {
+    0.001
+}
+
+/// One id of the segmentation AOV.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SegmentId {
+    /// The id in the segmentation image (0 is background).
+    pub id: u32,
+    /// glTF node index.
+    pub node: Option<usize>,
+    /// glTF mesh index, or OBJ object index.
+    pub mesh: usize,
+    /// Node or object name.
+    pub name: Option<String>,
 }
 
 /// Why a view file was refused.
@@ -148,6 +171,8 @@ impl View {
             lights: lights.iter().map(view_light).collect(),
             ambient: ambient.to_array(),
             default_lights,
+            depth_png_scale: default_depth_scale(),
+            segmentation: Vec::new(),
         }
     }
 

@@ -1,0 +1,229 @@
+//! Writing AOVs (depth, normals, coverage mask, instance segmentation), by file extension.
+//!
+//! - Depth: `.exr` (float, depth in R, G and B), `.npy` (float32, H x W) or `.png` (16-bit grey,
+//!   value = depth / scale, rounded and clamped to 65535; the scale is `--depth-scale`, metres
+//!   per unit, 0.001 by default: millimetres). 0 means nothing was hit, as in pyrender.
+//! - Normals: `.exr` / `.npy` (float xyz, H x W x 3) or `.png` (8-bit, (n + 1)/2).
+//! - Mask: `.png` (8-bit coverage, 255 = fully covered) or `.npy` (float32).
+//! - Segmentation: `.png` (16-bit grey instance id, 0 = background) or `.npy` (uint32); the ids
+//!   are listed with their glTF node and mesh in the `--view-out` JSON.
+//!
+//! Every file is written atomically like the image.
+
+use crate::image::{write_atomic, SaveError};
+use glam::Vec3;
+use std::path::Path;
+
+fn extension(path: &Path) -> String {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase()
+}
+
+fn unknown(path: &Path, allowed: &str) -> SaveError {
+    SaveError::Unwritable {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(format!("unknown extension for this output (use {allowed})")),
+    }
+}
+
+/// Checks an AOV path's extension before rendering.
+pub fn check(path: &Path, allowed: &[&str]) -> Result<(), SaveError> {
+    if allowed.contains(&extension(path).as_str()) {
+        Ok(())
+    } else {
+        Err(unknown(path, &allowed.join(", ")))
+    }
+}
+
+/// A NumPy `.npy` file (format 1.0): magic, a padded header dict, little-endian data.
+fn npy(descr: &str, shape: &[usize], data: &[u8]) -> Vec<u8> {
+    let dims: Vec<String> = shape.iter().map(usize::to_string).collect();
+    let shape = if dims.len() == 1 {
+        format!("({},)", dims[0])
+    } else {
+        format!("({})", dims.join(", "))
+    };
+    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+    // Magic (6) + version (2) + length (2) + header + '\n' is a multiple of 64.
+    while (10 + header.len() + 1) % 64 != 0 {
+        header.push(' ');
+    }
+    header.push('\n');
+    let mut out = b"\x93NUMPY\x01\x00".to_vec();
+    out.extend((header.len() as u16).to_le_bytes());
+    out.extend(header.as_bytes());
+    out.extend(data);
+    out
+}
+
+fn f32_bytes(v: impl Iterator<Item = f32>) -> Vec<u8> {
+    v.flat_map(f32::to_le_bytes).collect()
+}
+
+fn png<P: image::PixelWithColorType>(buffer: &image::ImageBuffer<P, Vec<P::Subpixel>>) -> Vec<u8>
+where
+    [P::Subpixel]: image::EncodableLayout,
+{
+    let mut bytes = Vec::new();
+    // Encoding an in-memory buffer into a Vec cannot fail.
+    let _ = buffer.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    );
+    bytes
+}
+
+fn exr_rgba(width: u32, height: u32, rgba: Vec<f32>) -> Vec<u8> {
+    let mut bytes = Vec::new();
+    if let Some(img) = image::Rgba32FImage::from_raw(width, height, rgba) {
+        let _ = img.write_to(
+            &mut std::io::Cursor::new(&mut bytes),
+            image::ImageFormat::OpenExr,
+        );
+    }
+    bytes
+}
+
+/// Writes camera-space depth.
+pub fn write_depth(
+    path: &Path,
+    width: u32,
+    height: u32,
+    depth: &[f32],
+    scale: f32,
+) -> Result<(), SaveError> {
+    let bytes = match extension(path).as_str() {
+        "exr" => exr_rgba(
+            width,
+            height,
+            depth.iter().flat_map(|&d| [d, d, d, 1.0]).collect(),
+        ),
+        "npy" => npy(
+            "<f4",
+            &[height as usize, width as usize],
+            &f32_bytes(depth.iter().copied()),
+        ),
+        "png" => {
+            let values: Vec<u16> = depth
+                .iter()
+                .map(|&d| (d / scale).round().clamp(0.0, 65535.0) as u16)
+                .collect();
+            match image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(width, height, values)
+            {
+                Some(img) => png(&img),
+                None => Vec::new(),
+            }
+        }
+        _ => return Err(unknown(path, "exr, npy, png")),
+    };
+    write_atomic(path, &bytes)
+}
+
+/// Writes world-space normals.
+pub fn write_normals(
+    path: &Path,
+    width: u32,
+    height: u32,
+    normals: &[Vec3],
+) -> Result<(), SaveError> {
+    let bytes = match extension(path).as_str() {
+        "exr" => exr_rgba(
+            width,
+            height,
+            normals.iter().flat_map(|n| [n.x, n.y, n.z, 1.0]).collect(),
+        ),
+        "npy" => npy(
+            "<f4",
+            &[height as usize, width as usize, 3],
+            &f32_bytes(normals.iter().flat_map(|n| n.to_array())),
+        ),
+        "png" => {
+            let values: Vec<u8> = normals
+                .iter()
+                .flat_map(|n| {
+                    if *n == Vec3::ZERO {
+                        [0, 0, 0]
+                    } else {
+                        n.to_array()
+                            .map(|c| ((c * 0.5 + 0.5) * 255.0).round().clamp(0.0, 255.0) as u8)
+                    }
+                })
+                .collect();
+            match image::RgbImage::from_raw(width, height, values) {
+                Some(img) => png(&img),
+                None => Vec::new(),
+            }
+        }
+        _ => return Err(unknown(path, "exr, npy, png")),
+    };
+    write_atomic(path, &bytes)
+}
+
+/// Writes coverage (the image's alpha).
+pub fn write_mask(path: &Path, width: u32, height: u32, coverage: &[f32]) -> Result<(), SaveError> {
+    let bytes = match extension(path).as_str() {
+        "npy" => npy(
+            "<f4",
+            &[height as usize, width as usize],
+            &f32_bytes(coverage.iter().copied()),
+        ),
+        "png" => {
+            let values: Vec<u8> = coverage
+                .iter()
+                .map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8)
+                .collect();
+            match image::GrayImage::from_raw(width, height, values) {
+                Some(img) => png(&img),
+                None => Vec::new(),
+            }
+        }
+        _ => return Err(unknown(path, "npy, png")),
+    };
+    write_atomic(path, &bytes)
+}
+
+/// Writes instance ids.
+pub fn write_segmentation(
+    path: &Path,
+    width: u32,
+    height: u32,
+    ids: &[u32],
+) -> Result<(), SaveError> {
+    let bytes = match extension(path).as_str() {
+        "npy" => npy(
+            "<u4",
+            &[height as usize, width as usize],
+            &ids.iter()
+                .flat_map(|i| i.to_le_bytes())
+                .collect::<Vec<u8>>(),
+        ),
+        "png" => {
+            let values: Vec<u16> = ids.iter().map(|&i| i.min(65535) as u16).collect();
+            match image::ImageBuffer::<image::Luma<u16>, Vec<u16>>::from_raw(width, height, values)
+            {
+                Some(img) => png(&img),
+                None => Vec::new(),
+            }
+        }
+        _ => return Err(unknown(path, "npy, png")),
+    };
+    write_atomic(path, &bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn npy_header_is_aligned_and_parsable() {
+        let bytes = npy("<f4", &[2, 3], &[0u8; 24]);
+        assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00");
+        let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+        assert_eq!((10 + len) % 64, 0);
+        let header = std::str::from_utf8(&bytes[10..10 + len]).unwrap();
+        assert!(header.contains("'shape': (2, 3)") && header.ends_with('\n'));
+        assert_eq!(bytes.len(), 10 + len + 24);
+    }
+}
