@@ -1,0 +1,139 @@
+"""Render MODEL with Blender Cycles (CPU) from a meshtracer view file.
+
+    blender -b --factory-startup -P blender_render.py -- VIEW.json MODEL OUT.png
+            [--mode direct|gi] [--samples 32] [--units compat|spec]
+
+The camera, lights and ambient come from VIEW.json (`meshtracer render --view-out`); the
+model's own cameras and lights are removed. `--mode direct` (default) renders direct light only
+(max bounces 0), like meshtracer; `--mode gi` renders full global illumination. View transform
+'Standard' (the piecewise sRGB curve), transparent film, hard shadows (light radius and sun
+angle 0).
+
+Light units: Blender's glTF importer ("SPEC" mode) converts W = cd·4π/683 for point and spot
+lights and W/m² = lux/683 for suns, which makes 1 lux read 1/683 as bright as in meshtracer and
+pyrender. `--units compat` (default) uses W = 4π·I and sun strength = E instead, so a white
+Lambertian surface under 1 lux reads about 1/π in all three renderers; `--units spec` gives the
+importer's numbers.
+"""
+import argparse
+import json
+import math
+import sys
+
+import bpy
+import numpy
+
+# Blender 3.4's glTF importer uses np.bool, which numpy 1.24 removed.
+if not hasattr(numpy, "bool"):
+    numpy.bool = bool
+
+from mathutils import Matrix, Vector  # noqa: E402
+
+
+def pose(position, forward, up_hint):
+    w = -Vector(forward).normalized()
+    up = Vector(up_hint)
+    if abs(up.normalized().dot(w)) > 0.99:
+        up = Vector((1.0, 0.0, 0.0)) if abs(w.x) < 0.9 else Vector((0.0, 1.0, 0.0))
+    u = up.cross(w).normalized()
+    v = w.cross(u)
+    m = Matrix.Identity(4)
+    for row in range(3):
+        m[row][0], m[row][1], m[row][2], m[row][3] = u[row], v[row], w[row], position[row]
+    return m
+
+
+# glTF is +Y up; Blender is +Z up. The importer rotates the model by this matrix, so the view's
+# glTF-space camera and lights get the same rotation.
+GLTF_TO_BLENDER = Matrix(((1, 0, 0, 0), (0, 0, -1, 0), (0, 1, 0, 0), (0, 0, 0, 1)))
+
+
+def main(argv):
+    parser = argparse.ArgumentParser()
+    parser.add_argument("view")
+    parser.add_argument("model")
+    parser.add_argument("out")
+    parser.add_argument("--mode", choices=["direct", "gi"], default="direct")
+    parser.add_argument("--samples", type=int, default=32)
+    parser.add_argument("--units", choices=["compat", "spec"], default="compat")
+    args = parser.parse_args(argv)
+    with open(args.view) as f:
+        view = json.load(f)
+
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    if args.model.lower().endswith(".obj"):
+        if hasattr(bpy.ops.wm, "obj_import"):
+            bpy.ops.wm.obj_import(filepath=args.model, forward_axis="NEGATIVE_Z", up_axis="Y")
+        else:
+            bpy.ops.import_scene.obj(filepath=args.model, axis_forward="-Z", axis_up="Y")
+    else:
+        bpy.ops.import_scene.gltf(filepath=args.model)
+    for obj in list(bpy.data.objects):
+        if obj.type in {"CAMERA", "LIGHT"}:
+            bpy.data.objects.remove(obj, do_unlink=True)
+
+    scene = bpy.context.scene
+    cam = view["camera"]
+    camera_data = bpy.data.cameras.new("view")
+    camera_data.sensor_fit = "VERTICAL"
+    if cam["type"] == "perspective":
+        camera_data.type = "PERSP"
+        camera_data.angle_y = cam["yfov"]
+    else:
+        camera_data.type = "ORTHO"
+        camera_data.ortho_scale = 2.0 * cam["ymag"]
+    camera_data.clip_start = max(cam["znear"], 1e-4)
+    camera_data.clip_end = cam["zfar"] or 1e5
+    camera = bpy.data.objects.new("view", camera_data)
+    forward = [b - a for a, b in zip(cam["position"], cam["look_at"])]
+    camera.matrix_world = GLTF_TO_BLENDER @ pose(cam["position"], forward, cam["up"])
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+
+    to_watts = 4.0 * math.pi / (683.0 if args.units == "spec" else 1.0)
+    to_sun = 1.0 / (683.0 if args.units == "spec" else 1.0)
+    for i, light in enumerate(view["lights"]):
+        kind = {"point": "POINT", "spot": "SPOT", "directional": "SUN"}[light["type"]]
+        data = bpy.data.lights.new(f"light{i}", kind)
+        data.color = light["color"]
+        if kind == "SUN":
+            data.energy = light["intensity"] * to_sun
+            data.angle = 0.0
+        else:
+            data.energy = light["intensity"] * to_watts
+            data.shadow_soft_size = 0.0
+        if kind == "SPOT":
+            outer = light.get("outer_cone_angle", math.pi / 4)
+            inner = light.get("inner_cone_angle", 0.0)
+            data.spot_size = 2.0 * outer
+            data.spot_blend = (outer - inner) / outer if outer > 0 else 0.0
+        obj = bpy.data.objects.new(f"light{i}", data)
+        obj.matrix_world = GLTF_TO_BLENDER @ pose(light["position"], light["direction"], [0.0, 1.0, 0.0])
+        scene.collection.objects.link(obj)
+
+    world = bpy.data.worlds.new("ambient")
+    world.use_nodes = True
+    background = world.node_tree.nodes["Background"]
+    background.inputs[0].default_value = (*view.get("ambient", [0, 0, 0]), 1.0)
+    scene.world = world
+
+    scene.render.engine = "CYCLES"
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = args.samples
+    scene.cycles.use_denoising = False
+    if args.mode == "direct":
+        scene.cycles.max_bounces = 0
+    scene.render.film_transparent = True
+    scene.view_settings.view_transform = "Standard"
+    scene.render.resolution_x = view["image"]["width"]
+    scene.render.resolution_y = view["image"]["height"]
+    scene.render.resolution_percentage = 100
+    scene.render.image_settings.file_format = "PNG"
+    scene.render.image_settings.color_mode = "RGBA"
+    scene.render.filepath = args.out
+    bpy.ops.render.render(write_still=True)
+
+
+if __name__ == "__main__":
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+    main(argv)
