@@ -240,7 +240,7 @@ fn cases() -> Vec<Case> {
         glb_case(
             "GLB truncated at the BIN chunk",
             glb_bytes[..bin_chunk].to_vec(),
-            |k| matches!(k, K::Glb(_) | K::Buffer { .. }),
+            |k| matches!(k, K::Glb(m) if m.contains("truncated")),
         ),
         glb_case(
             "GLB truncated inside the BIN chunk header",
@@ -324,7 +324,7 @@ fn cases() -> Vec<Case> {
                 bin.clear();
                 j["buffers"][0]["byteLength"] = json!(0);
             },
-            |k| matches!(k, K::Gltf(_) | K::ViewOutOfRange { .. }),
+            |k| matches!(k, K::ViewOutOfRange { len: 0, .. }),
         ),
         edited(
             "buffer URI escaping the folder",
@@ -355,12 +355,12 @@ fn cases() -> Vec<Case> {
         edited(
             "accessor stride smaller than the element",
             |j, _| j["bufferViews"][0]["byteStride"] = json!(4),
-            |k| matches!(k, K::Accessor { .. } | K::Gltf(_)),
+            |k| matches!(k, K::Accessor { .. }),
         ),
         edited(
             "accessor count zero",
             |j, _| j["accessors"][1]["count"] = json!(0),
-            |k| matches!(k, K::Accessor { .. } | K::Gltf(_)),
+            |k| matches!(k, K::Accessor { .. }),
         ),
         edited(
             "index past the vertex count",
@@ -389,7 +389,7 @@ fn cases() -> Vec<Case> {
         edited(
             "mesh without POSITION",
             |j, _| j["meshes"][0]["primitives"][0]["attributes"] = json!({"NORMAL": 0}),
-            |k| matches!(k, K::MissingPositions { .. } | K::Gltf(_)),
+            |k| matches!(k, K::Gltf(m) if m.contains("POSITION")),
         ),
         // Found by fuzzing: gltf-json's validation indexed accessors[POSITION] unchecked.
         edited(
@@ -421,7 +421,7 @@ fn cases() -> Vec<Case> {
         edited(
             "NaN in a node matrix",
             |j, _| j["nodes"][0]["scale"] = json!([1.0, 1e39, 1.0]),
-            |k| matches!(k, K::NoTriangles(_) | K::Gltf(_)),
+            |k| matches!(k, K::NoTriangles(d) if d.contains("not finite")),
         ),
         edited(
             "zero-scale node",
@@ -443,14 +443,14 @@ fn cases() -> Vec<Case> {
             |j, _| {
                 j["nodes"] = json!([{"mesh": 0, "children": [1]}, {"children": [0]}]);
             },
-            |k| matches!(k, K::NodeCycle { .. } | K::Gltf(_)),
+            |k| matches!(k, K::NodeCycle { node: 0 }),
         ),
         edited(
             "node that is its own child",
             |j, _| {
                 j["nodes"] = json!([{"mesh": 0, "children": [0]}]);
             },
-            |k| matches!(k, K::NodeCycle { .. } | K::Gltf(_)),
+            |k| matches!(k, K::NodeCycle { node: 0 }),
         ),
         edited(
             "shared nodes expanding exponentially",
@@ -539,7 +539,7 @@ fn cases() -> Vec<Case> {
             "OBJ index past the vertices",
             b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
             vec![],
-            |k| matches!(k, K::Obj(_) | K::ObjIndexOutOfRange { .. }),
+            |k| matches!(k, K::Obj(m) if m.contains("does not exist")),
         ),
         obj_case(
             "OBJ index zero",
@@ -551,19 +551,19 @@ fn cases() -> Vec<Case> {
             "OBJ negative index past the start",
             b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf -1 -2 -9\n",
             vec![],
-            |k| matches!(k, K::Obj(_) | K::ObjIndexOutOfRange { .. }),
+            |k| matches!(k, K::Obj(m) if m.contains("does not exist")),
         ),
         obj_case(
             "OBJ face with two vertices",
             b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n",
             vec![],
-            |k| matches!(k, K::Obj(_) | K::NoTriangles(_)),
+            |k| matches!(k, K::NoTriangles(_)),
         ),
         obj_case(
             "OBJ normal index past the normals",
             b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//5\n",
             vec![],
-            |k| matches!(k, K::Obj(_) | K::ObjIndexOutOfRange { .. }),
+            |k| matches!(k, K::Obj(m) if m.contains("does not exist")),
         ),
         obj_case(
             "OBJ with a missing MTL",
@@ -602,7 +602,7 @@ fn cases() -> Vec<Case> {
             "OBJ with NaN coordinates",
             b"v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
             vec![],
-            |k| matches!(k, K::NoTriangles(_) | K::Obj(_)),
+            |k| matches!(k, K::NoTriangles(d) if d.contains("NaN")),
         ),
     ];
     // The missing-.bin case: the base with no tri.bin written.

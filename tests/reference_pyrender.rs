@@ -19,10 +19,16 @@ fn read_npy_f32(path: &Path) -> Vec<f32> {
     let (header_len, start) = if bytes[6] == 1 {
         (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10)
     } else {
-        (u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize, 12)
+        (
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+            12,
+        )
     };
     let header = std::str::from_utf8(&bytes[start..start + header_len]).unwrap();
-    assert!(header.contains("'<f4'") && header.contains("'fortran_order': False"), "{header}");
+    assert!(
+        header.contains("'<f4'") && header.contains("'fortran_order': False"),
+        "{header}"
+    );
     bytes[start + header_len..]
         .chunks_exact(4)
         .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
@@ -33,7 +39,10 @@ fn python() -> Option<PathBuf> {
     let python = std::env::var_os("MESHTRACER_PYRENDER_PYTHON").map(PathBuf::from);
     let usable = python.as_ref().is_some_and(|p| {
         std::process::Command::new(p)
-            .args(["-c", "import os; os.environ.setdefault('PYOPENGL_PLATFORM', 'osmesa'); import pyrender"])
+            .args([
+                "-c",
+                "import os; os.environ.setdefault('PYOPENGL_PLATFORM', 'osmesa'); import pyrender",
+            ])
             .output()
             .is_ok_and(|o| o.status.success())
     });
@@ -49,7 +58,9 @@ fn python() -> Option<PathBuf> {
 
 #[test]
 fn meshtracer_and_pyrender_agree_on_coverage_and_depth() {
-    let Some(samples) = samples("meshtracer_and_pyrender_agree_on_coverage_and_depth") else { return };
+    let Some(samples) = samples("meshtracer_and_pyrender_agree_on_coverage_and_depth") else {
+        return;
+    };
     let Some(python) = python() else { return };
     let script = common::root().join("scripts/reference/pyrender_render.py");
     let dir = tempfile::tempdir().unwrap();
@@ -65,21 +76,53 @@ fn meshtracer_and_pyrender_agree_on_coverage_and_depth() {
         let theirs = dir.path().join("theirs.npy");
         run(
             &[
-                "render", s(&path), "-o", s(&dir.path().join("ours.png")), "--width", "160", "--height", "120",
-                "--spp", "1", "--quiet", "--view-out", s(&view), "--depth-out", s(&ours),
+                "render",
+                s(&path),
+                "-o",
+                s(&dir.path().join("ours.png")),
+                "--width",
+                "160",
+                "--height",
+                "120",
+                "--spp",
+                "1",
+                "--quiet",
+                "--view-out",
+                s(&view),
+                "--depth-out",
+                s(&ours),
             ],
             true,
         );
         let out = std::process::Command::new(&python)
             .env("PYOPENGL_PLATFORM", "osmesa")
-            .args([s(&script), s(&view), s(&path), s(&dir.path().join("theirs.png")), "--depth-out", s(&theirs)])
+            .args([
+                s(&script),
+                s(&view),
+                s(&path),
+                s(&dir.path().join("theirs.png")),
+                "--depth-out",
+                s(&theirs),
+            ])
             .output()
             .unwrap();
-        assert!(out.status.success(), "{model}: pyrender failed:\n{}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "{model}: pyrender failed:\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let (a, b) = (read_npy_f32(&ours), read_npy_f32(&theirs));
         assert_eq!(a.len(), b.len());
-        let both = a.iter().zip(&b).filter(|(x, y)| **x > 0.0 && **y > 0.0).count();
-        let either = a.iter().zip(&b).filter(|(x, y)| **x > 0.0 || **y > 0.0).count();
+        let both = a
+            .iter()
+            .zip(&b)
+            .filter(|(x, y)| **x > 0.0 && **y > 0.0)
+            .count();
+        let either = a
+            .iter()
+            .zip(&b)
+            .filter(|(x, y)| **x > 0.0 || **y > 0.0)
+            .count();
         let iou = both as f64 / either.max(1) as f64;
         let mut rel: Vec<f32> = a
             .iter()
@@ -92,6 +135,9 @@ fn meshtracer_and_pyrender_agree_on_coverage_and_depth() {
         eprintln!("{model}: coverage IoU {iou:.4}, median relative depth error {median:.2e}");
         assert!(both > 100, "{model}: the model is in view ({both} pixels)");
         assert!(iou >= 0.99, "{model}: coverage IoU {iou}");
-        assert!(median <= 0.01, "{model}: median relative depth error {median}");
+        assert!(
+            median <= 0.01,
+            "{model}: median relative depth error {median}"
+        );
     }
 }

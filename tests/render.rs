@@ -719,3 +719,66 @@ fn the_view_round_trips() {
     );
     assert!(common::stderr(&out).contains("bad.json"));
 }
+
+/// The AOVs of the bundled scene: instance ids match the view's table, normals and depth are
+/// set exactly where the mask is, and depth is distance along the view axis.
+#[test]
+fn aovs_are_consistent_with_each_other_and_the_view() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = |n: &str| dir.path().join(n);
+    render_to(
+        dir.path(),
+        &cornell(),
+        "beauty.png",
+        &[
+            "--width",
+            "80",
+            "--spp",
+            "1",
+            "--normal-out",
+            s(&p("normal.exr")),
+            "--mask-out",
+            s(&p("mask.png")),
+            "--segmentation-out",
+            s(&p("seg.png")),
+            "--view-out",
+            s(&p("view.json")),
+            "--depth-out",
+            s(&p("depth.png")),
+        ],
+    );
+    let view: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(p("view.json")).unwrap()).unwrap();
+    let table = view["segmentation"].as_array().unwrap();
+    assert_eq!(table.len(), 7, "seven mesh instances in the bundled scene");
+    let seg = image::open(p("seg.png")).unwrap().to_luma16();
+    let mask = image::open(p("mask.png")).unwrap().to_luma8();
+    let normals = image::open(p("normal.exr")).unwrap().to_rgba32f();
+    let mut seen = std::collections::BTreeSet::new();
+    for (i, id) in seg.pixels().enumerate() {
+        let id = id.0[0];
+        seen.insert(id);
+        let (x, y) = (i as u32 % 80, i as u32 / 80);
+        let covered = mask.get_pixel(x, y).0[0] == 255;
+        assert_eq!(id > 0, covered, "pixel {i}: id {id} vs mask");
+        let n = normals.get_pixel(x, y).0;
+        let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        assert!(
+            if covered {
+                (len - 1.0).abs() < 1e-3
+            } else {
+                len == 0.0
+            },
+            "pixel {i}: normal {n:?}"
+        );
+        assert!(id as usize <= table.len());
+    }
+    assert!(
+        seen.len() >= 6,
+        "walls, boxes and sphere are all visible: {seen:?}"
+    );
+    // The back wall is 4.9 m from the camera along the view axis; in millimetres in the PNG.
+    let depth = image::open(p("depth.png")).unwrap().to_luma16();
+    let max = depth.pixels().map(|p| p.0[0]).max().unwrap();
+    assert!((4895..=4905).contains(&max), "deepest point {max} mm");
+}

@@ -11,6 +11,8 @@
 //! - `Ks` is kept as the Blinn-Phong specular colour; `Ns` (a Phong exponent) becomes roughness
 //!   through the usual exponent <-> GGX match `alpha² = 2 / (Ns + 2)`, roughness = sqrt(alpha).
 //! - metallic is 0: MTL has no metalness (mirrors, `illum 5`, are left to the specular term).
+//! - `illum 0` and `illum 1` (colour, or colour and ambient, without highlights) turn the
+//!   specular term off: Blinn-Phong specular 0 and roughness 1.
 //! - `map_Bump`/`bump`/`norm` -> normal map.
 
 use super::builder::TriangleIn;
@@ -334,11 +336,12 @@ fn mtl_material(m: &tobj::Material) -> Material {
         .shininess
         .filter(|ns| ns.is_finite() && *ns >= 0.0)
         .map_or(1.0, |ns| (2.0 / (ns + 2.0)).sqrt().sqrt());
+    let no_highlights = matches!(m.illumination_model, Some(0 | 1));
     Material {
         name: Some(m.name.trim().to_string()),
         base_color: Vec4::new(kd[0], kd[1], kd[2], alpha),
         metallic: 0.0,
-        roughness,
+        roughness: if no_highlights { 1.0 } else { roughness },
         emissive: m.emissive.map_or(Vec3::ZERO, Vec3::from),
         alpha_mode: if alpha < 1.0 {
             AlphaMode::Blend
@@ -346,7 +349,11 @@ fn mtl_material(m: &tobj::Material) -> Material {
             AlphaMode::Opaque
         },
         double_sided: true,
-        specular: m.specular.map(Vec3::from),
+        specular: if no_highlights {
+            Some(Vec3::ZERO)
+        } else {
+            m.specular.map(Vec3::from)
+        },
         ..Material::default()
     }
 }
@@ -377,6 +384,18 @@ mod tests {
             text,
             "usemtl a\no x\nusemtl a\nf 1 2 3\ng y\nusemtl a\nusemtl b\n"
         );
+    }
+
+    #[test]
+    fn illum_1_has_no_highlights() {
+        let m = tobj::Material {
+            shininess: Some(500.0),
+            specular: Some([1.0; 3]),
+            illumination_model: Some(1),
+            ..Default::default()
+        };
+        let mat = mtl_material(&m);
+        assert_eq!((mat.roughness, mat.specular), (1.0, Some(Vec3::ZERO)));
     }
 
     #[test]
