@@ -52,6 +52,20 @@ fn load(path: &std::path::Path, options: &LoadOptions) -> Result<Scene> {
     }
 }
 
+/// A rayon pool of `requested` threads, or one per core for 0.
+fn worker_pool(requested: usize) -> Result<(usize, rayon::ThreadPool)> {
+    let threads = if requested == 0 {
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    } else {
+        requested
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .context("cannot start worker threads")?;
+    Ok((threads, pool))
+}
+
 fn load_options(args: &LoadArgs) -> LoadOptions {
     let mut options = LoadOptions {
         allow_external_files: args.allow_external_files,
@@ -256,15 +270,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         bail!("--depth-scale must be a positive number");
     }
     let output = PendingOutput::reserve(&args.output, args.no_clobber)?;
-    let threads = if args.threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        args.threads
-    };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .context("cannot start worker threads")?;
+    let (threads, pool) = worker_pool(args.threads)?;
 
     let load_start = Instant::now();
     let scene = load(&args.model, &load_options(&args.load))?;
@@ -508,15 +514,7 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
     {
         bail!("--sizes: {n} is outside 8..={}", args.load.max_triangles);
     }
-    let threads = if args.threads == 0 {
-        std::thread::available_parallelism().map_or(1, |n| n.get())
-    } else {
-        args.threads
-    };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .context("cannot start worker threads")?;
+    let (threads, pool) = worker_pool(args.threads)?;
     let options = BenchOptions {
         kind: args.rays,
         side: args.side,
