@@ -273,7 +273,8 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let (threads, pool) = worker_pool(args.threads)?;
 
     let load_start = Instant::now();
-    let scene = load(&args.model, &load_options(&args.load))?;
+    let mut scene = load(&args.model, &load_options(&args.load))?;
+    crate::scene::tangents::generate_missing(&mut scene);
     let load_time = load_start.elapsed();
     if !args.quiet {
         for w in &scene.warnings {

@@ -484,8 +484,8 @@ impl<'a> Tracer<'a> {
 
     /// Perturbs the shading normal by a tangent-space normal map (glTF 2.0 §3.9.3): n =
     /// normalize(T·x + B·y + N·z) with (x, y, z) = (2·rgb - 1)·(scale, scale, 1), B = (N × T)·w.
-    /// Tangents come from the file's TANGENT, else from the triangle's UV gradient (a
-    /// per-triangle frame, not MikkTSpace).
+    /// Tangents come from the file's TANGENT, else from MikkTSpace at load
+    /// ([`crate::scene::tangents`]), else (degenerate UVs) from the triangle's UV gradient.
     #[allow(clippy::too_many_arguments)]
     fn normal_mapped(
         &self,

@@ -8,6 +8,7 @@ mod error;
 pub mod gltf;
 pub mod obj;
 mod paths;
+pub mod tangents;
 
 pub use builder::{SoupBuilder, TriangleIn};
 pub use error::{LoadError, LoadErrorKind};
