@@ -314,7 +314,8 @@ fn to_light(l: &ViewLight) -> Result<Light, String> {
         kind,
         color: Vec3::from(l.color),
         intensity: l.intensity,
-        range: l.range,
+        // A non-positive or non-finite range means no range window, as in the importer.
+        range: l.range.filter(|r| *r > 0.0 && r.is_finite()),
         position: Vec3::from(l.position),
         direction,
     })

@@ -704,6 +704,37 @@ fn the_view_round_trips() {
             "{name}"
         );
     }
+    // A hand-edited view with nonsense values is refused with the file named, or rendered
+    // without NaN leaking into the image.
+    let view = dir.path().join("cornell.json");
+    let mut v: serde_json::Value = serde_json::from_slice(&std::fs::read(&view).unwrap()).unwrap();
+    v["lights"][0]["range"] = json!(-1.0);
+    // An up vector along the view direction leaves the camera's roll undefined.
+    let axis: Vec<f64> = (0..3)
+        .map(|k| {
+            v["camera"]["look_at"][k].as_f64().unwrap()
+                - v["camera"]["position"][k].as_f64().unwrap()
+        })
+        .collect();
+    v["camera"]["up"] = json!(axis);
+    let edited = dir.path().join("edited.json");
+    std::fs::write(&edited, serde_json::to_vec(&v).unwrap()).unwrap();
+    let out = run(
+        &[
+            "render",
+            s(&cornell()),
+            "-o",
+            s(&dir.path().join("y.png")),
+            "--view",
+            s(&edited),
+        ],
+        false,
+    );
+    assert!(
+        common::stderr(&out).contains("up"),
+        "{}",
+        common::stderr(&out)
+    );
     let bad = dir.path().join("bad.json");
     std::fs::write(&bad, b"{\"meshtracer_view\": 1}").unwrap();
     let out = run(
