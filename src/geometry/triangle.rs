@@ -7,9 +7,13 @@
 //!
 //! By the scalar triple product `((b - a) × (x - a))·n = (x - a)·(n × (b - a))`, so each edge test
 //! is a plane equation in x. Dividing by |n|² makes each one the barycentric coordinate of the
-//! opposite vertex, which shading needs anyway. Everything is stored as homogeneous planes
-//! `(m, -m·q)` so that each test is one 4-wide dot product with `(x, 1)`: 64 bytes per triangle,
-//! one cache line.
+//! opposite vertex, which shading needs anyway. All four are homogeneous planes `(m, -m·q)`.
+//!
+//! The four planes are stored transposed (one `Vec4` per coordinate, a lane per plane: 64 bytes,
+//! one cache line), so one ray evaluates all four at once with multiply-adds and no horizontal
+//! sums: `P·(o, 1)` and `P·(d, 0)` give every plane's value at the origin and its rate along the
+//! ray. The plane lane gives `t`, and because every plane is affine, its value at the hit point
+//! `x = o + t·d` is `P·(o, 1) + t·P·(d, 0)`: the three edge tests in one compare.
 
 use super::Ray;
 use glam::{Vec3, Vec3A, Vec4};
@@ -21,18 +25,27 @@ use glam::{Vec3, Vec3A, Vec4};
 /// so 1e-4 closes every gap. The overlap is 0.01% of the triangle's size: invisible.
 pub const EDGE_EPSILON: f32 = 1e-4;
 
+/// Per-lane lower bounds of the four plane values at the hit point: the supporting plane (lane
+/// 0) is zero there by construction, so it only has to be a number; each edge lane is a
+/// barycentric coordinate and may dip [`EDGE_EPSILON`] below zero.
+const LOWER_BOUNDS: Vec4 = Vec4::new(f32::MIN, -EDGE_EPSILON, -EDGE_EPSILON, -EDGE_EPSILON);
+
 /// A triangle prepared for the plane-plus-three-edge test.
+///
+/// Lane order in every field: the supporting plane `(n, -n·a)` with n = (b - a) × (c - a), not
+/// normalised; then edge a->b scaled to give the barycentric coordinate of c; edge b->c, giving
+/// that of a; edge c->a, giving that of b.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(16))]
 pub struct PreparedTriangle {
-    /// Plane `(n, -n·a)` with n = (b - a) × (c - a), not normalised.
-    plane: Vec4,
-    /// Edge a->b as a plane scaled to give the barycentric coordinate of c.
-    edge_ab: Vec4,
-    /// Edge b->c, giving the barycentric coordinate of a.
-    edge_bc: Vec4,
-    /// Edge c->a, giving the barycentric coordinate of b.
-    edge_ca: Vec4,
+    /// The x coefficients of the four planes.
+    x: Vec4,
+    /// The y coefficients.
+    y: Vec4,
+    /// The z coefficients.
+    z: Vec4,
+    /// The constant terms.
+    w: Vec4,
 }
 
 /// Where a ray met a triangle.
@@ -51,10 +64,10 @@ impl PreparedTriangle {
     /// A triangle no ray hits (its plane is zero, so `t` is NaN): a placeholder that keeps
     /// indices aligned should a triangle fail to prepare.
     pub const NEVER: PreparedTriangle = PreparedTriangle {
-        plane: Vec4::ZERO,
-        edge_ab: Vec4::ZERO,
-        edge_bc: Vec4::ZERO,
-        edge_ca: Vec4::ZERO,
+        x: Vec4::ZERO,
+        y: Vec4::ZERO,
+        z: Vec4::ZERO,
+        w: Vec4::ZERO,
     };
 
     /// Precomputes the planes. Returns `None` for a degenerate triangle (zero or non-finite
@@ -69,22 +82,34 @@ impl PreparedTriangle {
             let m = n.cross(to - from) * inv_len2;
             m.extend(-m.dot(from))
         };
-        let prepared = Self {
-            plane: n.extend(-n.dot(a)),
-            edge_ab: edge(a, b),
-            edge_bc: edge(b, c),
-            edge_ca: edge(c, a),
-        };
-        let finite = prepared.plane.is_finite()
-            && prepared.edge_ab.is_finite()
-            && prepared.edge_bc.is_finite()
-            && prepared.edge_ca.is_finite();
-        finite.then_some(prepared)
+        let planes = [n.extend(-n.dot(a)), edge(a, b), edge(b, c), edge(c, a)];
+        if !planes.iter().all(|p| p.is_finite()) {
+            return None;
+        }
+        let lane = |i: usize| Vec4::from_array(planes.map(|p| p[i]));
+        Some(Self {
+            x: lane(0),
+            y: lane(1),
+            z: lane(2),
+            w: lane(3),
+        })
     }
 
     /// The geometric normal (b - a) × (c - a), not normalised.
     pub fn normal(&self) -> Vec3 {
-        self.plane.truncate()
+        Vec3::new(self.x.x, self.y.x, self.z.x)
+    }
+
+    /// The four plane values at the hit point `origin + t·direction`, with `t` splatted, for
+    /// the ray's supporting-plane intersection (see the module notes).
+    #[inline(always)]
+    fn planes_at_hit(&self, ray: &Ray) -> (Vec4, Vec4) {
+        let (o, d) = (ray.origin, ray.direction);
+        let at_origin = self.x * o.x + self.y * o.y + self.z * o.z + self.w;
+        let along = self.x * d.x + self.y * d.y + self.z * d.z;
+        // Plane: n·(o + t d) - n·a = 0.
+        let t = -Vec4::splat(at_origin.x) / Vec4::splat(along.x);
+        (at_origin + along * t, t)
     }
 
     /// Ray parameter of the hit in the open interval (`ray.tmin`, `ray.tmax`), or `f32::INFINITY`
@@ -92,20 +117,14 @@ impl PreparedTriangle {
     /// [`PreparedTriangle::intersect`] gives the full hit record.
     #[inline(always)]
     pub fn intersect_t(&self, ray: &Ray) -> f32 {
-        let origin = ray.origin.extend(1.0);
-        let direction = ray.direction.extend(0.0);
-        // Plane: n·(p + t d) - n·a = 0.
-        let t = -self.plane.dot(origin) / self.plane.dot(direction);
-        let x = origin + direction * t;
+        let (at_hit, t) = self.planes_at_hit(ray);
+        let t = t.x;
         // All five tests are evaluated and combined without branches (`&` on bools): with rays
         // that hit about half the triangles they test, branches mispredict and cost more than
-        // the three dot products they would skip. NaN (a ray parallel to and inside the plane)
-        // fails the interval test.
-        let inside = (t > ray.tmin)
-            & (t < ray.tmax)
-            & (self.edge_ab.dot(x) >= -EDGE_EPSILON)
-            & (self.edge_bc.dot(x) >= -EDGE_EPSILON)
-            & (self.edge_ca.dot(x) >= -EDGE_EPSILON);
+        // the work they would skip. NaN (a ray parallel to and inside the plane) fails the
+        // interval test and every lane compare.
+        let inside =
+            (t > ray.tmin) & (t < ray.tmax) & (at_hit.cmpge(LOWER_BOUNDS).bitmask() == 0b1111);
         if inside {
             t
         } else {
@@ -115,15 +134,11 @@ impl PreparedTriangle {
 
     /// Full hit record for a ray already known to hit at `t` (from [`Self::intersect_t`]).
     pub fn hit_at(&self, ray: &Ray, t: f32) -> TriangleHit {
-        let x = (ray.origin + ray.direction * t).extend(1.0);
-        let barycentric = Vec3::new(
-            self.edge_bc.dot(x),
-            self.edge_ca.dot(x),
-            self.edge_ab.dot(x),
-        );
+        let x = ray.origin + ray.direction * t;
+        let at_x = self.x * x.x + self.y * x.y + self.z * x.z + self.w;
         TriangleHit {
             t,
-            barycentric,
+            barycentric: Vec3::new(at_x.z, at_x.w, at_x.y),
             front: Vec3A::from(self.normal()).dot(ray.direction) < 0.0,
         }
     }
