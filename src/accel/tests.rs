@@ -99,6 +99,19 @@ fn random_rays(n: usize, seed: u64) -> Vec<Ray> {
                 ));
                 continue;
             }
+            // Starting just above the ground, heading down: hits at t below 1e-4, where obvhs's
+            // box test would cull (it clamps box entry to its own EPSILON, not ray.tmin).
+            3 => {
+                let height = 1e-6 + rng.next_f32() * 5e-5;
+                dir.y = -0.2 - dir.y.abs();
+                rays.push(Ray::new(
+                    vec3(origin.x * 0.8, -1.0 + height, origin.z * 0.8),
+                    dir.normalize(),
+                    0.0,
+                    f32::INFINITY,
+                ));
+                continue;
+            }
             _ => {}
         }
         if dir.length_squared() < 1e-6 {
