@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{quads_gltf, read_rgba, run, s, samples, write_gltf};
+use common::{quads_gltf, read_rgba, run, s, samples, shadow_scene, write_gltf};
 use serde_json::json;
 use std::f32::consts::PI;
 use std::path::{Path, PathBuf};
@@ -124,34 +124,19 @@ fn quad_under_a_point_light_matches_the_closed_form() {
 
 /// A 1x1 occluder 1 m above a ground plane under a directional light at 45° casts a 1x1 shadow
 /// shifted 1 m along +X: pixels clearly inside it are black (no ambient), pixels clearly outside
-/// it and the occluder are lit.
+/// it and the occluder are lit. The same scene at 1e-5 scale (occluder 10 µm up, so shadow rays
+/// meet it at t ≈ 1.4e-5) must cast the same shadow: obvhs's box test alone culled hits that
+/// close and let the light through.
 #[test]
 fn occluder_casts_a_shadow_of_known_shape() {
+    for scale in [1.0, 1e-5] {
+        occluder_shadow_at_scale(scale);
+    }
+}
+
+fn occluder_shadow_at_scale(scale: f32) {
     let dir = tempfile::tempdir().unwrap();
-    let travel = glam::Vec3::new(1.0, 0.0, -1.0).normalize();
-    let rotation = glam::Quat::from_rotation_arc(glam::Vec3::NEG_Z, travel);
-    let extra = merge(
-        ortho_camera_from_above(5.0, 3.0),
-        json!({
-            "materials": [white(false)],
-            "extensionsUsed": ["KHR_lights_punctual"],
-            "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 2.0}]}},
-            "nodes": [{"rotation": rotation.to_array(), "extensions": {"KHR_lights_punctual": {"light": 0}}}]
-        }),
-    );
-    let ground = [
-        [-3.0, -3.0, 0.0],
-        [3.0, -3.0, 0.0],
-        [3.0, 3.0, 0.0],
-        [-3.0, 3.0, 0.0],
-    ];
-    let occluder = [
-        [-0.5, -0.5, 1.0],
-        [0.5, -0.5, 1.0],
-        [0.5, 0.5, 1.0],
-        [-0.5, 0.5, 1.0],
-    ];
-    let (json, bin) = quads_gltf(&[(ground, 0), (occluder, 0)], extra);
+    let (json, bin) = shadow_scene(scale, 0, json!({"materials": [white(false)]}));
     let model = dir.path().join("shadow.gltf");
     write_gltf(&model, json, &bin);
     let n = 120u32;
@@ -183,18 +168,24 @@ fn occluder_casts_a_shadow_of_known_shape() {
             let outside =
                 |x0: f32, x1: f32| x < x0 - pixel || x > x1 + pixel || y.abs() > 0.5 + pixel;
             if inside(0.5, 1.5) {
-                assert_eq!(v, 0.0, "pixel ({i},{j}) at x {x} y {y} is in the shadow");
+                assert_eq!(
+                    v, 0.0,
+                    "scale {scale}: pixel ({i},{j}) at x {x} y {y} is in the shadow"
+                );
                 shadowed += 1;
             } else if outside(0.5, 1.5) && outside(-0.5, 0.5) {
                 // E = 2 lux · cos 45° = 1.41 lux on a white rough dielectric: about 0.31.
-                assert!(v > 0.25, "pixel ({i},{j}) at x {x} y {y} is lit, got {v}");
+                assert!(
+                    v > 0.25,
+                    "scale {scale}: pixel ({i},{j}) at x {x} y {y} is lit, got {v}"
+                );
                 lit += 1;
             }
         }
     }
     assert!(
         shadowed > 250 && lit > 10_000,
-        "{shadowed} shadowed, {lit} lit"
+        "scale {scale}: {shadowed} shadowed, {lit} lit"
     );
 }
 

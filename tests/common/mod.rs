@@ -166,3 +166,38 @@ pub fn quads_gltf(
     json["scene"] = serde_json::json!(0);
     (json, bin)
 }
+
+/// The shadow scene of the renderer and material tests: a 6 x 6 ground quad at z = 0 (material
+/// 0) and a 1 x 1 occluder 1 above its centre (material `occluder`), under a 2 lux directional
+/// light travelling along (1, 0, -1), so that the occluder's shadow covers x in [0.5, 1.5],
+/// |y| < 0.5. An orthographic camera 5 above looks straight down and frames the ground exactly.
+/// Every length is multiplied by `scale`; `extra` (materials, textures...) is merged into the
+/// top level.
+pub fn shadow_scene(
+    scale: f32,
+    occluder: usize,
+    extra: serde_json::Value,
+) -> (serde_json::Value, Vec<u8>) {
+    let quad = |half: f32, z: f32| {
+        [[-half, -half], [half, -half], [half, half], [-half, half]]
+            .map(|[x, y]| [x * scale, y * scale, z * scale])
+    };
+    let travel = glam::Vec3::new(1.0, 0.0, -1.0).normalize();
+    let rotation = glam::Quat::from_rotation_arc(glam::Vec3::NEG_Z, travel);
+    let mut top = serde_json::json!({
+        "cameras": [{"type": "orthographic", "orthographic": {
+            "xmag": 3.0 * scale, "ymag": 3.0 * scale, "znear": 0.01 * scale, "zfar": 100.0 * scale}}],
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 2.0}]}},
+        "nodes": [
+            {"camera": 0, "translation": [0.0, 0.0, 5.0 * scale]},
+            {"rotation": rotation.to_array(), "extensions": {"KHR_lights_punctual": {"light": 0}}}
+        ]
+    });
+    if let serde_json::Value::Object(extra) = extra {
+        for (k, v) in extra {
+            top[k] = v;
+        }
+    }
+    quads_gltf(&[(quad(3.0, 0.0), 0), (quad(0.5, 1.0), occluder)], top)
+}
