@@ -214,8 +214,14 @@ struct Tracer<'a> {
 /// Everything shading needs about a hit point.
 struct Surface<'m> {
     point: Vec3,
+    /// Where shadow rays leave from: `point` lifted off a smooth-shaded triangle onto the
+    /// curved surface its vertex normals describe (see [`terminator_lift`]).
+    shadow_point: Vec3,
     /// Geometric normal facing the incoming ray.
     geometric: Vec3,
+    /// Interpolated vertex normal on the geometric normal's side: the smooth surface the
+    /// mesh approximates.
+    smooth: Vec3,
     /// Shading normal (interpolated, normal-mapped) on the geometric normal's side.
     normal: Vec3,
     material: SurfaceMaterial,
@@ -423,6 +429,10 @@ impl<'a> Tracer<'a> {
         if normal.dot(geometric) < 0.0 {
             normal = -normal;
         }
+        let smooth = normal;
+        let facing = |n: Vec3| if n.dot(geometric) < 0.0 { -n } else { n };
+        let shadow_point =
+            point + terminator_lift(point, [pa, pb, pc], [facing(na), facing(nb), facing(nc)], b);
         static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
         let material = self
             .scene
@@ -463,7 +473,9 @@ impl<'a> Tracer<'a> {
         }
         Surface {
             point,
+            shadow_point,
             geometric,
+            smooth,
             normal,
             material: SurfaceMaterial {
                 base_color: base.truncate(),
@@ -587,12 +599,15 @@ impl<'a> Tracer<'a> {
     fn shade(&self, ray: &Ray, s: &Surface, shadow_rays: &mut u64) -> Vec3 {
         let to_eye = -Vec3::from(ray.direction);
         let mut color = self.settings.ambient * s.material.base_color * s.occlusion + s.emissive;
-        let origin = s.point + s.geometric * self.ray_offset;
+        let origin = s.shadow_point + s.geometric * self.ray_offset;
         for light in &self.settings.lights {
             let Some(incoming) = incident(light, s.point) else {
                 continue;
             };
-            if incoming.to_light.dot(s.geometric) <= 0.0 || incoming.to_light.dot(s.normal) <= 0.0 {
+            // The light must be above the smooth surface (not the flat facet: near the
+            // terminator of a smooth-shaded mesh the facet test cuts light off facet by facet,
+            // a staircase) and above the shading normal. Flat triangles have smooth = facet.
+            if incoming.to_light.dot(s.smooth) <= 0.0 || incoming.to_light.dot(s.normal) <= 0.0 {
                 continue;
             }
             *shadow_rays += 1;
@@ -647,5 +662,57 @@ impl<'a> Tracer<'a> {
         } else {
             transmittance.get()
         }
+    }
+}
+
+/// The shadow-terminator offset of Hanika, "Hacking the shadow terminator" (Ray Tracing Gems
+/// II, ch. 4, 2021). A smooth-shaded mesh is flat between its vertices, so near the terminator
+/// a shadow ray leaving the flat facet is blocked by the neighbouring facets (or the facet
+/// itself) although the shading normal says the point is lit: the terminator turns into a
+/// staircase along the tessellation. Project `point` onto the tangent plane of each vertex
+/// (the plane through the vertex, normal to its shading normal) when it lies below it, and
+/// blend the three projections with the barycentric weights: the result lies on a smooth
+/// surface through the vertices, above the facets that caused the staircase. Flat triangles
+/// (vertex normals equal to the face normal) are not moved. Returns the offset from `point`.
+/// `normals` must face the side the ray arrived from.
+fn terminator_lift(point: Vec3, vertices: [Vec3; 3], normals: [Vec3; 3], b: Vec3) -> Vec3 {
+    let below = |i: usize| (point - vertices[i]).dot(normals[i]).min(0.0) * normals[i];
+    -(below(0) * b.x + below(1) * b.y + below(2) * b.z)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::terminator_lift;
+    use glam::{vec3, Vec3};
+
+    #[test]
+    fn terminator_lift_leaves_flat_triangles_alone() {
+        let vertices = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let b = vec3(0.2, 0.3, 0.5);
+        let point = vertices[0] * b.x + vertices[1] * b.y + vertices[2] * b.z;
+        assert_eq!(
+            terminator_lift(point, vertices, [Vec3::Z; 3], b),
+            Vec3::ZERO
+        );
+    }
+
+    /// A facet of a unit sphere with vertex normals pointing out of the sphere: the lifted
+    /// centroid lies outside the facet, most of the way to the sphere, and not beyond it.
+    #[test]
+    fn terminator_lift_moves_toward_the_smooth_surface() {
+        let vertices = [
+            vec3(1.0, 0.0, 0.0),
+            vec3(0.0, 1.0, 0.0),
+            vec3(0.0, 0.0, 1.0),
+        ];
+        let b = Vec3::splat(1.0 / 3.0);
+        let point = (vertices[0] + vertices[1] + vertices[2]) / 3.0;
+        let lifted = point + terminator_lift(point, vertices, vertices, b);
+        let (before, after) = (point.length(), lifted.length());
+        assert!((before - 0.577).abs() < 1e-3, "{before}");
+        assert!(
+            after > before + 0.5 * (1.0 - before) && after <= 1.0 + 1e-6,
+            "|lifted| = {after}"
+        );
     }
 }

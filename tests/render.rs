@@ -310,6 +310,116 @@ fn the_cameras_asset_renders_through_both_of_its_cameras() {
     );
 }
 
+/// A coarse smooth-shaded UV sphere (8 rings x 12 segments of 30°, vertex normals = positions)
+/// seen from +Z, lit by a directional light from +X turned 8° toward the camera. The
+/// terminator then runs 8° inside a column of facets whose centres face away from the light,
+/// so a per-facet light test (or a shadow ray leaving the flat facet) darkens an 8° band the
+/// smooth normals say is lit: the shadow-terminator staircase. Every pixel whose smooth normal (the normal AOV, same pixel-centre ray) faces
+/// the light by more than 0.02 must be lit, and every pixel facing away must be black
+/// (ambient 0): no staircase and no light leaking round the back.
+#[test]
+fn a_coarse_smooth_sphere_has_a_smooth_terminator() {
+    let dir = tempfile::tempdir().unwrap();
+    let (rings, segments) = (8u16, 12u16);
+    let mut positions = Vec::new();
+    for i in 0..=rings {
+        let theta = std::f32::consts::PI * f32::from(i) / f32::from(rings);
+        for j in 0..=segments {
+            let phi = std::f32::consts::TAU * f32::from(j) / f32::from(segments);
+            positions.extend([
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                -theta.sin() * phi.sin(),
+            ]);
+        }
+    }
+    let mut indices = Vec::new();
+    let at = |i: u16, j: u16| i * (segments + 1) + j;
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+            indices.extend([a, b, c, a, c, d]);
+        }
+    }
+    let vertex_bytes = common::f32_bytes(&positions);
+    let mut bin = vertex_bytes.clone();
+    bin.extend(indices.iter().flat_map(|x| x.to_le_bytes()));
+    let count = positions.len() / 3;
+    let tilt = 8f32.to_radians();
+    let to_light = glam::Vec3::new(tilt.cos(), 0.0, tilt.sin());
+    let light = glam::Quat::from_rotation_arc(glam::Vec3::NEG_Z, -to_light);
+    let json = json!({
+        "asset": {"version": "2.0"},
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": vertex_bytes.len()},
+            {"buffer": 0, "byteOffset": vertex_bytes.len(), "byteLength": indices.len() * 2}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": count, "type": "VEC3",
+             "min": [-1.0, -1.0, -1.0], "max": [1.0, 1.0, 1.0]},
+            {"bufferView": 1, "componentType": 5123, "count": indices.len(), "type": "SCALAR"}
+        ],
+        "materials": [white(false)],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 0}, "indices": 1, "material": 0}]}],
+        "cameras": [{"type": "orthographic", "orthographic": {"xmag": 1.2, "ymag": 1.2, "znear": 0.1, "zfar": 10.0}}],
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 3.0}]}},
+        "nodes": [
+            {"mesh": 0},
+            {"camera": 0, "translation": [0.0, 0.0, 3.0]},
+            {"rotation": light.to_array(), "extensions": {"KHR_lights_punctual": {"light": 0}}}
+        ],
+        "scenes": [{"nodes": [0, 1, 2]}],
+        "scene": 0
+    });
+    let model = dir.path().join("sphere.gltf");
+    write_gltf(&model, json, &bin);
+    let n = 160usize;
+    let normals = dir.path().join("normal.exr");
+    let out = render_to(
+        dir.path(),
+        &model,
+        "sphere.exr",
+        &[
+            "--width",
+            "160",
+            "--height",
+            "160",
+            "--spp",
+            "1",
+            "--ambient",
+            "0",
+            "--normal-out",
+            s(&normals),
+        ],
+    );
+    let (_, _, radiance) = read_rgba(&out);
+    let (_, _, normal) = read_rgba(&normals);
+    let (mut lit, mut dark, mut near_terminator) = (0, 0, 0);
+    for i in 0..n * n {
+        if radiance[i][3] == 0.0 {
+            continue;
+        }
+        let facing = glam::Vec3::new(normal[i][0], normal[i][1], normal[i][2]).dot(to_light);
+        let value = radiance[i][0];
+        if facing > 0.02 {
+            assert!(
+                value > 0.0,
+                "pixel {i}: smooth normal faces the light ({facing}) but it is dark"
+            );
+            lit += 1;
+            near_terminator += usize::from(facing < tilt.sin());
+        } else if facing < 0.0 {
+            assert_eq!(value, 0.0, "pixel {i}: faces away ({facing}) but is lit");
+            dark += 1;
+        }
+    }
+    assert!(
+        lit > 5_000 && dark > 5_000 && near_terminator > 1_000,
+        "{lit} lit, {dark} dark, {near_terminator} in the band"
+    );
+}
+
 fn cornell() -> PathBuf {
     common::root().join("assets/cornell-box.gltf")
 }
