@@ -73,10 +73,6 @@ fn ctrl_c_during_a_render_keeps_the_previous_output() {
     assert_eq!(output.status.code(), Some(130), "{err}");
     assert!(err.contains("interrupted"), "{err}");
     assert_eq!(std::fs::read(&out).unwrap(), b"previous image");
-    let names: Vec<_> = std::fs::read_dir(dir.path())
-        .unwrap()
-        .flatten()
-        .map(|e| e.file_name())
-        .collect();
+    let names = common::file_names(dir.path());
     assert_eq!(names.len(), 1, "no temporary file left: {names:?}");
 }

@@ -112,12 +112,7 @@ fn a_normal_mapped_quad_shades_like_the_tilted_geometry() {
     extra["materials"] = json!([mapped_material]);
     extra["images"] = json!([{"uri": png_data_uri(&normal_map)}]);
     extra["textures"] = json!([{"source": 0}]);
-    let flat = [
-        [-1.0, -1.0, 0.0],
-        [1.0, -1.0, 0.0],
-        [1.0, 1.0, 0.0],
-        [-1.0, 1.0, 0.0],
-    ];
+    let flat = common::square(1.0, 0.0);
     let (gltf, bin) = quads_gltf(&[(flat, 0)], extra);
     let mapped_model = dir.path().join("mapped.gltf");
     write_gltf(&mapped_model, gltf, &bin);

@@ -67,12 +67,7 @@ fn quad_under_a_point_light_matches_the_closed_form() {
             "nodes": [{"translation": [0.0, 0.0, h], "extensions": {"KHR_lights_punctual": {"light": 0}}}]
         }),
     );
-    let quad = [
-        [-2.0, -2.0, 0.0],
-        [2.0, -2.0, 0.0],
-        [2.0, 2.0, 0.0],
-        [-2.0, 2.0, 0.0],
-    ];
+    let quad = common::square(2.0, 0.0);
     let (json, bin) = quads_gltf(&[(quad, 0)], extra);
     let model = dir.path().join("quad.gltf");
     write_gltf(&model, json, &bin);
@@ -683,11 +678,7 @@ fn bad_options_are_refused_before_any_work() {
         "X,Y,Z",
     );
     // Nothing was left behind by the refusals.
-    let left: Vec<_> = std::fs::read_dir(dir.path())
-        .unwrap()
-        .flatten()
-        .map(|e| e.file_name())
-        .collect();
+    let left = common::file_names(dir.path());
     assert!(left.is_empty(), "files left behind: {left:?}");
 }
 
@@ -719,32 +710,21 @@ fn a_failed_render_keeps_the_existing_output() {
     );
     assert!(common::stderr(&result).contains("already exists"));
     assert_eq!(std::fs::read(&out).unwrap(), b"previous image");
-    let names: Vec<_> = std::fs::read_dir(dir.path())
-        .unwrap()
-        .flatten()
-        .map(|e| e.file_name())
-        .collect();
+    let names = common::file_names(dir.path());
     assert_eq!(names.len(), 2, "no temporary files left: {names:?}");
 }
 
 #[test]
 fn the_summary_reports_what_the_render_did() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("x.png");
-    let result = run(
-        &[
-            "render",
-            s(&cornell()),
-            "-o",
-            s(&out),
-            "--width",
-            "32",
-            "--spp",
-            "1",
-        ],
-        true,
-    );
-    let err = common::stderr(&result);
+    let (model, out) = (cornell(), dir.path().join("x.png"));
+    let render = |extra: &[&str]| {
+        let mut args = vec!["render", s(&model), "-o", s(&out), "--width", "32"];
+        args.extend(["--spp", "1"]);
+        args.extend_from_slice(extra);
+        run(&args, true)
+    };
+    let err = common::stderr(&render(&[]));
     for needle in [
         "2244 triangles",
         "BVH",
@@ -755,21 +735,7 @@ fn the_summary_reports_what_the_render_did() {
     ] {
         assert!(err.contains(needle), "'{needle}' missing from: {err}");
     }
-    let quiet = run(
-        &[
-            "render",
-            s(&cornell()),
-            "-o",
-            s(&out),
-            "--width",
-            "32",
-            "--spp",
-            "1",
-            "--quiet",
-        ],
-        true,
-    );
-    assert!(quiet.stderr.is_empty());
+    assert!(render(&["--quiet"]).stderr.is_empty());
 }
 
 /// `--view-out` then `--view` renders the same image, byte for byte, for a file camera with

@@ -178,10 +178,7 @@ pub fn shadow_scene(
     occluder: usize,
     extra: serde_json::Value,
 ) -> (serde_json::Value, Vec<u8>) {
-    let quad = |half: f32, z: f32| {
-        [[-half, -half], [half, -half], [half, half], [-half, half]]
-            .map(|[x, y]| [x * scale, y * scale, z * scale])
-    };
+    let quad = |half: f32, z: f32| square(half * scale, z * scale);
     let travel = glam::Vec3::new(1.0, 0.0, -1.0).normalize();
     let rotation = glam::Quat::from_rotation_arc(glam::Vec3::NEG_Z, travel);
     let mut top = serde_json::json!({
@@ -200,4 +197,19 @@ pub fn shadow_scene(
         }
     }
     quads_gltf(&[(quad(3.0, 0.0), 0), (quad(0.5, 1.0), occluder)], top)
+}
+
+/// The names of the entries of a folder: to check that a failed or interrupted run left no
+/// temporary files behind.
+pub fn file_names(dir: &Path) -> Vec<std::ffi::OsString> {
+    std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .flatten()
+        .map(|e| e.file_name())
+        .collect()
+}
+
+/// The corners of the square [-half, half]² at height `z`, counter-clockwise seen from +Z.
+pub fn square(half: f32, z: f32) -> [[f32; 3]; 4] {
+    [[-half, -half], [half, -half], [half, half], [-half, half]].map(|[x, y]| [x, y, z])
 }
