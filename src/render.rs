@@ -214,9 +214,9 @@ struct Tracer<'a> {
 /// Everything shading needs about a hit point.
 struct Surface<'m> {
     point: Vec3,
-    /// Where shadow rays leave from: `point` lifted off a smooth-shaded triangle onto the
-    /// curved surface its vertex normals describe (see [`terminator_lift`]).
-    shadow_point: Vec3,
+    /// From `point` onto the curved surface a smooth-shaded triangle's vertex normals describe
+    /// (see [`terminator_lift`]); zero for flat triangles.
+    lift: Vec3,
     /// Geometric normal facing the incoming ray.
     geometric: Vec3,
     /// Interpolated vertex normal on the geometric normal's side: the smooth surface the
@@ -431,8 +431,7 @@ impl<'a> Tracer<'a> {
         }
         let smooth = normal;
         let facing = |n: Vec3| if n.dot(geometric) < 0.0 { -n } else { n };
-        let shadow_point =
-            point + terminator_lift(point, [pa, pb, pc], [facing(na), facing(nb), facing(nc)], b);
+        let lift = terminator_lift(point, [pa, pb, pc], [facing(na), facing(nb), facing(nc)], b);
         static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
         let material = self
             .scene
@@ -473,7 +472,7 @@ impl<'a> Tracer<'a> {
         }
         Surface {
             point,
-            shadow_point,
+            lift,
             geometric,
             smooth,
             normal,
@@ -599,7 +598,6 @@ impl<'a> Tracer<'a> {
     fn shade(&self, ray: &Ray, s: &Surface, shadow_rays: &mut u64) -> Vec3 {
         let to_eye = -Vec3::from(ray.direction);
         let mut color = self.settings.ambient * s.material.base_color * s.occlusion + s.emissive;
-        let origin = s.shadow_point + s.geometric * self.ray_offset;
         for light in &self.settings.lights {
             let Some(incoming) = incident(light, s.point) else {
                 continue;
@@ -611,6 +609,15 @@ impl<'a> Tracer<'a> {
                 continue;
             }
             *shadow_rays += 1;
+            // Shadow rays leave from the lifted point only where the light grazes or sits below
+            // the facet (cosine under TERMINATOR_BAND, fading in): only there can the facet's
+            // own neighbours block a ray the smooth surface would let through. Elsewhere the
+            // lift would only move the origin off the real geometry and thin contact shadows
+            // (it cost the Avocado's seed its shadow). The same idea as Cycles' "shadow
+            // terminator geometry offset".
+            let toward = incoming.to_light.dot(s.geometric);
+            let amount = (1.0 - toward / TERMINATOR_BAND).clamp(0.0, 1.0);
+            let origin = s.point + s.lift * amount + s.geometric * self.ray_offset;
             let tmax = if incoming.distance.is_finite() {
                 incoming.distance - self.ray_offset
             } else {
@@ -664,6 +671,10 @@ impl<'a> Tracer<'a> {
         }
     }
 }
+
+/// Below this cosine between the light and the facet normal, shadow rays start from the
+/// terminator-lifted point (fading in from here to 0).
+const TERMINATOR_BAND: f32 = 0.1;
 
 /// The shadow-terminator offset of Hanika, "Hacking the shadow terminator" (Ray Tracing Gems
 /// II, ch. 4, 2021). A smooth-shaded mesh is flat between its vertices, so near the terminator
