@@ -523,10 +523,18 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
         linear_budget: args.linear_budget,
         preset: args.bvh_preset,
     };
+    // Ctrl-C once: finish the measurement under way, then report what is done (exit 130).
+    // Twice: quit at once, writing nothing (a 1M-triangle linear scan can take a minute).
     let stop = Arc::new(AtomicBool::new(false));
     {
         let stop = Arc::clone(&stop);
-        let _ = ctrlc::set_handler(move || stop.store(true, Ordering::SeqCst));
+        let _ = ctrlc::set_handler(move || {
+            if stop.swap(true, Ordering::SeqCst) {
+                eprintln!("meshtracer: interrupted; no output written");
+                std::process::exit(130);
+            }
+            eprintln!("stopping after the current measurement (Ctrl-C again to quit now)");
+        });
     }
     let mut rows = Vec::new();
     let mut generated_rows = Vec::new();
@@ -544,7 +552,6 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
         .collect();
     for (i, (name, size, path)) in jobs.iter().enumerate() {
         if stop.load(Ordering::SeqCst) {
-            eprintln!("stopped: printing the {} finished measurements", rows.len());
             break;
         }
         if !args.quiet {
@@ -573,14 +580,22 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
     }
     let table = markdown_table(&rows);
     println!("{table}");
+    let partial = (rows.len() < jobs.len()).then(|| {
+        format!(
+            "stopped early: {} of {} measurements",
+            rows.len(),
+            jobs.len()
+        )
+    });
     let settings = format!(
-        "{:?} rays ({} primary rays per run, shadow/diffuse rays from their hits), median of {} runs, {threads} threads, obvhs preset {:?}, linear scan budget {} triangle tests; CPU: {}",
+        "{:?} rays ({} primary rays per run, shadow/diffuse rays from their hits), median of {} runs, {threads} threads, obvhs preset {:?}, linear scan budget {} triangle tests; CPU: {}{}",
         args.rays,
         u64::from(args.side) * u64::from(args.side),
         options.runs,
         args.bvh_preset,
         args.linear_budget,
-        cpu_name()
+        cpu_name(),
+        partial.as_ref().map_or(String::new(), |p| format!("; {p}"))
     );
     println!("{settings}");
     if let Some(path) = &args.report {
@@ -592,8 +607,17 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
         let png = crate::plot::scaling_plot(&generated_rows, &title);
         crate::image::write_atomic(path, &png)?;
     }
-    Ok(())
+    match partial {
+        Some(p) => Err(Interrupted(format!("{p} reported")).into()),
+        None => Ok(()),
+    }
 }
+
+/// The user stopped a command with Ctrl-C after it reported what it had finished: exit 130,
+/// like a render that was interrupted, so that a script never takes partial results for whole.
+#[derive(Debug, thiserror::Error)]
+#[error("interrupted; {0}")]
+pub struct Interrupted(pub String);
 
 /// The CPU model, for reports.
 fn cpu_name() -> String {

@@ -13,6 +13,10 @@ fn main() -> ExitCode {
                 eprintln!("meshtracer: interrupted; no output written");
                 return ExitCode::from(130);
             }
+            if let Some(stopped) = e.downcast_ref::<meshtracer::app::Interrupted>() {
+                eprintln!("meshtracer: {stopped}");
+                return ExitCode::from(130);
+            }
             eprintln!("meshtracer: error: {e:#}");
             ExitCode::FAILURE
         }

@@ -76,3 +76,78 @@ fn ctrl_c_during_a_render_keeps_the_previous_output() {
     let names = common::file_names(dir.path());
     assert_eq!(names.len(), 1, "no temporary file left: {names:?}");
 }
+
+/// Starts `meshtracer bench` with `args`, waits until its first measurement is reported, sends
+/// it `interrupts` SIGINTs (200 ms apart) and returns its exit code, stdout and stderr.
+fn interrupt_bench(args: &[&str], interrupts: usize) -> (Option<i32>, String, String) {
+    use std::io::{BufRead, Read};
+    let mut child = common::bin()
+        .arg("bench")
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut err = String::new();
+    while !err.contains("triangles: build") {
+        assert!(
+            stderr.read_line(&mut err).unwrap() > 0,
+            "bench ended early: {err}"
+        );
+    }
+    for i in 0..interrupts {
+        if i > 0 {
+            std::thread::sleep(std::time::Duration::from_millis(200));
+        }
+        let kill = std::process::Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(kill.success());
+    }
+    stderr.read_to_string(&mut err).unwrap();
+    let output = child.wait_with_output().unwrap();
+    let out = String::from_utf8_lossy(&output.stdout).into_owned();
+    (output.status.code(), out, err)
+}
+
+/// Ctrl-C during a benchmark finishes the measurement under way (1M triangles: over a second),
+/// skips the rest, prints and writes what is done, says it stopped early and exits 130.
+#[test]
+fn ctrl_c_stops_a_benchmark_with_its_finished_measurements() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("report.md");
+    let args = ["--sizes", "1000,1000000,1000", "--linear-budget", "0"];
+    let (code, out, err) = interrupt_bench(
+        &[
+            &args[..],
+            &["--side", "64", "--runs", "1", "--report", s(&report)],
+        ]
+        .concat(),
+        1,
+    );
+    assert_eq!(code, Some(130), "{err}");
+    assert!(
+        err.contains("stopped early: 2 of 3 measurements reported"),
+        "{err}"
+    );
+    for text in [&out, &std::fs::read_to_string(&report).unwrap()] {
+        assert!(text.contains("| generated 1000000 |"), "{text}");
+        assert_eq!(text.matches("| generated 1000 |").count(), 1, "{text}");
+        assert!(text.contains("stopped early: 2 of 3"), "{text}");
+    }
+}
+
+/// A second Ctrl-C quits at once, in the middle of a long linear scan, and writes nothing
+/// (a single one would have finished the scan and written the report).
+#[test]
+fn a_second_ctrl_c_quits_a_benchmark_at_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let report = dir.path().join("report.md");
+    let (code, _, err) = interrupt_bench(&["--sizes", "1000,1000000", "--report", s(&report)], 2);
+    assert_eq!(code, Some(130), "{err}");
+    assert!(err.contains("no output written"), "{err}");
+    assert!(!report.exists(), "no report after quitting");
+    assert!(common::file_names(dir.path()).is_empty());
+}
