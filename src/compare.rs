@@ -221,16 +221,38 @@ pub fn side_by_side(
             band as i32,
             Rgb([200, 200, 200]),
         );
+        // Each label stays inside its panel: half size if it does not fit, and a long file
+        // name keeps its end (where "-old.png" and "-new.png" differ).
+        let room = w.saturating_sub(12) as usize / 8;
+        let (text, scale) = if label.chars().count() * 2 <= room {
+            (label.to_string(), 2)
+        } else {
+            (fit_label(label, room), 1)
+        };
+        let y = if scale == 2 { 6 } else { 10 };
         draw_text(
             &mut out,
             k as i32 * w as i32 + 6,
-            6,
-            label,
-            2,
+            y,
+            &text,
+            scale,
             Rgb([20, 20, 20]),
         );
     }
     out
+}
+
+/// `label` in at most `max_chars` characters: whole if it fits, else "..." and its end.
+fn fit_label(label: &str, max_chars: usize) -> String {
+    let chars: Vec<char> = label.chars().collect();
+    if chars.len() <= max_chars {
+        return label.to_string();
+    }
+    if max_chars <= 3 {
+        return ".".repeat(max_chars);
+    }
+    let tail: String = chars[chars.len() - (max_chars - 3)..].iter().collect();
+    format!("...{tail}")
 }
 
 #[cfg(test)]
@@ -246,6 +268,24 @@ mod tests {
                 image::Rgba([0, 0, 0, 0])
             }
         })
+    }
+
+    #[test]
+    fn long_labels_stay_inside_their_panels() {
+        assert_eq!(fit_label("short.png", 20), "short.png");
+        assert_eq!(fit_label("LightsPunctualLamp-old.png", 12), "...p-old.png");
+        assert_eq!(fit_label("abcdef", 2), "..");
+        let a = disc(120, 40, 10.0, [200, 100, 50]);
+        let heat = RgbImage::new(120, 40);
+        let long = "a-very-long-file-name-of-a-reference-render.png";
+        let out = side_by_side(&a, &a, &heat, [long, long, long], None);
+        // The strip between panel 0's right edge and where panel 1's label starts stays
+        // blank but for the separator line: panel 0's label did not run into panel 1.
+        for y in 0..28 {
+            for x in 121..126 {
+                assert_eq!(out.get_pixel(x, y).0, [255, 255, 255], "({x},{y})");
+            }
+        }
     }
 
     #[test]
