@@ -51,8 +51,7 @@ fn alpha_mask_lets_light_and_eye_rays_through_transparent_texels() {
         "textures": [{"source": 0, "sampler": 0}]
     });
     let (gltf, bin) = shadow_scene(1.0, 1, extra);
-    let model = dir.path().join("mask.gltf");
-    write_gltf(&model, gltf, &bin);
+    let model = write_gltf(dir.path(), "mask.gltf", gltf, &bin);
     let n = 120usize;
     let pixels = render(
         dir.path(),
@@ -114,8 +113,7 @@ fn a_normal_mapped_quad_shades_like_the_tilted_geometry() {
     extra["textures"] = json!([{"source": 0}]);
     let flat = common::square(1.0, 0.0);
     let (gltf, bin) = quads_gltf(&[(flat, 0)], extra);
-    let mapped_model = dir.path().join("mapped.gltf");
-    write_gltf(&mapped_model, gltf, &bin);
+    let mapped_model = write_gltf(dir.path(), "mapped.gltf", gltf, &bin);
     // The real thing: the same quad turned 30° about +Y (x' = x cos, z' = -x sin).
     let tilted = [
         [-cos, -1.0, sin],
@@ -126,8 +124,7 @@ fn a_normal_mapped_quad_shades_like_the_tilted_geometry() {
     let mut extra = lights;
     extra["materials"] = json!([material]);
     let (gltf, bin) = quads_gltf(&[(tilted, 0)], extra);
-    let tilted_model = dir.path().join("tilted.gltf");
-    write_gltf(&tilted_model, gltf, &bin);
+    let tilted_model = write_gltf(dir.path(), "tilted.gltf", gltf, &bin);
     let size = ["--width", "33", "--height", "33"];
     let a = render(dir.path(), &mapped_model, "mapped.exr", &size)[16 * 33 + 16];
     let b = render(dir.path(), &tilted_model, "tilted.exr", &size)[16 * 33 + 16];

@@ -69,8 +69,7 @@ fn quad_under_a_point_light_matches_the_closed_form() {
     );
     let quad = common::square(2.0, 0.0);
     let (json, bin) = quads_gltf(&[(quad, 0)], extra);
-    let model = dir.path().join("quad.gltf");
-    write_gltf(&model, json, &bin);
+    let model = write_gltf(dir.path(), "quad.gltf", json, &bin);
     for shading in ["pbr", "phong"] {
         let name = format!("quad-{shading}.exr");
         let args = [
@@ -132,8 +131,7 @@ fn occluder_casts_a_shadow_of_known_shape() {
 fn occluder_shadow_at_scale(scale: f32) {
     let dir = tempfile::tempdir().unwrap();
     let (json, bin) = shadow_scene(scale, 0, json!({"materials": [white(false)]}));
-    let model = dir.path().join("shadow.gltf");
-    write_gltf(&model, json, &bin);
+    let model = write_gltf(dir.path(), "shadow.gltf", json, &bin);
     let n = 120u32;
     let out = render_to(
         dir.path(),
@@ -214,8 +212,7 @@ fn camera_conventions_put_a_quad_where_expected() {
             "nodes": [{"camera": 0, "rotation": rotation}]
         });
         let (json, bin) = quads_gltf(&[(quad, 0)], extra);
-        let model = dir.path().join(format!("{name}.gltf"));
-        write_gltf(&model, json, &bin);
+        let model = write_gltf(dir.path(), &format!("{name}.gltf"), json, &bin);
         let out = render_to(
             dir.path(),
             &model,
@@ -268,30 +265,34 @@ fn the_cameras_asset_renders_through_both_of_its_cameras() {
     let half = 0.35f32.tan(); // yfov 0.7, aspect 1
     let perspective_expected = area(&|v| glam::Vec2::new(v.x, v.y) / (-v.z * half)) / 4.0;
     let ortho_expected = area(&|v| glam::Vec2::new(v.x, v.y)) / 4.0; // xmag = ymag = 1
-    let perspective = render_to(
-        dir.path(),
-        &model,
-        "p.png",
-        &["--camera", "0", "--width", "200", "--spp", "16"],
-    );
-    let c = coverage(&perspective);
-    assert!(
-        (c - perspective_expected).abs() < 0.005,
-        "perspective coverage {c}, expected {perspective_expected}"
-    );
-    let ortho = render_to(
-        dir.path(),
-        &model,
-        "o.png",
-        &[
-            "--camera", "1", "--width", "200", "--height", "200", "--spp", "16",
-        ],
-    );
-    let c = coverage(&ortho);
-    assert!(
-        (c - ortho_expected).abs() < 0.005,
-        "orthographic coverage {c}, expected {ortho_expected}"
-    );
+    for (name, camera, size, expected) in [
+        (
+            "perspective",
+            "0",
+            ["--width", "200"].as_slice(),
+            perspective_expected,
+        ),
+        (
+            "orthographic",
+            "1",
+            &["--width", "200", "--height", "200"],
+            ortho_expected,
+        ),
+    ] {
+        let mut args = vec!["--camera", camera, "--spp", "16"];
+        args.extend_from_slice(size);
+        let c = coverage(&render_to(
+            dir.path(),
+            &model,
+            &format!("{name}.png"),
+            &args,
+        ));
+        assert!(
+            (c - expected).abs() < 0.005,
+            "{name} coverage {c}, expected {expected}"
+        );
+    }
+    let perspective = dir.path().join("perspective.png");
     // Without --camera the first camera is used.
     let default = render_to(
         dir.path(),
@@ -367,8 +368,7 @@ fn a_coarse_smooth_sphere_has_a_smooth_terminator() {
         "scenes": [{"nodes": [0, 1, 2]}],
         "scene": 0
     });
-    let model = dir.path().join("sphere.gltf");
-    write_gltf(&model, json, &bin);
+    let model = write_gltf(dir.path(), "sphere.gltf", json, &bin);
     let n = 160usize;
     let normals = dir.path().join("normal.exr");
     let out = render_to(

@@ -65,14 +65,17 @@ pub fn read_rgba(path: &Path) -> (u32, u32, Vec<[f32; 4]>) {
     (w, h, img.pixels().map(|p| p.0).collect())
 }
 
-/// Writes a glTF JSON document with one embedded buffer built from `bin`.
-pub fn write_gltf(path: &Path, mut json: serde_json::Value, bin: &[u8]) {
+/// Writes a glTF JSON document with one embedded buffer built from `bin` as `dir/name`, and
+/// returns its path.
+pub fn write_gltf(dir: &Path, name: &str, mut json: serde_json::Value, bin: &[u8]) -> PathBuf {
     use base64::Engine;
     json["buffers"] = serde_json::json!([{
         "byteLength": bin.len(),
         "uri": format!("data:application/octet-stream;base64,{}", base64::engine::general_purpose::STANDARD.encode(bin))
     }]);
-    std::fs::write(path, serde_json::to_string_pretty(&json).unwrap()).unwrap();
+    let path = dir.join(name);
+    std::fs::write(&path, serde_json::to_string_pretty(&json).unwrap()).unwrap();
+    path
 }
 
 /// Little-endian bytes of f32s.
