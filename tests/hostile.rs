@@ -63,11 +63,7 @@ fn ctrl_c_during_a_render_keeps_the_previous_output() {
         .spawn()
         .unwrap();
     std::thread::sleep(std::time::Duration::from_millis(1500));
-    let status = std::process::Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
-        .status()
-        .unwrap();
-    assert!(status.success());
+    interrupt(&child);
     let output = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(130), "{err}");
@@ -100,11 +96,7 @@ fn interrupt_bench(args: &[&str], interrupts: usize) -> (Option<i32>, String, St
         if i > 0 {
             std::thread::sleep(std::time::Duration::from_millis(200));
         }
-        let kill = std::process::Command::new("kill")
-            .args(["-INT", &child.id().to_string()])
-            .status()
-            .unwrap();
-        assert!(kill.success());
+        interrupt(&child);
     }
     stderr.read_to_string(&mut err).unwrap();
     let output = child.wait_with_output().unwrap();
@@ -150,4 +142,13 @@ fn a_second_ctrl_c_quits_a_benchmark_at_once() {
     assert!(err.contains("no output written"), "{err}");
     assert!(!report.exists(), "no report after quitting");
     assert!(common::file_names(dir.path()).is_empty());
+}
+
+/// Sends SIGINT (what Ctrl-C sends) to a child process.
+fn interrupt(child: &std::process::Child) {
+    let kill = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
 }
