@@ -132,7 +132,12 @@ impl View {
 pub fn auto_camera(bounds: &Bounds, aspect: f32) -> Camera {
     let yfov = 45f32.to_radians();
     let center = bounds.center();
-    let radius = bounds.radius().max(1e-6);
+    // Any positive radius is framed as it is (a model in micrometres is still a model); only an
+    // empty or single-point scene gets a unit sphere.
+    let radius = match bounds.radius() {
+        r if r > 0.0 && r.is_finite() => r,
+        _ => 1.0,
+    };
     let half_h = (yfov * 0.5).tan();
     let half_fov = half_h.min(half_h * aspect).atan();
     let distance = radius / half_fov.sin() * 1.05;
@@ -172,6 +177,22 @@ pub fn look_at(from: Vec3, at: Vec3, up: Vec3, yfov: f32, distance: f32, radius:
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A model a micrometre across is framed like a metre-sized one (the fit once clamped the
+    /// radius to 1e-6, so a 1e-4-scale model filled a quarter of the frame).
+    #[test]
+    fn auto_camera_frames_tiny_models_like_large_ones() {
+        let framing = |r: f32| {
+            let bounds = Bounds {
+                min: Vec3::splat(-r),
+                max: Vec3::splat(r),
+            };
+            let cam = auto_camera(&bounds, 4.0 / 3.0);
+            (cam.position - bounds.center()).length() / r
+        };
+        let (tiny, unit) = (framing(1e-7), framing(1.0));
+        assert!((tiny / unit - 1.0).abs() < 1e-4, "{tiny} vs {unit}");
+    }
 
     fn camera(projection: Projection) -> Camera {
         Camera {
