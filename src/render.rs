@@ -12,7 +12,7 @@
 
 use crate::accel::Accel;
 use crate::camera::View;
-use crate::geometry::Ray;
+use crate::geometry::{Ray, SpawnPoint};
 use crate::image::Image;
 use crate::light::incident;
 use crate::sampling::Rng;
@@ -196,10 +196,6 @@ struct Tracer<'a> {
     accel: &'a Accel,
     textures: &'a TextureSet,
     settings: &'a RenderSettings,
-    /// How far shadow rays start off the surface, along the geometric normal, to escape the
-    /// surface they leave despite rounding in the hit point: 1e-5 of the scene's extent
-    /// (coordinates carry ~1e-7 relative error in f32, so this is a 100x margin).
-    ray_offset: f32,
     /// 2^exposure.
     scale: f32,
     /// Strata per axis for jittered sampling.
@@ -213,7 +209,9 @@ struct Tracer<'a> {
 
 /// Everything shading needs about a hit point.
 struct Surface<'m> {
-    point: Vec3,
+    /// The hit point with its error bound: where secondary rays leave from
+    /// ([`crate::geometry::spawn`]).
+    spawn: SpawnPoint,
     /// From `point` onto the curved surface a smooth-shaded triangle's vertex normals describe
     /// (see [`terminator_lift`]); zero for flat triangles.
     lift: Vec3,
@@ -238,8 +236,6 @@ impl<'a> Tracer<'a> {
         textures: &'a TextureSet,
         settings: &'a RenderSettings,
     ) -> Self {
-        let b = &scene.bounds;
-        let extent = b.min.abs().max(b.max.abs()).max_element() + b.radius();
         let sx = (settings.spp as f32).sqrt().floor().max(1.0) as u32;
         let sy = settings.spp.div_ceil(sx);
         let view = &settings.view;
@@ -252,7 +248,6 @@ impl<'a> Tracer<'a> {
             accel,
             textures,
             settings,
-            ray_offset: (extent * 1e-5).max(f32::MIN_POSITIVE),
             scale: settings.exposure.exp2(),
             strata: (sx, sy),
             spread,
@@ -415,7 +410,14 @@ impl<'a> Tracer<'a> {
         let tri = hit.triangle as usize;
         let b = hit.barycentric;
         let [pa, pb, pc] = soup.positions[tri];
-        let point = pa * b.x + pb * b.y + pc * b.z;
+        // The importer drops degenerate triangles, so this always succeeds; the fallback keeps a
+        // bad triangle from panicking (its shadow rays start at the interpolated point).
+        let spawn = SpawnPoint::on_triangle([pa, pb, pc], b).unwrap_or(SpawnPoint {
+            point: pa * b.x + pb * b.y + pc * b.z,
+            error: Vec3::ZERO,
+            normal: Vec3::Z,
+        });
+        let point = spawn.point;
         let direction = Vec3::from(ray.direction);
         let mut geometric = (pb - pa).cross(pc - pa).normalize_or_zero();
         if geometric.dot(direction) > 0.0 {
@@ -471,7 +473,7 @@ impl<'a> Tracer<'a> {
             normal = self.normal_mapped(tri, b, r, normal, geometric, t, material.normal_scale);
         }
         Surface {
-            point,
+            spawn,
             lift,
             geometric,
             smooth,
@@ -599,7 +601,7 @@ impl<'a> Tracer<'a> {
         let to_eye = -Vec3::from(ray.direction);
         let mut color = self.settings.ambient * s.material.base_color * s.occlusion + s.emissive;
         for light in &self.settings.lights {
-            let Some(incoming) = incident(light, s.point) else {
+            let Some(incoming) = incident(light, s.spawn.point) else {
                 continue;
             };
             // The light must be above the smooth surface (not the flat facet: near the
@@ -617,13 +619,12 @@ impl<'a> Tracer<'a> {
             // terminator geometry offset".
             let toward = incoming.to_light.dot(s.geometric);
             let amount = (1.0 - toward / TERMINATOR_BAND).clamp(0.0, 1.0);
-            let origin = s.point + s.lift * amount + s.geometric * self.ray_offset;
-            let tmax = if incoming.distance.is_finite() {
-                incoming.distance - self.ray_offset
+            let from = if amount > 0.0 {
+                s.spawn.moved(s.lift * amount)
             } else {
-                f32::INFINITY
+                s.spawn
             };
-            let shadow = Ray::new(origin, incoming.to_light, 0.0, tmax);
+            let shadow = from.ray(incoming.to_light, incoming.distance);
             let transmittance = self.shadow_transmittance(&shadow);
             if transmittance <= 0.0 {
                 continue;

@@ -316,58 +316,10 @@ fn the_cameras_asset_renders_through_both_of_its_cameras() {
 #[test]
 fn a_coarse_smooth_sphere_has_a_smooth_terminator() {
     let dir = tempfile::tempdir().unwrap();
-    let (rings, segments) = (8u16, 12u16);
-    let mut positions = Vec::new();
-    for i in 0..=rings {
-        let theta = std::f32::consts::PI * f32::from(i) / f32::from(rings);
-        for j in 0..=segments {
-            let phi = std::f32::consts::TAU * f32::from(j) / f32::from(segments);
-            positions.extend([
-                theta.sin() * phi.cos(),
-                theta.cos(),
-                -theta.sin() * phi.sin(),
-            ]);
-        }
-    }
-    let mut indices = Vec::new();
-    let at = |i: u16, j: u16| i * (segments + 1) + j;
-    for i in 0..rings {
-        for j in 0..segments {
-            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
-            indices.extend([a, b, c, a, c, d]);
-        }
-    }
-    let vertex_bytes = common::f32_bytes(&positions);
-    let mut bin = vertex_bytes.clone();
-    bin.extend(indices.iter().flat_map(|x| x.to_le_bytes()));
-    let count = positions.len() / 3;
     let tilt = 8f32.to_radians();
     let to_light = glam::Vec3::new(tilt.cos(), 0.0, tilt.sin());
-    let light = glam::Quat::from_rotation_arc(glam::Vec3::NEG_Z, -to_light);
-    let json = json!({
-        "asset": {"version": "2.0"},
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": vertex_bytes.len()},
-            {"buffer": 0, "byteOffset": vertex_bytes.len(), "byteLength": indices.len() * 2}
-        ],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": count, "type": "VEC3",
-             "min": [-1.0, -1.0, -1.0], "max": [1.0, 1.0, 1.0]},
-            {"bufferView": 1, "componentType": 5123, "count": indices.len(), "type": "SCALAR"}
-        ],
-        "materials": [white(false)],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 0}, "indices": 1, "material": 0}]}],
-        "cameras": [{"type": "orthographic", "orthographic": {"xmag": 1.2, "ymag": 1.2, "znear": 0.1, "zfar": 10.0}}],
-        "extensionsUsed": ["KHR_lights_punctual"],
-        "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 3.0}]}},
-        "nodes": [
-            {"mesh": 0},
-            {"camera": 0, "translation": [0.0, 0.0, 3.0]},
-            {"rotation": light.to_array(), "extensions": {"KHR_lights_punctual": {"light": 0}}}
-        ],
-        "scenes": [{"nodes": [0, 1, 2]}],
-        "scene": 0
-    });
+    let (json, bin) =
+        common::sphere_gltf((8, 12), glam::Vec3::ZERO, 1.0, to_light, 3.0, white(false));
     let model = write_gltf(dir.path(), "sphere.gltf", json, &bin);
     let n = 160usize;
     let normals = dir.path().join("normal.exr");
@@ -413,6 +365,70 @@ fn a_coarse_smooth_sphere_has_a_smooth_terminator() {
         lit > 5_000 && dark > 5_000 && near_terminator > 1_000,
         "{lit} lit, {dark} dark, {near_terminator} in the band"
     );
+}
+
+/// Shadow acne, the case that broke the old rule (shadow rays started 1e-5 of the scene's
+/// extent off the surface): a finely tessellated unit sphere (48 x 96, edges about 0.065) whose
+/// centre lies 22.5 units from the origin, as MetalRoughSpheresNoTextures's spheres lie about 350
+/// triangle edges from its origin. Barycentrics then carry errors of about 1e-4 (the edge planes
+/// are evaluated with cancellation against coordinates 350 edges large), and the old hit point
+/// `Σ bᵢ·pᵢ`, whose weights no longer summed to 1, moved off the plane by 1e-4 x 22.5: ten
+/// times the old offset of 2.3e-4, so about one shadow ray in forty re-hit its own triangle.
+/// Now the weights are rescaled and the offset is bounded from the hit point's own error
+/// ([`meshtracer::geometry::spawn`]): a convex sphere cannot shadow itself, so every pixel whose
+/// normal faces the light by more than 0.05 must be lit: not one dark pixel (ambient 0), and the
+/// same at 1e-4 and 1e4 times the size and distance.
+#[test]
+fn a_sphere_far_from_the_origin_has_no_shadow_acne() {
+    let dir = tempfile::tempdir().unwrap();
+    let to_light = glam::Vec3::new(0.5, 0.6, 0.8).normalize();
+    for scale in [1.0f32, 1e-4, 1e4] {
+        let (json, bin) = common::sphere_gltf(
+            (48, 96),
+            glam::Vec3::splat(13.0 * scale),
+            scale,
+            to_light,
+            2.0,
+            white(false),
+        );
+        let model = write_gltf(dir.path(), "far.gltf", json, &bin);
+        let normals = dir.path().join("normal.exr");
+        let out = render_to(
+            dir.path(),
+            &model,
+            "far.exr",
+            &[
+                "--width",
+                "200",
+                "--height",
+                "200",
+                "--spp",
+                "1",
+                "--ambient",
+                "0",
+                "--normal-out",
+                s(&normals),
+            ],
+        );
+        let (_, _, radiance) = read_rgba(&out);
+        let (_, _, normal) = read_rgba(&normals);
+        let (mut facing, mut dark) = (0, 0);
+        for (l, n) in radiance.iter().zip(&normal) {
+            let n = glam::Vec3::new(n[0], n[1], n[2]);
+            if l[3] > 0.0 && n.dot(to_light) > 0.05 {
+                facing += 1;
+                dark += usize::from(l[0] <= 0.0);
+            }
+        }
+        assert!(
+            facing > 10_000,
+            "scale {scale}: only {facing} pixels face the light"
+        );
+        assert_eq!(
+            dark, 0,
+            "scale {scale}: {dark} of {facing} lit pixels are shadowed (acne)"
+        );
+    }
 }
 
 fn cornell() -> PathBuf {

@@ -53,8 +53,8 @@ pub(super) fn build(
 /// How far (in ray parameter units) obvhs's box test is blind: its CWBVH node test clamps box
 /// entry to this constant (`cwbvh::node::EPSILON`, "//ray.tmin?" in obvhs 0.4), ignoring
 /// `ray.tmin`, so a leaf lying wholly within t < 1e-4 of the origin is culled. Shadow rays
-/// start a scene-relative offset above a surface (1e-5 of the extent), so a contact shadow or a
-/// small model lost its nearest occluders that way.
+/// start a hair's breadth above a surface (a bound on the hit point's rounding error), so a
+/// contact shadow or a small model lost its nearest occluders that way.
 const OBVHS_BOX_TMIN: f32 = 1e-4;
 
 /// How far the box-test ray starts behind the real one: past obvhs's blind range, with margin.

@@ -1,7 +1,9 @@
 //! Rays and the ray/triangle test.
 
+pub mod spawn;
 pub mod triangle;
 
+pub use spawn::{SpawnPoint, SHADOW_EPSILON};
 pub use triangle::{PreparedTriangle, TriangleHit, EDGE_EPSILON};
 
 use glam::{Vec3, Vec3A};

@@ -216,3 +216,69 @@ pub fn file_names(dir: &Path) -> Vec<std::ffi::OsString> {
 pub fn square(half: f32, z: f32) -> [[f32; 3]; 4] {
     [[-half, -half], [half, -half], [half, half], [-half, half]].map(|[x, y]| [x, y, z])
 }
+
+/// A smooth-shaded UV sphere (`rings` x `segments`, vertex normals = positions, material 0 =
+/// `material`) of radius `scale` centred at `centre`, seen by an orthographic camera looking
+/// down -Z from 3 radii in front of the centre and framing 1.2 radii, and lit by one directional
+/// light of `lux` shining toward `-to_light`. Returns the JSON and the binary buffer.
+pub fn sphere_gltf(
+    (rings, segments): (u16, u16),
+    centre: glam::Vec3,
+    scale: f32,
+    to_light: glam::Vec3,
+    lux: f32,
+    material: serde_json::Value,
+) -> (serde_json::Value, Vec<u8>) {
+    let mut positions = Vec::new();
+    for i in 0..=rings {
+        let theta = std::f32::consts::PI * f32::from(i) / f32::from(rings);
+        for j in 0..=segments {
+            let phi = std::f32::consts::TAU * f32::from(j) / f32::from(segments);
+            positions.extend([
+                theta.sin() * phi.cos(),
+                theta.cos(),
+                -theta.sin() * phi.sin(),
+            ]);
+        }
+    }
+    let mut indices: Vec<u32> = Vec::new();
+    let at = |i: u16, j: u16| u32::from(i) * (u32::from(segments) + 1) + u32::from(j);
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+            indices.extend([a, b, c, a, c, d]);
+        }
+    }
+    let vertex_bytes = f32_bytes(&positions);
+    let mut bin = vertex_bytes.clone();
+    bin.extend(indices.iter().flat_map(|x| x.to_le_bytes()));
+    let count = positions.len() / 3;
+    let light = glam::Quat::from_rotation_arc(glam::Vec3::NEG_Z, -to_light.normalize());
+    let camera = centre + glam::Vec3::Z * 3.0 * scale;
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": vertex_bytes.len()},
+            {"buffer": 0, "byteOffset": vertex_bytes.len(), "byteLength": indices.len() * 4}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": count, "type": "VEC3",
+             "min": [-1.0, -1.0, -1.0], "max": [1.0, 1.0, 1.0]},
+            {"bufferView": 1, "componentType": 5125, "count": indices.len(), "type": "SCALAR"}
+        ],
+        "materials": [material],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "NORMAL": 0}, "indices": 1, "material": 0}]}],
+        "cameras": [{"type": "orthographic", "orthographic": {
+            "xmag": 1.2 * scale, "ymag": 1.2 * scale, "znear": 0.1 * scale, "zfar": 10.0 * scale}}],
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": lux}]}},
+        "nodes": [
+            {"mesh": 0, "translation": centre.to_array(), "scale": [scale, scale, scale]},
+            {"camera": 0, "translation": camera.to_array()},
+            {"rotation": light.to_array(), "extensions": {"KHR_lights_punctual": {"light": 0}}}
+        ],
+        "scenes": [{"nodes": [0, 1, 2]}],
+        "scene": 0
+    });
+    (json, bin)
+}
