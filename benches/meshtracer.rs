@@ -329,11 +329,15 @@ fn render(c: &mut Criterion) {
         shading: meshtracer::shading::ShadingModel::Pbr,
         aovs: false,
     };
-    let textures = meshtracer::texture::TextureSet::default();
+    let scene = meshtracer::prepare::Prepared::from_parts(
+        scene,
+        accel,
+        meshtracer::texture::TextureSet::default(),
+    );
     let cancel = std::sync::atomic::AtomicBool::new(false);
     let pool = one_thread();
     let reference = pool
-        .install(|| render(&scene, &accel, &textures, &settings, &cancel, &|_, _| {}))
+        .install(|| render(&scene, &settings, &cancel, &|_, _| {}))
         .expect("renders")
         .0;
     let mut group = c.benchmark_group("render");
@@ -343,7 +347,7 @@ fn render(c: &mut Criterion) {
     group.bench_function("cornell-box 256x192 1spp, 1 thread", |b| {
         b.iter(|| {
             let (image, _, _) = pool
-                .install(|| render(&scene, &accel, &textures, &settings, &cancel, &|_, _| {}))
+                .install(|| render(&scene, &settings, &cancel, &|_, _| {}))
                 .expect("renders");
             assert!(image == reference);
         })

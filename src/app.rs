@@ -4,17 +4,16 @@ use crate::accel::{Accel, AccelKind};
 use crate::camera::{auto_camera, look_at, View};
 use crate::cli::{Command, InfoArgs, LoadArgs, RenderArgs};
 use crate::image::PendingOutput;
-use crate::render::{default_rig, render, RenderSettings};
+use crate::prepare::Prepared;
+use crate::render::{render, RenderSettings};
 use crate::scene::{Camera, LightKind, LoadOptions, Projection, Scene};
+use crate::setup::{
+    default_rig, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_HEIGHT, DEFAULT_WIDTH, DEFAULT_YFOV_DEGREES,
+};
 use anyhow::{bail, Context, Result};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
-
-/// Default image width.
-const DEFAULT_WIDTH: u32 = 1024;
-/// Default image height when the camera gives no aspect ratio.
-const DEFAULT_HEIGHT: u32 = 768;
 
 /// Runs one command.
 pub fn run(command: Command) -> Result<()> {
@@ -315,7 +314,10 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let (lights, default_ambient) = if let Some(v) = &view_file {
         (v.lights(), glam::Vec3::from(v.ambient))
     } else if !scene.lights.is_empty() {
-        (scene.lights.clone(), glam::Vec3::splat(0.03))
+        (
+            scene.lights.clone(),
+            glam::Vec3::splat(AMBIENT_WITH_FILE_LIGHTS),
+        )
     } else if args.no_default_lights {
         (Vec::new(), glam::Vec3::ZERO)
     } else {
@@ -359,23 +361,18 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         // still safe because it is only renamed into place after a complete write.
         let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
     }
-    let (accel, (image, stats, aovs)) = pool.install(|| -> Result<_> {
+    let (prepared, (image, stats, aovs)) = pool.install(|| -> Result<_> {
         let accel = Accel::build(&scene.soup, &scene.materials, args.accel, args.bvh_preset);
+        let prepared = Prepared::from_parts(scene, accel, textures);
         let bar = progress_bar(args.quiet);
-        let result = render(
-            &scene,
-            &accel,
-            &textures,
-            &settings,
-            &cancel,
-            &|done, total| {
-                bar.set_length(total);
-                bar.set_position(done);
-            },
-        );
+        let result = render(&prepared, &settings, &cancel, &|done, total| {
+            bar.set_length(total);
+            bar.set_position(done);
+        });
         bar.finish_and_clear();
-        Ok((accel, result?))
+        Ok((prepared, result?))
     })?;
+    let (scene, accel, textures) = (&prepared.scene, &prepared.accel, &prepared.textures);
     let background = args.background;
     output.commit(&image, background)?;
     if let Some(a) = &aovs {
@@ -454,7 +451,7 @@ fn choose_camera(
     if let Some(from) = args.look_from {
         let at = args.look_at.unwrap_or(bounds.center());
         let distance = (at - from).length();
-        let yfov = args.yfov.unwrap_or(45.0).to_radians();
+        let yfov = args.yfov.unwrap_or(DEFAULT_YFOV_DEGREES).to_radians();
         let mut camera = look_at(
             from,
             at,

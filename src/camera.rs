@@ -130,7 +130,7 @@ impl View {
 /// the front (+Z, the glTF "forward" of an asset), above and to the right, far enough that the
 /// sphere fits both the vertical and the horizontal field of view.
 pub fn auto_camera(bounds: &Bounds, aspect: f32) -> Camera {
-    let yfov = 45f32.to_radians();
+    let yfov = crate::setup::DEFAULT_YFOV_DEGREES.to_radians();
     let center = bounds.center();
     // Any positive radius is framed as it is (a model in micrometres is still a model); only an
     // empty or single-point scene gets a unit sphere.

@@ -70,7 +70,7 @@ pub struct RenderArgs {
     pub height: Option<u32>,
     /// Samples per pixel: 1 shoots through pixel centres; N > 1 takes stratified jittered
     /// samples (square numbers stratify best).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = crate::setup::DEFAULT_SPP)]
     pub spp: u32,
     /// Seed of the sample pattern (the output is identical for the same seed).
     #[arg(long, default_value_t = 0)]
@@ -120,7 +120,7 @@ pub struct RenderArgs {
     pub shading: crate::shading::ShadingModel,
     /// Decoded texture memory budget in MiB; larger images are halved until they fit, with a
     /// warning.
-    #[arg(long, default_value_t = 2048, value_name = "MIB")]
+    #[arg(long, default_value_t = crate::setup::MAX_TEXTURE_MIB, value_name = "MIB")]
     pub max_texture_memory: usize,
     /// Do not add the default key and fill lights when the file has no lights.
     #[arg(long)]
@@ -301,5 +301,36 @@ mod tests {
     fn cli_definition_is_consistent() {
         use clap::CommandFactory;
         Cli::command().debug_assert();
+    }
+}
+
+#[cfg(test)]
+mod help_tests {
+    use super::Cli;
+    use crate::setup;
+    use clap::CommandFactory;
+
+    /// The defaults `--help` states in prose are the ones [`crate::setup`] applies.
+    #[test]
+    fn render_help_states_the_library_defaults() {
+        let mut cli = Cli::command();
+        let help = cli
+            .find_subcommand_mut("render")
+            .expect("render subcommand")
+            .render_long_help()
+            .to_string();
+        // Each phrase as the help text words it, with the value taken from `setup`.
+        for phrase in [
+            format!("default: {}", setup::DEFAULT_WIDTH),
+            format!("else {}", setup::DEFAULT_HEIGHT),
+            format!("default: {}, or the file camera's", setup::DEFAULT_YFOV_DEGREES),
+            format!("{} with the default rig", setup::AMBIENT_WITH_DEFAULT_RIG),
+            format!("{} with the file's lights", setup::AMBIENT_WITH_FILE_LIGHTS),
+            format!("default: {}", setup::DEFAULT_SPP),
+            format!("default: {}", setup::MAX_TEXTURE_MIB),
+        ] {
+            let flat = help.split_whitespace().collect::<Vec<_>>().join(" ");
+            assert!(flat.contains(&phrase), "--help does not say \"{phrase}\"");
+        }
     }
 }

@@ -3,10 +3,36 @@
 //! The program is a pipeline of phases that hand over plain data:
 //!
 //! ```text
-//! Scene::load(path)  ->  Accel::build(&soup)  ->  render(&scene, &accel, &settings)  ->  PendingOutput::commit
+//! load         Scene::load(path)                          scene/ (glTF, OBJ importers)
+//! prepare      Prepared::new(scene, &options)             prepare.rs: BVH (accel/), textures
+//! integrate    render(&prepared, &settings, ...)          render/ (pixel loop, surface), integrator/
+//! film         Image (linear RGBA f32) + Aovs             image.rs, render/
+//! outputs      PendingOutput::commit, aov::write_*        image.rs, aov.rs, view.rs
 //! ```
 //!
-//! Importers ([`scene`]) never call the tracer; the tracer never sees a glTF or OBJ type.
+//! Every default (image size, field of view, ambient, the light rig) is in [`setup`]. Importers
+//! ([`scene`]) never call the tracer; the tracer never sees a glTF or OBJ type; only [`cli`] and
+//! [`app`] know the command line.
+//!
+//! Rendering a model to a linear float buffer:
+//!
+//! ```
+//! use meshtracer::prepare::{PrepareOptions, Prepared};
+//! use meshtracer::{render::render, setup, Scene};
+//! use std::sync::atomic::AtomicBool;
+//!
+//! let scene = Scene::load(concat!(env!("CARGO_MANIFEST_DIR"), "/assets/cornell-box.gltf"))?;
+//! let mut warnings = Vec::new();
+//! let prepared = Prepared::new(scene, &PrepareOptions::default(), &mut warnings)?;
+//! let settings = setup::default_settings(&prepared.scene, 64, 48);
+//! let cancel = AtomicBool::new(false);
+//! let (image, stats, _aovs) = render(&prepared, &settings, &cancel, &|_done, _total| {})?;
+//! // Row-major from the top-left pixel: linear radiance (RGB) and coverage (A).
+//! assert_eq!(image.pixels.len(), 64 * 48);
+//! assert!(image.pixels.iter().any(|p| p.x > 0.0 && p.w == 1.0));
+//! assert_eq!(stats.primary_rays, 64 * 48 * 4);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 #![deny(missing_docs)]
 
 pub mod accel;
@@ -18,11 +44,14 @@ pub mod cli;
 pub mod compare;
 pub mod geometry;
 pub mod image;
+pub mod integrator;
 pub mod light;
 pub mod plot;
+pub mod prepare;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod setup;
 pub mod shading;
 pub mod texture;
 pub mod view;

@@ -1,0 +1,56 @@
+//! Integrators: the radiance arriving along one camera ray. The pixel loop
+//! ([`crate::render`]) and the film never know which integrator runs; an integrator never
+//! knows about pixels, tiles or output files. Modelled on pbrt-v4's `Integrator::Li` and
+//! Mitsuba 3's `SamplingIntegrator::sample`.
+
+pub mod direct;
+
+pub use direct::Direct;
+
+use crate::geometry::Ray;
+use crate::prepare::Prepared;
+use crate::sampling::Rng;
+use glam::Vec3;
+
+/// A camera ray with its footprint (ray cone, for texture filtering): the width of the pixel's
+/// cone at distance `t` is `spread_base + spread_per_distance · t` (perspective: angle per
+/// pixel; orthographic: pixel size).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraRay {
+    /// The ray, from the camera through the sample position.
+    pub ray: Ray,
+    /// Cone width at the camera.
+    pub spread_base: f32,
+    /// Growth of the cone width per unit distance.
+    pub spread_per_distance: f32,
+}
+
+impl CameraRay {
+    /// The cone's width at distance `t` along the ray.
+    pub fn footprint(&self, t: f32) -> f32 {
+        self.spread_base + self.spread_per_distance * t
+    }
+}
+
+/// Rays traced, by kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RayCounts {
+    /// Camera rays (and their continuations through BLEND layers).
+    pub primary: u64,
+    /// Shadow rays.
+    pub shadow: u64,
+}
+
+/// Computes the radiance along camera rays.
+pub trait Integrator: Sync {
+    /// Radiance (premultiplied by coverage, linear, photometric units as in [`crate::light`])
+    /// and coverage (0 = nothing hit, 1 = opaque) along `camera`. `rng` is the pixel's own
+    /// stream (deterministic for a seed, whatever thread runs it); `counts` tallies the rays.
+    fn radiance(
+        &self,
+        scene: &Prepared,
+        camera: &CameraRay,
+        rng: &mut Rng,
+        counts: &mut RayCounts,
+    ) -> (Vec3, f32);
+}

@@ -1,0 +1,77 @@
+//! The prepare phase: a loaded [`Scene`] plus what rendering it needs (the acceleration
+//! structure and the decoded textures), built once and shared read-only by every render of it.
+
+use crate::accel::{Accel, AccelKind, BvhPreset};
+use crate::scene::{AlphaMode, Scene};
+use crate::texture::{TextureError, TextureSet};
+
+/// A scene ready to render.
+pub struct Prepared {
+    /// The triangle soup, materials, cameras and lights.
+    pub scene: Scene,
+    /// Ray queries over `scene.soup`.
+    pub accel: Accel,
+    /// Decoded images of `scene.textures`.
+    pub textures: TextureSet,
+    /// Whether any material is not OPAQUE (else the alpha machinery is skipped).
+    any_alpha: bool,
+}
+
+/// How to prepare a scene.
+#[derive(Clone, Copy, Debug)]
+pub struct PrepareOptions {
+    /// BVH or linear scan.
+    pub accel: AccelKind,
+    /// obvhs build preset.
+    pub bvh_preset: BvhPreset,
+    /// Budget for decoded textures, in bytes: larger images are halved (with a warning).
+    pub max_texture_bytes: usize,
+}
+
+impl Default for PrepareOptions {
+    fn default() -> Self {
+        Self {
+            accel: AccelKind::Bvh,
+            bvh_preset: BvhPreset::Medium,
+            max_texture_bytes: crate::setup::MAX_TEXTURE_MIB << 20,
+        }
+    }
+}
+
+impl Prepared {
+    /// Decodes the textures and builds the acceleration structure (on the current rayon pool).
+    /// Texture warnings (images halved to fit the budget) are appended to `warnings`.
+    pub fn new(
+        scene: Scene,
+        options: &PrepareOptions,
+        warnings: &mut Vec<String>,
+    ) -> Result<Prepared, TextureError> {
+        let textures = TextureSet::load(&scene, options.max_texture_bytes, warnings)?;
+        let accel = Accel::build(
+            &scene.soup,
+            &scene.materials,
+            options.accel,
+            options.bvh_preset,
+        );
+        Ok(Prepared::from_parts(scene, accel, textures))
+    }
+
+    /// Assembles a prepared scene from parts built separately (the CLI times each phase).
+    pub fn from_parts(scene: Scene, accel: Accel, textures: TextureSet) -> Prepared {
+        let any_alpha = scene
+            .materials
+            .iter()
+            .any(|m| m.alpha_mode != AlphaMode::Opaque);
+        Prepared {
+            scene,
+            accel,
+            textures,
+            any_alpha,
+        }
+    }
+
+    /// Whether any material is MASK or BLEND.
+    pub fn any_alpha(&self) -> bool {
+        self.any_alpha
+    }
+}

@@ -1,0 +1,279 @@
+//! The render phase: the pixel loop. Camera rays per pixel (stratified jittered samples), each
+//! handed to an [`Integrator`]; the samples averaged into the film; AOVs from pixel-centre rays.
+//! Surface evaluation lives in [`surface`], light transport in [`crate::integrator`].
+//!
+//! Work is split into square tiles rendered in parallel with rayon. Every pixel's samples come
+//! from a generator keyed by (seed, x, y), so the image is the same, byte for byte, whatever the
+//! number of threads or the order tiles finish in.
+
+pub mod surface;
+
+use crate::camera::{Lens, View};
+use crate::geometry::Ray;
+use crate::image::Image;
+use crate::integrator::{CameraRay, Direct, Integrator, RayCounts};
+use crate::prepare::Prepared;
+use crate::sampling::Rng;
+use crate::scene::Light;
+use crate::shading::ShadingModel;
+use glam::{Vec3, Vec4};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+pub use crate::integrator::direct::MAX_BLEND_LAYERS;
+
+/// Tile edge in pixels: small enough to balance load over cores, large enough that per-tile
+/// overhead vanishes.
+pub const TILE_SIZE: u32 = 32;
+
+/// Everything the renderer needs besides the scene and the acceleration structure.
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    /// The camera, sized for the image.
+    pub view: View,
+    /// Samples per pixel: 1 is the pixel centre; more are stratified jittered samples.
+    pub spp: u32,
+    /// Seed of the sample pattern.
+    pub seed: u64,
+    /// Lights in use (the file's, or the default rig).
+    pub lights: Vec<Light>,
+    /// Ambient radiance multiplier for base colour (unshadowed).
+    pub ambient: Vec3,
+    /// Exposure in stops: radiance is scaled by 2^exposure before output.
+    pub exposure: f32,
+    /// Shading model.
+    pub shading: ShadingModel,
+    /// Also compute the per-pixel AOVs (depth, normal, instance id) from pixel-centre rays.
+    pub aovs: bool,
+}
+
+/// Arbitrary output variables, from one ray through each pixel's centre (no anti-aliasing,
+/// so ids never blend across boundaries), row-major from the top-left pixel.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Aovs {
+    /// Camera-space depth: distance along the view axis (as pyrender's), 0 where nothing is hit.
+    pub depth: Vec<f32>,
+    /// World-space unit shading normal facing the camera (interpolated, before normal maps);
+    /// zero where nothing is hit.
+    pub normal: Vec<Vec3>,
+    /// Mesh instance id + 1 (index into `Scene::instances`), 0 where nothing is hit.
+    pub instance: Vec<u32>,
+}
+
+/// What a render did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RenderStats {
+    /// Camera rays traced.
+    pub primary_rays: u64,
+    /// Shadow rays traced.
+    pub shadow_rays: u64,
+    /// Wall time of the render (not the BVH build).
+    pub time: Duration,
+}
+
+impl RenderStats {
+    /// All rays traced.
+    pub fn rays(&self) -> u64 {
+        self.primary_rays + self.shadow_rays
+    }
+
+    /// Millions of rays per second over the render's wall time.
+    pub fn mrays_per_second(&self) -> f64 {
+        self.rays() as f64 / self.time.as_secs_f64().max(1e-9) / 1e6
+    }
+}
+
+/// The render was stopped through its cancel flag.
+#[derive(Debug, thiserror::Error)]
+#[error("render interrupted")]
+pub struct Cancelled;
+
+/// Renders a prepared scene. `progress` is called with the number of finished tiles and the
+/// total; setting `cancel` stops the render at the next tile.
+pub fn render(
+    scene: &Prepared,
+    settings: &RenderSettings,
+    cancel: &AtomicBool,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<(Image, RenderStats, Option<Aovs>), Cancelled> {
+    let start = Instant::now();
+    let (width, height) = (settings.view.width, settings.view.height);
+    let tiles_x = width.div_ceil(TILE_SIZE);
+    let tiles_y = height.div_ceil(TILE_SIZE);
+    let total = u64::from(tiles_x) * u64::from(tiles_y);
+    let done = std::sync::atomic::AtomicU64::new(0);
+    let integrator = Direct {
+        lights: settings.lights.clone(),
+        ambient: settings.ambient,
+        shading: settings.shading,
+    };
+    let tracer = PixelLoop::new(scene, &integrator, settings);
+    let tiles: Vec<(u32, u32)> = (0..tiles_y)
+        .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
+        .collect();
+    let results: Vec<Option<Tile>> = tiles
+        .par_iter()
+        .map(|&(tx, ty)| {
+            if cancel.load(Ordering::Relaxed) {
+                return None;
+            }
+            let tile = tracer.tile(tx * TILE_SIZE, ty * TILE_SIZE);
+            progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
+            Some(tile)
+        })
+        .collect();
+    let mut image = Image::new(width, height);
+    let pixel_count = width as usize * height as usize;
+    let mut aovs = settings.aovs.then(|| Aovs {
+        depth: vec![0.0; pixel_count],
+        normal: vec![Vec3::ZERO; pixel_count],
+        instance: vec![0; pixel_count],
+    });
+    let mut stats = RenderStats::default();
+    for tile in results {
+        let tile = tile.ok_or(Cancelled)?;
+        stats.primary_rays += tile.counts.primary;
+        stats.shadow_rays += tile.counts.shadow;
+        for (row, chunk) in tile.pixels.chunks(tile.width as usize).enumerate() {
+            let y = tile.y + row as u32;
+            let begin = (y * width + tile.x) as usize;
+            image.pixels[begin..begin + chunk.len()].copy_from_slice(chunk);
+            if let Some(a) = aovs.as_mut() {
+                let at = row * tile.width as usize;
+                let n = chunk.len();
+                a.depth[begin..begin + n].copy_from_slice(&tile.aovs.depth[at..at + n]);
+                a.normal[begin..begin + n].copy_from_slice(&tile.aovs.normal[at..at + n]);
+                a.instance[begin..begin + n].copy_from_slice(&tile.aovs.instance[at..at + n]);
+            }
+        }
+    }
+    stats.time = start.elapsed();
+    Ok((image, stats, aovs))
+}
+
+/// One finished tile.
+struct Tile {
+    x: u32,
+    y: u32,
+    width: u32,
+    pixels: Vec<Vec4>,
+    aovs: Aovs,
+    counts: RayCounts,
+}
+
+/// Per-render constants shared by all tiles.
+struct PixelLoop<'a> {
+    scene: &'a Prepared,
+    integrator: &'a dyn Integrator,
+    settings: &'a RenderSettings,
+    /// 2^exposure.
+    scale: f32,
+    /// Strata per axis for jittered sampling.
+    strata: (u32, u32),
+    /// Ray-cone footprint of a pixel: width at distance t is `spread.0 + spread.1 · t`
+    /// (perspective: angle per pixel; orthographic: pixel size).
+    spread: (f32, f32),
+}
+
+impl<'a> PixelLoop<'a> {
+    fn new(
+        scene: &'a Prepared,
+        integrator: &'a dyn Integrator,
+        settings: &'a RenderSettings,
+    ) -> Self {
+        let sx = (settings.spp as f32).sqrt().floor().max(1.0) as u32;
+        let sy = settings.spp.div_ceil(sx);
+        let view = &settings.view;
+        let spread = match view.lens {
+            Lens::Perspective { height, .. } => (0.0, height / view.height as f32),
+            Lens::Orthographic { height, .. } => (height / view.height as f32, 0.0),
+        };
+        Self {
+            scene,
+            integrator,
+            settings,
+            scale: settings.exposure.exp2(),
+            strata: (sx, sy),
+            spread,
+        }
+    }
+
+    fn tile(&self, x0: u32, y0: u32) -> Tile {
+        let view = &self.settings.view;
+        let x1 = (x0 + TILE_SIZE).min(view.width);
+        let y1 = (y0 + TILE_SIZE).min(view.height);
+        let mut tile = Tile {
+            x: x0,
+            y: y0,
+            width: x1 - x0,
+            pixels: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
+            aovs: Aovs::default(),
+            counts: RayCounts::default(),
+        };
+        let spp = self.settings.spp.max(1);
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let mut rng = Rng::for_pixel(self.settings.seed, x, y);
+                let mut sum = Vec4::ZERO;
+                for s in 0..spp {
+                    let (dx, dy) = if spp == 1 {
+                        (0.5, 0.5)
+                    } else {
+                        let (sx, sy) = self.strata;
+                        let (cx, cy) = (s % sx, (s / sx) % sy);
+                        (
+                            (cx as f32 + rng.next_f32()) / sx as f32,
+                            (cy as f32 + rng.next_f32()) / sy as f32,
+                        )
+                    };
+                    let camera = CameraRay {
+                        ray: view.ray(x as f32 + dx, y as f32 + dy),
+                        spread_base: self.spread.0,
+                        spread_per_distance: self.spread.1,
+                    };
+                    let (color, coverage) =
+                        self.integrator
+                            .radiance(self.scene, &camera, &mut rng, &mut tile.counts);
+                    sum += (color * self.scale).extend(coverage);
+                }
+                tile.pixels.push(sum / spp as f32);
+                if self.settings.aovs {
+                    self.aov(&view.ray(x as f32 + 0.5, y as f32 + 0.5), &mut tile.aovs);
+                }
+            }
+        }
+        tile
+    }
+
+    /// Depth, normal and instance id of the first surface along a pixel-centre ray.
+    fn aov(&self, ray: &Ray, out: &mut Aovs) {
+        let accept = |tri: u32, b: Vec3| self.scene.accept_for_camera(tri, b);
+        let hit = self.scene.accel.intersect_filtered(ray, Some(&accept));
+        match hit {
+            Some(hit) => {
+                let soup = &self.scene.scene.soup;
+                let tri = hit.triangle as usize;
+                let b = hit.barycentric;
+                let [na, nb, nc] = soup.normals[tri];
+                let [pa, pb, pc] = soup.positions[tri];
+                let direction = Vec3::from(ray.direction);
+                let mut n = (na * b.x + nb * b.y + nc * b.z)
+                    .try_normalize()
+                    .unwrap_or((pb - pa).cross(pc - pa).normalize_or_zero());
+                if n.dot(direction) > 0.0 {
+                    n = -n;
+                }
+                out.depth.push(hit.t * direction.dot(-self.settings.view.w));
+                out.normal.push(n);
+                out.instance
+                    .push(soup.instance.get(tri).map_or(0, |i| i + 1));
+            }
+            None => {
+                out.depth.push(0.0);
+                out.normal.push(Vec3::ZERO);
+                out.instance.push(0);
+            }
+        }
+    }
+}

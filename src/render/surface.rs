@@ -1,0 +1,373 @@
+//! From a hit to a surface point: position with its error bound, normals (geometric, smooth,
+//! normal-mapped), the material with its textures sampled, alpha. Integrators ask these
+//! questions; none of them knows about pixels or lights.
+//!
+//! Alpha (glTF 2.0 §3.9.4): OPAQUE ignores alpha; MASK surfaces below `alphaCutoff` are absent
+//! for camera and shadow rays alike (tested inside traversal); BLEND surfaces are composited by
+//! the integrator and attenuate shadow rays by (1 - alpha) each: an approximation that ignores
+//! their colour and the order of layers.
+
+use crate::accel::Hit;
+use crate::geometry::{Ray, SpawnPoint};
+use crate::prepare::Prepared;
+use crate::scene::{AlphaMode, Material, TextureRef};
+use crate::shading::SurfaceMaterial;
+use crate::texture::transform_uv;
+use glam::{Vec2, Vec3, Vec4};
+use std::cell::Cell;
+
+/// Everything shading needs about a hit point.
+pub struct Surface<'m> {
+    /// The hit point with its error bound: where secondary rays leave from
+    /// ([`crate::geometry::spawn`]).
+    pub spawn: SpawnPoint,
+    /// From `point` onto the curved surface a smooth-shaded triangle's vertex normals describe
+    /// (see [`terminator_lift`]); zero for flat triangles.
+    pub lift: Vec3,
+    /// Geometric normal facing the incoming ray.
+    pub geometric: Vec3,
+    /// Interpolated vertex normal on the geometric normal's side: the smooth surface the
+    /// mesh approximates.
+    pub smooth: Vec3,
+    /// Shading normal (interpolated, normal-mapped) on the geometric normal's side.
+    pub normal: Vec3,
+    /// The BRDF inputs at the point (textures applied).
+    pub material: SurfaceMaterial,
+    /// Emitted radiance (emissive factor × texture × strength).
+    pub emissive: Vec3,
+    /// Ambient occlusion from the occlusion texture (1 = none).
+    pub occlusion: f32,
+    /// Coverage (1 for OPAQUE materials).
+    pub alpha: f32,
+    /// The material hit.
+    pub source: &'m Material,
+}
+
+impl Prepared {
+    /// The closest surface a camera ray sees: MASK cut-outs are skipped, BLEND surfaces count.
+    pub fn intersect_camera(&self, ray: &Ray) -> Option<Hit> {
+        if self.any_alpha() {
+            let accept = |tri: u32, b: Vec3| self.accept_for_camera(tri, b);
+            self.accel.intersect_filtered(ray, Some(&accept))
+        } else {
+            self.accel.intersect(ray)
+        }
+    }
+
+    /// Alpha of a MASK or BLEND surface at a candidate hit: base colour factor × texture ×
+    /// vertex colour (the texture at full resolution: this runs inside traversal).
+    pub fn alpha_at(&self, triangle: u32, barycentric: Vec3) -> f32 {
+        let soup = &self.scene.soup;
+        let tri = triangle as usize;
+        let Some(material) = self.scene.materials.get(soup.material[tri] as usize) else {
+            return 1.0;
+        };
+        let mut alpha = material.base_color.w;
+        if let Some([a, b, c]) = soup.colors.get(tri) {
+            alpha *= a.w * barycentric.x + b.w * barycentric.y + c.w * barycentric.z;
+        }
+        if let Some(r) = &material.base_color_texture {
+            if let Some((image, sampler)) = self.textures.lookup(&self.scene, r) {
+                let uv = transform_uv(r, self.uv(tri, r.tex_coord, barycentric));
+                alpha *= image.sample(uv, 0.0, sampler, false).w;
+            }
+        }
+        alpha
+    }
+
+    /// MASK surfaces exist where alpha reaches the cutoff; BLEND surfaces are always hit by
+    /// eye rays (and composited).
+    pub fn accept_for_camera(&self, triangle: u32, barycentric: Vec3) -> bool {
+        let material = &self.scene.materials[self.scene.soup.material[triangle as usize] as usize];
+        material.alpha_mode != AlphaMode::Mask
+            || self.alpha_at(triangle, barycentric) >= material.alpha_cutoff
+    }
+
+    fn uv(&self, tri: usize, set: u32, b: Vec3) -> Vec2 {
+        let uvs = if set == 1 {
+            &self.scene.soup.uv1
+        } else {
+            &self.scene.soup.uv0
+        };
+        match uvs.get(tri) {
+            Some([ua, ub, uc]) => *ua * b.x + *ub * b.y + *uc * b.z,
+            None => Vec2::ZERO,
+        }
+    }
+
+    /// Samples a texture at a hit with a mip level from the ray cone (Akenine-Möller et al.,
+    /// "Texture Level of Detail Strategies for Real-Time Ray Tracing", 2019):
+    /// lod = ½·log2(texels · uv area / world area) + log2(cone width / |n·d|).
+    fn sample(
+        &self,
+        r: &TextureRef,
+        tri: usize,
+        b: Vec3,
+        cone: f32,
+        cos: f32,
+        srgb: bool,
+    ) -> Option<Vec4> {
+        let (image, sampler) = self.textures.lookup(&self.scene, r)?;
+        let uvs = if r.tex_coord == 1 {
+            &self.scene.soup.uv1
+        } else {
+            &self.scene.soup.uv0
+        };
+        let [pa, pb, pc] = self.scene.soup.positions[tri];
+        let lod = match uvs.get(tri) {
+            Some([ua, ub, uc]) => {
+                let world = (pb - pa).cross(pc - pa).length();
+                let uv_area = (*ub - *ua).perp_dot(*uc - *ua).abs();
+                let (w, h) = image.size();
+                let density = (w as f32 * h as f32 * uv_area / world.max(f32::MIN_POSITIVE)).sqrt();
+                (density * cone / cos.abs().max(1e-3)).log2()
+            }
+            None => 0.0,
+        };
+        let uv = transform_uv(r, self.uv(tri, r.tex_coord, b));
+        Some(image.sample(uv, lod, sampler, srgb))
+    }
+
+    /// The surface point `hit` found along `ray`: material inputs with textures sampled at a
+    /// mip level from the ray cone's width `cone` at the hit.
+    pub fn surface(&self, ray: &Ray, hit: &Hit, cone: f32) -> Surface<'_> {
+        let soup = &self.scene.soup;
+        let tri = hit.triangle as usize;
+        let b = hit.barycentric;
+        let [pa, pb, pc] = soup.positions[tri];
+        // The importer drops degenerate triangles, so this always succeeds; the fallback keeps a
+        // bad triangle from panicking (its shadow rays start at the interpolated point).
+        let spawn = SpawnPoint::on_triangle([pa, pb, pc], b).unwrap_or(SpawnPoint {
+            point: pa * b.x + pb * b.y + pc * b.z,
+            error: Vec3::ZERO,
+            normal: Vec3::Z,
+        });
+        let point = spawn.point;
+        let direction = Vec3::from(ray.direction);
+        let mut geometric = (pb - pa).cross(pc - pa).normalize_or_zero();
+        if geometric.dot(direction) > 0.0 {
+            geometric = -geometric;
+        }
+        let cos = geometric.dot(direction);
+        let [na, nb, nc] = soup.normals[tri];
+        let mut normal = (na * b.x + nb * b.y + nc * b.z)
+            .try_normalize()
+            .unwrap_or(geometric);
+        if normal.dot(geometric) < 0.0 {
+            normal = -normal;
+        }
+        let smooth = normal;
+        let facing = |n: Vec3| if n.dot(geometric) < 0.0 { -n } else { n };
+        let lift = terminator_lift(point, [pa, pb, pc], [facing(na), facing(nb), facing(nc)], b);
+        static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
+        let material = self
+            .scene
+            .materials
+            .get(soup.material[tri] as usize)
+            .unwrap_or_else(|| DEFAULT.get_or_init(Material::default));
+        let mut base = material.base_color;
+        if let Some([ca, cb, cc]) = soup.colors.get(tri) {
+            base *= *ca * b.x + *cb * b.y + *cc * b.z;
+        }
+        let sample = |r: &Option<TextureRef>, srgb: bool| {
+            r.as_ref()
+                .and_then(|r| self.sample(r, tri, b, cone, cos, srgb))
+        };
+        if let Some(t) = sample(&material.base_color_texture, true) {
+            base *= t;
+        }
+        let (mut metallic, mut roughness) = (material.metallic, material.roughness);
+        if let Some(t) = sample(&material.metallic_roughness_texture, false) {
+            // glTF 2.0 §3.9.2: roughness in G, metalness in B.
+            roughness *= t.y;
+            metallic *= t.z;
+        }
+        let mut emissive = material.emissive * material.emissive_strength;
+        if let Some(t) = sample(&material.emissive_texture, true) {
+            emissive *= t.truncate();
+        }
+        let occlusion = match sample(&material.occlusion_texture, false) {
+            // glTF 2.0 §3.9.3: occluded = 1 + strength · (sample - 1), from the R channel.
+            Some(t) => 1.0 + material.occlusion_strength * (t.x - 1.0),
+            None => 1.0,
+        };
+        if let (Some(r), Some(t)) = (
+            &material.normal_texture,
+            sample(&material.normal_texture, false),
+        ) {
+            normal = self.normal_mapped(tri, b, r, normal, geometric, t, material.normal_scale);
+        }
+        Surface {
+            spawn,
+            lift,
+            geometric,
+            smooth,
+            normal,
+            material: SurfaceMaterial {
+                base_color: base.truncate(),
+                metallic: metallic.clamp(0.0, 1.0),
+                roughness: roughness.clamp(0.0, 1.0),
+                specular: material.specular,
+            },
+            emissive,
+            occlusion,
+            alpha: if material.alpha_mode == AlphaMode::Opaque {
+                1.0
+            } else {
+                base.w.clamp(0.0, 1.0)
+            },
+            source: material,
+        }
+    }
+
+    /// Perturbs the shading normal by a tangent-space normal map (glTF 2.0 §3.9.3): n =
+    /// normalize(T·x + B·y + N·z) with (x, y, z) = (2·rgb - 1)·(scale, scale, 1), B = (N × T)·w.
+    /// Tangents come from the file's TANGENT, else from MikkTSpace at load
+    /// ([`crate::scene::tangents`]), else (degenerate UVs) from the triangle's UV gradient.
+    #[allow(clippy::too_many_arguments)]
+    fn normal_mapped(
+        &self,
+        tri: usize,
+        b: Vec3,
+        r: &TextureRef,
+        n: Vec3,
+        geometric: Vec3,
+        texel: Vec4,
+        scale: f32,
+    ) -> Vec3 {
+        let soup = &self.scene.soup;
+        let from_file = soup.tangents.get(tri).and_then(|[ta, tb, tc]| {
+            let t = *ta * b.x + *tb * b.y + *tc * b.z;
+            (ta.w != 0.0).then(|| (t.truncate(), if ta.w < 0.0 { -1.0 } else { 1.0 }))
+        });
+        let frame = from_file.or_else(|| {
+            let uvs = if r.tex_coord == 1 {
+                &soup.uv1
+            } else {
+                &soup.uv0
+            };
+            let [ua, ub, uc] = *uvs.get(tri)?;
+            let [pa, pb, pc] = soup.positions[tri];
+            let (e1, e2) = (pb - pa, pc - pa);
+            let (d1, d2) = (ub - ua, uc - ua);
+            let det = d1.x * d2.y - d2.x * d1.y;
+            if det.abs() < 1e-20 {
+                return None;
+            }
+            let tangent = (e1 * d2.y - e2 * d1.y) / det;
+            let bitangent = (e2 * d1.x - e1 * d2.x) / det;
+            // glTF UVs have v down, so the bitangent points along -v in texture terms.
+            let w = if n.cross(tangent).dot(bitangent) < 0.0 {
+                1.0
+            } else {
+                -1.0
+            };
+            Some((tangent, w))
+        });
+        let Some((tangent, w)) = frame else {
+            return n;
+        };
+        let t = (tangent - n * n.dot(tangent)).try_normalize();
+        let Some(t) = t else {
+            return n;
+        };
+        let bt = n.cross(t) * w;
+        let m = Vec3::new(
+            (2.0 * texel.x - 1.0) * scale,
+            (2.0 * texel.y - 1.0) * scale,
+            2.0 * texel.z - 1.0,
+        );
+        let mapped = (t * m.x + bt * m.y + n * m.z).try_normalize().unwrap_or(n);
+        if mapped.dot(geometric) <= 0.0 {
+            n
+        } else {
+            mapped
+        }
+    }
+
+    /// 1 for an unblocked shadow ray, 0 for a blocked one, the product of (1 - alpha) over
+    /// BLEND surfaces in between otherwise.
+    pub fn shadow_transmittance(&self, shadow: &Ray) -> f32 {
+        if !self.any_alpha() {
+            return if self.accel.occluded(shadow) {
+                0.0
+            } else {
+                1.0
+            };
+        }
+        let transmittance = Cell::new(1.0f32);
+        let accept = |tri: u32, b: Vec3| {
+            let material = &self.scene.materials[self.scene.soup.material[tri as usize] as usize];
+            match material.alpha_mode {
+                AlphaMode::Mask => self.alpha_at(tri, b) >= material.alpha_cutoff,
+                AlphaMode::Blend => {
+                    let alpha = self.alpha_at(tri, b).clamp(0.0, 1.0);
+                    transmittance.set(transmittance.get() * (1.0 - alpha));
+                    transmittance.get() < 1e-3
+                }
+                AlphaMode::Opaque => true,
+            }
+        };
+        if self.accel.occluded_filtered(shadow, Some(&accept)) {
+            0.0
+        } else {
+            transmittance.get()
+        }
+    }
+}
+
+/// Below this cosine between the light and the facet normal, shadow rays start from the
+/// terminator-lifted point (fading in from here to 0).
+pub const TERMINATOR_BAND: f32 = 0.1;
+
+/// The shadow-terminator offset of Hanika, "Hacking the shadow terminator" (Ray Tracing Gems
+/// II, ch. 4, 2021). A smooth-shaded mesh is flat between its vertices, so near the terminator
+/// a shadow ray leaving the flat facet is blocked by the neighbouring facets (or the facet
+/// itself) although the shading normal says the point is lit: the terminator turns into a
+/// staircase along the tessellation. Project `point` onto the tangent plane of each vertex
+/// (the plane through the vertex, normal to its shading normal) when it lies below it, and
+/// blend the three projections with the barycentric weights: the result lies on a smooth
+/// surface through the vertices, above the facets that caused the staircase. Flat triangles
+/// (vertex normals equal to the face normal) are not moved. Returns the offset from `point`.
+/// `normals` must face the side the ray arrived from.
+pub fn terminator_lift(point: Vec3, vertices: [Vec3; 3], normals: [Vec3; 3], b: Vec3) -> Vec3 {
+    let below = |i: usize| (point - vertices[i]).dot(normals[i]).min(0.0) * normals[i];
+    -(below(0) * b.x + below(1) * b.y + below(2) * b.z)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::terminator_lift;
+    use glam::{vec3, Vec3};
+
+    #[test]
+    fn terminator_lift_leaves_flat_triangles_alone() {
+        let vertices = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let b = vec3(0.2, 0.3, 0.5);
+        let point = vertices[0] * b.x + vertices[1] * b.y + vertices[2] * b.z;
+        assert_eq!(
+            terminator_lift(point, vertices, [Vec3::Z; 3], b),
+            Vec3::ZERO
+        );
+    }
+
+    /// A facet of a unit sphere with vertex normals pointing out of the sphere: the lifted
+    /// centroid lies outside the facet, most of the way to the sphere, and not beyond it.
+    #[test]
+    fn terminator_lift_moves_toward_the_smooth_surface() {
+        let vertices = [
+            vec3(1.0, 0.0, 0.0),
+            vec3(0.0, 1.0, 0.0),
+            vec3(0.0, 0.0, 1.0),
+        ];
+        let b = Vec3::splat(1.0 / 3.0);
+        let point = (vertices[0] + vertices[1] + vertices[2]) / 3.0;
+        let lifted = point + terminator_lift(point, vertices, vertices, b);
+        let (before, after) = (point.length(), lifted.length());
+        assert!((before - 0.577).abs() < 1e-3, "{before}");
+        assert!(
+            after > before + 0.5 * (1.0 - before) && after <= 1.0 + 1e-6,
+            "|lifted| = {after}"
+        );
+    }
+}

@@ -1,0 +1,93 @@
+//! Every default of a render in one named place: the CLI's `--help` prints these values, the
+//! library uses them when the caller does not say otherwise, and `VIEW.json` records what was
+//! actually used.
+
+use crate::camera::{auto_camera, View};
+use crate::render::RenderSettings;
+use crate::scene::{Light, LightKind, Scene};
+use crate::shading::ShadingModel;
+use glam::Vec3;
+
+/// Samples per pixel when none is given.
+pub const DEFAULT_SPP: u32 = 4;
+
+/// Image width when none is given.
+pub const DEFAULT_WIDTH: u32 = 1024;
+
+/// Image height when none is given and the camera has no aspect ratio.
+pub const DEFAULT_HEIGHT: u32 = 768;
+
+/// Vertical field of view of the automatic camera and of `--look-from` cameras, in degrees.
+pub const DEFAULT_YFOV_DEGREES: f32 = 45.0;
+
+/// Ambient factor with the default light rig: enough to show the unlit side of a model.
+pub const AMBIENT_WITH_DEFAULT_RIG: f32 = 0.08;
+
+/// Ambient factor when the file brings its own lights: a faint fill, so that shadows are not
+/// pitch black but the file's lighting dominates.
+pub const AMBIENT_WITH_FILE_LIGHTS: f32 = 0.03;
+
+/// Budget for decoded textures, in MiB (`--max-texture-memory`).
+pub const MAX_TEXTURE_MIB: usize = 2048;
+
+/// Illuminance of the default rig's key light (lux): a white diffuse surface facing it reads
+/// about 2.5/π ≈ 0.8.
+pub const KEY_LIGHT_LUX: f32 = 2.5;
+
+/// Illuminance of the default rig's fill light (lux), about a third of the key.
+pub const FILL_LIGHT_LUX: f32 = 0.8;
+
+/// The default light rig for scenes without lights, in the camera's frame: a key light from
+/// above-left behind the camera, a fill from the right, and [`AMBIENT_WITH_DEFAULT_RIG`]. Both
+/// are directional, so the rig does not depend on the scene's scale.
+pub fn default_rig(view: &View) -> (Vec<Light>, Vec3) {
+    let directional = |name: &str, to_light: Vec3, lux: f32| Light {
+        name: Some(name.to_string()),
+        kind: LightKind::Directional,
+        color: Vec3::ONE,
+        intensity: lux,
+        range: None,
+        position: Vec3::ZERO,
+        direction: -to_light.normalize(),
+    };
+    let key = directional(
+        "default key",
+        view.w + 0.8 * view.v - 0.6 * view.u,
+        KEY_LIGHT_LUX,
+    );
+    let fill = directional(
+        "default fill",
+        0.6 * view.w + 0.2 * view.v + 1.0 * view.u,
+        FILL_LIGHT_LUX,
+    );
+    (vec![key, fill], Vec3::splat(AMBIENT_WITH_DEFAULT_RIG))
+}
+
+/// The default render of `scene` at `width` x `height`: its first camera (else the automatic
+/// one framing its bounds), its lights with [`AMBIENT_WITH_FILE_LIGHTS`] (else the default
+/// rig), [`DEFAULT_SPP`] samples per pixel, seed 0, the glTF BRDF, no exposure change, no AOVs.
+/// What `meshtracer render MODEL` does with no options.
+pub fn default_settings(scene: &Scene, width: u32, height: u32) -> RenderSettings {
+    let aspect = width as f32 / height.max(1) as f32;
+    let camera = scene
+        .cameras
+        .first()
+        .cloned()
+        .unwrap_or_else(|| auto_camera(&scene.bounds, aspect));
+    let view = View::from_camera(&camera, width, height);
+    let (lights, ambient) = if scene.lights.is_empty() {
+        default_rig(&view)
+    } else {
+        (scene.lights.clone(), Vec3::splat(AMBIENT_WITH_FILE_LIGHTS))
+    };
+    RenderSettings {
+        view,
+        spp: DEFAULT_SPP,
+        seed: 0,
+        lights,
+        ambient,
+        exposure: 0.0,
+        shading: ShadingModel::Pbr,
+        aovs: false,
+    }
+}
