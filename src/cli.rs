@@ -323,7 +323,10 @@ mod help_tests {
         for phrase in [
             format!("default: {}", setup::DEFAULT_WIDTH),
             format!("else {}", setup::DEFAULT_HEIGHT),
-            format!("default: {}, or the file camera's", setup::DEFAULT_YFOV_DEGREES),
+            format!(
+                "default: {}, or the file camera's",
+                setup::DEFAULT_YFOV_DEGREES
+            ),
             format!("{} with the default rig", setup::AMBIENT_WITH_DEFAULT_RIG),
             format!("{} with the file's lights", setup::AMBIENT_WITH_FILE_LIGHTS),
             format!("default: {}", setup::DEFAULT_SPP),

@@ -78,6 +78,7 @@ impl Prepared {
     /// MASK surfaces exist where alpha reaches the cutoff; BLEND surfaces are always hit by
     /// eye rays (and composited).
     pub fn accept_for_camera(&self, triangle: u32, barycentric: Vec3) -> bool {
+        // In range: Scene::check_references ran at load.
         let material = &self.scene.materials[self.scene.soup.material[triangle as usize] as usize];
         material.alpha_mode != AlphaMode::Mask
             || self.alpha_at(triangle, barycentric) >= material.alpha_cutoff
@@ -297,6 +298,7 @@ impl Prepared {
         }
         let transmittance = Cell::new(1.0f32);
         let accept = |tri: u32, b: Vec3| {
+            // In range: Scene::check_references ran at load.
             let material = &self.scene.materials[self.scene.soup.material[tri as usize] as usize];
             match material.alpha_mode {
                 AlphaMode::Mask => self.alpha_at(tri, b) >= material.alpha_cutoff,

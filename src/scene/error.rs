@@ -170,6 +170,18 @@ pub enum LoadErrorKind {
     /// The scene to render does not exist or holds no triangle.
     #[error("the scene has no triangles to render{0}")]
     NoTriangles(String),
+    /// A reference between parts of the loaded scene points past the end of its list (an
+    /// importer bug or a file that slipped past its checks): refused once at load, so the
+    /// renderer can index without checking.
+    #[error("{what} {index} is out of range for {count} entries")]
+    BadReference {
+        /// What refers to what (`triangle material`, `material texture`, `texture image`).
+        what: &'static str,
+        /// The bad index.
+        index: usize,
+        /// The length of the list it indexes.
+        count: usize,
+    },
     /// The glTF file has no scene.
     #[error("the file defines no scene")]
     NoScene,

@@ -498,6 +498,53 @@ impl Scene {
         Scene::from_bytes(path, &bytes, options)
     }
 
+    /// Checks that every index between the scene's lists is in range: triangle -> material,
+    /// material -> texture, texture -> image, and that the soup's per-triangle arrays agree in
+    /// length. After this the renderer indexes them without checking.
+    pub fn check_references(&self) -> Result<(), LoadErrorKind> {
+        let bad =
+            |what, index: usize, count| Err(LoadErrorKind::BadReference { what, index, count });
+        let triangles = self.soup.positions.len();
+        for (what, len) in [
+            ("triangle normals", self.soup.normals.len()),
+            ("triangle materials", self.soup.material.len()),
+        ] {
+            if len != triangles {
+                return bad(what, len, triangles);
+            }
+        }
+        if let Some(&m) = self
+            .soup
+            .material
+            .iter()
+            .find(|&&m| m as usize >= self.materials.len())
+        {
+            return bad("triangle material", m as usize, self.materials.len());
+        }
+        for material in &self.materials {
+            for r in [
+                material.base_color_texture,
+                material.metallic_roughness_texture,
+                material.normal_texture,
+                material.occlusion_texture,
+                material.emissive_texture,
+            ]
+            .into_iter()
+            .flatten()
+            {
+                if r.texture >= self.textures.len() {
+                    return bad("material texture", r.texture, self.textures.len());
+                }
+            }
+        }
+        for texture in &self.textures {
+            if texture.image >= self.images.len() {
+                return bad("texture image", texture.image, self.images.len());
+            }
+        }
+        Ok(())
+    }
+
     /// Loads a scene from bytes already in memory; `path` names the file in errors and anchors
     /// relative URIs. This is the entry point the fuzz targets use.
     pub fn from_bytes(
@@ -522,6 +569,41 @@ impl Scene {
             };
             return Err(LoadError::new(path, LoadErrorKind::NoTriangles(detail)));
         }
+        scene
+            .check_references()
+            .map_err(|kind| LoadError::new(path, kind))?;
         Ok(scene)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every cross-reference the renderer indexes by is checked: a triangle's material, a
+    /// material's texture and a texture's image, each one past the end is refused by name.
+    #[test]
+    fn out_of_range_references_are_refused() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/assets/cornell-box.gltf");
+        let scene = Scene::load(path).expect("the bundled scene loads");
+        assert!(scene.check_references().is_ok());
+
+        let mut bad = scene.clone();
+        bad.soup.material[0] = bad.materials.len() as u32;
+        let message = bad.check_references().unwrap_err().to_string();
+        assert!(message.contains("triangle material"), "{message}");
+
+        let mut bad = scene.clone();
+        bad.materials[0].base_color_texture = Some(TextureRef {
+            texture: 7,
+            tex_coord: 0,
+            transform: None,
+        });
+        let message = bad.check_references().unwrap_err().to_string();
+        assert!(message.contains("material texture 7"), "{message}");
+
+        let mut bad = scene;
+        bad.soup.normals.pop();
+        assert!(bad.check_references().is_err());
     }
 }
