@@ -10,7 +10,7 @@
 //!
 //! Every file is written atomically like the image.
 
-use crate::image::{write_atomic, SaveError};
+use crate::output::{write_atomic, SaveError};
 use glam::Vec3;
 use std::path::Path;
 

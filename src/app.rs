@@ -3,7 +3,7 @@
 use crate::accel::{Accel, AccelKind};
 use crate::camera::{auto_camera, look_at, View};
 use crate::cli::{Command, InfoArgs, LoadArgs, RenderArgs};
-use crate::image::PendingOutput;
+use crate::output::PendingOutput;
 use crate::prepare::Prepared;
 use crate::render::{render, RenderSettings};
 use crate::scene::{Camera, LightKind, LoadOptions, Projection, Scene};
@@ -249,7 +249,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         bail!("image width and height must be at least 1");
     }
     let view_file = match &args.view {
-        Some(path) => Some(crate::view::View::read(path)?),
+        Some(path) => Some(crate::view::ViewFile::read(path)?),
         None => None,
     };
     if let Some(v) = &view_file {
@@ -391,7 +391,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         crate::aov::write_mask(p, width, height, &coverage)?;
     }
     if let Some(path) = &args.view_out {
-        let mut view = crate::view::View::new(
+        let mut view = crate::view::ViewFile::new(
             &camera,
             width,
             height,
@@ -597,12 +597,12 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
     println!("{settings}");
     if let Some(path) = &args.report {
         let report = format!("# meshtracer bench\n\n{settings}\n\n{table}");
-        crate::image::write_atomic(path, report.as_bytes())?;
+        crate::output::write_atomic(path, report.as_bytes())?;
     }
     if let Some(path) = &args.plot {
         let title = format!("time per {:?} ray vs triangles", args.rays).to_lowercase();
         let png = crate::plot::scaling_plot(&generated_rows, &title);
-        crate::image::write_atomic(path, &png)?;
+        crate::output::write_atomic(path, &png)?;
     }
     match partial {
         Some(p) => Err(Interrupted(format!("{p} reported")).into()),
@@ -653,12 +653,9 @@ fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
     let (metrics, a, b, heat) = compare_files(&args.a, &args.b, background)?;
     if let Some(path) = &args.diff_out {
         let mut png = Vec::new();
-        heat.write_to(
-            &mut std::io::Cursor::new(&mut png),
-            ::image::ImageFormat::Png,
-        )
-        .context("encoding the heatmap")?;
-        crate::image::write_atomic(path, &png)?;
+        heat.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+            .context("encoding the heatmap")?;
+        crate::output::write_atomic(path, &png)?;
     }
     if let Some(path) = &args.side_by_side {
         let name = |p: &std::path::Path| {
@@ -675,12 +672,9 @@ fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
         );
         let mut png = Vec::new();
         strip
-            .write_to(
-                &mut std::io::Cursor::new(&mut png),
-                ::image::ImageFormat::Png,
-            )
+            .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
             .context("encoding the side-by-side image")?;
-        crate::image::write_atomic(path, &png)?;
+        crate::output::write_atomic(path, &png)?;
     }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&metrics)?);

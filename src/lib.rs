@@ -6,8 +6,8 @@
 //! load         Scene::load(path)                          scene/ (glTF, OBJ importers)
 //! prepare      Prepared::new(scene, &options)             prepare.rs: BVH (accel/), textures
 //! integrate    render(&prepared, &settings, ...)          render/ (pixel loop, surface), integrator/
-//! film         Image (linear RGBA f32) + Aovs             image.rs, render/
-//! outputs      PendingOutput::commit, aov::write_*        image.rs, aov.rs, view.rs
+//! film         Image (linear RGBA f32) + Aovs             output.rs, render/
+//! outputs      PendingOutput::commit, aov::write_*        output.rs, aov.rs, view.rs
 //! ```
 //!
 //! Every default (image size, field of view, ambient, the light rig) is in [`setup`]. Importers
@@ -43,9 +43,9 @@ pub mod camera;
 pub mod cli;
 pub mod compare;
 pub mod geometry;
-pub mod image;
 pub mod integrator;
 pub mod light;
+pub mod output;
 pub mod plot;
 pub mod prepare;
 pub mod render;

@@ -81,7 +81,7 @@ pub struct ViewLight {
 
 /// Everything needed to render the same view again, here or in another renderer.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct View {
+pub struct ViewFile {
     /// Schema version ([`VIEW_VERSION`]).
     pub meshtracer_view: u32,
     /// Image size.
@@ -127,7 +127,7 @@ pub struct ViewError {
     problem: String,
 }
 
-impl View {
+impl ViewFile {
     /// The view of a render.
     pub fn new(
         camera: &Camera,
@@ -136,7 +136,7 @@ impl View {
         lights: &[Light],
         ambient: Vec3,
         default_lights: bool,
-    ) -> View {
+    ) -> ViewFile {
         let aspect = width as f32 / height as f32;
         let (kind, yfov, xmag, ymag, znear, zfar) = match camera.projection {
             Projection::Perspective {
@@ -153,7 +153,7 @@ impl View {
                 Some(zfar),
             ),
         };
-        View {
+        ViewFile {
             meshtracer_view: VIEW_VERSION,
             image: ImageSize { width, height },
             camera: ViewCamera {
@@ -177,13 +177,13 @@ impl View {
     }
 
     /// Reads and checks a view file.
-    pub fn read(path: &Path) -> Result<View, ViewError> {
+    pub fn read(path: &Path) -> Result<ViewFile, ViewError> {
         let err = |problem: String| ViewError {
             path: path.display().to_string(),
             problem,
         };
         let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
-        let view: View =
+        let view: ViewFile =
             serde_json::from_str(&text).map_err(|e| err(format!("not a meshtracer view: {e}")))?;
         if view.meshtracer_view != VIEW_VERSION {
             return Err(err(format!(
@@ -260,10 +260,10 @@ impl View {
     }
 
     /// Writes the view as pretty JSON, atomically.
-    pub fn write(&self, path: &Path) -> Result<(), crate::image::SaveError> {
+    pub fn write(&self, path: &Path) -> Result<(), crate::output::SaveError> {
         let mut text = serde_json::to_string_pretty(self).unwrap_or_default();
         text.push('\n');
-        crate::image::write_atomic(path, text.as_bytes())
+        crate::output::write_atomic(path, text.as_bytes())
     }
 }
 

@@ -10,8 +10,8 @@ pub mod surface;
 
 use crate::camera::{Lens, View};
 use crate::geometry::Ray;
-use crate::image::Image;
 use crate::integrator::{CameraRay, Direct, Integrator, RayCounts};
+use crate::output::Image;
 use crate::prepare::Prepared;
 use crate::sampling::Rng;
 use crate::scene::Light;
