@@ -12,6 +12,7 @@
 //! - §3.10: cameras look down local -Z with +Y up; `yfov` in radians.
 //! - KHR_lights_punctual: lights shine along local -Z; candela (point, spot), lux (directional).
 
+use super::attributes;
 use super::builder::TriangleIn;
 use super::error::PrimitiveAt;
 use super::{
@@ -39,6 +40,7 @@ const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_materials_variants",
     "KHR_materials_volume",
     "KHR_materials_pbrSpecularGlossiness",
+    "KHR_mesh_quantization",
 ];
 
 /// Most node visits a hierarchy may expand to. A node shared by two parents is instanced twice,
@@ -64,7 +66,10 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         }
     }
     let blob = gltf.blob;
-    let root = gltf.document.into_json();
+    let mut root = gltf.document.into_json();
+    // Checked above; gltf-json's validation refuses required extensions it does not know
+    // itself (KHR_mesh_quantization), which we decode here.
+    root.extensions_required.clear();
     check_attribute_indices(&root).map_err(err)?;
     let document = gltf::Document::from_json(root).map_err(|e| err(convert(e)))?;
     let access = FileAccess::new(
@@ -89,6 +94,9 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         singular_instances: 0,
         warned_skin: false,
         warned_morph: false,
+        quantization: document
+            .extensions_used()
+            .any(|name| name == "KHR_mesh_quantization"),
     };
     importer.walk_default_scene().map_err(err)?;
     let materials = importer.materials();
@@ -358,43 +366,110 @@ fn check_views(document: &gltf::Document, buffers: &[Vec<u8>]) -> Result<(), Loa
     Ok(())
 }
 
-/// What an attribute accessor may be (glTF 2.0 §3.7.2.1, table "Attributes").
+/// Whether an integer accessor must, may or must not be `normalized`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Normalized {
+    Yes,
+    No,
+    Either,
+}
+
+/// What an attribute accessor may be: glTF 2.0 §3.7.2.1 (table "Attributes"), plus what
+/// `KHR_mesh_quantization` allows when the file declares it.
 struct Expect {
     semantic: &'static str,
     dims: &'static [Dimensions],
-    types: &'static [DataType],
+    types: &'static [(DataType, Normalized)],
+    quantized: &'static [(DataType, Normalized)],
 }
+
+const FLOAT: &[(DataType, Normalized)] = &[(DataType::F32, Normalized::No)];
+/// KHR_mesh_quantization: unit vectors as normalized signed bytes or shorts.
+const UNIT_VECTORS: &[(DataType, Normalized)] = &[
+    (DataType::I8, Normalized::Yes),
+    (DataType::I16, Normalized::Yes),
+];
+/// Core TEXCOORD_n and COLOR_n: float, or normalized unsigned bytes or shorts.
+const FLOAT_OR_UNORM: &[(DataType, Normalized)] = &[
+    (DataType::F32, Normalized::No),
+    (DataType::U8, Normalized::Yes),
+    (DataType::U16, Normalized::Yes),
+];
 
 const POSITION: Expect = Expect {
     semantic: "POSITION",
     dims: &[Dimensions::Vec3],
-    types: &[DataType::F32],
+    types: FLOAT,
+    quantized: &[
+        (DataType::I8, Normalized::Either),
+        (DataType::U8, Normalized::Either),
+        (DataType::I16, Normalized::Either),
+        (DataType::U16, Normalized::Either),
+    ],
 };
 const NORMAL: Expect = Expect {
     semantic: "NORMAL",
     dims: &[Dimensions::Vec3],
-    types: &[DataType::F32],
+    types: FLOAT,
+    quantized: UNIT_VECTORS,
 };
 const TANGENT: Expect = Expect {
     semantic: "TANGENT",
     dims: &[Dimensions::Vec4],
-    types: &[DataType::F32],
+    types: FLOAT,
+    quantized: UNIT_VECTORS,
 };
 const TEXCOORD: Expect = Expect {
     semantic: "TEXCOORD",
     dims: &[Dimensions::Vec2],
-    types: &[DataType::F32, DataType::U8, DataType::U16],
+    types: FLOAT_OR_UNORM,
+    quantized: &[
+        (DataType::I8, Normalized::Either),
+        (DataType::U8, Normalized::No),
+        (DataType::I16, Normalized::Either),
+        (DataType::U16, Normalized::No),
+    ],
 };
 const COLOR: Expect = Expect {
     semantic: "COLOR_0",
     dims: &[Dimensions::Vec3, Dimensions::Vec4],
-    types: &[DataType::F32, DataType::U8, DataType::U16],
+    types: FLOAT_OR_UNORM,
+    quantized: &[],
 };
 const INDICES: Expect = Expect {
     semantic: "indices",
     dims: &[Dimensions::Scalar],
-    types: &[DataType::U8, DataType::U16, DataType::U32],
+    types: &[
+        (DataType::U8, Normalized::Either),
+        (DataType::U16, Normalized::Either),
+        (DataType::U32, Normalized::Either),
+    ],
+    quantized: &[],
 };
+
+impl Expect {
+    /// Whether integer components are read as normalized: as the file says, except that
+    /// COLOR_n is always normalized and, without `KHR_mesh_quantization`, so is TEXCOORD_n
+    /// (core glTF allows nothing else, and files that forgot the flag meant it; the `gltf`
+    /// crate read them so before us).
+    fn reads_normalized(&self, normalized: bool, quantization: bool) -> bool {
+        normalized || self.semantic == "COLOR_0" || (self.semantic == "TEXCOORD" && !quantization)
+    }
+
+    /// Whether `data_type` read with that normalization is allowed (a float's flag is ignored).
+    fn allows(&self, data_type: DataType, normalized: bool, quantization: bool) -> bool {
+        let fits = |&(t, n): &(DataType, Normalized)| {
+            t == data_type
+                && (t == DataType::F32
+                    || match n {
+                        Normalized::Yes => normalized,
+                        Normalized::No => !normalized,
+                        Normalized::Either => true,
+                    })
+        };
+        self.types.iter().any(fits) || (quantization && self.quantized.iter().any(fits))
+    }
+}
 
 /// Checks that every byte the `gltf` crate's reader will touch for this accessor exists, and
 /// that its type is what the semantic allows. After this the reader cannot panic or read junk.
@@ -402,6 +477,7 @@ fn check_accessor(
     accessor: &gltf::Accessor,
     at: PrimitiveAt,
     expect: &Expect,
+    quantization: bool,
 ) -> Result<(), LoadErrorKind> {
     let fail = |problem: String| LoadErrorKind::Accessor {
         at,
@@ -409,15 +485,39 @@ fn check_accessor(
         semantic: expect.semantic.to_string(),
         problem,
     };
+    let normalized = expect.reads_normalized(accessor.normalized(), quantization);
     if !expect.dims.contains(&accessor.dimensions())
-        || !expect.types.contains(&accessor.data_type())
+        || !expect.allows(accessor.data_type(), normalized, quantization)
     {
+        let list = |types: &[(DataType, Normalized)]| {
+            types
+                .iter()
+                .map(|(t, n)| match n {
+                    _ if *t == DataType::F32 => format!("{t:?}"),
+                    Normalized::Yes => format!("normalized {t:?}"),
+                    Normalized::No => format!("{t:?}"),
+                    Normalized::Either => format!("{t:?} (normalized or not)"),
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let mut expected = format!("{:?} of {}", expect.dims, list(expect.types));
+        if !expect.quantized.is_empty() {
+            expected += &format!(
+                "; with KHR_mesh_quantization{} also {}",
+                if quantization { "" } else { " (not declared)" },
+                list(expect.quantized)
+            );
+        }
         return Err(fail(format!(
-            "type {:?} of {:?} is not allowed here (expected {:?} of {:?})",
+            "type {:?} of {}{:?} is not allowed here (expected {expected})",
             accessor.dimensions(),
+            if accessor.normalized() {
+                "normalized "
+            } else {
+                ""
+            },
             accessor.data_type(),
-            expect.dims,
-            expect.types
         )));
     }
     if accessor.count() == 0 {
@@ -495,6 +595,8 @@ struct Importer<'a> {
     singular_instances: usize,
     warned_skin: bool,
     warned_morph: bool,
+    /// The file declares `KHR_mesh_quantization`: integer attribute types are allowed.
+    quantization: bool,
 }
 
 /// One primitive's vertex data in world space.
@@ -633,7 +735,7 @@ impl Importer<'_> {
         let vertex_count = vertices.positions.len();
         let indices: Vec<u32> = match primitive.indices() {
             Some(accessor) => {
-                check_accessor(&accessor, at, &INDICES)?;
+                check_accessor(&accessor, at, &INDICES, self.quantization)?;
                 let reader = primitive.reader(|b| self.buffers.get(b.index()).map(Vec::as_slice));
                 let indices: Vec<u32> = reader
                     .read_indices()
@@ -696,13 +798,13 @@ impl Importer<'_> {
         let position_accessor = primitive
             .get(&Semantic::Positions)
             .ok_or(LoadErrorKind::MissingPositions { at })?;
-        check_accessor(&position_accessor, at, &POSITION)?;
+        check_accessor(&position_accessor, at, &POSITION, self.quantization)?;
         let count = position_accessor.count();
-        let optional = |semantic: Semantic, expect: &Expect| -> Result<bool, LoadErrorKind> {
+        let optional = |semantic: Semantic, expect: &Expect| -> Result<(), LoadErrorKind> {
             match primitive.get(&semantic) {
-                None => Ok(false),
+                None => Ok(()),
                 Some(accessor) => {
-                    check_accessor(&accessor, at, expect)?;
+                    check_accessor(&accessor, at, expect, self.quantization)?;
                     if accessor.count() != count {
                         return Err(LoadErrorKind::Accessor {
                             at,
@@ -714,65 +816,77 @@ impl Importer<'_> {
                             ),
                         });
                     }
-                    Ok(true)
+                    Ok(())
                 }
             }
         };
-        let has_normals = optional(Semantic::Normals, &NORMAL)?;
-        let has_tangents = optional(Semantic::Tangents, &TANGENT)?;
-        let has_uv0 = optional(Semantic::TexCoords(0), &TEXCOORD)?;
-        let has_uv1 = optional(Semantic::TexCoords(1), &TEXCOORD)?;
-        let has_colors = optional(Semantic::Colors(0), &COLOR)?;
+        // Every attribute is checked before any is read.
+        optional(Semantic::Normals, &NORMAL)?;
+        optional(Semantic::Tangents, &TANGENT)?;
+        optional(Semantic::TexCoords(0), &TEXCOORD)?;
+        optional(Semantic::TexCoords(1), &TEXCOORD)?;
+        optional(Semantic::Colors(0), &COLOR)?;
 
-        let reader = primitive.reader(|b| self.buffers.get(b.index()).map(Vec::as_slice));
-        let positions: Vec<Vec3> = reader
-            .read_positions()
-            .map(|it| it.map(|p| world.transform_point3(Vec3::from(p))).collect())
-            .unwrap_or_default();
-        if positions.len() != count {
-            return Err(LoadErrorKind::Accessor {
-                at,
-                accessor: position_accessor.index(),
-                semantic: "POSITION".into(),
-                problem: format!("read {} of {count} positions", positions.len()),
-            });
-        }
+        let read =
+            |semantic: Semantic, expect: &Expect| -> Result<Option<Vec<Vec4>>, LoadErrorKind> {
+                let Some(accessor) = primitive.get(&semantic) else {
+                    return Ok(None);
+                };
+                let normalized = expect.reads_normalized(accessor.normalized(), self.quantization);
+                let fail = |problem: String| LoadErrorKind::Accessor {
+                    at,
+                    accessor: accessor.index(),
+                    semantic: expect.semantic.to_string(),
+                    problem,
+                };
+                // Three-component colours get alpha 1; others fill unused lanes with 0.
+                let values: Vec<Vec4> = match accessor.dimensions() {
+                    Dimensions::Vec2 => attributes::read::<2>(&accessor, self.buffers, normalized)
+                        .map_err(fail)?
+                        .into_iter()
+                        .map(|[x, y]| Vec4::new(x, y, 0.0, 0.0))
+                        .collect(),
+                    Dimensions::Vec3 => attributes::read::<3>(&accessor, self.buffers, normalized)
+                        .map_err(fail)?
+                        .into_iter()
+                        .map(|[x, y, z]| Vec4::new(x, y, z, 1.0))
+                        .collect(),
+                    _ => attributes::read::<4>(&accessor, self.buffers, normalized)
+                        .map_err(fail)?
+                        .into_iter()
+                        .map(Vec4::from)
+                        .collect(),
+                };
+                if values.len() != count {
+                    return Err(fail(format!("read {} of {count} elements", values.len())));
+                }
+                Ok(Some(values))
+            };
+        let positions: Vec<Vec3> = read(Semantic::Positions, &POSITION)?
+            .unwrap_or_default()
+            .into_iter()
+            .map(|p| world.transform_point3(p.truncate()))
+            .collect();
         let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
         let linear = Mat3::from_mat4(world);
         let mirror = if world.determinant() < 0.0 { -1.0 } else { 1.0 };
-        let exact = |len: usize| len == count;
-        let normals = has_normals
-            .then(|| reader.read_normals())
-            .flatten()
-            .map(|it| {
-                it.map(|n| normal_matrix * Vec3::from(n))
-                    .collect::<Vec<_>>()
-            })
-            .filter(|v| exact(v.len()));
-        let tangents = has_tangents
-            .then(|| reader.read_tangents())
-            .flatten()
-            .map(|it| {
-                it.map(|t| {
-                    let xyz = (linear * Vec3::new(t[0], t[1], t[2])).normalize_or_zero();
-                    xyz.extend(t[3] * mirror)
+        let normals = read(Semantic::Normals, &NORMAL)?.map(|v| {
+            v.into_iter()
+                .map(|n| normal_matrix * n.truncate())
+                .collect::<Vec<_>>()
+        });
+        let tangents = read(Semantic::Tangents, &TANGENT)?.map(|v| {
+            v.into_iter()
+                .map(|t| {
+                    let xyz = (linear * t.truncate()).normalize_or_zero();
+                    xyz.extend(t.w * mirror)
                 })
                 .collect::<Vec<_>>()
-            })
-            .filter(|v| exact(v.len()));
-        let read_uv = |set: u32, has: bool| {
-            has.then(|| reader.read_tex_coords(set))
-                .flatten()
-                .map(|it| it.into_f32().map(Vec2::from).collect::<Vec<_>>())
-                .filter(|v| exact(v.len()))
-        };
-        let uv0 = read_uv(0, has_uv0);
-        let uv1 = read_uv(1, has_uv1);
-        let colors = has_colors
-            .then(|| reader.read_colors(0))
-            .flatten()
-            .map(|it| it.into_rgba_f32().map(Vec4::from).collect::<Vec<_>>())
-            .filter(|v| exact(v.len()));
+        });
+        let uv = |v: Vec<Vec4>| v.into_iter().map(|t| t.truncate().truncate()).collect();
+        let uv0 = read(Semantic::TexCoords(0), &TEXCOORD)?.map(uv);
+        let uv1 = read(Semantic::TexCoords(1), &TEXCOORD)?.map(uv);
+        let colors = read(Semantic::Colors(0), &COLOR)?;
         Ok(WorldVertices {
             positions,
             normals,
@@ -810,6 +924,49 @@ fn texture_ref(info: Option<gltf::texture::Info>) -> Option<TextureRef> {
     })
 }
 
+/// A normal or occlusion texture reference: the `gltf` crate parses `KHR_texture_transform`
+/// only on plain texture infos, so it is read from the extension's JSON here (same defaults:
+/// offset 0, rotation 0, scale 1; `texCoord` overrides the info's). Malformed fields keep
+/// their defaults.
+fn extension_texture_ref(
+    texture: usize,
+    tex_coord: u32,
+    transform: Option<&serde_json::Value>,
+) -> TextureRef {
+    let pair = |v: Option<&serde_json::Value>, default: [f32; 2]| -> [f32; 2] {
+        match v.and_then(|v| v.as_array()).map(|a| a.as_slice()) {
+            Some([x, y]) => match (x.as_f64(), y.as_f64()) {
+                (Some(x), Some(y)) => [x as f32, y as f32],
+                _ => default,
+            },
+            _ => default,
+        }
+    };
+    let Some(t) = transform.filter(|t| t.is_object()) else {
+        return TextureRef {
+            texture,
+            tex_coord,
+            transform: None,
+        };
+    };
+    TextureRef {
+        texture,
+        tex_coord: t
+            .get("texCoord")
+            .and_then(serde_json::Value::as_u64)
+            .and_then(|c| u32::try_from(c).ok())
+            .unwrap_or(tex_coord),
+        transform: Some(TextureTransform {
+            offset: pair(t.get("offset"), [0.0, 0.0]),
+            rotation: t
+                .get("rotation")
+                .and_then(serde_json::Value::as_f64)
+                .map_or(0.0, |r| r as f32),
+            scale: pair(t.get("scale"), [1.0, 1.0]),
+        }),
+    }
+}
+
 fn material(m: &gltf::Material) -> Material {
     let pbr = m.pbr_metallic_roughness();
     let normal = m.normal_texture();
@@ -821,16 +978,20 @@ fn material(m: &gltf::Material) -> Material {
         metallic: pbr.metallic_factor(),
         roughness: pbr.roughness_factor(),
         metallic_roughness_texture: texture_ref(pbr.metallic_roughness_texture()),
-        normal_texture: normal.as_ref().map(|n| TextureRef {
-            texture: n.texture().index(),
-            tex_coord: n.tex_coord(),
-            transform: None,
+        normal_texture: normal.as_ref().map(|n| {
+            extension_texture_ref(
+                n.texture().index(),
+                n.tex_coord(),
+                n.extension_value("KHR_texture_transform"),
+            )
         }),
         normal_scale: normal.as_ref().map_or(1.0, |n| n.scale()),
-        occlusion_texture: occlusion.as_ref().map(|o| TextureRef {
-            texture: o.texture().index(),
-            tex_coord: o.tex_coord(),
-            transform: None,
+        occlusion_texture: occlusion.as_ref().map(|o| {
+            extension_texture_ref(
+                o.texture().index(),
+                o.tex_coord(),
+                o.extension_value("KHR_texture_transform"),
+            )
         }),
         occlusion_strength: occlusion.as_ref().map_or(1.0, |o| o.strength()),
         emissive: Vec3::from(m.emissive_factor()),

@@ -3,6 +3,7 @@
 //! Importers ([`gltf`](self::gltf) and [`obj`]) turn a file into a [`Scene`]; nothing here knows
 //! about rays. Units are the glTF ones (glTF 2.0 §3.4): metres, radians, right-handed, +Y up.
 
+mod attributes;
 mod builder;
 mod error;
 pub mod gltf;
