@@ -30,8 +30,10 @@ pub const MODELS: &[(&str, usize)] = &[
     ("CornellBox-OBJ/CornellBox-Mirror.obj", 36),
     ("CornellBox-OBJ/CornellBox-Original.obj", 36),
     ("CornellBox-OBJ/CornellBox-Sphere.obj", 2188),
+    ("DamagedHelmet/glTF-Meshopt/DamagedHelmet.glb", 15452),
     ("DamagedHelmet/glTF/DamagedHelmet.gltf", 15452),
     ("Duck/glTF-Binary/Duck.glb", 4212),
+    ("Duck/glTF-Meshopt/Duck.glb", 4212),
     ("Duck/glTF-Quantized/Duck.gltf", 4212),
     ("Duck/glTF/Duck.gltf", 4212),
     ("Fox/glTF/Fox.gltf", 576),
@@ -95,12 +97,7 @@ pub const REFUSED: &[(&str, &str)] = &[
         "CesiumMilkTruck/glTF-Draco/CesiumMilkTruck.gltf",
         "KHR_draco_mesh_compression",
     ),
-    (
-        "DamagedHelmet/glTF-Meshopt/DamagedHelmet.glb",
-        "EXT_meshopt_compression",
-    ),
     ("Duck/glTF-Draco/Duck.gltf", "KHR_draco_mesh_compression"),
-    ("Duck/glTF-Meshopt/Duck.glb", "KHR_meshopt_compression"),
     ("Duck/glTF-WebP/Duck.glb", "EXT_texture_webp"),
     (
         "RiggedSimple/glTF-Draco/RiggedSimple.gltf",

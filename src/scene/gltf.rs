@@ -15,6 +15,7 @@
 use super::attributes;
 use super::builder::TriangleIn;
 use super::error::PrimitiveAt;
+use super::meshopt;
 use super::{
     AlphaMode, Bounds, Camera, FileAccess, Filter, Format, ImageSource, Instance, Light, LightKind,
     LoadError, LoadErrorKind, LoadOptions, Material, Projection, Sampler, Scene, SoupBuilder,
@@ -41,6 +42,8 @@ const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_materials_volume",
     "KHR_materials_pbrSpecularGlossiness",
     "KHR_mesh_quantization",
+    "EXT_meshopt_compression",
+    "KHR_meshopt_compression",
 ];
 
 /// Most node visits a hierarchy may expand to. A node shared by two parents is instanced twice,
@@ -68,7 +71,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     let blob = gltf.blob;
     let mut root = gltf.document.into_json();
     // Checked above; gltf-json's validation refuses required extensions it does not know
-    // itself (KHR_mesh_quantization), which we decode here.
+    // itself (KHR_mesh_quantization, the meshopt ones), which we decode here.
     root.extensions_required.clear();
     check_attribute_indices(&root).map_err(err)?;
     let document = gltf::Document::from_json(root).map_err(|e| err(convert(e)))?;
@@ -77,7 +80,8 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         options.allow_external_files,
         options.limits.max_file_bytes,
     );
-    let buffers = load_buffers(&document, blob, &access)?;
+    let mut buffers = load_buffers(&document, blob, &access)?;
+    meshopt::decode_views(&document, &mut buffers, access.max_bytes).map_err(err)?;
     check_views(&document, &buffers).map_err(err)?;
     let mut importer = Importer {
         document: &document,
@@ -213,7 +217,7 @@ fn check_attribute_indices(root: &gltf::json::Root) -> Result<(), LoadErrorKind>
 fn unsupported_extension(name: &str) -> LoadErrorKind {
     let what = match name {
         "KHR_draco_mesh_compression" => " (Draco mesh compression)",
-        "EXT_meshopt_compression" => " (meshoptimizer compression)",
+        "EXT_meshopt_compression" | "KHR_meshopt_compression" => " (meshoptimizer compression)",
         "KHR_mesh_quantization" => " (quantized vertex attributes)",
         "KHR_texture_basisu" => " (Basis Universal / KTX2 textures)",
         "EXT_texture_webp" => " (WebP textures)",
@@ -313,6 +317,21 @@ fn load_buffers(
     for buffer in document.buffers() {
         let index = buffer.index();
         let what = format!("buffer {index}");
+        if meshopt::is_fallback(&buffer) {
+            // Filled by meshopt::decode_views; whatever its uri holds is not needed.
+            let length = buffer.length();
+            if length as u64 > access.max_bytes {
+                return Err(model_err(LoadErrorKind::Buffer {
+                    buffer: index,
+                    problem: format!(
+                        "meshopt fallback buffer of {length} bytes is over the limit of {} bytes",
+                        access.max_bytes
+                    ),
+                }));
+            }
+            buffers.push(vec![0; length]);
+            continue;
+        }
         let data = match buffer.source() {
             gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
                 model_err(LoadErrorKind::Buffer {

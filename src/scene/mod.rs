@@ -7,6 +7,7 @@ mod attributes;
 mod builder;
 mod error;
 pub mod gltf;
+mod meshopt;
 pub mod obj;
 mod paths;
 pub mod tangents;
