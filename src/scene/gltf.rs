@@ -44,6 +44,7 @@ const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_mesh_quantization",
     "EXT_meshopt_compression",
     "KHR_meshopt_compression",
+    "EXT_texture_webp",
 ];
 
 /// Most node visits a hierarchy may expand to. A node shared by two parents is instanced twice,
@@ -71,8 +72,9 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     let blob = gltf.blob;
     let mut root = gltf.document.into_json();
     // Checked above; gltf-json's validation refuses required extensions it does not know
-    // itself (KHR_mesh_quantization, the meshopt ones), which we decode here.
+    // itself (KHR_mesh_quantization, the meshopt ones, EXT_texture_webp), which we decode here.
     root.extensions_required.clear();
+    let webp_fallbacks = choose_webp_sources(&mut root);
     check_attribute_indices(&root).map_err(err)?;
     let document = gltf::Document::from_json(root).map_err(|e| err(convert(e)))?;
     let access = FileAccess::new(
@@ -104,8 +106,16 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     };
     importer.walk_default_scene().map_err(err)?;
     let materials = importer.materials();
-    let textures = textures(&document);
-    let images = images(&document, &buffers, &access, options)?;
+    let mut textures = textures(&document, &webp_fallbacks);
+    let mut image_warnings = Vec::new();
+    let images = images(
+        &document,
+        &buffers,
+        &access,
+        options,
+        &mut textures,
+        &mut image_warnings,
+    )?;
     let Importer {
         builder,
         mut warnings,
@@ -117,6 +127,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         singular_instances,
         ..
     } = importer;
+    warnings.extend(image_warnings);
     if skipped_non_triangle > 0 {
         warnings.push(format!(
             "skipped {skipped_non_triangle} POINTS/LINES primitives (a ray tracer draws only triangles)"
@@ -1027,7 +1038,31 @@ fn material(m: &gltf::Material) -> Material {
     }
 }
 
-fn textures(document: &gltf::Document) -> Vec<Texture> {
+/// EXT_texture_webp: a texture whose extension names a WebP image uses it, and keeps its core
+/// `source` (if any) as the fallback for when the WebP image cannot be decoded. Rewritten in
+/// the JSON before the `gltf` crate validates it, since gltf-json 1.4 requires `source`
+/// (WebP-only files such as gltf-transform's have none). Returns each texture's fallback.
+fn choose_webp_sources(root: &mut gltf::json::Root) -> Vec<Option<usize>> {
+    let image_count = root.images.len();
+    root.textures
+        .iter_mut()
+        .map(|texture| {
+            let webp = texture
+                .extensions
+                .as_ref()
+                .and_then(|e| e.others.get("EXT_texture_webp"))
+                .and_then(|w| w.get("source"))
+                .and_then(serde_json::Value::as_u64)
+                .and_then(|i| usize::try_from(i).ok())
+                .filter(|&i| i < image_count)?;
+            let core = texture.source.value();
+            texture.source = gltf::json::Index::new(webp as u32);
+            (core < image_count && core != webp).then_some(core)
+        })
+        .collect()
+}
+
+fn textures(document: &gltf::Document, webp_fallbacks: &[Option<usize>]) -> Vec<Texture> {
     use gltf::texture::{MagFilter, MinFilter, WrappingMode};
     let wrap = |w: WrappingMode| match w {
         WrappingMode::ClampToEdge => Wrap::ClampToEdge,
@@ -1041,6 +1076,7 @@ fn textures(document: &gltf::Document) -> Vec<Texture> {
             Texture {
                 name: t.name().map(str::to_string),
                 image: t.source().index(),
+                fallback_image: webp_fallbacks.get(t.index()).copied().flatten(),
                 sampler: Sampler {
                     mag_filter: match s.mag_filter() {
                         Some(MagFilter::Nearest) => Filter::Nearest,
@@ -1060,11 +1096,16 @@ fn textures(document: &gltf::Document) -> Vec<Texture> {
         .collect()
 }
 
+/// Every image's source, its header checked. An image that fails the check is an error, unless
+/// every texture using it has a fallback image (EXT_texture_webp): those textures switch to
+/// their fallback, with a warning.
 fn images(
     document: &gltf::Document,
     buffers: &[Vec<u8>],
     access: &FileAccess,
     options: &LoadOptions,
+    textures: &mut [Texture],
+    warnings: &mut Vec<String>,
 ) -> Result<Vec<ImageSource>, LoadError> {
     let mut out = Vec::with_capacity(document.images().len());
     for image in document.images() {
@@ -1119,7 +1160,21 @@ fn images(
                 }
             }
         };
-        check_image_header(&source, options.limits.max_image_pixels).map_err(image_err)?;
+        if let Err(problem) = check_image_header(&source, options.limits.max_image_pixels) {
+            let users = || textures.iter().filter(|t| t.image == index);
+            if users().count() == 0 || users().any(|t| t.fallback_image.is_none()) {
+                return Err(image_err(problem));
+            }
+            warnings.push(format!(
+                "image {index} ({}): {problem}; its textures use their fallback image instead",
+                source.origin
+            ));
+            for texture in textures.iter_mut().filter(|t| t.image == index) {
+                if let Some(fallback) = texture.fallback_image.take() {
+                    texture.image = fallback;
+                }
+            }
+        }
         out.push(source);
     }
     Ok(out)
@@ -1140,7 +1195,7 @@ pub(crate) fn check_image_header(source: &ImageSource, max_pixels: u64) -> Resul
             .into_dimensions(),
         (None, None) => return Err("no data".to_string()),
     };
-    let (w, h) = dims.map_err(|e| format!("not a readable PNG or JPEG image: {e}"))?;
+    let (w, h) = dims.map_err(|e| format!("not a readable PNG, JPEG or WebP image: {e}"))?;
     let pixels = w as u64 * h as u64;
     if pixels == 0 || pixels > max_pixels {
         return Err(format!(

@@ -246,6 +246,9 @@ pub struct Texture {
     pub name: Option<String>,
     /// Index into [`Scene::images`].
     pub image: usize,
+    /// The image to use instead when `image` cannot be decoded: the core `source` of a
+    /// texture whose `EXT_texture_webp` source was chosen.
+    pub fallback_image: Option<usize>,
     /// Sampler state.
     pub sampler: Sampler,
 }
