@@ -270,12 +270,40 @@ impl TextureSet {
             if !used[index] {
                 continue;
             }
-            let decoded = decode(source).map_err(|problem| TextureError::Decode {
-                file: scene.source.display().to_string(),
-                image: index,
-                origin: source.origin.clone(),
-                problem,
-            })?;
+            let decoded = match decode(source) {
+                Ok(decoded) => decoded,
+                Err(problem) => {
+                    // EXT_texture_webp: textures whose WebP image cannot be decoded use their
+                    // core source when every texture of this image has one (the same for all).
+                    let fallbacks: Vec<Option<usize>> = scene
+                        .textures
+                        .iter()
+                        .filter(|t| t.image == index)
+                        .map(|t| t.fallback_image)
+                        .collect();
+                    let fallback = match fallbacks.first() {
+                        Some(&Some(f)) if fallbacks.iter().all(|&g| g == Some(f)) => {
+                            scene.images.get(f).map(|s| (f, s))
+                        }
+                        _ => None,
+                    };
+                    let error = |problem: String| TextureError::Decode {
+                        file: scene.source.display().to_string(),
+                        image: index,
+                        origin: source.origin.clone(),
+                        problem,
+                    };
+                    let Some((f, fallback)) = fallback else {
+                        return Err(error(problem));
+                    };
+                    warnings.push(format!(
+                        "image {index} ({}): {problem}; using fallback image {f} ({})",
+                        source.origin, fallback.origin
+                    ));
+                    decode(fallback)
+                        .map_err(|p| error(format!("{problem}; fallback image {f}: {p}")))?
+                }
+            };
             let (mut w, mut h) = decoded.dimensions();
             let mut img = decoded;
             let remaining = budget_bytes.saturating_sub(set.bytes);

@@ -72,6 +72,51 @@ fn edited(
     gltf_case(name, json, bin, expect)
 }
 
+/// The base triangle with its positions and indices meshopt-compressed (`KHR_meshopt_compression`,
+/// encoded by meshoptimizer-rs's reference encoder) in `tri.bin`, decoded into fallback buffer 1,
+/// which has no data of its own.
+fn meshopt_base() -> (Value, Vec<u8>) {
+    use meshoptimizer_rs::codec;
+    let mut ws = meshoptimizer_rs::Workspace::new(meshoptimizer_rs::Limits::default());
+    let positions = common::f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    let vertices =
+        codec::encode_vertex_buffer(&positions, 3, 12, codec::VertexEncoding::DEFAULT, &mut ws)
+            .unwrap();
+    let indices =
+        codec::encode_index_buffer(&[0, 1, 2], codec::IndexEncoding::DEFAULT, &mut ws).unwrap();
+    let mut bin = vertices.clone();
+    bin.extend(&indices);
+    let (mut json, _) = base();
+    let ext = |offset: usize, length: usize, stride: usize, mode: &str| {
+        json!({"KHR_meshopt_compression": {"buffer": 0, "byteOffset": offset,
+            "byteLength": length, "byteStride": stride, "count": 3, "mode": mode}})
+    };
+    json["extensionsUsed"] = json!(["KHR_meshopt_compression"]);
+    json["extensionsRequired"] = json!(["KHR_meshopt_compression"]);
+    json["bufferViews"] = json!([
+        {"buffer": 1, "byteOffset": 0, "byteLength": 36,
+         "extensions": ext(0, vertices.len(), 12, "ATTRIBUTES")},
+        {"buffer": 1, "byteOffset": 36, "byteLength": 6,
+         "extensions": ext(vertices.len(), indices.len(), 2, "TRIANGLES")}
+    ]);
+    json["buffers"] = json!([
+        {"byteLength": bin.len(), "uri": "tri.bin"},
+        {"byteLength": 44, "extensions": {"KHR_meshopt_compression": {"fallback": true}}}
+    ]);
+    (json, bin)
+}
+
+/// `meshopt_base()` modified by `edit`.
+fn meshopt_edited(
+    name: &'static str,
+    edit: impl FnOnce(&mut Value, &mut Vec<u8>),
+    expect: fn(&K) -> bool,
+) -> Case {
+    let (mut json, mut bin) = meshopt_base();
+    edit(&mut json, &mut bin);
+    gltf_case(name, json, bin, expect)
+}
+
 /// The base triangle as a GLB with the buffer in its BIN chunk.
 fn glb() -> Vec<u8> {
     let (mut json, bin) = base();
@@ -605,6 +650,72 @@ fn cases() -> Vec<Case> {
             |k| matches!(k, K::NoTriangles(d) if d.contains("NaN")),
         ),
     ];
+    // Meshopt-compressed views (issue 14): a wrong count, a truncated or lying stream, a
+    // stream outside its buffer, a fallback buffer too large to allocate.
+    let meshopt_view_0 = |k: &K| matches!(k, K::Meshopt { view: 0, .. });
+    cases.extend([
+        meshopt_edited(
+            "meshopt view whose count disagrees with its byteLength",
+            |j, _| j["bufferViews"][0]["extensions"]["KHR_meshopt_compression"]["count"] = json!(4),
+            meshopt_view_0,
+        ),
+        meshopt_edited(
+            "meshopt view with a wrong count that still fills the view",
+            |j, _| {
+                let ext = &mut j["bufferViews"][0]["extensions"]["KHR_meshopt_compression"];
+                ext["count"] = json!(9);
+                ext["byteStride"] = json!(4);
+            },
+            meshopt_view_0,
+        ),
+        meshopt_edited(
+            "meshopt vertex stream truncated",
+            |j, _| {
+                let ext = &mut j["bufferViews"][0]["extensions"]["KHR_meshopt_compression"];
+                ext["byteLength"] = json!(ext["byteLength"].as_u64().unwrap() - 8);
+            },
+            meshopt_view_0,
+        ),
+        meshopt_edited(
+            "meshopt vertex stream overwritten with junk",
+            |j, bin| {
+                let len = j["bufferViews"][0]["extensions"]["KHR_meshopt_compression"]["byteLength"]
+                    .as_u64()
+                    .unwrap() as usize;
+                bin[1..len].fill(0xff);
+            },
+            meshopt_view_0,
+        ),
+        meshopt_edited(
+            "meshopt index stream truncated",
+            |j, _| {
+                let ext = &mut j["bufferViews"][1]["extensions"]["KHR_meshopt_compression"];
+                ext["byteLength"] = json!(ext["byteLength"].as_u64().unwrap() - 4);
+            },
+            |k| matches!(k, K::Meshopt { view: 1, .. }),
+        ),
+        meshopt_edited(
+            "meshopt stream past the end of its buffer",
+            |j, _| {
+                j["bufferViews"][0]["extensions"]["KHR_meshopt_compression"]["byteOffset"] =
+                    json!(1000)
+            },
+            meshopt_view_0,
+        ),
+        meshopt_edited(
+            "meshopt unknown mode",
+            |j, _| {
+                j["bufferViews"][0]["extensions"]["KHR_meshopt_compression"]["mode"] =
+                    json!("VERTICES")
+            },
+            meshopt_view_0,
+        ),
+        meshopt_edited(
+            "meshopt fallback buffer of 2^60 bytes",
+            |j, _| j["buffers"][1]["byteLength"] = json!(1u64 << 60),
+            |k| matches!(k, K::Buffer { buffer: 1, .. }),
+        ),
+    ]);
     // The missing-.bin case: the base with no tri.bin written.
     cases[18].files.truncate(1);
     cases[18].expect = |k| matches!(k, K::Buffer { buffer: 0, .. });
@@ -700,6 +811,22 @@ fn the_binary_exits_non_zero_with_one_message_naming_the_file() {
 }
 
 #[test]
+fn a_broken_meshopt_view_is_named_with_its_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut json, bin) = meshopt_base();
+    json["bufferViews"][1]["extensions"]["KHR_meshopt_compression"]["count"] = json!(6);
+    json["bufferViews"][1]["byteLength"] = json!(12);
+    write_case(dir.path(), &gltf_case("wrong count", json, bin, |_| true));
+    let model = dir.path().join("model.gltf");
+    let message = Scene::load(&model).unwrap_err().to_string();
+    assert!(
+        message.starts_with(&*model.to_string_lossy())
+            && message.contains("bufferView 1 (KHR_meshopt_compression)"),
+        "{message}"
+    );
+}
+
+#[test]
 fn the_valid_bases_load() {
     let dir = tempfile::tempdir().unwrap();
     let (json, bin) = base();
@@ -719,6 +846,14 @@ fn the_valid_bases_load() {
             .len(),
         1
     );
+    // The meshopt-compressed triangle decodes to the plain one.
+    let (json, bin) = meshopt_base();
+    write_case(dir.path(), &gltf_case("meshopt", json, bin, |_| true));
+    let meshopt = Scene::load(dir.path().join("model.gltf")).unwrap();
+    let (json, bin) = base();
+    write_case(dir.path(), &gltf_case("base", json, bin, |_| true));
+    let plain = Scene::load(dir.path().join("model.gltf")).unwrap();
+    assert_eq!(meshopt.soup.positions, plain.soup.positions);
     // A GLB named .gltf and a glTF named .glb still load: the content decides.
     std::fs::write(dir.path().join("swapped.gltf"), glb()).unwrap();
     assert_eq!(

@@ -231,3 +231,57 @@ fn textured_samples_render_with_their_textures() {
         );
     }
 }
+
+/// EXT_texture_webp: the WebP source is chosen when present, and the core `source` is the
+/// fallback when the WebP image cannot be read (here: bytes that are not an image).
+#[test]
+fn webp_textures_are_chosen_and_fall_back_to_the_core_source() {
+    use base64::Engine;
+    let dir = tempfile::tempdir().unwrap();
+    let red = image::RgbaImage::from_pixel(2, 2, image::Rgba([255, 0, 0, 255]));
+    let mut webp = Vec::new();
+    image::DynamicImage::ImageRgba8(image::RgbaImage::from_pixel(
+        2,
+        2,
+        image::Rgba([0, 255, 0, 255]),
+    ))
+    .write_to(
+        &mut std::io::Cursor::new(&mut webp),
+        image::ImageFormat::WebP,
+    )
+    .unwrap();
+    let uri = |bytes: &[u8]| {
+        format!(
+            "data:image/webp;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(bytes)
+        )
+    };
+    let load = |webp_uri: String| {
+        let (json, bin) = quads_gltf(
+            &[(common::square(1.0, 0.0), 0)],
+            json!({
+                "extensionsUsed": ["EXT_texture_webp"],
+                "extensionsRequired": ["EXT_texture_webp"],
+                "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+                "textures": [{"source": 0, "extensions": {"EXT_texture_webp": {"source": 1}}}],
+                "images": [{"uri": png_data_uri(&red)}, {"uri": webp_uri}],
+            }),
+        );
+        let model = write_gltf(dir.path(), "webp.gltf", json, &bin);
+        meshtracer::Scene::load(&model).unwrap()
+    };
+    let good = load(uri(&webp));
+    assert_eq!(good.textures[0].image, 1, "the WebP source is used");
+    assert_eq!(good.textures[0].fallback_image, Some(0));
+    assert!(good.warnings.is_empty(), "{:?}", good.warnings);
+    let broken = load(uri(b"RIFF\x10\0\0\0WEBPjunk"));
+    assert_eq!(
+        broken.textures[0].image, 0,
+        "the core source is the fallback"
+    );
+    assert!(
+        broken.warnings.iter().any(|w| w.contains("fallback")),
+        "{:?}",
+        broken.warnings
+    );
+}

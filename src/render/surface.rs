@@ -116,9 +116,12 @@ impl Prepared {
         };
         let [pa, pb, pc] = self.scene.soup.positions[tri];
         let lod = match uvs.get(tri) {
-            Some([ua, ub, uc]) => {
+            Some(corners) => {
+                // The footprint is measured in the coordinates that address the texture, after
+                // KHR_texture_transform (quantized files scale integer UVs by 1/4096 or so).
+                let [ua, ub, uc] = corners.map(|uv| transform_uv(r, uv));
                 let world = (pb - pa).cross(pc - pa).length();
-                let uv_area = (*ub - *ua).perp_dot(*uc - *ua).abs();
+                let uv_area = (ub - ua).perp_dot(uc - ua).abs();
                 let (w, h) = image.size();
                 let density = (w as f32 * h as f32 * uv_area / world.max(f32::MIN_POSITIVE)).sqrt();
                 (density * cone / cos.abs().max(1e-3)).log2()

@@ -109,6 +109,16 @@ pub enum LoadErrorKind {
         /// Buffer length.
         len: usize,
     },
+    /// A meshopt-compressed buffer view cannot be decoded.
+    #[error("bufferView {view} ({extension}): {problem}")]
+    Meshopt {
+        /// View index.
+        view: usize,
+        /// `EXT_meshopt_compression` or `KHR_meshopt_compression`.
+        extension: String,
+        /// What is wrong.
+        problem: String,
+    },
     /// An accessor is inconsistent with its buffer view or its use.
     #[error("{at}: accessor {accessor} ({semantic}): {problem}")]
     Accessor {

@@ -12,8 +12,10 @@
 //! - §3.10: cameras look down local -Z with +Y up; `yfov` in radians.
 //! - KHR_lights_punctual: lights shine along local -Z; candela (point, spot), lux (directional).
 
+use super::attributes;
 use super::builder::TriangleIn;
 use super::error::PrimitiveAt;
+use super::meshopt;
 use super::{
     AlphaMode, Bounds, Camera, FileAccess, Filter, Format, ImageSource, Instance, Light, LightKind,
     LoadError, LoadErrorKind, LoadOptions, Material, Projection, Sampler, Scene, SoupBuilder,
@@ -39,6 +41,10 @@ const SUPPORTED_REQUIRED: &[&str] = &[
     "KHR_materials_variants",
     "KHR_materials_volume",
     "KHR_materials_pbrSpecularGlossiness",
+    "KHR_mesh_quantization",
+    "EXT_meshopt_compression",
+    "KHR_meshopt_compression",
+    "EXT_texture_webp",
 ];
 
 /// Most node visits a hierarchy may expand to. A node shared by two parents is instanced twice,
@@ -64,7 +70,11 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         }
     }
     let blob = gltf.blob;
-    let root = gltf.document.into_json();
+    let mut root = gltf.document.into_json();
+    // Checked above; gltf-json's validation refuses required extensions it does not know
+    // itself (KHR_mesh_quantization, the meshopt ones, EXT_texture_webp), which we decode here.
+    root.extensions_required.clear();
+    let webp_fallbacks = choose_webp_sources(&mut root);
     check_attribute_indices(&root).map_err(err)?;
     let document = gltf::Document::from_json(root).map_err(|e| err(convert(e)))?;
     let access = FileAccess::new(
@@ -72,7 +82,8 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         options.allow_external_files,
         options.limits.max_file_bytes,
     );
-    let buffers = load_buffers(&document, blob, &access)?;
+    let mut buffers = load_buffers(&document, blob, &access)?;
+    meshopt::decode_views(&document, &mut buffers, access.max_bytes).map_err(err)?;
     check_views(&document, &buffers).map_err(err)?;
     let mut importer = Importer {
         document: &document,
@@ -89,11 +100,22 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         singular_instances: 0,
         warned_skin: false,
         warned_morph: false,
+        quantization: document
+            .extensions_used()
+            .any(|name| name == "KHR_mesh_quantization"),
     };
     importer.walk_default_scene().map_err(err)?;
     let materials = importer.materials();
-    let textures = textures(&document);
-    let images = images(&document, &buffers, &access, options)?;
+    let mut textures = textures(&document, &webp_fallbacks);
+    let mut image_warnings = Vec::new();
+    let images = images(
+        &document,
+        &buffers,
+        &access,
+        options,
+        &mut textures,
+        &mut image_warnings,
+    )?;
     let Importer {
         builder,
         mut warnings,
@@ -105,6 +127,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         singular_instances,
         ..
     } = importer;
+    warnings.extend(image_warnings);
     if skipped_non_triangle > 0 {
         warnings.push(format!(
             "skipped {skipped_non_triangle} POINTS/LINES primitives (a ray tracer draws only triangles)"
@@ -205,7 +228,7 @@ fn check_attribute_indices(root: &gltf::json::Root) -> Result<(), LoadErrorKind>
 fn unsupported_extension(name: &str) -> LoadErrorKind {
     let what = match name {
         "KHR_draco_mesh_compression" => " (Draco mesh compression)",
-        "EXT_meshopt_compression" => " (meshoptimizer compression)",
+        "EXT_meshopt_compression" | "KHR_meshopt_compression" => " (meshoptimizer compression)",
         "KHR_mesh_quantization" => " (quantized vertex attributes)",
         "KHR_texture_basisu" => " (Basis Universal / KTX2 textures)",
         "EXT_texture_webp" => " (WebP textures)",
@@ -305,6 +328,21 @@ fn load_buffers(
     for buffer in document.buffers() {
         let index = buffer.index();
         let what = format!("buffer {index}");
+        if meshopt::is_fallback(&buffer) {
+            // Filled by meshopt::decode_views; whatever its uri holds is not needed.
+            let length = buffer.length();
+            if length as u64 > access.max_bytes {
+                return Err(model_err(LoadErrorKind::Buffer {
+                    buffer: index,
+                    problem: format!(
+                        "meshopt fallback buffer of {length} bytes is over the limit of {} bytes",
+                        access.max_bytes
+                    ),
+                }));
+            }
+            buffers.push(vec![0; length]);
+            continue;
+        }
         let data = match buffer.source() {
             gltf::buffer::Source::Bin => blob.take().ok_or_else(|| {
                 model_err(LoadErrorKind::Buffer {
@@ -358,43 +396,110 @@ fn check_views(document: &gltf::Document, buffers: &[Vec<u8>]) -> Result<(), Loa
     Ok(())
 }
 
-/// What an attribute accessor may be (glTF 2.0 §3.7.2.1, table "Attributes").
+/// Whether an integer accessor must, may or must not be `normalized`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Normalized {
+    Yes,
+    No,
+    Either,
+}
+
+/// What an attribute accessor may be: glTF 2.0 §3.7.2.1 (table "Attributes"), plus what
+/// `KHR_mesh_quantization` allows when the file declares it.
 struct Expect {
     semantic: &'static str,
     dims: &'static [Dimensions],
-    types: &'static [DataType],
+    types: &'static [(DataType, Normalized)],
+    quantized: &'static [(DataType, Normalized)],
 }
+
+const FLOAT: &[(DataType, Normalized)] = &[(DataType::F32, Normalized::No)];
+/// KHR_mesh_quantization: unit vectors as normalized signed bytes or shorts.
+const UNIT_VECTORS: &[(DataType, Normalized)] = &[
+    (DataType::I8, Normalized::Yes),
+    (DataType::I16, Normalized::Yes),
+];
+/// Core TEXCOORD_n and COLOR_n: float, or normalized unsigned bytes or shorts.
+const FLOAT_OR_UNORM: &[(DataType, Normalized)] = &[
+    (DataType::F32, Normalized::No),
+    (DataType::U8, Normalized::Yes),
+    (DataType::U16, Normalized::Yes),
+];
 
 const POSITION: Expect = Expect {
     semantic: "POSITION",
     dims: &[Dimensions::Vec3],
-    types: &[DataType::F32],
+    types: FLOAT,
+    quantized: &[
+        (DataType::I8, Normalized::Either),
+        (DataType::U8, Normalized::Either),
+        (DataType::I16, Normalized::Either),
+        (DataType::U16, Normalized::Either),
+    ],
 };
 const NORMAL: Expect = Expect {
     semantic: "NORMAL",
     dims: &[Dimensions::Vec3],
-    types: &[DataType::F32],
+    types: FLOAT,
+    quantized: UNIT_VECTORS,
 };
 const TANGENT: Expect = Expect {
     semantic: "TANGENT",
     dims: &[Dimensions::Vec4],
-    types: &[DataType::F32],
+    types: FLOAT,
+    quantized: UNIT_VECTORS,
 };
 const TEXCOORD: Expect = Expect {
     semantic: "TEXCOORD",
     dims: &[Dimensions::Vec2],
-    types: &[DataType::F32, DataType::U8, DataType::U16],
+    types: FLOAT_OR_UNORM,
+    quantized: &[
+        (DataType::I8, Normalized::Either),
+        (DataType::U8, Normalized::No),
+        (DataType::I16, Normalized::Either),
+        (DataType::U16, Normalized::No),
+    ],
 };
 const COLOR: Expect = Expect {
     semantic: "COLOR_0",
     dims: &[Dimensions::Vec3, Dimensions::Vec4],
-    types: &[DataType::F32, DataType::U8, DataType::U16],
+    types: FLOAT_OR_UNORM,
+    quantized: &[],
 };
 const INDICES: Expect = Expect {
     semantic: "indices",
     dims: &[Dimensions::Scalar],
-    types: &[DataType::U8, DataType::U16, DataType::U32],
+    types: &[
+        (DataType::U8, Normalized::Either),
+        (DataType::U16, Normalized::Either),
+        (DataType::U32, Normalized::Either),
+    ],
+    quantized: &[],
 };
+
+impl Expect {
+    /// Whether integer components are read as normalized: as the file says, except that
+    /// COLOR_n is always normalized and, without `KHR_mesh_quantization`, so is TEXCOORD_n
+    /// (core glTF allows nothing else, and files that forgot the flag meant it; the `gltf`
+    /// crate read them so before us).
+    fn reads_normalized(&self, normalized: bool, quantization: bool) -> bool {
+        normalized || self.semantic == "COLOR_0" || (self.semantic == "TEXCOORD" && !quantization)
+    }
+
+    /// Whether `data_type` read with that normalization is allowed (a float's flag is ignored).
+    fn allows(&self, data_type: DataType, normalized: bool, quantization: bool) -> bool {
+        let fits = |&(t, n): &(DataType, Normalized)| {
+            t == data_type
+                && (t == DataType::F32
+                    || match n {
+                        Normalized::Yes => normalized,
+                        Normalized::No => !normalized,
+                        Normalized::Either => true,
+                    })
+        };
+        self.types.iter().any(fits) || (quantization && self.quantized.iter().any(fits))
+    }
+}
 
 /// Checks that every byte the `gltf` crate's reader will touch for this accessor exists, and
 /// that its type is what the semantic allows. After this the reader cannot panic or read junk.
@@ -402,6 +507,7 @@ fn check_accessor(
     accessor: &gltf::Accessor,
     at: PrimitiveAt,
     expect: &Expect,
+    quantization: bool,
 ) -> Result<(), LoadErrorKind> {
     let fail = |problem: String| LoadErrorKind::Accessor {
         at,
@@ -409,15 +515,39 @@ fn check_accessor(
         semantic: expect.semantic.to_string(),
         problem,
     };
+    let normalized = expect.reads_normalized(accessor.normalized(), quantization);
     if !expect.dims.contains(&accessor.dimensions())
-        || !expect.types.contains(&accessor.data_type())
+        || !expect.allows(accessor.data_type(), normalized, quantization)
     {
+        let list = |types: &[(DataType, Normalized)]| {
+            types
+                .iter()
+                .map(|(t, n)| match n {
+                    _ if *t == DataType::F32 => format!("{t:?}"),
+                    Normalized::Yes => format!("normalized {t:?}"),
+                    Normalized::No => format!("{t:?}"),
+                    Normalized::Either => format!("{t:?} (normalized or not)"),
+                })
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let mut expected = format!("{:?} of {}", expect.dims, list(expect.types));
+        if !expect.quantized.is_empty() {
+            expected += &format!(
+                "; with KHR_mesh_quantization{} also {}",
+                if quantization { "" } else { " (not declared)" },
+                list(expect.quantized)
+            );
+        }
         return Err(fail(format!(
-            "type {:?} of {:?} is not allowed here (expected {:?} of {:?})",
+            "type {:?} of {}{:?} is not allowed here (expected {expected})",
             accessor.dimensions(),
+            if accessor.normalized() {
+                "normalized "
+            } else {
+                ""
+            },
             accessor.data_type(),
-            expect.dims,
-            expect.types
         )));
     }
     if accessor.count() == 0 {
@@ -495,6 +625,8 @@ struct Importer<'a> {
     singular_instances: usize,
     warned_skin: bool,
     warned_morph: bool,
+    /// The file declares `KHR_mesh_quantization`: integer attribute types are allowed.
+    quantization: bool,
 }
 
 /// One primitive's vertex data in world space.
@@ -633,7 +765,7 @@ impl Importer<'_> {
         let vertex_count = vertices.positions.len();
         let indices: Vec<u32> = match primitive.indices() {
             Some(accessor) => {
-                check_accessor(&accessor, at, &INDICES)?;
+                check_accessor(&accessor, at, &INDICES, self.quantization)?;
                 let reader = primitive.reader(|b| self.buffers.get(b.index()).map(Vec::as_slice));
                 let indices: Vec<u32> = reader
                     .read_indices()
@@ -696,13 +828,13 @@ impl Importer<'_> {
         let position_accessor = primitive
             .get(&Semantic::Positions)
             .ok_or(LoadErrorKind::MissingPositions { at })?;
-        check_accessor(&position_accessor, at, &POSITION)?;
+        check_accessor(&position_accessor, at, &POSITION, self.quantization)?;
         let count = position_accessor.count();
-        let optional = |semantic: Semantic, expect: &Expect| -> Result<bool, LoadErrorKind> {
+        let optional = |semantic: Semantic, expect: &Expect| -> Result<(), LoadErrorKind> {
             match primitive.get(&semantic) {
-                None => Ok(false),
+                None => Ok(()),
                 Some(accessor) => {
-                    check_accessor(&accessor, at, expect)?;
+                    check_accessor(&accessor, at, expect, self.quantization)?;
                     if accessor.count() != count {
                         return Err(LoadErrorKind::Accessor {
                             at,
@@ -714,65 +846,77 @@ impl Importer<'_> {
                             ),
                         });
                     }
-                    Ok(true)
+                    Ok(())
                 }
             }
         };
-        let has_normals = optional(Semantic::Normals, &NORMAL)?;
-        let has_tangents = optional(Semantic::Tangents, &TANGENT)?;
-        let has_uv0 = optional(Semantic::TexCoords(0), &TEXCOORD)?;
-        let has_uv1 = optional(Semantic::TexCoords(1), &TEXCOORD)?;
-        let has_colors = optional(Semantic::Colors(0), &COLOR)?;
+        // Every attribute is checked before any is read.
+        optional(Semantic::Normals, &NORMAL)?;
+        optional(Semantic::Tangents, &TANGENT)?;
+        optional(Semantic::TexCoords(0), &TEXCOORD)?;
+        optional(Semantic::TexCoords(1), &TEXCOORD)?;
+        optional(Semantic::Colors(0), &COLOR)?;
 
-        let reader = primitive.reader(|b| self.buffers.get(b.index()).map(Vec::as_slice));
-        let positions: Vec<Vec3> = reader
-            .read_positions()
-            .map(|it| it.map(|p| world.transform_point3(Vec3::from(p))).collect())
-            .unwrap_or_default();
-        if positions.len() != count {
-            return Err(LoadErrorKind::Accessor {
-                at,
-                accessor: position_accessor.index(),
-                semantic: "POSITION".into(),
-                problem: format!("read {} of {count} positions", positions.len()),
-            });
-        }
+        let read =
+            |semantic: Semantic, expect: &Expect| -> Result<Option<Vec<Vec4>>, LoadErrorKind> {
+                let Some(accessor) = primitive.get(&semantic) else {
+                    return Ok(None);
+                };
+                let normalized = expect.reads_normalized(accessor.normalized(), self.quantization);
+                let fail = |problem: String| LoadErrorKind::Accessor {
+                    at,
+                    accessor: accessor.index(),
+                    semantic: expect.semantic.to_string(),
+                    problem,
+                };
+                // Three-component colours get alpha 1; others fill unused lanes with 0.
+                let values: Vec<Vec4> = match accessor.dimensions() {
+                    Dimensions::Vec2 => attributes::read::<2>(&accessor, self.buffers, normalized)
+                        .map_err(fail)?
+                        .into_iter()
+                        .map(|[x, y]| Vec4::new(x, y, 0.0, 0.0))
+                        .collect(),
+                    Dimensions::Vec3 => attributes::read::<3>(&accessor, self.buffers, normalized)
+                        .map_err(fail)?
+                        .into_iter()
+                        .map(|[x, y, z]| Vec4::new(x, y, z, 1.0))
+                        .collect(),
+                    _ => attributes::read::<4>(&accessor, self.buffers, normalized)
+                        .map_err(fail)?
+                        .into_iter()
+                        .map(Vec4::from)
+                        .collect(),
+                };
+                if values.len() != count {
+                    return Err(fail(format!("read {} of {count} elements", values.len())));
+                }
+                Ok(Some(values))
+            };
+        let positions: Vec<Vec3> = read(Semantic::Positions, &POSITION)?
+            .unwrap_or_default()
+            .into_iter()
+            .map(|p| world.transform_point3(p.truncate()))
+            .collect();
         let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
         let linear = Mat3::from_mat4(world);
         let mirror = if world.determinant() < 0.0 { -1.0 } else { 1.0 };
-        let exact = |len: usize| len == count;
-        let normals = has_normals
-            .then(|| reader.read_normals())
-            .flatten()
-            .map(|it| {
-                it.map(|n| normal_matrix * Vec3::from(n))
-                    .collect::<Vec<_>>()
-            })
-            .filter(|v| exact(v.len()));
-        let tangents = has_tangents
-            .then(|| reader.read_tangents())
-            .flatten()
-            .map(|it| {
-                it.map(|t| {
-                    let xyz = (linear * Vec3::new(t[0], t[1], t[2])).normalize_or_zero();
-                    xyz.extend(t[3] * mirror)
+        let normals = read(Semantic::Normals, &NORMAL)?.map(|v| {
+            v.into_iter()
+                .map(|n| normal_matrix * n.truncate())
+                .collect::<Vec<_>>()
+        });
+        let tangents = read(Semantic::Tangents, &TANGENT)?.map(|v| {
+            v.into_iter()
+                .map(|t| {
+                    let xyz = (linear * t.truncate()).normalize_or_zero();
+                    xyz.extend(t.w * mirror)
                 })
                 .collect::<Vec<_>>()
-            })
-            .filter(|v| exact(v.len()));
-        let read_uv = |set: u32, has: bool| {
-            has.then(|| reader.read_tex_coords(set))
-                .flatten()
-                .map(|it| it.into_f32().map(Vec2::from).collect::<Vec<_>>())
-                .filter(|v| exact(v.len()))
-        };
-        let uv0 = read_uv(0, has_uv0);
-        let uv1 = read_uv(1, has_uv1);
-        let colors = has_colors
-            .then(|| reader.read_colors(0))
-            .flatten()
-            .map(|it| it.into_rgba_f32().map(Vec4::from).collect::<Vec<_>>())
-            .filter(|v| exact(v.len()));
+        });
+        let uv = |v: Vec<Vec4>| v.into_iter().map(|t| t.truncate().truncate()).collect();
+        let uv0 = read(Semantic::TexCoords(0), &TEXCOORD)?.map(uv);
+        let uv1 = read(Semantic::TexCoords(1), &TEXCOORD)?.map(uv);
+        let colors = read(Semantic::Colors(0), &COLOR)?;
         Ok(WorldVertices {
             positions,
             normals,
@@ -810,6 +954,49 @@ fn texture_ref(info: Option<gltf::texture::Info>) -> Option<TextureRef> {
     })
 }
 
+/// A normal or occlusion texture reference: the `gltf` crate parses `KHR_texture_transform`
+/// only on plain texture infos, so it is read from the extension's JSON here (same defaults:
+/// offset 0, rotation 0, scale 1; `texCoord` overrides the info's). Malformed fields keep
+/// their defaults.
+fn extension_texture_ref(
+    texture: usize,
+    tex_coord: u32,
+    transform: Option<&serde_json::Value>,
+) -> TextureRef {
+    let pair = |v: Option<&serde_json::Value>, default: [f32; 2]| -> [f32; 2] {
+        match v.and_then(|v| v.as_array()).map(|a| a.as_slice()) {
+            Some([x, y]) => match (x.as_f64(), y.as_f64()) {
+                (Some(x), Some(y)) => [x as f32, y as f32],
+                _ => default,
+            },
+            _ => default,
+        }
+    };
+    let Some(t) = transform.filter(|t| t.is_object()) else {
+        return TextureRef {
+            texture,
+            tex_coord,
+            transform: None,
+        };
+    };
+    TextureRef {
+        texture,
+        tex_coord: t
+            .get("texCoord")
+            .and_then(serde_json::Value::as_u64)
+            .and_then(|c| u32::try_from(c).ok())
+            .unwrap_or(tex_coord),
+        transform: Some(TextureTransform {
+            offset: pair(t.get("offset"), [0.0, 0.0]),
+            rotation: t
+                .get("rotation")
+                .and_then(serde_json::Value::as_f64)
+                .map_or(0.0, |r| r as f32),
+            scale: pair(t.get("scale"), [1.0, 1.0]),
+        }),
+    }
+}
+
 fn material(m: &gltf::Material) -> Material {
     let pbr = m.pbr_metallic_roughness();
     let normal = m.normal_texture();
@@ -821,16 +1008,20 @@ fn material(m: &gltf::Material) -> Material {
         metallic: pbr.metallic_factor(),
         roughness: pbr.roughness_factor(),
         metallic_roughness_texture: texture_ref(pbr.metallic_roughness_texture()),
-        normal_texture: normal.as_ref().map(|n| TextureRef {
-            texture: n.texture().index(),
-            tex_coord: n.tex_coord(),
-            transform: None,
+        normal_texture: normal.as_ref().map(|n| {
+            extension_texture_ref(
+                n.texture().index(),
+                n.tex_coord(),
+                n.extension_value("KHR_texture_transform"),
+            )
         }),
         normal_scale: normal.as_ref().map_or(1.0, |n| n.scale()),
-        occlusion_texture: occlusion.as_ref().map(|o| TextureRef {
-            texture: o.texture().index(),
-            tex_coord: o.tex_coord(),
-            transform: None,
+        occlusion_texture: occlusion.as_ref().map(|o| {
+            extension_texture_ref(
+                o.texture().index(),
+                o.tex_coord(),
+                o.extension_value("KHR_texture_transform"),
+            )
         }),
         occlusion_strength: occlusion.as_ref().map_or(1.0, |o| o.strength()),
         emissive: Vec3::from(m.emissive_factor()),
@@ -847,7 +1038,31 @@ fn material(m: &gltf::Material) -> Material {
     }
 }
 
-fn textures(document: &gltf::Document) -> Vec<Texture> {
+/// EXT_texture_webp: a texture whose extension names a WebP image uses it, and keeps its core
+/// `source` (if any) as the fallback for when the WebP image cannot be decoded. Rewritten in
+/// the JSON before the `gltf` crate validates it, since gltf-json 1.4 requires `source`
+/// (WebP-only files such as gltf-transform's have none). Returns each texture's fallback.
+fn choose_webp_sources(root: &mut gltf::json::Root) -> Vec<Option<usize>> {
+    let image_count = root.images.len();
+    root.textures
+        .iter_mut()
+        .map(|texture| {
+            let webp = texture
+                .extensions
+                .as_ref()
+                .and_then(|e| e.others.get("EXT_texture_webp"))
+                .and_then(|w| w.get("source"))
+                .and_then(serde_json::Value::as_u64)
+                .and_then(|i| usize::try_from(i).ok())
+                .filter(|&i| i < image_count)?;
+            let core = texture.source.value();
+            texture.source = gltf::json::Index::new(webp as u32);
+            (core < image_count && core != webp).then_some(core)
+        })
+        .collect()
+}
+
+fn textures(document: &gltf::Document, webp_fallbacks: &[Option<usize>]) -> Vec<Texture> {
     use gltf::texture::{MagFilter, MinFilter, WrappingMode};
     let wrap = |w: WrappingMode| match w {
         WrappingMode::ClampToEdge => Wrap::ClampToEdge,
@@ -861,6 +1076,7 @@ fn textures(document: &gltf::Document) -> Vec<Texture> {
             Texture {
                 name: t.name().map(str::to_string),
                 image: t.source().index(),
+                fallback_image: webp_fallbacks.get(t.index()).copied().flatten(),
                 sampler: Sampler {
                     mag_filter: match s.mag_filter() {
                         Some(MagFilter::Nearest) => Filter::Nearest,
@@ -880,11 +1096,16 @@ fn textures(document: &gltf::Document) -> Vec<Texture> {
         .collect()
 }
 
+/// Every image's source, its header checked. An image that fails the check is an error, unless
+/// every texture using it has a fallback image (EXT_texture_webp): those textures switch to
+/// their fallback, with a warning.
 fn images(
     document: &gltf::Document,
     buffers: &[Vec<u8>],
     access: &FileAccess,
     options: &LoadOptions,
+    textures: &mut [Texture],
+    warnings: &mut Vec<String>,
 ) -> Result<Vec<ImageSource>, LoadError> {
     let mut out = Vec::with_capacity(document.images().len());
     for image in document.images() {
@@ -939,7 +1160,21 @@ fn images(
                 }
             }
         };
-        check_image_header(&source, options.limits.max_image_pixels).map_err(image_err)?;
+        if let Err(problem) = check_image_header(&source, options.limits.max_image_pixels) {
+            let users = || textures.iter().filter(|t| t.image == index);
+            if users().count() == 0 || users().any(|t| t.fallback_image.is_none()) {
+                return Err(image_err(problem));
+            }
+            warnings.push(format!(
+                "image {index} ({}): {problem}; its textures use their fallback image instead",
+                source.origin
+            ));
+            for texture in textures.iter_mut().filter(|t| t.image == index) {
+                if let Some(fallback) = texture.fallback_image.take() {
+                    texture.image = fallback;
+                }
+            }
+        }
         out.push(source);
     }
     Ok(out)
@@ -960,7 +1195,7 @@ pub(crate) fn check_image_header(source: &ImageSource, max_pixels: u64) -> Resul
             .into_dimensions(),
         (None, None) => return Err("no data".to_string()),
     };
-    let (w, h) = dims.map_err(|e| format!("not a readable PNG or JPEG image: {e}"))?;
+    let (w, h) = dims.map_err(|e| format!("not a readable PNG, JPEG or WebP image: {e}"))?;
     let pixels = w as u64 * h as u64;
     if pixels == 0 || pixels > max_pixels {
         return Err(format!(

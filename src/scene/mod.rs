@@ -3,9 +3,11 @@
 //! Importers ([`gltf`](self::gltf) and [`obj`]) turn a file into a [`Scene`]; nothing here knows
 //! about rays. Units are the glTF ones (glTF 2.0 §3.4): metres, radians, right-handed, +Y up.
 
+mod attributes;
 mod builder;
 mod error;
 pub mod gltf;
+mod meshopt;
 pub mod obj;
 mod paths;
 pub mod tangents;
@@ -244,6 +246,9 @@ pub struct Texture {
     pub name: Option<String>,
     /// Index into [`Scene::images`].
     pub image: usize,
+    /// The image to use instead when `image` cannot be decoded: the core `source` of a
+    /// texture whose `EXT_texture_webp` source was chosen.
+    pub fallback_image: Option<usize>,
     /// Sampler state.
     pub sampler: Sampler,
 }

@@ -119,6 +119,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
                     textures.push(Texture {
                         name: Some(file.to_string()),
                         image: images.len() - 1,
+                        fallback_image: None,
                         sampler: Sampler::default(),
                     });
                     image_index.insert(file.to_string(), textures.len() - 1);

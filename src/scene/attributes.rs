@@ -1,0 +1,208 @@
+//! Reads glTF vertex attribute accessors of every component type that core glTF 2.0 or
+//! `KHR_mesh_quantization` allows, to `f32`, dequantized as the specification says.
+//!
+//! glTF 2.0 §3.11 ("Animations", table of normalized integers) and `KHR_mesh_quantization`:
+//! a normalized component c becomes
+//! - signed byte: max(c / 127, -1), signed short: max(c / 32767, -1);
+//! - unsigned byte: c / 255, unsigned short: c / 65535;
+//!
+//! and a non-normalized integer is taken as it is (the node transform or `KHR_texture_transform`
+//! carries the scale). The `gltf` crate's reader accepts neither normalized integer POSITION nor
+//! NORMAL, and reads TEXCOORD integers as normalized whatever the `normalized` flag says, so
+//! attributes are read here, from bytes that `check_accessor` has already bounded.
+
+use gltf::accessor::{DataType, Dimensions};
+
+/// Why an accessor could not be read (a hostile file that passed the range checks cannot
+/// reach these, but nothing here indexes without checking).
+pub(crate) type ReadResult<T> = Result<T, String>;
+
+/// One component of type `data_type` starting at `bytes[0]`, as f32.
+pub(crate) fn component(bytes: &[u8], data_type: DataType, normalized: bool) -> Option<f32> {
+    let b = |n: usize| bytes.get(..n);
+    Some(match data_type {
+        DataType::F32 => f32::from_le_bytes(b(4)?.try_into().ok()?),
+        DataType::I8 => dequantize_i8(i8::from_le_bytes(b(1)?.try_into().ok()?), normalized),
+        DataType::U8 => dequantize_u8(b(1)?[0], normalized),
+        DataType::I16 => dequantize_i16(i16::from_le_bytes(b(2)?.try_into().ok()?), normalized),
+        DataType::U16 => dequantize_u16(u16::from_le_bytes(b(2)?.try_into().ok()?), normalized),
+        // Not allowed for vertex attributes (glTF 2.0 §3.7.2.1); indices are read elsewhere.
+        DataType::U32 => u32::from_le_bytes(b(4)?.try_into().ok()?) as f32,
+    })
+}
+
+/// Signed byte: max(c / 127, -1) when normalized (so -128 and -127 both give -1).
+pub(crate) fn dequantize_i8(c: i8, normalized: bool) -> f32 {
+    if normalized {
+        (f32::from(c) / 127.0).max(-1.0)
+    } else {
+        f32::from(c)
+    }
+}
+
+/// Unsigned byte: c / 255 when normalized.
+pub(crate) fn dequantize_u8(c: u8, normalized: bool) -> f32 {
+    if normalized {
+        f32::from(c) / 255.0
+    } else {
+        f32::from(c)
+    }
+}
+
+/// Signed short: max(c / 32767, -1) when normalized.
+pub(crate) fn dequantize_i16(c: i16, normalized: bool) -> f32 {
+    if normalized {
+        (f32::from(c) / 32767.0).max(-1.0)
+    } else {
+        f32::from(c)
+    }
+}
+
+/// Unsigned short: c / 65535 when normalized.
+pub(crate) fn dequantize_u16(c: u16, normalized: bool) -> f32 {
+    if normalized {
+        f32::from(c) / 65535.0
+    } else {
+        f32::from(c)
+    }
+}
+
+/// Number of components of an accessor type.
+fn components(dims: Dimensions) -> usize {
+    match dims {
+        Dimensions::Scalar => 1,
+        Dimensions::Vec2 => 2,
+        Dimensions::Vec3 => 3,
+        Dimensions::Vec4 => 4,
+        Dimensions::Mat2 => 4,
+        Dimensions::Mat3 => 9,
+        Dimensions::Mat4 => 16,
+    }
+}
+
+/// Reads every element of `accessor` as `N` f32 components (the accessor must have exactly
+/// `N` components), applying its stride, sparse substitution and, where `normalized`, integer
+/// normalization (the caller decides, see `Expect::reads_normalized`). Elements without a
+/// buffer view start at zero (glTF 2.0 §3.6.2.3).
+pub(crate) fn read<const N: usize>(
+    accessor: &gltf::Accessor,
+    buffers: &[Vec<u8>],
+    normalized: bool,
+) -> ReadResult<Vec<[f32; N]>> {
+    let n = components(accessor.dimensions());
+    if n != N {
+        return Err(format!("has {n} components, expected {N}"));
+    }
+    let data_type = accessor.data_type();
+    let size = data_type.size();
+    let count = accessor.count();
+    let element = accessor.size();
+    let view_bytes = |view: &gltf::buffer::View| -> ReadResult<&[u8]> {
+        let buffer = buffers
+            .get(view.buffer().index())
+            .ok_or_else(|| format!("bufferView {}: buffer missing", view.index()))?;
+        buffer
+            .get(view.offset()..view.offset().saturating_add(view.length()))
+            .ok_or_else(|| format!("bufferView {} is past its buffer's end", view.index()))
+    };
+    let element_at = |bytes: &[u8], start: usize| -> ReadResult<[f32; N]> {
+        let mut out = [0.0; N];
+        for (k, value) in out.iter_mut().enumerate() {
+            // Matrices pad columns to 4 bytes; attributes never are matrices.
+            let at = start + k * size;
+            *value = bytes
+                .get(at..)
+                .and_then(|b| component(b, data_type, normalized))
+                .ok_or_else(|| format!("element at byte {start} is past the view's end"))?;
+        }
+        Ok(out)
+    };
+    let mut out = Vec::new();
+    out.try_reserve_exact(count)
+        .map_err(|_| format!("cannot allocate {count} elements"))?;
+    match accessor.view() {
+        Some(view) => {
+            let bytes = view_bytes(&view)?;
+            let stride = view.stride().unwrap_or(element);
+            for i in 0..count {
+                let start = i
+                    .checked_mul(stride)
+                    .and_then(|s| s.checked_add(accessor.offset()))
+                    .ok_or_else(|| format!("element {i}'s offset overflows"))?;
+                out.push(element_at(bytes, start)?);
+            }
+        }
+        None => out.resize(count, [0.0; N]),
+    }
+    if let Some(sparse) = accessor.sparse() {
+        let indices = sparse.indices();
+        let index_bytes = view_bytes(&indices.view())?;
+        let index_size = indices.index_type().size();
+        let values = sparse.values();
+        let value_bytes = view_bytes(&values.view())?;
+        for k in 0..sparse.count() {
+            let at = indices.offset() + k * index_size;
+            let raw = index_bytes
+                .get(at..at + index_size)
+                .ok_or_else(|| format!("sparse index {k} is past its view's end"))?;
+            let index = match raw {
+                [a] => usize::from(*a),
+                [a, b] => usize::from(u16::from_le_bytes([*a, *b])),
+                [a, b, c, d] => u32::from_le_bytes([*a, *b, *c, *d]) as usize,
+                _ => return Err("sparse index type is not 1, 2 or 4 bytes".to_string()),
+            };
+            let slot = out
+                .get_mut(index)
+                .ok_or_else(|| format!("sparse index {index} is out of range for {count}"))?;
+            *slot = element_at(value_bytes, values.offset() + k * element)?;
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn normalized_integers_follow_the_specification() {
+        // Signed: c / (2^(b-1) - 1), with the most negative value clamped to -1.
+        assert_eq!(dequantize_i8(127, true), 1.0);
+        assert_eq!(dequantize_i8(-127, true), -1.0);
+        assert_eq!(dequantize_i8(-128, true), -1.0);
+        assert_eq!(dequantize_i8(0, true), 0.0);
+        assert_eq!(dequantize_i8(64, true), 64.0 / 127.0);
+        assert_eq!(dequantize_i16(32767, true), 1.0);
+        assert_eq!(dequantize_i16(-32768, true), -1.0);
+        assert_eq!(dequantize_i16(-16384, true), -16384.0 / 32767.0);
+        // Unsigned: c / (2^b - 1).
+        assert_eq!(dequantize_u8(255, true), 1.0);
+        assert_eq!(dequantize_u8(51, true), 0.2);
+        assert_eq!(dequantize_u16(65535, true), 1.0);
+        assert_eq!(dequantize_u16(0, true), 0.0);
+        assert_eq!(dequantize_u16(13107, true), 0.2);
+    }
+
+    #[test]
+    fn integers_that_are_not_normalized_are_taken_as_they_are() {
+        assert_eq!(dequantize_i8(-128, false), -128.0);
+        assert_eq!(dequantize_u8(200, false), 200.0);
+        assert_eq!(dequantize_i16(-32768, false), -32768.0);
+        assert_eq!(dequantize_u16(16383, false), 16383.0);
+    }
+
+    #[test]
+    fn components_decode_little_endian_and_refuse_short_input() {
+        assert_eq!(
+            component(&1.5f32.to_le_bytes(), DataType::F32, false),
+            Some(1.5)
+        );
+        assert_eq!(
+            component(&(-2i16).to_le_bytes(), DataType::I16, false),
+            Some(-2.0)
+        );
+        assert_eq!(component(&[0xff, 0xff], DataType::U16, true), Some(1.0));
+        assert_eq!(component(&[0xff], DataType::U16, true), None);
+        assert_eq!(component(&[], DataType::I8, true), None);
+    }
+}
