@@ -245,16 +245,7 @@ impl TextureSet {
     ) -> Result<TextureSet, TextureError> {
         let mut used = vec![false; scene.images.len()];
         for m in &scene.materials {
-            for r in [
-                m.base_color_texture,
-                m.metallic_roughness_texture,
-                m.normal_texture,
-                m.occlusion_texture,
-                m.emissive_texture,
-            ]
-            .into_iter()
-            .flatten()
-            {
+            for r in m.texture_refs() {
                 if let Some(t) = scene.textures.get(r.texture) {
                     if let Some(u) = used.get_mut(t.image) {
                         *u = true;

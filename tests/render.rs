@@ -40,6 +40,30 @@ fn merge(mut a: serde_json::Value, b: serde_json::Value) -> serde_json::Value {
     a
 }
 
+/// A `size` x `size` render at 1 spp without ambient light, and its normal AOV, as pixels.
+fn radiance_and_normals(dir: &Path, model: &Path, size: u32) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+    let normals = dir.join("normal.exr");
+    let size = size.to_string();
+    let out = render_to(
+        dir,
+        model,
+        "radiance.exr",
+        &[
+            "--width",
+            &size,
+            "--height",
+            &size,
+            "--spp",
+            "1",
+            "--ambient",
+            "0",
+            "--normal-out",
+            s(&normals),
+        ],
+    );
+    (read_rgba(&out).2, read_rgba(&normals).2)
+}
+
 fn render_to(dir: &Path, model: &Path, name: &str, extra: &[&str]) -> PathBuf {
     let out = dir.join(name);
     let mut args = vec!["render", s(model), "-o", s(&out), "--quiet"];
@@ -322,26 +346,7 @@ fn a_coarse_smooth_sphere_has_a_smooth_terminator() {
         common::sphere_gltf((8, 12), glam::Vec3::ZERO, 1.0, to_light, 3.0, white(false));
     let model = write_gltf(dir.path(), "sphere.gltf", json, &bin);
     let n = 160usize;
-    let normals = dir.path().join("normal.exr");
-    let out = render_to(
-        dir.path(),
-        &model,
-        "sphere.exr",
-        &[
-            "--width",
-            "160",
-            "--height",
-            "160",
-            "--spp",
-            "1",
-            "--ambient",
-            "0",
-            "--normal-out",
-            s(&normals),
-        ],
-    );
-    let (_, _, radiance) = read_rgba(&out);
-    let (_, _, normal) = read_rgba(&normals);
+    let (radiance, normal) = radiance_and_normals(dir.path(), &model, 160);
     let (mut lit, mut dark, mut near_terminator) = (0, 0, 0);
     for i in 0..n * n {
         if radiance[i][3] == 0.0 {
@@ -392,26 +397,7 @@ fn a_sphere_far_from_the_origin_has_no_shadow_acne() {
             white(false),
         );
         let model = write_gltf(dir.path(), "far.gltf", json, &bin);
-        let normals = dir.path().join("normal.exr");
-        let out = render_to(
-            dir.path(),
-            &model,
-            "far.exr",
-            &[
-                "--width",
-                "200",
-                "--height",
-                "200",
-                "--spp",
-                "1",
-                "--ambient",
-                "0",
-                "--normal-out",
-                s(&normals),
-            ],
-        );
-        let (_, _, radiance) = read_rgba(&out);
-        let (_, _, normal) = read_rgba(&normals);
+        let (radiance, normal) = radiance_and_normals(dir.path(), &model, 200);
         let (mut facing, mut dark) = (0, 0);
         for (l, n) in radiance.iter().zip(&normal) {
             let n = glam::Vec3::new(n[0], n[1], n[2]);

@@ -212,6 +212,22 @@ pub struct Material {
     pub specular: Option<Vec3>,
 }
 
+impl Material {
+    /// Every texture the material references (base colour, metallic-roughness, normal,
+    /// occlusion, emissive), in that order, skipping those it lacks.
+    pub fn texture_refs(&self) -> impl Iterator<Item = TextureRef> {
+        [
+            self.base_color_texture,
+            self.metallic_roughness_texture,
+            self.normal_texture,
+            self.occlusion_texture,
+            self.emissive_texture,
+        ]
+        .into_iter()
+        .flatten()
+    }
+}
+
 impl Default for Material {
     /// The glTF default material (§3.9.1): white, fully metallic and fully rough, single-sided.
     /// A metallic white with no environment renders black under punctual lights in a PBR shader,
@@ -527,16 +543,7 @@ impl Scene {
             return bad("triangle material", m as usize, self.materials.len());
         }
         for material in &self.materials {
-            for r in [
-                material.base_color_texture,
-                material.metallic_roughness_texture,
-                material.normal_texture,
-                material.occlusion_texture,
-                material.emissive_texture,
-            ]
-            .into_iter()
-            .flatten()
-            {
+            for r in material.texture_refs() {
                 if r.texture >= self.textures.len() {
                     return bad("material texture", r.texture, self.textures.len());
                 }
