@@ -72,6 +72,102 @@ pub fn incident(light: &Light, point: Vec3) -> Option<Incident> {
     }
 }
 
+/// Emissive triangles as area lights: every triangle whose material emits
+/// (`emissiveFactor` × `KHR_materials_emissive_strength`, OBJ `Ke`), picked for next-event
+/// estimation in proportion to its power estimate, luminance(emission factor) × area (an
+/// emissive texture modulates the radiance at the sampled point but not the choice). Each
+/// emits from both faces, as an emission shader on a mesh does in Cycles. Radiance units are
+/// those of the rest of the renderer (nits on the photometric scale of [`incident`]).
+#[derive(Clone, Debug, Default)]
+pub struct AreaLights {
+    /// Soup index of each light triangle.
+    triangles: Vec<u32>,
+    /// Area of each light triangle.
+    areas: Vec<f32>,
+    /// Which light to sample.
+    distribution: crate::sampling::Distribution1D,
+    /// For each soup triangle, its light index or `u32::MAX` (empty when there are no lights).
+    index_of: Vec<u32>,
+}
+
+/// A point drawn on an area light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AreaSample {
+    /// Soup index of the triangle.
+    pub triangle: u32,
+    /// Barycentric coordinates of the point.
+    pub barycentric: Vec3,
+    /// Probability density of the point per unit area (over all lights).
+    pub pdf_area: f32,
+}
+
+impl AreaLights {
+    /// The emissive triangles of `scene`.
+    pub fn new(scene: &crate::Scene) -> AreaLights {
+        let soup = &scene.soup;
+        let emission: Vec<f32> = scene
+            .materials
+            .iter()
+            .map(|m| crate::bsdf::luminance(m.emissive * m.emissive_strength))
+            .collect();
+        let mut lights = AreaLights::default();
+        let mut weights = Vec::new();
+        for (tri, &m) in soup.material.iter().enumerate() {
+            let power = emission.get(m as usize).copied().unwrap_or(0.0);
+            if power > 0.0 && power.is_finite() {
+                let [a, b, c] = soup.positions[tri];
+                let area = 0.5 * (b - a).cross(c - a).length();
+                if area > 0.0 && area.is_finite() {
+                    lights.triangles.push(tri as u32);
+                    lights.areas.push(area);
+                    weights.push(power * area);
+                }
+            }
+        }
+        if !lights.triangles.is_empty() {
+            lights.index_of = vec![u32::MAX; soup.len()];
+            for (i, &tri) in lights.triangles.iter().enumerate() {
+                lights.index_of[tri as usize] = i as u32;
+            }
+        }
+        lights.distribution = crate::sampling::Distribution1D::new(weights);
+        lights
+    }
+
+    /// Number of emissive triangles.
+    pub fn len(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// True when the scene emits nothing.
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    /// A point on the lights from three uniform numbers: a light in proportion to its power,
+    /// then a uniform point on it.
+    pub fn sample(&self, u_light: f32, u1: f32, u2: f32) -> Option<AreaSample> {
+        let (i, _) = self.distribution.sample(u_light)?;
+        let pdf_area = self.distribution.probability(i) / self.areas[i];
+        Some(AreaSample {
+            triangle: self.triangles[i],
+            barycentric: crate::sampling::uniform_triangle(u1, u2),
+            pdf_area,
+        })
+    }
+
+    /// The density per unit area with which [`AreaLights::sample`] draws a point on soup
+    /// triangle `triangle` (0 for a triangle that does not emit).
+    pub fn pdf_area(&self, triangle: u32) -> f32 {
+        match self.index_of.get(triangle as usize) {
+            Some(&i) if i != u32::MAX => {
+                self.distribution.probability(i as usize) / self.areas[i as usize]
+            }
+            _ => 0.0,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

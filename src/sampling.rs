@@ -1,5 +1,9 @@
 //! Seeded, position-keyed random numbers: the same pixel gets the same samples whatever thread
-//! renders it, so output is identical for any thread count.
+//! renders it, so output is identical for any thread count. Also the sampling routines of the
+//! path tracer: hemisphere and triangle warps, piecewise-constant distributions, the MIS power
+//! heuristic.
+
+use glam::Vec3;
 
 /// A small, fast generator (SplitMix64). Not for cryptography; statistically fine for jitter.
 #[derive(Clone, Debug)]
@@ -37,9 +41,169 @@ impl Rng {
     }
 }
 
+/// An orthonormal basis (t, b, n) around the unit vector `n`, without branches on its sign
+/// (Duff et al., "Building an Orthonormal Basis, Revisited", JCGT 2017).
+pub fn frame(n: Vec3) -> (Vec3, Vec3) {
+    let sign = 1.0f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        Vec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
+/// A cosine-weighted direction in the hemisphere around +Z (Malley's method); its pdf is
+/// `z / π` per steradian.
+pub fn cosine_hemisphere(u1: f32, u2: f32) -> Vec3 {
+    let r = u1.sqrt();
+    let phi = std::f32::consts::TAU * u2;
+    Vec3::new(r * phi.cos(), r * phi.sin(), (1.0 - u1).max(0.0).sqrt())
+}
+
+/// Uniform barycentric coordinates on a triangle (the square-root mapping, pbrt-v4 §A.5.5).
+pub fn uniform_triangle(u1: f32, u2: f32) -> Vec3 {
+    let s = u1.sqrt();
+    let (b1, b2) = (1.0 - s, u2 * s);
+    Vec3::new(1.0 - b1 - b2, b1, b2)
+}
+
+/// The power heuristic with β = 2 (Veach 1997): the MIS weight of a sample drawn with pdf `f`
+/// against another strategy with pdf `g`.
+pub fn power_heuristic(f: f32, g: f32) -> f32 {
+    let (f2, g2) = (f * f, g * g);
+    if f2 + g2 > 0.0 && (f2 + g2).is_finite() {
+        f2 / (f2 + g2)
+    } else if f.is_infinite() {
+        1.0
+    } else {
+        0.0
+    }
+}
+
+/// A piecewise-constant distribution over `n` bins, sampled by inverting its CDF.
+#[derive(Clone, Debug, Default)]
+pub struct Distribution1D {
+    /// Bin weights (non-negative).
+    weights: Vec<f32>,
+    /// Running sums, normalised: cdf[0] = 0, cdf[n] = 1.
+    cdf: Vec<f32>,
+    /// Sum of the weights.
+    total: f32,
+}
+
+impl Distribution1D {
+    /// A distribution proportional to `weights` (negative and non-finite weights count as 0).
+    /// With no positive weight it is uniform.
+    pub fn new(weights: Vec<f32>) -> Self {
+        let weights: Vec<f32> = weights
+            .into_iter()
+            .map(|w| if w.is_finite() && w > 0.0 { w } else { 0.0 })
+            .collect();
+        let n = weights.len();
+        let mut cdf = Vec::with_capacity(n + 1);
+        let mut sum = 0.0f64;
+        cdf.push(0.0);
+        for w in &weights {
+            sum += f64::from(*w);
+            cdf.push(sum as f32);
+        }
+        let total = sum as f32;
+        if total > 0.0 {
+            for c in &mut cdf {
+                *c /= total;
+            }
+        } else {
+            for (i, c) in cdf.iter_mut().enumerate() {
+                *c = i as f32 / n.max(1) as f32;
+            }
+        }
+        if let Some(last) = cdf.last_mut() {
+            *last = 1.0;
+        }
+        Self {
+            weights,
+            cdf,
+            total,
+        }
+    }
+
+    /// Number of bins.
+    pub fn len(&self) -> usize {
+        self.weights.len()
+    }
+
+    /// True with no bins.
+    pub fn is_empty(&self) -> bool {
+        self.weights.is_empty()
+    }
+
+    /// Sum of the weights.
+    pub fn total(&self) -> f32 {
+        self.total
+    }
+
+    /// Probability of bin `i`.
+    pub fn probability(&self, i: usize) -> f32 {
+        if self.total > 0.0 {
+            self.weights.get(i).map_or(0.0, |w| w / self.total)
+        } else if self.is_empty() {
+            0.0
+        } else {
+            1.0 / self.len() as f32
+        }
+    }
+
+    /// A bin drawn with its probability, and the position of `u` within it in [0, 1).
+    /// `None` for an empty distribution.
+    pub fn sample(&self, u: f32) -> Option<(usize, f32)> {
+        if self.is_empty() {
+            return None;
+        }
+        // The last cdf entry <= u, skipping empty bins (their two cdf entries are equal).
+        let i = self
+            .cdf
+            .partition_point(|&c| c <= u)
+            .saturating_sub(1)
+            .min(self.len() - 1);
+        let (lo, hi) = (self.cdf[i], self.cdf[i + 1]);
+        let within = if hi > lo { (u - lo) / (hi - lo) } else { 0.5 };
+        Some((i, within.clamp(0.0, 1.0 - f32::EPSILON)))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn distribution_samples_in_proportion_and_skips_empty_bins() {
+        let d = Distribution1D::new(vec![1.0, 0.0, 3.0]);
+        assert_eq!(d.probability(0), 0.25);
+        assert_eq!(d.probability(1), 0.0);
+        let mut rng = Rng::new(3);
+        let mut counts = [0usize; 3];
+        for _ in 0..40_000 {
+            let (i, within) = d.sample(rng.next_f32()).expect("non-empty");
+            assert!((0.0..1.0).contains(&within));
+            counts[i] += 1;
+        }
+        assert_eq!(counts[1], 0);
+        let share = counts[2] as f32 / 40_000.0;
+        assert!((share - 0.75).abs() < 0.01, "{share}");
+        assert!(Distribution1D::new(Vec::new()).sample(0.5).is_none());
+        let flat = Distribution1D::new(vec![0.0, 0.0]);
+        assert_eq!(flat.probability(1), 0.5);
+    }
+
+    #[test]
+    fn frames_are_orthonormal() {
+        for n in [Vec3::Z, Vec3::NEG_Z, Vec3::new(0.3, -0.5, 0.81).normalize()] {
+            let (t, b) = frame(n);
+            assert!(t.dot(b).abs() < 1e-6 && t.dot(n).abs() < 1e-6 && b.dot(n).abs() < 1e-6);
+            assert!((t.length() - 1.0).abs() < 1e-6 && (b.length() - 1.0).abs() < 1e-6);
+        }
+    }
 
     #[test]
     fn uniform_in_unit_interval_and_reproducible() {
