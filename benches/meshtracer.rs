@@ -328,6 +328,10 @@ fn render(c: &mut Criterion) {
         exposure: 0.0,
         shading: meshtracer::shading::ShadingModel::Pbr,
         aovs: false,
+        integrator: meshtracer::integrator::IntegratorKind::Direct,
+        bounces: 0,
+        environment: None,
+        environment_visible: false,
     };
     let scene = meshtracer::prepare::Prepared::from_parts(
         scene,

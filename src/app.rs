@@ -3,6 +3,8 @@
 use crate::accel::{Accel, AccelKind};
 use crate::camera::{auto_camera, look_at, View};
 use crate::cli::{Command, InfoArgs, LoadArgs, RenderArgs};
+use crate::environment::Environment;
+use crate::integrator::IntegratorKind;
 use crate::output::PendingOutput;
 use crate::prepare::Prepared;
 use crate::render::{render, RenderSettings};
@@ -14,6 +16,9 @@ use anyhow::{bail, Context, Result};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
+
+/// Most path bounces `--bounces` accepts: far beyond any visible difference.
+const MAX_BOUNCES: u32 = 1024;
 
 /// Runs one command.
 pub fn run(command: Command) -> Result<()> {
@@ -268,6 +273,26 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     if !(args.depth_scale > 0.0 && args.depth_scale.is_finite()) {
         bail!("--depth-scale must be a positive number");
     }
+    let path_tracing = args.integrator == IntegratorKind::Path;
+    if !path_tracing && (args.env.is_some() || args.env_visible || args.env_out.is_some()) {
+        bail!("--env, --env-visible and --env-out light the path tracer: add --integrator path");
+    }
+    if !(args.env_intensity >= 0.0 && args.env_intensity.is_finite()) {
+        bail!("--env-intensity must be a finite number, 0 or more");
+    }
+    if !args.env_rotation.is_finite() {
+        bail!("--env-rotation must be a finite number of degrees");
+    }
+    if args.bounces > MAX_BOUNCES {
+        bail!("--bounces {}: at most {MAX_BOUNCES}", args.bounces);
+    }
+    if let Some(p) = &args.env_out {
+        crate::aov::check(p, &["hdr"])?;
+    }
+    let env_file = match &args.env {
+        Some(path) => Some(Environment::load(path)?),
+        None => None,
+    };
     let output = PendingOutput::reserve(&args.output, args.no_clobber)?;
     let (threads, pool) = worker_pool(args.threads)?;
 
@@ -310,7 +335,8 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     };
     let view = View::from_camera(&camera, width, height);
 
-    let using_rig = view_file.is_none() && scene.lights.is_empty() && !args.no_default_lights;
+    let using_rig =
+        view_file.is_none() && scene.lights.is_empty() && !args.no_default_lights && !path_tracing;
     let (lights, default_ambient) = if let Some(v) = &view_file {
         (v.lights(), glam::Vec3::from(v.ambient))
     } else if !scene.lights.is_empty() {
@@ -318,12 +344,32 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             scene.lights.clone(),
             glam::Vec3::splat(AMBIENT_WITH_FILE_LIGHTS),
         )
-    } else if args.no_default_lights {
+    } else if args.no_default_lights || path_tracing {
+        // The path tracer's fill is the built-in studio environment (below), not a rig.
         (Vec::new(), glam::Vec3::ZERO)
     } else {
         default_rig(&view)
     };
-    if lights.is_empty() && !args.quiet {
+    // The path tracer's default fill is the built-in studio environment, not a light rig.
+    let environment = match env_file {
+        Some(env) => Some(env),
+        None if path_tracing
+            && view_file.is_none()
+            && scene.lights.is_empty()
+            && !args.no_default_lights =>
+        {
+            Some(Environment::studio())
+        }
+        None => None,
+    }
+    .map(|env| Arc::new(env.with_transform(args.env_rotation, args.env_intensity)));
+    if let (Some(path), None) = (&args.env_out, &environment) {
+        bail!(
+            "{}: --env-out: no environment lights this render (the file has lights; give --env)",
+            path.display()
+        );
+    }
+    if lights.is_empty() && environment.is_none() && !args.quiet {
         eprintln!(
             "warning: no lights (--no-default-lights): only ambient and emissive light the scene"
         );
@@ -339,6 +385,10 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         aovs: args.depth_out.is_some()
             || args.normal_out.is_some()
             || args.segmentation_out.is_some(),
+        integrator: args.integrator,
+        bounces: args.bounces,
+        environment,
+        environment_visible: args.env_visible,
     };
     let texture_start = Instant::now();
     let mut texture_warnings = Vec::new();
@@ -390,6 +440,22 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         let coverage: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();
         crate::aov::write_mask(p, width, height, &coverage)?;
     }
+    if let (Some(path), Some(env)) = (&args.env_out, &settings.environment) {
+        let panorama = env.to_rgb32f();
+        let mut bytes = Vec::new();
+        image::codecs::hdr::HdrEncoder::new(&mut bytes)
+            .encode(
+                panorama
+                    .pixels()
+                    .map(|p| image::Rgb(p.0))
+                    .collect::<Vec<_>>()
+                    .as_slice(),
+                panorama.width() as usize,
+                panorama.height() as usize,
+            )
+            .with_context(|| format!("{}: cannot encode the panorama", path.display()))?;
+        crate::output::write_atomic(path, &bytes)?;
+    }
     if let Some(path) = &args.view_out {
         let mut view = crate::view::ViewFile::new(
             &camera,
@@ -423,7 +489,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             AccelKind::Linear => "linear scan (no BVH)".to_string(),
         };
         eprintln!(
-            "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {} spp rendered in {:.3} s: {} rays ({} primary, {} shadow), {:.2} Mrays/s on {threads} threads -> {}",
+            "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {} spp rendered in {:.3} s: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {threads} threads -> {}",
             args.model.display(),
             scene.soup.len(),
             load_time.as_secs_f64() * 1e3,
@@ -434,6 +500,11 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             stats.rays(),
             stats.primary_rays,
             stats.shadow_rays,
+            if stats.indirect_rays > 0 {
+                format!(", {} indirect", stats.indirect_rays)
+            } else {
+                String::new()
+            },
             stats.mrays_per_second(),
             args.output.display()
         );

@@ -122,9 +122,42 @@ pub struct RenderArgs {
     /// warning.
     #[arg(long, default_value_t = crate::setup::MAX_TEXTURE_MIB, value_name = "MIB")]
     pub max_texture_memory: usize,
-    /// Do not add the default key and fill lights when the file has no lights.
+    /// Do not add the default key and fill lights (direct) or the built-in studio environment
+    /// (path) when the file has no lights.
     #[arg(long)]
     pub no_default_lights: bool,
+    /// Light transport: `direct` (punctual lights through shadow rays, constant ambient) or
+    /// `path` (path tracing: emissive surfaces as area lights, the environment,
+    /// interreflection, multiple importance sampling).
+    #[arg(long, value_enum, default_value_t = crate::integrator::IntegratorKind::Direct)]
+    pub integrator: crate::integrator::IntegratorKind,
+    /// Path tracer: most bounces after the first hit (0 = direct light only).
+    #[arg(long, default_value_t = crate::setup::DEFAULT_BOUNCES, value_name = "N")]
+    pub bounces: u32,
+    /// Path tracer: light the scene with this equirectangular panorama (.hdr, or .exr with
+    /// any compression but DWAA/DWAB) [default: the built-in neutral studio when the file has
+    /// no lights].
+    #[arg(long, value_name = "FILE")]
+    pub env: Option<PathBuf>,
+    /// Path tracer: turn the environment about +Y by this many degrees.
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        value_name = "DEG",
+        allow_hyphen_values = true
+    )]
+    pub env_rotation: f32,
+    /// Path tracer: multiply the environment's radiance by this.
+    #[arg(long, default_value_t = 1.0, value_name = "X")]
+    pub env_intensity: f32,
+    /// Path tracer: camera rays that miss show the environment (else they stay transparent,
+    /// or take --background).
+    #[arg(long)]
+    pub env_visible: bool,
+    /// Path tracer: write the environment actually used (built-in included, rotation and
+    /// intensity applied) as a Radiance .hdr panorama, to light another renderer the same way.
+    #[arg(long, value_name = "FILE.hdr")]
+    pub env_out: Option<PathBuf>,
     /// Write camera-space depth (distance along the view axis, 0 = no hit): .exr, .npy, or
     /// 16-bit .png in units of --depth-scale.
     #[arg(long, value_name = "FILE")]

@@ -2,6 +2,7 @@
 //! structure and the decoded textures), built once and shared read-only by every render of it.
 
 use crate::accel::{Accel, AccelKind, BvhPreset};
+use crate::light::AreaLights;
 use crate::scene::{AlphaMode, Scene};
 use crate::texture::{TextureError, TextureSet};
 
@@ -13,6 +14,8 @@ pub struct Prepared {
     pub accel: Accel,
     /// Decoded images of `scene.textures`.
     pub textures: TextureSet,
+    /// The emissive triangles, for next-event estimation.
+    pub area_lights: AreaLights,
     /// Whether any material is not OPAQUE (else the alpha machinery is skipped).
     any_alpha: bool,
 }
@@ -62,10 +65,12 @@ impl Prepared {
             .materials
             .iter()
             .any(|m| m.alpha_mode != AlphaMode::Opaque);
+        let area_lights = AreaLights::new(&scene);
         Prepared {
             scene,
             accel,
             textures,
+            area_lights,
             any_alpha,
         }
     }

@@ -8,7 +8,7 @@ use super::{CameraRay, Integrator, RayCounts};
 use crate::geometry::Ray;
 use crate::light::incident;
 use crate::prepare::Prepared;
-use crate::render::surface::{Surface, TERMINATOR_BAND};
+use crate::render::surface::Surface;
 use crate::sampling::Rng;
 use crate::scene::{AlphaMode, Light};
 use crate::shading::{shade, ShadingModel};
@@ -74,27 +74,10 @@ impl Direct {
             let Some(incoming) = incident(light, s.spawn.point) else {
                 continue;
             };
-            // The light must be above the smooth surface (not the flat facet: near the
-            // terminator of a smooth-shaded mesh the facet test cuts light off facet by facet,
-            // a staircase) and above the shading normal. Flat triangles have smooth = facet.
-            if incoming.to_light.dot(s.smooth) <= 0.0 || incoming.to_light.dot(s.normal) <= 0.0 {
+            let Some(shadow) = s.shadow_ray(incoming.to_light, incoming.distance) else {
                 continue;
-            }
-            *shadow_rays += 1;
-            // Shadow rays leave from the lifted point only where the light grazes or sits below
-            // the facet (cosine under TERMINATOR_BAND, fading in): only there can the facet's
-            // own neighbours block a ray the smooth surface would let through. Elsewhere the
-            // lift would only move the origin off the real geometry and thin contact shadows
-            // (it cost the Avocado's seed its shadow). The same idea as Cycles' "shadow
-            // terminator geometry offset".
-            let toward = incoming.to_light.dot(s.geometric);
-            let amount = (1.0 - toward / TERMINATOR_BAND).clamp(0.0, 1.0);
-            let from = if amount > 0.0 {
-                s.spawn.moved(s.lift * amount)
-            } else {
-                s.spawn
             };
-            let shadow = from.ray(incoming.to_light, incoming.distance);
+            *shadow_rays += 1;
             let transmittance = scene.shadow_transmittance(&shadow);
             if transmittance <= 0.0 {
                 continue;

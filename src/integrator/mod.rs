@@ -4,8 +4,10 @@
 //! Mitsuba 3's `SamplingIntegrator::sample`.
 
 pub mod direct;
+pub mod path;
 
 pub use direct::Direct;
+pub use path::PathTracer;
 
 use crate::geometry::Ray;
 use crate::prepare::Prepared;
@@ -39,6 +41,29 @@ pub struct RayCounts {
     pub primary: u64,
     /// Shadow rays.
     pub shadow: u64,
+    /// Path continuation rays (bounces).
+    pub indirect: u64,
+}
+
+/// Which integrator renders.
+#[derive(
+    Clone,
+    Copy,
+    Debug,
+    PartialEq,
+    Eq,
+    Default,
+    clap::ValueEnum,
+    serde::Serialize,
+    serde::Deserialize,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum IntegratorKind {
+    /// Punctual lights through shadow rays, constant ambient, emission as seen; no bounces.
+    #[default]
+    Direct,
+    /// Path tracing: area lights, the environment, interreflection, MIS.
+    Path,
 }
 
 /// Computes the radiance along camera rays.

@@ -9,8 +9,9 @@
 pub mod surface;
 
 use crate::camera::{Lens, View};
+use crate::environment::Environment;
 use crate::geometry::Ray;
-use crate::integrator::{CameraRay, Direct, Integrator, RayCounts};
+use crate::integrator::{CameraRay, Direct, Integrator, IntegratorKind, PathTracer, RayCounts};
 use crate::output::Image;
 use crate::prepare::Prepared;
 use crate::sampling::Rng;
@@ -19,6 +20,7 @@ use crate::shading::ShadingModel;
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 pub use crate::integrator::direct::MAX_BLEND_LAYERS;
@@ -46,6 +48,14 @@ pub struct RenderSettings {
     pub shading: ShadingModel,
     /// Also compute the per-pixel AOVs (depth, normal, instance id) from pixel-centre rays.
     pub aovs: bool,
+    /// Which integrator renders.
+    pub integrator: IntegratorKind,
+    /// Path tracer: most bounces after the first hit.
+    pub bounces: u32,
+    /// Path tracer: the environment that lights the scene, if any.
+    pub environment: Option<Arc<Environment>>,
+    /// Path tracer: camera rays that miss show the environment (else they are transparent).
+    pub environment_visible: bool,
 }
 
 /// Arbitrary output variables, from one ray through each pixel's centre (no anti-aliasing,
@@ -68,6 +78,8 @@ pub struct RenderStats {
     pub primary_rays: u64,
     /// Shadow rays traced.
     pub shadow_rays: u64,
+    /// Path continuation rays (bounces) traced.
+    pub indirect_rays: u64,
     /// Wall time of the render (not the BVH build).
     pub time: Duration,
 }
@@ -75,7 +87,7 @@ pub struct RenderStats {
 impl RenderStats {
     /// All rays traced.
     pub fn rays(&self) -> u64 {
-        self.primary_rays + self.shadow_rays
+        self.primary_rays + self.shadow_rays + self.indirect_rays
     }
 
     /// Millions of rays per second over the render's wall time.
@@ -103,12 +115,28 @@ pub fn render(
     let tiles_y = height.div_ceil(TILE_SIZE);
     let total = u64::from(tiles_x) * u64::from(tiles_y);
     let done = std::sync::atomic::AtomicU64::new(0);
-    let integrator = Direct {
-        lights: settings.lights.clone(),
-        ambient: settings.ambient,
-        shading: settings.shading,
+    let direct;
+    let path;
+    let integrator: &dyn Integrator = match settings.integrator {
+        IntegratorKind::Direct => {
+            direct = Direct {
+                lights: settings.lights.clone(),
+                ambient: settings.ambient,
+                shading: settings.shading,
+            };
+            &direct
+        }
+        IntegratorKind::Path => {
+            path = PathTracer {
+                lights: settings.lights.clone(),
+                environment: settings.environment.clone(),
+                environment_visible: settings.environment_visible,
+                max_bounces: settings.bounces,
+            };
+            &path
+        }
     };
-    let tracer = PixelLoop::new(scene, &integrator, settings);
+    let tracer = PixelLoop::new(scene, integrator, settings);
     let tiles: Vec<(u32, u32)> = (0..tiles_y)
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
         .collect();
@@ -135,6 +163,7 @@ pub fn render(
         let tile = tile.ok_or(Cancelled)?;
         stats.primary_rays += tile.counts.primary;
         stats.shadow_rays += tile.counts.shadow;
+        stats.indirect_rays += tile.counts.indirect;
         for (row, chunk) in tile.pixels.chunks(tile.width as usize).enumerate() {
             let y = tile.y + row as u32;
             let begin = (y * width + tile.x) as usize;

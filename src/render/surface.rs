@@ -43,7 +43,49 @@ pub struct Surface<'m> {
     pub source: &'m Material,
 }
 
+impl Surface<'_> {
+    /// The shadow ray toward a light in direction `to_light` (unit) at `distance` (infinite for
+    /// a direction), or `None` where the light cannot reach this point of the surface.
+    ///
+    /// The light must be above the smooth surface (not the flat facet: near the terminator of
+    /// a smooth-shaded mesh the facet test cuts light off facet by facet, a staircase) and above
+    /// the shading normal. Flat triangles have smooth = facet.
+    ///
+    /// Shadow rays leave from the lifted point only where the light grazes or sits below the
+    /// facet (cosine under [`TERMINATOR_BAND`], fading in): only there can the facet's own
+    /// neighbours block a ray the smooth surface would let through. Elsewhere the lift would
+    /// only move the origin off the real geometry and thin contact shadows (it cost the
+    /// Avocado's seed its shadow). The same idea as Cycles' "shadow terminator geometry offset".
+    pub fn shadow_ray(&self, to_light: Vec3, distance: f32) -> Option<Ray> {
+        if to_light.dot(self.smooth) <= 0.0 || to_light.dot(self.normal) <= 0.0 {
+            return None;
+        }
+        let toward = to_light.dot(self.geometric);
+        let amount = (1.0 - toward / TERMINATOR_BAND).clamp(0.0, 1.0);
+        let from = if amount > 0.0 {
+            self.spawn.moved(self.lift * amount)
+        } else {
+            self.spawn
+        };
+        Some(from.ray(to_light, distance))
+    }
+}
+
 impl Prepared {
+    /// Emitted radiance at barycentrics `b` of soup triangle `tri` (emissive factor × strength
+    /// × the emissive texture at full resolution), for either face.
+    pub fn emission_at(&self, tri: usize, b: Vec3) -> Vec3 {
+        let material = &self.scene.materials[self.scene.soup.material[tri] as usize];
+        let mut emission = material.emissive * material.emissive_strength;
+        if let Some(r) = &material.emissive_texture {
+            if let Some((image, sampler)) = self.textures.lookup(&self.scene, r) {
+                let uv = transform_uv(r, self.uv(tri, r.tex_coord, b));
+                emission *= image.sample(uv, 0.0, sampler, true).truncate();
+            }
+        }
+        emission
+    }
+
     /// The closest surface a camera ray sees: MASK cut-outs are skipped, BLEND surfaces count.
     pub fn intersect_camera(&self, ray: &Ray) -> Option<Hit> {
         if self.any_alpha() {

@@ -1,0 +1,214 @@
+//! The path tracer: unidirectional paths from the camera with next-event estimation.
+//!
+//! At every surface the path meets it estimates direct light three ways: each punctual light
+//! through a shadow ray (delta lights: light sampling only), one point on the emissive
+//! triangles ([`crate::light::AreaLights`], drawn by power) and one direction of the
+//! environment ([`crate::environment::Environment`], drawn by luminance); then it continues in
+//! a direction drawn from the BSDF ([`crate::bsdf::Bsdf`]: GGX visible normals or cosine).
+//! Emission that a BSDF-sampled ray then finds (an emissive triangle, or the environment when it
+//! escapes) is weighted against the light-sampling estimate of the same light by the power
+//! heuristic (Veach 1997), so neither strategy is counted twice and each covers where the other
+//! is poor (small bright lights, sharp highlights). After [`ROULETTE_DEPTH`] bounces a path
+//! survives with probability max(throughput) (Russian roulette), at most `max_bounces`.
+//!
+//! BLEND surfaces are hit with probability alpha and passed through otherwise; MASK cut-outs
+//! are skipped in traversal as for camera rays. Materials are the glTF metallic-roughness BRDF;
+//! transmission, volume, clearcoat and sheen are not modelled yet (opaque).
+//!
+//! All randomness comes from the pixel's own stream, in a fixed order, so the image is the same
+//! for any number of threads.
+
+use super::{CameraRay, Integrator, RayCounts};
+use crate::bsdf::Bsdf;
+use crate::environment::Environment;
+use crate::geometry::SpawnPoint;
+use crate::light::incident;
+use crate::prepare::Prepared;
+use crate::render::MAX_BLEND_LAYERS;
+use crate::sampling::{power_heuristic, Rng};
+use crate::scene::{AlphaMode, Light};
+use glam::Vec3;
+use std::sync::Arc;
+
+/// Bounces before Russian roulette may end a path.
+pub const ROULETTE_DEPTH: u32 = 3;
+
+/// Lowest survival probability under Russian roulette (keeps the weight 1/q bounded by 20).
+const MIN_SURVIVAL: f32 = 0.05;
+
+/// A path tracer with next-event estimation and MIS.
+#[derive(Clone, Debug)]
+pub struct PathTracer {
+    /// Punctual lights.
+    pub lights: Vec<Light>,
+    /// The environment that lights the scene, if any.
+    pub environment: Option<Arc<Environment>>,
+    /// Whether camera rays that miss see the environment (else they are transparent).
+    pub environment_visible: bool,
+    /// Most surface interactions after the first hit (0 = direct light only).
+    pub max_bounces: u32,
+}
+
+impl Integrator for PathTracer {
+    fn radiance(
+        &self,
+        scene: &Prepared,
+        camera: &CameraRay,
+        rng: &mut Rng,
+        counts: &mut RayCounts,
+    ) -> (Vec3, f32) {
+        let mut ray = camera.ray;
+        let mut throughput = Vec3::ONE;
+        let mut radiance = Vec3::ZERO;
+        let mut coverage = 0.0;
+        // The BSDF pdf of the direction the current ray was drawn with; None for camera rays.
+        let mut bsdf_pdf: Option<f32> = None;
+        let mut bounces = 0u32;
+        let mut pass_throughs = 0usize;
+        let mut cone = (camera.spread_base, camera.spread_per_distance);
+        loop {
+            if bounces == 0 {
+                counts.primary += 1;
+            } else {
+                counts.indirect += 1;
+            }
+            let direction = Vec3::from(ray.direction);
+            let Some(hit) = scene.intersect_camera(&ray) else {
+                if let Some(env) = &self.environment {
+                    match bsdf_pdf {
+                        None if self.environment_visible => {
+                            radiance += throughput * env.radiance(direction);
+                            coverage = 1.0;
+                        }
+                        None => {}
+                        Some(pdf) => {
+                            let weight = power_heuristic(pdf, env.pdf(direction));
+                            radiance += throughput * env.radiance(direction) * weight;
+                        }
+                    }
+                }
+                break;
+            };
+            let surface = scene.surface(&ray, &hit, cone.0 + cone.1 * hit.t);
+            if surface.source.alpha_mode == AlphaMode::Blend
+                && rng.next_f32() >= surface.alpha
+                && pass_throughs < MAX_BLEND_LAYERS
+            {
+                // Not there for this path: go on through, from the far side.
+                pass_throughs += 1;
+                ray = surface.spawn.ray(direction, f32::INFINITY);
+                continue;
+            }
+            if bsdf_pdf.is_none() {
+                coverage = 1.0;
+            }
+            if surface.emissive != Vec3::ZERO {
+                let weight = match bsdf_pdf {
+                    None => 1.0,
+                    Some(pdf) => {
+                        let cos = surface.geometric.dot(direction).abs();
+                        let light_pdf = scene.area_lights.pdf_area(hit.triangle) * hit.t * hit.t
+                            / cos.max(1e-8);
+                        power_heuristic(pdf, light_pdf)
+                    }
+                };
+                radiance += throughput * surface.emissive * weight;
+            }
+            // Past the last vertex that estimates direct light: this hit only completed the
+            // previous vertex's BSDF-sampled half of the MIS pair (its emission, above).
+            if bounces > self.max_bounces {
+                break;
+            }
+            let to_eye = -direction;
+            let bsdf = Bsdf::new(surface.material, surface.normal, to_eye);
+            // Punctual lights: every one, through a shadow ray.
+            for light in &self.lights {
+                let Some(incoming) = incident(light, surface.spawn.point) else {
+                    continue;
+                };
+                let f = bsdf.eval_cos(to_eye, incoming.to_light);
+                if f == Vec3::ZERO {
+                    continue;
+                }
+                let Some(shadow) = surface.shadow_ray(incoming.to_light, incoming.distance) else {
+                    continue;
+                };
+                counts.shadow += 1;
+                let transmittance = scene.shadow_transmittance(&shadow);
+                radiance += throughput * f * incoming.irradiance * transmittance;
+            }
+            // One point on the emissive triangles.
+            let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+            if let Some(sample) = scene.area_lights.sample(u0, u1, u2) {
+                let tri = sample.triangle as usize;
+                let [a, b, c] = scene.scene.soup.positions[tri];
+                let on_light = SpawnPoint::on_triangle([a, b, c], sample.barycentric);
+                if let Some(on_light) = on_light {
+                    let offset = on_light.point - surface.spawn.point;
+                    let distance = offset.length();
+                    let to_light = offset / distance;
+                    let cos_light = on_light.normal.dot(to_light).abs();
+                    let f = bsdf.eval_cos(to_eye, to_light);
+                    if distance > 0.0 && cos_light > 0.0 && f != Vec3::ZERO {
+                        let light_pdf = sample.pdf_area * distance * distance / cos_light;
+                        if let Some(shadow) = surface.shadow_ray(to_light, distance) {
+                            counts.shadow += 1;
+                            let transmittance = scene.shadow_transmittance(&shadow);
+                            if transmittance > 0.0 {
+                                let emission = scene.emission_at(tri, sample.barycentric);
+                                let weight = power_heuristic(light_pdf, bsdf.pdf(to_eye, to_light));
+                                radiance +=
+                                    throughput * f * emission * transmittance * weight / light_pdf;
+                            }
+                        }
+                    }
+                }
+            }
+            // One direction of the environment.
+            let (u1, u2) = (rng.next_f32(), rng.next_f32());
+            if let Some(env) = &self.environment {
+                if let Some((to_light, light_radiance, light_pdf)) = env.sample(u1, u2) {
+                    let f = bsdf.eval_cos(to_eye, to_light);
+                    if f != Vec3::ZERO {
+                        if let Some(shadow) = surface.shadow_ray(to_light, f32::INFINITY) {
+                            counts.shadow += 1;
+                            let transmittance = scene.shadow_transmittance(&shadow);
+                            if transmittance > 0.0 {
+                                let weight = power_heuristic(light_pdf, bsdf.pdf(to_eye, to_light));
+                                radiance +=
+                                    throughput * f * light_radiance * transmittance * weight
+                                        / light_pdf;
+                            }
+                        }
+                    }
+                }
+            }
+            // Continue along a BSDF sample (three numbers drawn whether or not it is used, so
+            // the stream stays aligned).
+            let (u_lobe, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let Some(sample) = bsdf.sample(to_eye, u_lobe, u1, u2) else {
+                break;
+            };
+            // A reflected ray may not leave through the geometric surface.
+            if sample.direction.dot(surface.geometric) <= 0.0 {
+                break;
+            }
+            throughput *= sample.weight;
+            bsdf_pdf = Some(sample.pdf);
+            cone = (cone.0 + cone.1 * hit.t, cone.1);
+            ray = surface.spawn.ray(sample.direction, f32::INFINITY);
+            bounces += 1;
+            if bounces >= ROULETTE_DEPTH {
+                let survive = throughput.max_element().clamp(MIN_SURVIVAL, 1.0);
+                if rng.next_f32() >= survive {
+                    break;
+                }
+                throughput /= survive;
+            }
+            if !throughput.is_finite() || throughput == Vec3::ZERO {
+                break;
+            }
+        }
+        (radiance, coverage)
+    }
+}
