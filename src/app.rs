@@ -272,7 +272,11 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let (threads, pool) = worker_pool(args.threads)?;
 
     let load_start = Instant::now();
-    let mut scene = load(&args.model, &load_options(&args.load))?;
+    let load_options = LoadOptions {
+        strict: args.strict,
+        ..load_options(&args.load)
+    };
+    let mut scene = load(&args.model, &load_options)?;
     crate::scene::tangents::generate_missing(&mut scene);
     let load_time = load_start.elapsed();
     if !args.quiet {
@@ -345,6 +349,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let textures = crate::texture::TextureSet::load(
         &scene,
         args.max_texture_memory.saturating_mul(1 << 20),
+        args.strict,
         &mut texture_warnings,
     )?;
     let texture_time = texture_start.elapsed();

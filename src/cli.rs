@@ -161,6 +161,10 @@ pub struct RenderArgs {
     /// No progress bar and no summary.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Refuse the model when a texture image is missing or cannot be decoded, instead of
+    /// drawing its materials with their factors and a warning.
+    #[arg(long)]
+    pub strict: bool,
     /// Loading options.
     #[command(flatten)]
     pub load: LoadArgs,

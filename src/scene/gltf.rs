@@ -19,7 +19,7 @@ use super::meshopt;
 use super::{
     AlphaMode, Bounds, Camera, FileAccess, Filter, Format, ImageSource, Instance, Light, LightKind,
     LoadError, LoadErrorKind, LoadOptions, Material, Projection, Sampler, Scene, SoupBuilder,
-    Texture, TextureRef, TextureTransform, Wrap,
+    Texture, TextureRef, TextureTransform, UnusableImage, Wrap,
 };
 use base64::Engine;
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
@@ -105,10 +105,10 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
             .any(|name| name == "KHR_mesh_quantization"),
     };
     importer.walk_default_scene().map_err(err)?;
-    let materials = importer.materials();
+    let mut materials = importer.materials();
     let mut textures = textures(&document, &webp_fallbacks);
     let mut image_warnings = Vec::new();
-    let images = images(
+    let (images, unusable) = images(
         &document,
         &buffers,
         &access,
@@ -116,6 +116,9 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         &mut textures,
         &mut image_warnings,
     )?;
+    image_warnings.extend(
+        super::draw_without(&mut materials, &textures, &unusable, options.strict).map_err(err)?,
+    );
     let Importer {
         builder,
         mut warnings,
@@ -1096,9 +1099,10 @@ fn textures(document: &gltf::Document, webp_fallbacks: &[Option<usize>]) -> Vec<
         .collect()
 }
 
-/// Every image's source, its header checked. An image that fails the check is an error, unless
-/// every texture using it has a fallback image (EXT_texture_webp): those textures switch to
-/// their fallback, with a warning.
+/// Every image's source, its header checked. An image that fails the check (absent, not an
+/// image, too large) switches the textures that have a fallback image (EXT_texture_webp) to it,
+/// with a warning; any other texture using it is reported in the returned list, for
+/// [`super::draw_without`]. A malformed `data:` URI or a URI leaving the folder stays an error.
 fn images(
     document: &gltf::Document,
     buffers: &[Vec<u8>],
@@ -1106,8 +1110,9 @@ fn images(
     options: &LoadOptions,
     textures: &mut [Texture],
     warnings: &mut Vec<String>,
-) -> Result<Vec<ImageSource>, LoadError> {
+) -> Result<(Vec<ImageSource>, Vec<UnusableImage>), LoadError> {
     let mut out = Vec::with_capacity(document.images().len());
+    let mut unusable = Vec::new();
     for image in document.images() {
         let index = image.index();
         let what = format!("image {index}");
@@ -1147,37 +1152,42 @@ fn images(
                     bytes: Some(Arc::from(bytes)),
                 }
             }
-            gltf::image::Source::Uri { uri, mime_type } => {
-                let path = access.resolve(&what, uri)?;
-                if !path.is_file() {
-                    return Err(image_err(format!("file '{}' not found", path.display())));
-                }
-                ImageSource {
-                    origin: uri.to_string(),
-                    mime_type: mime_type.map(str::to_string),
-                    path: Some(path),
-                    bytes: None,
-                }
-            }
+            gltf::image::Source::Uri { uri, mime_type } => ImageSource {
+                origin: uri.to_string(),
+                mime_type: mime_type.map(str::to_string),
+                path: Some(access.resolve(&what, uri)?),
+                bytes: None,
+            },
         };
-        if let Err(problem) = check_image_header(&source, options.limits.max_image_pixels) {
-            let users = || textures.iter().filter(|t| t.image == index);
-            if users().count() == 0 || users().any(|t| t.fallback_image.is_none()) {
-                return Err(image_err(problem));
-            }
-            warnings.push(format!(
-                "image {index} ({}): {problem}; its textures use their fallback image instead",
-                source.origin
-            ));
+        let checked = match &source.path {
+            Some(path) if !path.is_file() => Err(format!("file '{}' not found", path.display())),
+            _ => check_image_header(&source, options.limits.max_image_pixels),
+        };
+        if let Err(problem) = checked {
+            let mut switched = 0;
             for texture in textures.iter_mut().filter(|t| t.image == index) {
                 if let Some(fallback) = texture.fallback_image.take() {
                     texture.image = fallback;
+                    switched += 1;
                 }
+            }
+            if switched > 0 {
+                warnings.push(format!(
+                    "image {index} ({}): {problem}; {switched} texture(s) use their fallback image instead",
+                    source.origin
+                ));
+            }
+            if switched == 0 || textures.iter().any(|t| t.image == index) {
+                unusable.push(UnusableImage {
+                    image: index,
+                    origin: source.origin.clone(),
+                    problem,
+                });
             }
         }
         out.push(source);
     }
-    Ok(out)
+    Ok((out, unusable))
 }
 
 /// Reads only an image's header: refuses one that is not an image, or whose declared size is
