@@ -108,6 +108,14 @@ fn info(args: &InfoArgs) -> Result<()> {
         scene.textures.len(),
         scene.images.len()
     );
+    if !scene.variants.is_empty() {
+        let names: Vec<String> = scene.variants.iter().map(|v| format!("'{v}'")).collect();
+        println!(
+            "variants    {} (--variant NAME): {}",
+            scene.variants.len(),
+            names.join(", ")
+        );
+    }
     println!("cameras     {}", scene.cameras.len());
     for (i, c) in scene.cameras.iter().enumerate() {
         let projection = match c.projection {
@@ -189,6 +197,7 @@ pub fn info_json(scene: &Scene) -> serde_json::Value {
         "lights": scene.lights,
         "bounds": scene.bounds,
         "warnings": scene.warnings,
+        "variants": scene.variants,
         "material_list": scene.materials,
     })
 }
@@ -274,6 +283,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let load_start = Instant::now();
     let load_options = LoadOptions {
         strict: args.strict,
+        variant: args.variant.clone(),
         ..load_options(&args.load)
     };
     let mut scene = load(&args.model, &load_options)?;

@@ -165,6 +165,9 @@ pub struct RenderArgs {
     /// drawing its materials with their factors and a warning.
     #[arg(long)]
     pub strict: bool,
+    /// Draw this KHR_materials_variants variant (by name; `info` lists them).
+    #[arg(long, value_name = "NAME")]
+    pub variant: Option<String>,
     /// Loading options.
     #[command(flatten)]
     pub load: LoadArgs,

@@ -257,7 +257,7 @@ fn users_of(scene: &Scene, image: usize) -> String {
 }
 
 impl TextureSet {
-    /// Decodes every image a material uses. Images whose decoded size would push the total
+    /// Decodes every image a drawn material uses. Images whose decoded size would push the total
     /// over `budget_bytes` are halved until they fit, with a warning. An image that fails to
     /// decode (and has no fallback image) is left out with a warning naming the image, its file
     /// and the materials, which then draw with their factors; with `strict` it is an error.
@@ -267,8 +267,20 @@ impl TextureSet {
         strict: bool,
         warnings: &mut Vec<String>,
     ) -> Result<TextureSet, TextureError> {
+        // Only the materials the triangles use (after a variant is chosen) need their images.
+        let mut drawn = vec![false; scene.materials.len()];
+        for &m in &scene.soup.material {
+            if let Some(d) = drawn.get_mut(m as usize) {
+                *d = true;
+            }
+        }
         let mut used = vec![false; scene.images.len()];
-        for m in &scene.materials {
+        for (_, m) in scene
+            .materials
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| drawn[*i])
+        {
             for r in m.texture_refs() {
                 if let Some(t) = scene.textures.get(r.texture) {
                     if let Some(u) = used.get_mut(t.image) {

@@ -85,6 +85,14 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     let mut buffers = load_buffers(&document, blob, &access)?;
     meshopt::decode_views(&document, &mut buffers, access.max_bytes).map_err(err)?;
     check_views(&document, &buffers).map_err(err)?;
+    let variants: Vec<String> = document
+        .variants()
+        .map(|v| v.map(|v| v.name().to_string()).collect())
+        .unwrap_or_default();
+    let variant = match &options.variant {
+        None => None,
+        Some(name) => Some(choose_variant(&variants, name).map_err(err)?),
+    };
     let mut importer = Importer {
         document: &document,
         buffers: &buffers,
@@ -100,6 +108,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         singular_instances: 0,
         warned_skin: false,
         warned_morph: false,
+        variant,
         quantization: document
             .extensions_used()
             .any(|name| name == "KHR_mesh_quantization"),
@@ -163,7 +172,26 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
             bounds
         },
         warnings,
+        variants,
+        variant: options.variant.clone(),
     })
+}
+
+/// The index of the variant called `name`, or an error listing the variants there are.
+fn choose_variant(variants: &[String], name: &str) -> Result<(u32, String), LoadErrorKind> {
+    match variants.iter().position(|v| v == name) {
+        Some(i) => Ok((i as u32, name.to_string())),
+        None if variants.is_empty() => Err(LoadErrorKind::Variant(format!(
+            "no variant '{name}': the file defines no material variants"
+        ))),
+        None => {
+            let list: Vec<String> = variants.iter().map(|v| format!("'{v}'")).collect();
+            Err(LoadErrorKind::Variant(format!(
+                "no variant '{name}'; the file has {}",
+                list.join(", ")
+            )))
+        }
+    }
 }
 
 /// The `gltf` crate subtracts the header size from the declared length without checking it.
@@ -628,6 +656,8 @@ struct Importer<'a> {
     singular_instances: usize,
     warned_skin: bool,
     warned_morph: bool,
+    /// The chosen `KHR_materials_variants` variant (index, name).
+    variant: Option<(u32, String)>,
     /// The file declares `KHR_mesh_quantization`: integer attribute types are allowed.
     quantization: bool,
 }
@@ -793,7 +823,23 @@ impl Importer<'_> {
         self.builder.reserve(triangle_count)?;
         // glTF 2.0 §3.7.2.1: a mirroring transform turns counter-clockwise into clockwise.
         let flip = world.determinant() < 0.0;
-        let material = match primitive.material().index() {
+        let mut chosen = primitive.material();
+        if let Some((variant, name)) = &self.variant {
+            // KHR_materials_variants: the mapping that lists the variant replaces the material;
+            // a primitive without one keeps its default.
+            if let Some(mapping) = primitive
+                .mappings()
+                .find(|m| m.variants().contains(variant))
+            {
+                chosen = mapping.material();
+                if chosen.index().is_none() {
+                    return Err(LoadErrorKind::Variant(format!(
+                        "{at}: the mapping for variant '{name}' names a material the file does not have"
+                    )));
+                }
+            }
+        }
+        let material = match chosen.index() {
             Some(i) => i as u32,
             None => {
                 self.uses_default_material = true;

@@ -52,6 +52,9 @@ pub struct LoadOptions {
     /// Refuse the file when an image cannot be used (`--strict`), instead of drawing the
     /// materials that use it with their factors and a warning.
     pub strict: bool,
+    /// The `KHR_materials_variants` variant to draw, by name (`--variant`); `None` draws each
+    /// primitive's default material.
+    pub variant: Option<String>,
 }
 
 /// The file formats meshtracer reads.
@@ -581,6 +584,10 @@ pub struct Scene {
     pub bounds: Bounds,
     /// Problems that did not stop loading.
     pub warnings: Vec<String>,
+    /// Names of the file's `KHR_materials_variants` variants, in file order.
+    pub variants: Vec<String>,
+    /// The variant drawn, if one was chosen.
+    pub variant: Option<String>,
 }
 
 impl Scene {

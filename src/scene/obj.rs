@@ -29,6 +29,11 @@ use std::path::Path;
 /// Loads an OBJ file whose bytes are already read.
 pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<Scene, LoadError> {
     let err = |kind| LoadError::new(path, kind);
+    if let Some(name) = &options.variant {
+        return Err(err(LoadErrorKind::Variant(format!(
+            "no variant '{name}': OBJ files have no material variants"
+        ))));
+    }
     if std::str::from_utf8(bytes).is_err() {
         // Latin-1 files exist, but tobj reads lines as UTF-8; say so instead of "read error".
         return Err(err(LoadErrorKind::Obj(
@@ -252,6 +257,8 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         instances,
         bounds,
         warnings,
+        variants: Vec::new(),
+        variant: None,
     })
 }
 
