@@ -198,6 +198,7 @@ pub fn info_json(scene: &Scene) -> serde_json::Value {
         "bounds": scene.bounds,
         "warnings": scene.warnings,
         "variants": scene.variants,
+        "extensions": scene.extensions,
         "material_list": scene.materials,
     })
 }

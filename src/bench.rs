@@ -100,6 +100,7 @@ pub fn scene_from_soup(soup: TriangleSoup, name: &str) -> Scene {
         primitive_count: 1,
         variants: Vec::new(),
         variant: None,
+        extensions: Vec::new(),
         bounds,
         warnings: Vec::new(),
     }

@@ -120,3 +120,76 @@ fn a_variant_replaces_the_materials_it_maps() {
         common::stderr(&out)
     );
 }
+
+/// StainedGlassLamp: of the shared folders only glTF-KTX-BasisU declares the variants ("Lamp on",
+/// "Lamp off"; glTF-JPG-PNG has none). Its KTX2 textures are not decoded, so the materials draw
+/// with their factors, which still differ: the "on" materials glow.
+#[test]
+fn stained_glass_lamp_variants_draw_their_own_materials() {
+    let Some(dir) = common::samples("stained_glass_lamp_variants_draw_their_own_materials") else {
+        return;
+    };
+    let model = dir.join("StainedGlassLamp/glTF-KTX-BasisU/StainedGlassLamp.gltf");
+    // The mappings, read from the JSON independently of the importer.
+    let json: serde_json::Value = serde_json::from_slice(&std::fs::read(&model).unwrap()).unwrap();
+    let expected = |variant: u64| -> std::collections::BTreeSet<u32> {
+        let mut set = std::collections::BTreeSet::new();
+        for mesh in json["meshes"].as_array().unwrap() {
+            for p in mesh["primitives"].as_array().unwrap() {
+                let mapped = p["extensions"]["KHR_materials_variants"]["mappings"]
+                    .as_array()
+                    .and_then(|m| {
+                        m.iter()
+                            .find(|m| m["variants"].as_array().unwrap().contains(&json!(variant)))
+                    })
+                    .map(|m| &m["material"]);
+                set.insert(mapped.unwrap_or(&p["material"]).as_u64().unwrap() as u32);
+            }
+        }
+        set
+    };
+    let drawn = |name: &str| -> std::collections::BTreeSet<u32> {
+        let scene = Scene::load_with(&model, &with_variant(name)).unwrap();
+        scene.soup.material.iter().copied().collect()
+    };
+    let (on, off) = (drawn("Lamp on"), drawn("Lamp off"));
+    assert_eq!(on, expected(0));
+    assert_eq!(off, expected(1));
+    assert_ne!(on, off);
+
+    let out_dir = tempfile::tempdir().unwrap();
+    let render = |name: &str| {
+        let output = out_dir.path().join(format!("{name}.png"));
+        common::run(
+            &[
+                "render",
+                common::s(&model),
+                "-o",
+                common::s(&output),
+                "--variant",
+                name,
+                "--width",
+                "64",
+                "--height",
+                "64",
+                "--spp",
+                "1",
+                "-q",
+            ],
+            true,
+        );
+        common::read_rgba(&output).2
+    };
+    let (a, b) = (render("Lamp on"), render("Lamp off"));
+    let mean_difference: f32 = a
+        .iter()
+        .zip(&b)
+        .map(|(p, q)| (0..3).map(|c| (p[c] - q[c]).abs()).sum::<f32>() / 3.0)
+        .sum::<f32>()
+        / a.len() as f32;
+    eprintln!("StainedGlassLamp: mean |on - off| = {mean_difference:.4}");
+    assert!(
+        mean_difference > 0.01,
+        "the variants look different: {mean_difference}"
+    );
+}

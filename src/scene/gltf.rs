@@ -15,6 +15,7 @@
 use super::attributes;
 use super::builder::TriangleIn;
 use super::error::PrimitiveAt;
+use super::extensions::{known, ExtensionUse};
 use super::meshopt;
 use super::{
     AlphaMode, Bounds, Camera, FileAccess, Filter, Format, ImageSource, Instance, Light, LightKind,
@@ -27,25 +28,6 @@ use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 use std::path::Path;
 use std::sync::Arc;
-
-/// Extensions whose absence would make a file render wrongly, and which we implement (fully or
-/// as a documented approximation). `extensionsRequired` naming anything else is an error.
-const SUPPORTED_REQUIRED: &[&str] = &[
-    "KHR_lights_punctual",
-    "KHR_texture_transform",
-    "KHR_materials_emissive_strength",
-    "KHR_materials_ior",
-    "KHR_materials_specular",
-    "KHR_materials_transmission",
-    "KHR_materials_unlit",
-    "KHR_materials_variants",
-    "KHR_materials_volume",
-    "KHR_materials_pbrSpecularGlossiness",
-    "KHR_mesh_quantization",
-    "EXT_meshopt_compression",
-    "KHR_meshopt_compression",
-    "EXT_texture_webp",
-];
 
 /// Most node visits a hierarchy may expand to. A node shared by two parents is instanced twice,
 /// so 30 levels of sharing would be 2^30 visits: refuse such files instead of hanging.
@@ -64,9 +46,21 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     } else {
         Format::Gltf
     };
-    for name in gltf.document.extensions_required() {
-        if !SUPPORTED_REQUIRED.contains(&name) {
+    let required: Vec<&str> = gltf.document.extensions_required().collect();
+    for name in &required {
+        if known(name).is_none_or(|e| e.refused_when_required) {
             return Err(err(unsupported_extension(name)));
+        }
+    }
+    // extensionsUsed should list every required one; a file that forgets is still reported.
+    let mut extensions: Vec<ExtensionUse> = gltf
+        .document
+        .extensions_used()
+        .map(|name| ExtensionUse::new(name, required.contains(&name)))
+        .collect();
+    for name in &required {
+        if !extensions.iter().any(|e| e.name == *name) {
+            extensions.push(ExtensionUse::new(name, true));
         }
     }
     let blob = gltf.blob;
@@ -74,7 +68,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     // Checked above; gltf-json's validation refuses required extensions it does not know
     // itself (KHR_mesh_quantization, the meshopt ones, EXT_texture_webp), which we decode here.
     root.extensions_required.clear();
-    let webp_fallbacks = choose_webp_sources(&mut root);
+    let webp_fallbacks = choose_texture_sources(&mut root);
     check_attribute_indices(&root).map_err(err)?;
     let document = gltf::Document::from_json(root).map_err(|e| err(convert(e)))?;
     let access = FileAccess::new(
@@ -139,6 +133,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         singular_instances,
         ..
     } = importer;
+    warnings.extend(extensions.iter().filter_map(ExtensionUse::warning));
     warnings.extend(image_warnings);
     if skipped_non_triangle > 0 {
         warnings.push(format!(
@@ -174,6 +169,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         warnings,
         variants,
         variant: options.variant.clone(),
+        extensions,
     })
 }
 
@@ -1088,25 +1084,38 @@ fn material(m: &gltf::Material) -> Material {
 }
 
 /// EXT_texture_webp: a texture whose extension names a WebP image uses it, and keeps its core
-/// `source` (if any) as the fallback for when the WebP image cannot be decoded. Rewritten in
-/// the JSON before the `gltf` crate validates it, since gltf-json 1.4 requires `source`
-/// (WebP-only files such as gltf-transform's have none). Returns each texture's fallback.
-fn choose_webp_sources(root: &mut gltf::json::Root) -> Vec<Option<usize>> {
+/// `source` (if any) as the fallback for when the WebP image cannot be decoded.
+/// KHR_texture_basisu: KTX2 is not decoded, so a texture uses its core `source` (the
+/// extension's fallback for clients without KTX2); one without points at the KTX2 image, which
+/// the image check then finds unusable (the materials draw with their factors, with a warning).
+/// Rewritten in the JSON before the `gltf` crate validates it, since gltf-json 1.4 requires
+/// `source` (WebP-only and KTX2-only files have none). Returns each texture's fallback.
+fn choose_texture_sources(root: &mut gltf::json::Root) -> Vec<Option<usize>> {
     let image_count = root.images.len();
     root.textures
         .iter_mut()
         .map(|texture| {
-            let webp = texture
-                .extensions
-                .as_ref()
-                .and_then(|e| e.others.get("EXT_texture_webp"))
-                .and_then(|w| w.get("source"))
-                .and_then(serde_json::Value::as_u64)
-                .and_then(|i| usize::try_from(i).ok())
-                .filter(|&i| i < image_count)?;
+            let source_of = |name: &str| {
+                texture
+                    .extensions
+                    .as_ref()
+                    .and_then(|e| e.others.get(name))
+                    .and_then(|w| w.get("source"))
+                    .and_then(serde_json::Value::as_u64)
+                    .and_then(|i| usize::try_from(i).ok())
+                    .filter(|&i| i < image_count)
+            };
             let core = texture.source.value();
-            texture.source = gltf::json::Index::new(webp as u32);
-            (core < image_count && core != webp).then_some(core)
+            if let Some(webp) = source_of("EXT_texture_webp") {
+                texture.source = gltf::json::Index::new(webp as u32);
+                return (core < image_count && core != webp).then_some(core);
+            }
+            if let Some(ktx2) = source_of("KHR_texture_basisu") {
+                if core >= image_count {
+                    texture.source = gltf::json::Index::new(ktx2 as u32);
+                }
+            }
+            None
         })
         .collect()
 }
@@ -1207,6 +1216,9 @@ fn images(
         };
         let checked = match &source.path {
             Some(path) if !path.is_file() => Err(format!("file '{}' not found", path.display())),
+            _ if source.mime_type.as_deref() == Some("image/ktx2") => {
+                Err("KTX2 images (KHR_texture_basisu) are not decoded yet".to_string())
+            }
             _ => check_image_header(&source, options.limits.max_image_pixels),
         };
         if let Err(problem) = checked {

@@ -6,6 +6,7 @@
 mod attributes;
 mod builder;
 mod error;
+pub mod extensions;
 pub mod gltf;
 mod meshopt;
 pub mod obj;
@@ -588,6 +589,8 @@ pub struct Scene {
     pub variants: Vec<String>,
     /// The variant drawn, if one was chosen.
     pub variant: Option<String>,
+    /// Every glTF extension the file uses (`extensionsUsed`), with how it is honoured.
+    pub extensions: Vec<extensions::ExtensionUse>,
 }
 
 impl Scene {

@@ -259,6 +259,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         warnings,
         variants: Vec::new(),
         variant: None,
+        extensions: Vec::new(),
     })
 }
 
