@@ -113,6 +113,14 @@ fn info(args: &InfoArgs) -> Result<()> {
         scene.textures.len(),
         scene.images.len()
     );
+    if !scene.variants.is_empty() {
+        let names: Vec<String> = scene.variants.iter().map(|v| format!("'{v}'")).collect();
+        println!(
+            "variants    {} (--variant NAME): {}",
+            scene.variants.len(),
+            names.join(", ")
+        );
+    }
     println!("cameras     {}", scene.cameras.len());
     for (i, c) in scene.cameras.iter().enumerate() {
         let projection = match c.projection {
@@ -194,6 +202,8 @@ pub fn info_json(scene: &Scene) -> serde_json::Value {
         "lights": scene.lights,
         "bounds": scene.bounds,
         "warnings": scene.warnings,
+        "variants": scene.variants,
+        "extensions": scene.extensions,
         "material_list": scene.materials,
     })
 }
@@ -297,7 +307,12 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let (threads, pool) = worker_pool(args.threads)?;
 
     let load_start = Instant::now();
-    let mut scene = load(&args.model, &load_options(&args.load))?;
+    let load_options = LoadOptions {
+        strict: args.strict,
+        variant: args.variant.clone(),
+        ..load_options(&args.load)
+    };
+    let mut scene = load(&args.model, &load_options)?;
     crate::scene::tangents::generate_missing(&mut scene);
     let load_time = load_start.elapsed();
     if !args.quiet {
@@ -395,6 +410,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let textures = crate::texture::TextureSet::load(
         &scene,
         args.max_texture_memory.saturating_mul(1 << 20),
+        args.strict,
         &mut texture_warnings,
     )?;
     let texture_time = texture_start.elapsed();

@@ -98,6 +98,9 @@ pub fn scene_from_soup(soup: TriangleSoup, name: &str) -> Scene {
         instances: Vec::new(),
         mesh_count: 1,
         primitive_count: 1,
+        variants: Vec::new(),
+        variant: None,
+        extensions: Vec::new(),
         bounds,
         warnings: Vec::new(),
     }

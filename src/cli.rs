@@ -194,6 +194,13 @@ pub struct RenderArgs {
     /// No progress bar and no summary.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Refuse the model when a texture image is missing or cannot be decoded, instead of
+    /// drawing its materials with their factors and a warning.
+    #[arg(long)]
+    pub strict: bool,
+    /// Draw this KHR_materials_variants variant (by name; `info` lists them).
+    #[arg(long, value_name = "NAME")]
+    pub variant: Option<String>,
     /// Loading options.
     #[command(flatten)]
     pub load: LoadArgs,

@@ -29,6 +29,8 @@ pub struct PrepareOptions {
     pub bvh_preset: BvhPreset,
     /// Budget for decoded textures, in bytes: larger images are halved (with a warning).
     pub max_texture_bytes: usize,
+    /// Refuse an image that cannot be decoded instead of drawing without it (`--strict`).
+    pub strict: bool,
 }
 
 impl Default for PrepareOptions {
@@ -37,6 +39,7 @@ impl Default for PrepareOptions {
             accel: AccelKind::Bvh,
             bvh_preset: BvhPreset::Medium,
             max_texture_bytes: crate::setup::MAX_TEXTURE_MIB << 20,
+            strict: false,
         }
     }
 }
@@ -49,7 +52,8 @@ impl Prepared {
         options: &PrepareOptions,
         warnings: &mut Vec<String>,
     ) -> Result<Prepared, TextureError> {
-        let textures = TextureSet::load(&scene, options.max_texture_bytes, warnings)?;
+        let textures =
+            TextureSet::load(&scene, options.max_texture_bytes, options.strict, warnings)?;
         let accel = Accel::build(
             &scene.soup,
             &scene.materials,

@@ -234,17 +234,53 @@ fn decode(source: &ImageSource) -> Result<image::RgbaImage, String> {
     Ok(reader.map_err(|e| e.to_string())?.to_rgba8())
 }
 
+/// The materials that use an image, for messages: `material 'wood' (2)` or `materials 0, 3`.
+fn users_of(scene: &Scene, image: usize) -> String {
+    let users: Vec<String> = scene
+        .materials
+        .iter()
+        .enumerate()
+        .filter(|(_, m)| {
+            m.texture_refs().any(|r| {
+                scene
+                    .textures
+                    .get(r.texture)
+                    .is_some_and(|t| t.image == image)
+            })
+        })
+        .map(|(i, m)| m.label(i))
+        .collect();
+    match users.len() {
+        1 => format!("material {}", users[0]),
+        _ => format!("materials {}", users.join(", ")),
+    }
+}
+
 impl TextureSet {
-    /// Decodes every image a material uses. Images whose decoded size would push the total
-    /// over `budget_bytes` are halved until they fit, with a warning; an image that fails to
-    /// decode is an error naming the file and the image.
+    /// Decodes every image a drawn material uses. Images whose decoded size would push the total
+    /// over `budget_bytes` are halved until they fit, with a warning. An image that fails to
+    /// decode (and has no fallback image) is left out with a warning naming the image, its file
+    /// and the materials, which then draw with their factors; with `strict` it is an error.
     pub fn load(
         scene: &Scene,
         budget_bytes: usize,
+        strict: bool,
         warnings: &mut Vec<String>,
     ) -> Result<TextureSet, TextureError> {
+        // Only the materials the triangles use (after a variant is chosen) need their images.
+        let mut drawn = vec![false; scene.materials.len()];
+        for &m in &scene.soup.material {
+            if let Some(d) = drawn.get_mut(m as usize) {
+                *d = true;
+            }
+        }
         let mut used = vec![false; scene.images.len()];
-        for m in &scene.materials {
+        for (_, m) in scene
+            .materials
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| drawn[*i])
+        {
             for r in m.texture_refs() {
                 if let Some(t) = scene.textures.get(r.texture) {
                     if let Some(u) = used.get_mut(t.image) {
@@ -284,15 +320,35 @@ impl TextureSet {
                         origin: source.origin.clone(),
                         problem,
                     };
-                    let Some((f, fallback)) = fallback else {
-                        return Err(error(problem));
+                    let decoded_fallback = match fallback {
+                        Some((f, fallback)) => match decode(fallback) {
+                            Ok(decoded) => {
+                                warnings.push(format!(
+                                    "image {index} ({}): {problem}; using fallback image {f} ({})",
+                                    source.origin, fallback.origin
+                                ));
+                                Ok(decoded)
+                            }
+                            Err(p) => Err(format!("{problem}; fallback image {f}: {p}")),
+                        },
+                        None => Err(problem),
                     };
-                    warnings.push(format!(
-                        "image {index} ({}): {problem}; using fallback image {f} ({})",
-                        source.origin, fallback.origin
-                    ));
-                    decode(fallback)
-                        .map_err(|p| error(format!("{problem}; fallback image {f}: {p}")))?
+                    match decoded_fallback {
+                        Ok(decoded) => decoded,
+                        Err(problem) => {
+                            let users = users_of(scene, index);
+                            if strict {
+                                return Err(error(format!(
+                                    "{problem}; used by {users} (--strict refuses a missing texture)"
+                                )));
+                            }
+                            warnings.push(format!(
+                                "image {index} ({}): {problem}; {users} drawn without it, with its factors",
+                                source.origin
+                            ));
+                            continue;
+                        }
+                    }
                 }
             };
             let (mut w, mut h) = decoded.dimensions();

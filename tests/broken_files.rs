@@ -1,6 +1,8 @@
 //! The broken-file corpus: small malformed, truncated and hostile files that the test writes
 //! itself. Every case must give the exact error kind through the library, and through the binary
-//! a non-zero exit with one message that names the file, never a panic.
+//! a non-zero exit with one message that names the file, never a panic. The cases whose only
+//! fault is an image are errors only under `--strict`: without it the model is drawn without
+//! that texture, with a warning (a missing texture is not a missing model).
 //!
 //! `MESHTRACER_WRITE_CORPUS=DIR cargo test --test broken_files` also writes every case to DIR
 //! (the fuzzers' seed corpus).
@@ -9,7 +11,7 @@ mod common;
 
 use base64::Engine;
 use meshtracer::LoadErrorKind as K;
-use meshtracer::Scene;
+use meshtracer::{LoadOptions, Scene};
 use serde_json::{json, Value};
 use std::path::Path;
 
@@ -722,6 +724,22 @@ fn cases() -> Vec<Case> {
     cases
 }
 
+/// Cases whose only fault is an unusable image: errors under `--strict` (`LoadOptions::strict`),
+/// warnings otherwise.
+const TEXTURE_CASES: &[&str] = &[
+    "missing image file",
+    "image that is not an image",
+    "image declaring 100000x100000 pixels",
+    "OBJ with a missing texture",
+];
+
+fn strict() -> LoadOptions {
+    LoadOptions {
+        strict: true,
+        ..Default::default()
+    }
+}
+
 fn write_case(dir: &Path, case: &Case) {
     for (rel, bytes) in &case.files {
         let path = dir.join(rel);
@@ -740,7 +758,7 @@ fn every_broken_file_gets_its_error_kind() {
         std::fs::create_dir(&inner).unwrap();
         write_case(&inner, case);
         let model = inner.join(&case.model);
-        match Scene::load(&model) {
+        match Scene::load_with(&model, &strict()) {
             Ok(scene) => failures.push(format!(
                 "{}: loaded ({} triangles)",
                 case.name,
@@ -792,7 +810,16 @@ fn the_binary_exits_non_zero_with_one_message_naming_the_file() {
         let dir = tempfile::tempdir().unwrap();
         write_case(dir.path(), &case);
         let model = dir.path().join(&case.model);
-        let out = common::run(&["info", common::s(&model)], false);
+        let output = dir.path().join("out.png");
+        let out = if TEXTURE_CASES.contains(&case.name) {
+            let args = ["render", "--strict", "-q", "--width", "8", "--height", "8"];
+            let mut args = args.to_vec();
+            args.extend([common::s(&model), "-o", common::s(&output)]);
+            common::run(&args, false)
+        } else {
+            common::run(&["info", common::s(&model)], false)
+        };
+        assert!(!output.exists(), "{}: no output is left", case.name);
         let err = common::stderr(&out);
         assert_eq!(out.status.code(), Some(1), "{}: {err}", case.name);
         assert!(!err.contains("panicked"), "{}: {err}", case.name);
@@ -876,4 +903,127 @@ fn the_valid_bases_load() {
     write_case(dir.path(), &gltf_case("deep", json, bin, |_| true));
     let scene = Scene::load(dir.path().join("model.gltf")).unwrap();
     assert_eq!(scene.bounds.min.x, 1.0);
+}
+
+#[test]
+fn an_unusable_image_is_a_warning_without_strict() {
+    let cases = cases();
+    for name in TEXTURE_CASES {
+        let case = cases.iter().find(|c| c.name == *name).expect("listed case");
+        let dir = tempfile::tempdir().unwrap();
+        write_case(dir.path(), case);
+        let scene =
+            Scene::load(dir.path().join(&case.model)).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(
+            scene
+                .materials
+                .iter()
+                .all(|m| m.texture_refs().count() == 0),
+            "{name}: the material falls back to its factors"
+        );
+        assert_eq!(scene.warnings.len(), 1, "{name}: {:?}", scene.warnings);
+        assert!(
+            scene.warnings[0].starts_with("image 0 (") && scene.warnings[0].contains("material"),
+            "{name}: names the image and the material: {:?}",
+            scene.warnings
+        );
+    }
+}
+
+/// The end-to-end promise of issue 14: a glTF whose PNG is absent renders, warning once with the
+/// image, the file and the material; `--strict` refuses it and writes nothing.
+#[test]
+fn a_missing_png_renders_with_a_warning_and_strict_refuses_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut json, bin) = base();
+    with_image(&mut json, "missing.png");
+    json["materials"][0]["name"] = json!("painted");
+    json["materials"][0]["pbrMetallicRoughness"]["baseColorFactor"] = json!([1.0, 0.0, 0.0, 1.0]);
+    write_case(dir.path(), &gltf_case("missing png", json, bin, |_| true));
+    let model = dir.path().join("model.gltf");
+    let output = dir.path().join("out.png");
+    let render = |extra: &[&str], ok: bool| {
+        let mut args = vec!["render", common::s(&model), "-o", common::s(&output)];
+        args.extend([
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--look-from",
+            "0.3,0.3,2",
+        ]);
+        args.extend(["--look-at", "0.3,0.3,0"]);
+        args.extend(extra);
+        common::run(&args, ok)
+    };
+
+    let out = render(&[], true);
+    let err = common::stderr(&out);
+    let warnings: Vec<&str> = err.lines().filter(|l| l.contains("missing.png")).collect();
+    assert_eq!(warnings.len(), 1, "one warning: {err}");
+    let missing = dir.path().join("missing.png");
+    for part in [
+        "image 0",
+        &*missing.to_string_lossy(),
+        "material 'painted' (0)",
+        &*model.to_string_lossy(),
+    ] {
+        assert!(warnings[0].contains(part), "names {part}: {err}");
+    }
+    // Drawn with its factor: the centre pixel is red.
+    let (w, h, pixels) = common::read_rgba(&output);
+    let centre = pixels[(h / 2 * w + w / 2) as usize];
+    assert!(
+        centre[0] > 0.2 && centre[1] < 0.05 && centre[3] == 1.0,
+        "{centre:?}"
+    );
+
+    std::fs::remove_file(&output).unwrap();
+    let out = render(&["--strict"], false);
+    let err = common::stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("missing.png") && err.contains("--strict"),
+        "{err}"
+    );
+    assert!(!output.exists(), "--strict leaves no output file");
+}
+
+/// An image whose header reads but whose data does not decode fails later, when textures are
+/// decoded: the same fallback and the same --strict refusal.
+#[test]
+fn an_undecodable_png_falls_back_when_textures_decode() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut json, bin) = base();
+    with_image(&mut json, "empty.png");
+    write_case(dir.path(), &gltf_case("undecodable", json, bin, |_| true));
+    std::fs::write(dir.path().join("empty.png"), png_header(4, 4)).unwrap();
+    let model = dir.path().join("model.gltf");
+    let output = dir.path().join("out.png");
+    let args = [
+        "render",
+        common::s(&model),
+        "-o",
+        common::s(&output),
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ];
+    let out = common::run(&args, true);
+    let err = common::stderr(&out);
+    assert!(
+        err.contains("image 0 (empty.png)") && err.contains("material 0 drawn without it"),
+        "{err}"
+    );
+    std::fs::remove_file(&output).unwrap();
+    let mut strict_args = args.to_vec();
+    strict_args.push("--strict");
+    let out = common::run(&strict_args, false);
+    assert!(
+        common::stderr(&out).contains("empty.png"),
+        "{}",
+        common::stderr(&out)
+    );
+    assert!(!output.exists());
 }

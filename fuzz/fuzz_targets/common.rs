@@ -15,6 +15,7 @@ pub fn load(name: &str, data: &[u8]) {
             max_image_pixels: 16 << 20,
         },
         allow_external_files: false,
+        strict: false,
     };
     let path = Path::new("/nonexistent-meshtracer-fuzz").join(name);
     if let Ok(scene) = Scene::from_bytes(&path, data, &options) {

@@ -147,6 +147,9 @@ pub enum LoadErrorKind {
         /// Where.
         at: PrimitiveAt,
     },
+    /// `--variant` names no variant of the file, or a variant mapping is broken.
+    #[error("KHR_materials_variants: {0}")]
+    Variant(String),
     /// An image reference is broken.
     #[error("image {image}: {problem}")]
     Image {

@@ -15,11 +15,12 @@
 use super::attributes;
 use super::builder::TriangleIn;
 use super::error::PrimitiveAt;
+use super::extensions::{known, ExtensionUse};
 use super::meshopt;
 use super::{
     AlphaMode, Bounds, Camera, FileAccess, Filter, Format, ImageSource, Instance, Light, LightKind,
     LoadError, LoadErrorKind, LoadOptions, Material, Projection, Sampler, Scene, SoupBuilder,
-    Texture, TextureRef, TextureTransform, Wrap,
+    Texture, TextureRef, TextureTransform, UnusableImage, Wrap,
 };
 use base64::Engine;
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
@@ -27,25 +28,6 @@ use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
 use std::path::Path;
 use std::sync::Arc;
-
-/// Extensions whose absence would make a file render wrongly, and which we implement (fully or
-/// as a documented approximation). `extensionsRequired` naming anything else is an error.
-const SUPPORTED_REQUIRED: &[&str] = &[
-    "KHR_lights_punctual",
-    "KHR_texture_transform",
-    "KHR_materials_emissive_strength",
-    "KHR_materials_ior",
-    "KHR_materials_specular",
-    "KHR_materials_transmission",
-    "KHR_materials_unlit",
-    "KHR_materials_variants",
-    "KHR_materials_volume",
-    "KHR_materials_pbrSpecularGlossiness",
-    "KHR_mesh_quantization",
-    "EXT_meshopt_compression",
-    "KHR_meshopt_compression",
-    "EXT_texture_webp",
-];
 
 /// Most node visits a hierarchy may expand to. A node shared by two parents is instanced twice,
 /// so 30 levels of sharing would be 2^30 visits: refuse such files instead of hanging.
@@ -64,9 +46,21 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     } else {
         Format::Gltf
     };
-    for name in gltf.document.extensions_required() {
-        if !SUPPORTED_REQUIRED.contains(&name) {
+    let required: Vec<&str> = gltf.document.extensions_required().collect();
+    for name in &required {
+        if known(name).is_none_or(|e| e.refused_when_required) {
             return Err(err(unsupported_extension(name)));
+        }
+    }
+    // extensionsUsed should list every required one; a file that forgets is still reported.
+    let mut extensions: Vec<ExtensionUse> = gltf
+        .document
+        .extensions_used()
+        .map(|name| ExtensionUse::new(name, required.contains(&name)))
+        .collect();
+    for name in &required {
+        if !extensions.iter().any(|e| e.name == *name) {
+            extensions.push(ExtensionUse::new(name, true));
         }
     }
     let blob = gltf.blob;
@@ -74,7 +68,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     // Checked above; gltf-json's validation refuses required extensions it does not know
     // itself (KHR_mesh_quantization, the meshopt ones, EXT_texture_webp), which we decode here.
     root.extensions_required.clear();
-    let webp_fallbacks = choose_webp_sources(&mut root);
+    let webp_fallbacks = choose_texture_sources(&mut root);
     check_attribute_indices(&root).map_err(err)?;
     let document = gltf::Document::from_json(root).map_err(|e| err(convert(e)))?;
     let access = FileAccess::new(
@@ -85,6 +79,14 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     let mut buffers = load_buffers(&document, blob, &access)?;
     meshopt::decode_views(&document, &mut buffers, access.max_bytes).map_err(err)?;
     check_views(&document, &buffers).map_err(err)?;
+    let variants: Vec<String> = document
+        .variants()
+        .map(|v| v.map(|v| v.name().to_string()).collect())
+        .unwrap_or_default();
+    let variant = match &options.variant {
+        None => None,
+        Some(name) => Some(choose_variant(&variants, name).map_err(err)?),
+    };
     let mut importer = Importer {
         document: &document,
         buffers: &buffers,
@@ -100,15 +102,16 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         singular_instances: 0,
         warned_skin: false,
         warned_morph: false,
+        variant,
         quantization: document
             .extensions_used()
             .any(|name| name == "KHR_mesh_quantization"),
     };
     importer.walk_default_scene().map_err(err)?;
-    let materials = importer.materials();
+    let mut materials = importer.materials();
     let mut textures = textures(&document, &webp_fallbacks);
     let mut image_warnings = Vec::new();
-    let images = images(
+    let (images, unusable) = images(
         &document,
         &buffers,
         &access,
@@ -116,6 +119,9 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         &mut textures,
         &mut image_warnings,
     )?;
+    image_warnings.extend(
+        super::draw_without(&mut materials, &textures, &unusable, options.strict).map_err(err)?,
+    );
     let Importer {
         builder,
         mut warnings,
@@ -127,6 +133,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         singular_instances,
         ..
     } = importer;
+    warnings.extend(extensions.iter().filter_map(ExtensionUse::warning));
     warnings.extend(image_warnings);
     if skipped_non_triangle > 0 {
         warnings.push(format!(
@@ -160,7 +167,27 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
             bounds
         },
         warnings,
+        variants,
+        variant: options.variant.clone(),
+        extensions,
     })
+}
+
+/// The index of the variant called `name`, or an error listing the variants there are.
+fn choose_variant(variants: &[String], name: &str) -> Result<(u32, String), LoadErrorKind> {
+    match variants.iter().position(|v| v == name) {
+        Some(i) => Ok((i as u32, name.to_string())),
+        None if variants.is_empty() => Err(LoadErrorKind::Variant(format!(
+            "no variant '{name}': the file defines no material variants"
+        ))),
+        None => {
+            let list: Vec<String> = variants.iter().map(|v| format!("'{v}'")).collect();
+            Err(LoadErrorKind::Variant(format!(
+                "no variant '{name}'; the file has {}",
+                list.join(", ")
+            )))
+        }
+    }
 }
 
 /// The `gltf` crate subtracts the header size from the declared length without checking it.
@@ -625,6 +652,8 @@ struct Importer<'a> {
     singular_instances: usize,
     warned_skin: bool,
     warned_morph: bool,
+    /// The chosen `KHR_materials_variants` variant (index, name).
+    variant: Option<(u32, String)>,
     /// The file declares `KHR_mesh_quantization`: integer attribute types are allowed.
     quantization: bool,
 }
@@ -790,7 +819,23 @@ impl Importer<'_> {
         self.builder.reserve(triangle_count)?;
         // glTF 2.0 §3.7.2.1: a mirroring transform turns counter-clockwise into clockwise.
         let flip = world.determinant() < 0.0;
-        let material = match primitive.material().index() {
+        let mut chosen = primitive.material();
+        if let Some((variant, name)) = &self.variant {
+            // KHR_materials_variants: the mapping that lists the variant replaces the material;
+            // a primitive without one keeps its default.
+            if let Some(mapping) = primitive
+                .mappings()
+                .find(|m| m.variants().contains(variant))
+            {
+                chosen = mapping.material();
+                if chosen.index().is_none() {
+                    return Err(LoadErrorKind::Variant(format!(
+                        "{at}: the mapping for variant '{name}' names a material the file does not have"
+                    )));
+                }
+            }
+        }
+        let material = match chosen.index() {
             Some(i) => i as u32,
             None => {
                 self.uses_default_material = true;
@@ -1039,25 +1084,38 @@ fn material(m: &gltf::Material) -> Material {
 }
 
 /// EXT_texture_webp: a texture whose extension names a WebP image uses it, and keeps its core
-/// `source` (if any) as the fallback for when the WebP image cannot be decoded. Rewritten in
-/// the JSON before the `gltf` crate validates it, since gltf-json 1.4 requires `source`
-/// (WebP-only files such as gltf-transform's have none). Returns each texture's fallback.
-fn choose_webp_sources(root: &mut gltf::json::Root) -> Vec<Option<usize>> {
+/// `source` (if any) as the fallback for when the WebP image cannot be decoded.
+/// KHR_texture_basisu: KTX2 is not decoded, so a texture uses its core `source` (the
+/// extension's fallback for clients without KTX2); one without points at the KTX2 image, which
+/// the image check then finds unusable (the materials draw with their factors, with a warning).
+/// Rewritten in the JSON before the `gltf` crate validates it, since gltf-json 1.4 requires
+/// `source` (WebP-only and KTX2-only files have none). Returns each texture's fallback.
+fn choose_texture_sources(root: &mut gltf::json::Root) -> Vec<Option<usize>> {
     let image_count = root.images.len();
     root.textures
         .iter_mut()
         .map(|texture| {
-            let webp = texture
-                .extensions
-                .as_ref()
-                .and_then(|e| e.others.get("EXT_texture_webp"))
-                .and_then(|w| w.get("source"))
-                .and_then(serde_json::Value::as_u64)
-                .and_then(|i| usize::try_from(i).ok())
-                .filter(|&i| i < image_count)?;
+            let source_of = |name: &str| {
+                texture
+                    .extensions
+                    .as_ref()
+                    .and_then(|e| e.others.get(name))
+                    .and_then(|w| w.get("source"))
+                    .and_then(serde_json::Value::as_u64)
+                    .and_then(|i| usize::try_from(i).ok())
+                    .filter(|&i| i < image_count)
+            };
             let core = texture.source.value();
-            texture.source = gltf::json::Index::new(webp as u32);
-            (core < image_count && core != webp).then_some(core)
+            if let Some(webp) = source_of("EXT_texture_webp") {
+                texture.source = gltf::json::Index::new(webp as u32);
+                return (core < image_count && core != webp).then_some(core);
+            }
+            if let Some(ktx2) = source_of("KHR_texture_basisu") {
+                if core >= image_count {
+                    texture.source = gltf::json::Index::new(ktx2 as u32);
+                }
+            }
+            None
         })
         .collect()
 }
@@ -1096,9 +1154,10 @@ fn textures(document: &gltf::Document, webp_fallbacks: &[Option<usize>]) -> Vec<
         .collect()
 }
 
-/// Every image's source, its header checked. An image that fails the check is an error, unless
-/// every texture using it has a fallback image (EXT_texture_webp): those textures switch to
-/// their fallback, with a warning.
+/// Every image's source, its header checked. An image that fails the check (absent, not an
+/// image, too large) switches the textures that have a fallback image (EXT_texture_webp) to it,
+/// with a warning; any other texture using it is reported in the returned list, for
+/// [`super::draw_without`]. A malformed `data:` URI or a URI leaving the folder stays an error.
 fn images(
     document: &gltf::Document,
     buffers: &[Vec<u8>],
@@ -1106,8 +1165,9 @@ fn images(
     options: &LoadOptions,
     textures: &mut [Texture],
     warnings: &mut Vec<String>,
-) -> Result<Vec<ImageSource>, LoadError> {
+) -> Result<(Vec<ImageSource>, Vec<UnusableImage>), LoadError> {
     let mut out = Vec::with_capacity(document.images().len());
+    let mut unusable = Vec::new();
     for image in document.images() {
         let index = image.index();
         let what = format!("image {index}");
@@ -1147,37 +1207,45 @@ fn images(
                     bytes: Some(Arc::from(bytes)),
                 }
             }
-            gltf::image::Source::Uri { uri, mime_type } => {
-                let path = access.resolve(&what, uri)?;
-                if !path.is_file() {
-                    return Err(image_err(format!("file '{}' not found", path.display())));
-                }
-                ImageSource {
-                    origin: uri.to_string(),
-                    mime_type: mime_type.map(str::to_string),
-                    path: Some(path),
-                    bytes: None,
-                }
-            }
+            gltf::image::Source::Uri { uri, mime_type } => ImageSource {
+                origin: uri.to_string(),
+                mime_type: mime_type.map(str::to_string),
+                path: Some(access.resolve(&what, uri)?),
+                bytes: None,
+            },
         };
-        if let Err(problem) = check_image_header(&source, options.limits.max_image_pixels) {
-            let users = || textures.iter().filter(|t| t.image == index);
-            if users().count() == 0 || users().any(|t| t.fallback_image.is_none()) {
-                return Err(image_err(problem));
+        let checked = match &source.path {
+            Some(path) if !path.is_file() => Err(format!("file '{}' not found", path.display())),
+            _ if source.mime_type.as_deref() == Some("image/ktx2") => {
+                Err("KTX2 images (KHR_texture_basisu) are not decoded yet".to_string())
             }
-            warnings.push(format!(
-                "image {index} ({}): {problem}; its textures use their fallback image instead",
-                source.origin
-            ));
+            _ => check_image_header(&source, options.limits.max_image_pixels),
+        };
+        if let Err(problem) = checked {
+            let mut switched = 0;
             for texture in textures.iter_mut().filter(|t| t.image == index) {
                 if let Some(fallback) = texture.fallback_image.take() {
                     texture.image = fallback;
+                    switched += 1;
                 }
+            }
+            if switched > 0 {
+                warnings.push(format!(
+                    "image {index} ({}): {problem}; {switched} texture(s) use their fallback image instead",
+                    source.origin
+                ));
+            }
+            if switched == 0 || textures.iter().any(|t| t.image == index) {
+                unusable.push(UnusableImage {
+                    image: index,
+                    origin: source.origin.clone(),
+                    problem,
+                });
             }
         }
         out.push(source);
     }
-    Ok(out)
+    Ok((out, unusable))
 }
 
 /// Reads only an image's header: refuses one that is not an image, or whose declared size is

@@ -6,6 +6,7 @@
 mod attributes;
 mod builder;
 mod error;
+pub mod extensions;
 pub mod gltf;
 mod meshopt;
 pub mod obj;
@@ -49,6 +50,12 @@ pub struct LoadOptions {
     pub limits: LoadLimits,
     /// Allow URIs that are absolute or escape the model's folder (`--allow-external-files`).
     pub allow_external_files: bool,
+    /// Refuse the file when an image cannot be used (`--strict`), instead of drawing the
+    /// materials that use it with their factors and a warning.
+    pub strict: bool,
+    /// The `KHR_materials_variants` variant to draw, by name (`--variant`); `None` draws each
+    /// primitive's default material.
+    pub variant: Option<String>,
 }
 
 /// The file formats meshtracer reads.
@@ -226,6 +233,92 @@ impl Material {
         .into_iter()
         .flatten()
     }
+
+    /// The five texture slots, in the order of [`Material::texture_refs`].
+    fn texture_slots_mut(&mut self) -> [&mut Option<TextureRef>; 5] {
+        [
+            &mut self.base_color_texture,
+            &mut self.metallic_roughness_texture,
+            &mut self.normal_texture,
+            &mut self.occlusion_texture,
+            &mut self.emissive_texture,
+        ]
+    }
+
+    /// `'name' (index)` or `index`, for messages.
+    pub fn label(&self, index: usize) -> String {
+        match &self.name {
+            Some(name) => format!("'{name}' ({index})"),
+            None => index.to_string(),
+        }
+    }
+}
+
+/// An image the importer could not use: absent, unreadable, or not an image it can decode.
+#[derive(Clone, Debug)]
+pub(crate) struct UnusableImage {
+    /// Index into [`Scene::images`].
+    pub image: usize,
+    /// What the file says (URI, `bufferView N`).
+    pub origin: String,
+    /// What is wrong, naming the resolved file where there is one.
+    pub problem: String,
+}
+
+/// A missing texture is not a missing model (what Blender and the web viewers do): every
+/// material slot whose texture uses an unusable image is emptied, so the material draws with
+/// its factors. Returns one warning per image, naming the image, its file and the materials;
+/// with `strict` the first such image is an error instead.
+pub(crate) fn draw_without(
+    materials: &mut [Material],
+    textures: &[Texture],
+    unusable: &[UnusableImage],
+    strict: bool,
+) -> Result<Vec<String>, LoadErrorKind> {
+    let mut warnings = Vec::with_capacity(unusable.len());
+    for bad in unusable {
+        let mut users = Vec::new();
+        for (index, material) in materials.iter_mut().enumerate() {
+            let mut uses = false;
+            for slot in material.texture_slots_mut() {
+                let hit = slot
+                    .as_ref()
+                    .and_then(|r| textures.get(r.texture))
+                    .is_some_and(|t| t.image == bad.image);
+                if hit {
+                    *slot = None;
+                    uses = true;
+                }
+            }
+            if uses {
+                users.push(material.label(index));
+            }
+        }
+        let used_by = match users.len() {
+            0 => "no material".to_string(),
+            1 => format!("material {}", users[0]),
+            _ => format!("materials {}", users.join(", ")),
+        };
+        if strict {
+            return Err(LoadErrorKind::Image {
+                image: bad.image,
+                problem: format!(
+                    "{}: {}; used by {used_by} (--strict refuses a missing texture)",
+                    bad.origin, bad.problem
+                ),
+            });
+        }
+        let consequence = match users.len() {
+            0 => "no material uses it".to_string(),
+            1 => format!("{used_by} is drawn without it, with its factors"),
+            _ => format!("{used_by} are drawn without it, with their factors"),
+        };
+        warnings.push(format!(
+            "image {} ({}): {}; {consequence}",
+            bad.image, bad.origin, bad.problem
+        ));
+    }
+    Ok(warnings)
 }
 
 impl Default for Material {
@@ -492,6 +585,12 @@ pub struct Scene {
     pub bounds: Bounds,
     /// Problems that did not stop loading.
     pub warnings: Vec<String>,
+    /// Names of the file's `KHR_materials_variants` variants, in file order.
+    pub variants: Vec<String>,
+    /// The variant drawn, if one was chosen.
+    pub variant: Option<String>,
+    /// Every glTF extension the file uses (`extensionsUsed`), with how it is honoured.
+    pub extensions: Vec<extensions::ExtensionUse>,
 }
 
 impl Scene {

@@ -18,7 +18,7 @@
 use super::builder::TriangleIn;
 use super::{
     AlphaMode, FileAccess, Format, ImageSource, Instance, LoadError, LoadErrorKind, LoadOptions,
-    Material, Sampler, Scene, SoupBuilder, Texture, TextureRef,
+    Material, Sampler, Scene, SoupBuilder, Texture, TextureRef, UnusableImage,
 };
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::RefCell;
@@ -29,6 +29,11 @@ use std::path::Path;
 /// Loads an OBJ file whose bytes are already read.
 pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<Scene, LoadError> {
     let err = |kind| LoadError::new(path, kind);
+    if let Some(name) = &options.variant {
+        return Err(err(LoadErrorKind::Variant(format!(
+            "no variant '{name}': OBJ files have no material variants"
+        ))));
+    }
     if std::str::from_utf8(bytes).is_err() {
         // Latin-1 files exist, but tobj reads lines as UTF-8; say so instead of "read error".
         return Err(err(LoadErrorKind::Obj(
@@ -85,53 +90,55 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     let mut textures: Vec<Texture> = Vec::new();
     let mut images: Vec<ImageSource> = Vec::new();
     let mut image_index: HashMap<String, usize> = HashMap::new();
-    let mut texture =
-        |what: &str, name: &Option<String>| -> Result<Option<TextureRef>, LoadError> {
-            let Some(name) = name.as_deref().map(str::trim).filter(|n| !n.is_empty()) else {
-                return Ok(None);
-            };
-            // MTL texture statements may carry options ("-bm 1.0 file.png"): the file is last.
-            let file = name.split_whitespace().last().unwrap_or(name);
-            let index = match image_index.get(file) {
-                Some(&i) => i,
-                None => {
-                    let resolved = access.resolve(what, file)?;
-                    if !resolved.is_file() {
-                        return Err(err(LoadErrorKind::Image {
-                            image: images.len(),
-                            problem: format!("{what} texture '{}' not found", resolved.display()),
-                        }));
-                    }
-                    let source = ImageSource {
-                        origin: file.to_string(),
-                        mime_type: None,
-                        path: Some(resolved),
-                        bytes: None,
-                    };
-                    super::gltf::check_image_header(&source, options.limits.max_image_pixels)
-                        .map_err(|problem| {
-                            err(LoadErrorKind::Image {
-                                image: images.len(),
-                                problem,
-                            })
-                        })?;
-                    images.push(source);
-                    textures.push(Texture {
-                        name: Some(file.to_string()),
-                        image: images.len() - 1,
-                        fallback_image: None,
-                        sampler: Sampler::default(),
-                    });
-                    image_index.insert(file.to_string(), textures.len() - 1);
-                    textures.len() - 1
-                }
-            };
-            Ok(Some(TextureRef {
-                texture: index,
-                tex_coord: 0,
-                transform: None,
-            }))
+    let mut unusable = Vec::new();
+    let mut texture = |what: &str,
+                       name: &Option<String>|
+     -> Result<Option<TextureRef>, LoadError> {
+        let Some(name) = name.as_deref().map(str::trim).filter(|n| !n.is_empty()) else {
+            return Ok(None);
         };
+        // MTL texture statements may carry options ("-bm 1.0 file.png"): the file is last.
+        let file = name.split_whitespace().last().unwrap_or(name);
+        let index = match image_index.get(file) {
+            Some(&i) => i,
+            None => {
+                let resolved = access.resolve(what, file)?;
+                let source = ImageSource {
+                    origin: file.to_string(),
+                    mime_type: None,
+                    path: Some(resolved),
+                    bytes: None,
+                };
+                let checked = match &source.path {
+                    Some(path) if !path.is_file() => {
+                        Err(format!("{what} texture '{}' not found", path.display()))
+                    }
+                    _ => super::gltf::check_image_header(&source, options.limits.max_image_pixels),
+                };
+                if let Err(problem) = checked {
+                    unusable.push(UnusableImage {
+                        image: images.len(),
+                        origin: file.to_string(),
+                        problem,
+                    });
+                }
+                images.push(source);
+                textures.push(Texture {
+                    name: Some(file.to_string()),
+                    image: images.len() - 1,
+                    fallback_image: None,
+                    sampler: Sampler::default(),
+                });
+                image_index.insert(file.to_string(), textures.len() - 1);
+                textures.len() - 1
+            }
+        };
+        Ok(Some(TextureRef {
+            texture: index,
+            tex_coord: 0,
+            transform: None,
+        }))
+    };
     let mut materials = Vec::with_capacity(mtl_materials.len() + 1);
     for m in &mtl_materials {
         let mut mat = mtl_material(m);
@@ -139,6 +146,8 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         mat.normal_texture = texture("map_Bump", &m.normal_texture)?;
         materials.push(mat);
     }
+    let image_warnings =
+        super::draw_without(&mut materials, &textures, &unusable, options.strict).map_err(err)?;
     let default_material = materials.len() as u32;
     let mut uses_default = false;
     let mut lone_material_fallback = false;
@@ -220,7 +229,8 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     if uses_default {
         materials.push(obj_default_material());
     }
-    let mut warnings: Vec<String> = builder.dropped_warning().into_iter().collect();
+    let mut warnings = image_warnings;
+    warnings.extend(builder.dropped_warning());
     if lone_material_fallback {
         warnings.push(format!(
             "faces use a material the MTL does not define; its only material '{}' is used",
@@ -247,6 +257,9 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         instances,
         bounds,
         warnings,
+        variants: Vec::new(),
+        variant: None,
+        extensions: Vec::new(),
     })
 }
 

@@ -1,0 +1,156 @@
+//! What meshtracer does with each glTF extension: one table, read by the importer (which
+//! required extensions to refuse), by `info --json` and by `render`'s warnings.
+
+use serde::Serialize;
+
+/// How an extension is honoured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ExtensionStatus {
+    /// Implemented as the extension specifies.
+    Supported,
+    /// Drawn, but not exactly as the extension specifies (the note says how).
+    Approximated,
+    /// Not implemented: the file is drawn as if the extension were absent.
+    Ignored,
+}
+
+/// One extension of the table.
+#[derive(Clone, Copy, Debug)]
+pub struct KnownExtension {
+    /// The extension's name.
+    pub name: &'static str,
+    /// How it is honoured.
+    pub status: ExtensionStatus,
+    /// When listed in `extensionsRequired`, the file cannot be drawn without it: refused.
+    pub refused_when_required: bool,
+    /// What meshtracer does, for warnings and the README.
+    pub note: &'static str,
+}
+
+const fn ext(
+    name: &'static str,
+    status: ExtensionStatus,
+    refused_when_required: bool,
+    note: &'static str,
+) -> KnownExtension {
+    KnownExtension {
+        name,
+        status,
+        refused_when_required,
+        note,
+    }
+}
+
+use ExtensionStatus::{Ignored, Supported};
+
+/// Every extension meshtracer knows. One not listed is ignored when used and refused when
+/// required (it may change what the geometry is).
+pub const EXTENSIONS: &[KnownExtension] = &[
+    ext("KHR_lights_punctual", Supported, false, "point, spot and directional lights"),
+    ext("KHR_texture_transform", Supported, false, "offset, rotation, scale, texCoord override"),
+    ext("KHR_materials_emissive_strength", Supported, false, "multiplies the emissive factor"),
+    ext("KHR_materials_variants", Supported, false, "--variant NAME; info lists the variants"),
+    ext("KHR_mesh_quantization", Supported, false, "integer and normalized attributes"),
+    ext("EXT_meshopt_compression", Supported, false, "every mode and filter"),
+    ext("KHR_meshopt_compression", Supported, false, "every mode and filter"),
+    ext("EXT_texture_webp", Supported, false, "the core source is the fallback"),
+    ext(
+        "KHR_texture_basisu",
+        Ignored,
+        false,
+        "KTX2 images are not decoded: textures use their core source if any, else the materials' factors",
+    ),
+    ext(
+        "KHR_draco_mesh_compression",
+        Ignored,
+        true,
+        "Draco is not decoded: refused when required, else the uncompressed accessors are drawn",
+    ),
+    ext("KHR_materials_ior", Ignored, false, "drawn with the core metallic-roughness material"),
+    ext("KHR_materials_specular", Ignored, false, "drawn with the core metallic-roughness material"),
+    ext("KHR_materials_transmission", Ignored, false, "drawn opaque (or as its alpha mode says)"),
+    ext("KHR_materials_volume", Ignored, false, "drawn with the core metallic-roughness material"),
+    ext("KHR_materials_clearcoat", Ignored, false, "drawn with the core metallic-roughness material"),
+    ext("KHR_materials_sheen", Ignored, false, "drawn with the core metallic-roughness material"),
+    ext("KHR_materials_iridescence", Ignored, false, "drawn with the core metallic-roughness material"),
+    ext("KHR_materials_anisotropy", Ignored, false, "drawn with the core metallic-roughness material"),
+    ext("KHR_materials_dispersion", Ignored, false, "drawn with the core metallic-roughness material"),
+    ext("KHR_materials_unlit", Ignored, false, "shaded like any material"),
+    ext(
+        "KHR_materials_pbrSpecularGlossiness",
+        Ignored,
+        false,
+        "drawn with the core metallic-roughness material",
+    ),
+    ext("KHR_xmp_json_ld", Supported, false, "metadata only: nothing to draw"),
+    ext("KHR_animation_pointer", Ignored, false, "the static pose is drawn"),
+];
+
+/// The table's entry for `name`, if meshtracer knows it.
+pub fn known(name: &str) -> Option<&'static KnownExtension> {
+    EXTENSIONS.iter().find(|e| e.name == name)
+}
+
+/// One extension a file uses, as `info --json` reports it.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct ExtensionUse {
+    /// The extension's name.
+    pub name: String,
+    /// Listed in `extensionsRequired`.
+    pub required: bool,
+    /// How meshtracer honours it.
+    pub status: ExtensionStatus,
+}
+
+impl ExtensionUse {
+    /// The status of `name` as used by a file (unknown extensions are ignored).
+    pub fn new(name: &str, required: bool) -> ExtensionUse {
+        ExtensionUse {
+            name: name.to_string(),
+            required,
+            status: known(name).map_or(ExtensionStatus::Ignored, |e| e.status),
+        }
+    }
+
+    /// The warning `render` prints for an extension not fully supported, else `None`.
+    pub fn warning(&self) -> Option<String> {
+        if self.status == ExtensionStatus::Supported {
+            return None;
+        }
+        let note =
+            known(&self.name).map_or("unknown to meshtracer: drawn as if absent", |e| e.note);
+        let status = match self.status {
+            ExtensionStatus::Approximated => "approximated",
+            _ => "ignored",
+        };
+        Some(format!("extension {} is {status}: {note}", self.name))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_table_lists_each_extension_once() {
+        for (i, e) in EXTENSIONS.iter().enumerate() {
+            assert!(
+                EXTENSIONS[i + 1..].iter().all(|f| f.name != e.name),
+                "{} twice",
+                e.name
+            );
+        }
+        assert!(ExtensionUse::new("KHR_lights_punctual", false)
+            .warning()
+            .is_none());
+        let w = ExtensionUse::new("KHR_materials_sheen", false)
+            .warning()
+            .unwrap();
+        assert!(w.contains("KHR_materials_sheen is ignored"), "{w}");
+        assert_eq!(
+            ExtensionUse::new("EXT_made_up", true).status,
+            ExtensionStatus::Ignored
+        );
+    }
+}
