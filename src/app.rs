@@ -300,7 +300,9 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         crate::aov::check(p, &["hdr"])?;
     }
     let env_file = match &args.env {
-        Some(path) => Some(Environment::load(path)?),
+        Some(path) => {
+            Some(Environment::load(path)?.with_transform(args.env_rotation, args.env_intensity))
+        }
         None => None,
     };
     let output = PendingOutput::reserve(&args.output, args.no_clobber)?;
@@ -366,18 +368,23 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         default_rig(&view)
     };
     // The path tracer's default fill is the built-in studio environment, not a light rig.
-    let environment = match env_file {
+    // A view file's environment lights the path tracer again unless --env says otherwise.
+    let from_view = match view_file.as_ref().and_then(|v| v.environment.as_ref()) {
+        Some(recorded) if path_tracing && env_file.is_none() => Some(recorded.load()?),
+        _ => None,
+    };
+    let environment = match env_file.or(from_view) {
         Some(env) => Some(env),
         None if path_tracing
             && view_file.is_none()
             && scene.lights.is_empty()
             && !args.no_default_lights =>
         {
-            Some(Environment::studio())
+            Some(Environment::studio().with_transform(args.env_rotation, args.env_intensity))
         }
         None => None,
     }
-    .map(|env| Arc::new(env.with_transform(args.env_rotation, args.env_intensity)));
+    .map(Arc::new);
     if let (Some(path), None) = (&args.env_out, &environment) {
         bail!(
             "{}: --env-out: no environment lights this render (the file has lights; give --env)",
@@ -493,6 +500,24 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             })
             .collect();
         view.depth_png_scale = args.depth_scale;
+        view.integrator = settings.integrator;
+        if settings.integrator == IntegratorKind::Path {
+            view.bounces = Some(settings.bounces);
+            view.environment =
+                settings
+                    .environment
+                    .as_ref()
+                    .map(|env| crate::view::ViewEnvironment {
+                        source: env.source.clone(),
+                        rotation_degrees: env.rotation_degrees(),
+                        intensity: env.intensity(),
+                        visible: settings.environment_visible,
+                        panorama: args
+                            .env_out
+                            .as_ref()
+                            .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())),
+                    });
+        }
         view.write(path)?;
     }
     if !args.quiet {

@@ -172,7 +172,8 @@ impl Environment {
             height,
             texels,
             EnvironmentSource::File {
-                path: path.to_path_buf(),
+                // Absolute, so that a VIEW.json recording it works from any folder.
+                path: path.canonicalize().unwrap_or_else(|_| path.to_path_buf()),
             },
         ))
     }

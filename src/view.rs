@@ -5,6 +5,8 @@
 //! Units are glTF's: metres, radians, candela (point, spot), lux (directional). Directions are
 //! unit vectors in world space; a light's `direction` is the way its light travels.
 
+use crate::environment::{Environment, EnvironmentSource};
+use crate::integrator::IntegratorKind;
 use crate::scene::{Camera, Light, LightKind, Projection};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -100,6 +102,43 @@ pub struct ViewFile {
     /// Segmentation ids: instance id -> glTF node and mesh (OBJ: object index as mesh).
     #[serde(default)]
     pub segmentation: Vec<SegmentId>,
+    /// The integrator (files written before the path tracer: `direct`).
+    #[serde(default)]
+    pub integrator: IntegratorKind,
+    /// Path tracer: most bounces after the first hit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bounces: Option<u32>,
+    /// Path tracer: the environment that lit the scene.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub environment: Option<ViewEnvironment>,
+}
+
+/// The environment of a path-traced view: enough to light another renderer identically.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ViewEnvironment {
+    /// The panorama file, or the built-in studio with its parameters.
+    pub source: EnvironmentSource,
+    /// Rotation about +Y in degrees (counter-clockwise seen from above).
+    pub rotation_degrees: f32,
+    /// Radiance multiplier.
+    pub intensity: f32,
+    /// Whether camera rays that miss showed it.
+    pub visible: bool,
+    /// The panorama as used (rotation and intensity applied), where `--env-out` wrote one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub panorama: Option<std::path::PathBuf>,
+}
+
+impl ViewEnvironment {
+    /// The environment this record describes (a file is read again).
+    pub fn load(&self) -> Result<Environment, crate::environment::EnvironmentError> {
+        let base = match &self.source {
+            EnvironmentSource::File { path } => Environment::load(path)?,
+            EnvironmentSource::Studio { .. } => Environment::studio(),
+            EnvironmentSource::Uniform { radiance } => Environment::uniform(Vec3::from(*radiance)),
+        };
+        Ok(base.with_transform(self.rotation_degrees, self.intensity))
+    }
 }
 
 fn default_depth_scale() -> f32 {
@@ -173,6 +212,9 @@ impl ViewFile {
             default_lights,
             depth_png_scale: default_depth_scale(),
             segmentation: Vec::new(),
+            integrator: IntegratorKind::Direct,
+            bounces: None,
+            environment: None,
         }
     }
 

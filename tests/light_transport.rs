@@ -284,3 +284,74 @@ fn the_builtin_studio_can_be_written_out() {
     assert!(top[0] > 4.0 * bottom[0], "top {top:?} bottom {bottom:?}");
     assert!(texels.iter().all(|t| t[0] == t[1] && t[1] == t[2]));
 }
+
+/// `--view-out` records the integrator, bounces and environment (file, rotation, intensity,
+/// visibility); rendering again with `--view` and no `--env` gives the same bytes.
+#[test]
+fn the_view_file_records_the_environment() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = common::root().join("assets/shapes.obj");
+    // A panorama brighter toward +X, so that a rotation shows.
+    let env = dir.path().join("gradient.hdr");
+    let pixels: Vec<image::Rgb<f32>> = (0..8)
+        .flat_map(|_| (0..16).map(|i| image::Rgb([0.2 + i as f32 / 8.0; 3])))
+        .collect();
+    let mut bytes = Vec::new();
+    image::codecs::hdr::HdrEncoder::new(&mut bytes)
+        .encode(&pixels, 16, 8)
+        .unwrap();
+    std::fs::write(&env, bytes).unwrap();
+    let view = dir.path().join("view.json");
+    let first = dir.path().join("first.png");
+    let size = [
+        "--width",
+        "40",
+        "--height",
+        "30",
+        "--spp",
+        "2",
+        "--integrator",
+        "path",
+    ];
+    let mut args = vec!["render", s(&model), "-o", s(&first), "--quiet"];
+    args.extend(size);
+    args.extend([
+        "--bounces",
+        "3",
+        "--env",
+        s(&env),
+        "--env-rotation",
+        "90",
+        "--env-intensity",
+        "2",
+        "--env-visible",
+        "--view-out",
+        s(&view),
+    ]);
+    run(&args, true);
+    let recorded: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&view).unwrap()).unwrap();
+    assert_eq!(recorded["integrator"], "path");
+    assert_eq!(recorded["bounces"], 3);
+    assert_eq!(recorded["environment"]["rotation_degrees"], 90.0);
+    assert_eq!(recorded["environment"]["intensity"], 2.0);
+    assert_eq!(recorded["environment"]["visible"], true);
+    assert_eq!(recorded["environment"]["source"]["type"], "file");
+    let again = dir.path().join("again.png");
+    let mut args = vec![
+        "render",
+        s(&model),
+        "-o",
+        s(&again),
+        "--quiet",
+        "--view",
+        s(&view),
+    ];
+    args.extend(size);
+    args.extend(["--bounces", "3", "--env-visible"]);
+    run(&args, true);
+    assert_eq!(
+        std::fs::read(&first).unwrap(),
+        std::fs::read(&again).unwrap()
+    );
+}
