@@ -530,7 +530,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             AccelKind::Linear => "linear scan (no BVH)".to_string(),
         };
         eprintln!(
-            "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {} spp rendered in {:.3} s: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {threads} threads -> {}",
+            "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {} spp rendered in {:.3} s ({:.0} samples/s{}): {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {threads} threads -> {}",
             args.model.display(),
             scene.soup.len(),
             load_time.as_secs_f64() * 1e3,
@@ -538,6 +538,10 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             texture_time.as_secs_f64() * 1e3,
             args.spp,
             stats.time.as_secs_f64(),
+            stats.samples_per_second(),
+            stats
+                .noise
+                .map_or(String::new(), |n| format!(", noise ±{n:.4}")),
             stats.rays(),
             stats.primary_rays,
             stats.shadow_rays,

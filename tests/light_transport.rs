@@ -355,3 +355,45 @@ fn the_view_file_records_the_environment() {
         std::fs::read(&again).unwrap()
     );
 }
+
+/// The summary's noise estimate (standard error of the pixel means) falls as 1/sqrt(spp):
+/// four times the samples, half the noise (within 20%).
+#[test]
+fn noise_falls_as_one_over_the_square_root_of_spp() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = common::root().join("assets/shapes.obj");
+    let noise = |spp: &str| -> f32 {
+        let out = dir.path().join(format!("n{spp}.png"));
+        let result = run(
+            &[
+                "render",
+                s(&model),
+                "-o",
+                s(&out),
+                "--width",
+                "48",
+                "--height",
+                "36",
+                "--spp",
+                spp,
+                "--integrator",
+                "path",
+            ],
+            true,
+        );
+        let err = common::stderr(&result);
+        let at = err
+            .find("noise ±")
+            .unwrap_or_else(|| panic!("no noise in: {err}"));
+        let digits: String = err[at + "noise ±".len()..]
+            .chars()
+            .take_while(|c| c.is_ascii_digit() || *c == '.')
+            .collect();
+        digits.parse().unwrap()
+    };
+    let ratio = noise("16") / noise("64");
+    assert!(
+        (1.6..2.5).contains(&ratio),
+        "noise ratio 16 -> 64 spp: {ratio}"
+    );
+}

@@ -722,7 +722,9 @@ fn the_summary_reports_what_the_render_did() {
     let (model, out) = (cornell(), dir.path().join("x.png"));
     let render = |extra: &[&str]| {
         let mut args = vec!["render", s(&model), "-o", s(&out), "--width", "32"];
-        args.extend(["--spp", "1"]);
+        if !extra.contains(&"--spp") {
+            args.extend(["--spp", "1"]);
+        }
         args.extend_from_slice(extra);
         run(&args, true)
     };
@@ -734,9 +736,14 @@ fn the_summary_reports_what_the_render_did() {
         "rendered in",
         "rays",
         "Mrays/s",
+        "samples/s",
     ] {
         assert!(err.contains(needle), "'{needle}' missing from: {err}");
     }
+    // A noise estimate needs more than one sample per pixel.
+    assert!(!err.contains("noise"), "{err}");
+    let err = common::stderr(&render(&["--spp", "4"]));
+    assert!(err.contains("noise ±"), "{err}");
     assert!(render(&["--quiet"]).stderr.is_empty());
 }
 

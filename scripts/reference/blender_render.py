@@ -5,7 +5,11 @@
 
 The camera, lights and ambient come from VIEW.json (`meshtracer render --view-out`); the
 model's own cameras and lights are removed. `--mode direct` (default) renders direct light only
-(max bounces 0), like meshtracer; `--mode gi` renders full global illumination. View transform
+(max bounces 0), like meshtracer; `--mode gi` renders full global illumination. A view written
+by `meshtracer render --integrator path` selects `gi` with the same bounces, and its environment
+lights the world: the `--env-out` panorama when the view names one (rotation and intensity
+already applied), else the source panorama with the same rotation and intensity (the built-in
+studio needs `--env-out`). View transform
 'Standard' (the piecewise sRGB curve), transparent film, hard shadows (light radius and sun
 angle 0).
 
@@ -116,6 +120,30 @@ def main(argv):
     background = world.node_tree.nodes["Background"]
     background.inputs[0].default_value = (*view.get("ambient", [0, 0, 0]), 1.0)
     scene.world = world
+    environment = view.get("environment")
+    if view.get("integrator") == "path":
+        args.mode = "gi"
+    if environment:
+        panorama = environment.get("panorama")
+        source = environment["source"]
+        if panorama is None and source.get("type") != "file":
+            sys.exit("the view's environment is the built-in one: render it with --env-out FILE.hdr")
+        nodes, links = world.node_tree.nodes, world.node_tree.links
+        texture = nodes.new("ShaderNodeTexEnvironment")
+        texture.image = bpy.data.images.load(panorama or source["path"])
+        background.inputs[0].default_value = (1.0, 1.0, 1.0, 1.0)
+        links.new(texture.outputs["Color"], background.inputs["Color"])
+        if panorama is None:
+            # meshtracer turns the panorama counter-clockwise about +Y (Blender +Z); the mapping
+            # node turns the lookup direction, hence the minus sign.
+            coords = nodes.new("ShaderNodeTexCoord")
+            mapping = nodes.new("ShaderNodeMapping")
+            mapping.inputs["Rotation"].default_value[2] = -math.radians(environment["rotation_degrees"])
+            links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+            links.new(mapping.outputs["Vector"], texture.inputs["Vector"])
+            background.inputs["Strength"].default_value = environment["intensity"]
+        else:
+            background.inputs["Strength"].default_value = 1.0
 
     scene.render.engine = "CYCLES"
     scene.cycles.device = "CPU"
@@ -123,7 +151,12 @@ def main(argv):
     scene.cycles.use_denoising = False
     if args.mode == "direct":
         scene.cycles.max_bounces = 0
-    scene.render.film_transparent = True
+    elif view.get("bounces") is not None:
+        bounces = view["bounces"]
+        scene.cycles.max_bounces = bounces
+        for kind in ("diffuse", "glossy", "transmission", "volume", "transparent"):
+            setattr(scene.cycles, f"{kind}_bounces", bounces)
+    scene.render.film_transparent = not (environment and environment.get("visible"))
     scene.view_settings.view_transform = "Standard"
     scene.render.resolution_x = view["image"]["width"]
     scene.render.resolution_y = view["image"]["height"]

@@ -8,6 +8,7 @@
 
 pub mod surface;
 
+use crate::bsdf::luminance;
 use crate::camera::{Lens, View};
 use crate::environment::Environment;
 use crate::geometry::Ray;
@@ -82,12 +83,22 @@ pub struct RenderStats {
     pub indirect_rays: u64,
     /// Wall time of the render (not the BVH build).
     pub time: Duration,
+    /// Camera samples taken (pixels × spp).
+    pub samples: u64,
+    /// Noise estimate: the standard error of the pixel mean's luminance (after exposure),
+    /// averaged over covered pixels; `None` at 1 spp (no spread to measure).
+    pub noise: Option<f32>,
 }
 
 impl RenderStats {
     /// All rays traced.
     pub fn rays(&self) -> u64 {
         self.primary_rays + self.shadow_rays + self.indirect_rays
+    }
+
+    /// Camera samples per second over the render's wall time.
+    pub fn samples_per_second(&self) -> f64 {
+        self.samples as f64 / self.time.as_secs_f64().max(1e-9)
     }
 
     /// Millions of rays per second over the render's wall time.
@@ -158,12 +169,18 @@ pub fn render(
         normal: vec![Vec3::ZERO; pixel_count],
         instance: vec![0; pixel_count],
     });
-    let mut stats = RenderStats::default();
+    let mut stats = RenderStats {
+        samples: u64::from(width) * u64::from(height) * u64::from(settings.spp.max(1)),
+        ..RenderStats::default()
+    };
+    let (mut noise_sum, mut noise_pixels) = (0.0f64, 0u64);
     for tile in results {
         let tile = tile.ok_or(Cancelled)?;
         stats.primary_rays += tile.counts.primary;
         stats.shadow_rays += tile.counts.shadow;
         stats.indirect_rays += tile.counts.indirect;
+        noise_sum += tile.noise_sum;
+        noise_pixels += tile.noise_pixels;
         for (row, chunk) in tile.pixels.chunks(tile.width as usize).enumerate() {
             let y = tile.y + row as u32;
             let begin = (y * width + tile.x) as usize;
@@ -178,6 +195,7 @@ pub fn render(
         }
     }
     stats.time = start.elapsed();
+    stats.noise = (noise_pixels > 0).then(|| (noise_sum / noise_pixels as f64) as f32);
     Ok((image, stats, aovs))
 }
 
@@ -189,6 +207,10 @@ struct Tile {
     pixels: Vec<Vec4>,
     aovs: Aovs,
     counts: RayCounts,
+    /// Sum over covered pixels of the standard error of their mean luminance.
+    noise_sum: f64,
+    /// Covered pixels counted in `noise_sum`.
+    noise_pixels: u64,
 }
 
 /// Per-render constants shared by all tiles.
@@ -239,12 +261,15 @@ impl<'a> PixelLoop<'a> {
             pixels: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
             aovs: Aovs::default(),
             counts: RayCounts::default(),
+            noise_sum: 0.0,
+            noise_pixels: 0,
         };
         let spp = self.settings.spp.max(1);
         for y in y0..y1 {
             for x in x0..x1 {
                 let mut rng = Rng::for_pixel(self.settings.seed, x, y);
                 let mut sum = Vec4::ZERO;
+                let mut luminance_squares = 0.0f64;
                 for s in 0..spp {
                     let (dx, dy) = if spp == 1 {
                         (0.5, 0.5)
@@ -265,8 +290,16 @@ impl<'a> PixelLoop<'a> {
                         self.integrator
                             .radiance(self.scene, &camera, &mut rng, &mut tile.counts);
                     sum += (color * self.scale).extend(coverage);
+                    luminance_squares += f64::from(luminance(color * self.scale)).powi(2);
                 }
                 tile.pixels.push(sum / spp as f32);
+                if spp > 1 && sum.w > 0.0 {
+                    let n = f64::from(spp);
+                    let mean = f64::from(luminance(sum.truncate())) / n;
+                    let variance = (luminance_squares / n - mean * mean).max(0.0) * n / (n - 1.0);
+                    tile.noise_sum += (variance / n).sqrt();
+                    tile.noise_pixels += 1;
+                }
                 if self.settings.aovs {
                     self.aov(&view.ray(x as f32 + 0.5, y as f32 + 0.5), &mut tile.aovs);
                 }
