@@ -73,9 +73,12 @@ pub fn incident(light: &Light, point: Vec3) -> Option<Incident> {
 }
 
 /// Emissive triangles as area lights: every triangle whose material emits
-/// (`emissiveFactor` × `KHR_materials_emissive_strength`, OBJ `Ke`), picked for next-event
-/// estimation in proportion to its power estimate, luminance(emission factor) × area (an
-/// emissive texture modulates the radiance at the sampled point but not the choice). Each
+/// (`emissiveFactor` × `KHR_materials_emissive_strength` × texture, OBJ `Ke`), picked for
+/// next-event estimation in proportion to its power estimate, luminance(emission) × area, with
+/// the emission estimated at the triangle's corners and centroid: a helmet whose emissive
+/// texture lights only a few panels spends its light samples there (a triangle estimated black
+/// is never light-sampled; BSDF sampling still finds any emission it has, at full MIS weight,
+/// so the estimate stays unbiased). Each
 /// emits from both faces, as an emission shader on a mesh does in Cycles. Radiance units are
 /// those of the rest of the renderer (nits on the photometric scale of [`incident`]).
 #[derive(Clone, Debug, Default)]
@@ -102,18 +105,22 @@ pub struct AreaSample {
 }
 
 impl AreaLights {
-    /// The emissive triangles of `scene`.
-    pub fn new(scene: &crate::Scene) -> AreaLights {
+    /// The emissive triangles of `scene`; `estimate(triangle)` is the emitted radiance's
+    /// luminance averaged over the triangle (called only for triangles whose material emits).
+    pub fn new(scene: &crate::Scene, estimate: impl Fn(usize) -> f32) -> AreaLights {
         let soup = &scene.soup;
-        let emission: Vec<f32> = scene
+        let emits: Vec<bool> = scene
             .materials
             .iter()
-            .map(|m| crate::bsdf::luminance(m.emissive * m.emissive_strength))
+            .map(|m| crate::bsdf::luminance(m.emissive * m.emissive_strength) > 0.0)
             .collect();
         let mut lights = AreaLights::default();
         let mut weights = Vec::new();
         for (tri, &m) in soup.material.iter().enumerate() {
-            let power = emission.get(m as usize).copied().unwrap_or(0.0);
+            if !emits.get(m as usize).copied().unwrap_or(false) {
+                continue;
+            }
+            let power = estimate(tri);
             if power > 0.0 && power.is_finite() {
                 let [a, b, c] = soup.positions[tri];
                 let area = 0.5 * (b - a).cross(c - a).length();

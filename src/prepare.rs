@@ -69,14 +69,29 @@ impl Prepared {
             .materials
             .iter()
             .any(|m| m.alpha_mode != AlphaMode::Opaque);
-        let area_lights = AreaLights::new(&scene);
-        Prepared {
+        let mut prepared = Prepared {
             scene,
             accel,
             textures,
-            area_lights,
+            area_lights: AreaLights::default(),
             any_alpha,
-        }
+        };
+        // The emission averaged over each emissive triangle's corners and centroid.
+        let points = [
+            glam::Vec3::X,
+            glam::Vec3::Y,
+            glam::Vec3::Z,
+            glam::Vec3::splat(1.0 / 3.0),
+        ];
+        let area_lights = AreaLights::new(&prepared.scene, |tri| {
+            points
+                .iter()
+                .map(|&b| crate::bsdf::luminance(prepared.emission_at(tri, b)))
+                .sum::<f32>()
+                / points.len() as f32
+        });
+        prepared.area_lights = area_lights;
+        prepared
     }
 
     /// Whether any material is MASK or BLEND.
