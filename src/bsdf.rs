@@ -33,8 +33,12 @@ pub struct BsdfSample {
     pub direction: Vec3,
     /// f · |n·l| / pdf: what the path throughput is multiplied by.
     pub weight: Vec3,
-    /// The pdf of `direction` per steradian (for MIS against light sampling).
+    /// The pdf of `direction` per steradian (for MIS against light sampling); infinite for a
+    /// delta lobe.
     pub pdf: f32,
+    /// Drawn from a delta lobe (smooth transmission): no light sample could have found it, so
+    /// emission it reaches counts in full.
+    pub delta: bool,
 }
 
 /// The glTF material at one surface point, ready to evaluate and sample.
@@ -44,6 +48,23 @@ pub struct Bsdf {
     normal: Vec3,
     alpha: f32,
     p_specular: f32,
+    /// Transmission (glass): the lobe's weight, the chance of drawing it, and how it bends.
+    transmission: Option<Transmission>,
+}
+
+/// The specular transmission lobe of `KHR_materials_transmission` (glTF: the dielectric's
+/// diffuse lobe replaced, in proportion `factor`, by transmission tinted by the base colour).
+/// It is treated as perfectly smooth whatever the roughness (an approximation: rough glass
+/// renders as clear glass), so it is a delta lobe: drawn by [`Bsdf::sample`], never evaluated.
+#[derive(Clone, Copy, Debug)]
+struct Transmission {
+    /// `transmission` × (1 - metallic).
+    factor: f32,
+    /// Chance that [`Bsdf::sample`] draws the transmission lobe.
+    probability: f32,
+    /// Relative index of refraction across the surface in the ray's direction of travel
+    /// (outside / inside when entering); 1 for a thin-walled sheet (no bending).
+    eta: f32,
 }
 
 impl Bsdf {
@@ -64,7 +85,67 @@ impl Bsdf {
             normal,
             alpha,
             p_specular,
+            transmission: None,
         }
+    }
+
+    /// Adds the transmission lobe: `factor` from `KHR_materials_transmission`, `ior`, whether
+    /// the surface is a thin sheet, and whether the ray enters the volume (hit its front face).
+    /// The diffuse lobe keeps (1 - factor) of its weight; transmission gets the rest, times
+    /// (1 - F) and the base colour.
+    pub fn with_transmission(
+        mut self,
+        to_eye: Vec3,
+        factor: f32,
+        ior: f32,
+        thin_walled: bool,
+        entering: bool,
+    ) -> Self {
+        let factor = factor.clamp(0.0, 1.0) * (1.0 - self.material.metallic);
+        if factor <= 0.0 {
+            return self;
+        }
+        let eta = if thin_walled {
+            1.0
+        } else if entering {
+            1.0 / ior
+        } else {
+            ior
+        };
+        let n_dot_v = self.normal.dot(to_eye).clamp(0.0, 1.0);
+        let fresnel = luminance(self.f0() + (Vec3::ONE - self.f0()) * (1.0 - n_dot_v).powi(5));
+        let transmit = factor * luminance(self.material.base_color) * (1.0 - fresnel);
+        let diffuse = luminance(self.material.base_color * (1.0 - self.material.metallic))
+            * (1.0 - fresnel)
+            * (1.0 - factor);
+        let total = fresnel + diffuse + transmit;
+        let probability = if total > 0.0 { transmit / total } else { 0.0 };
+        // The other lobes share what is left in their old proportion.
+        self.p_specular = if fresnel + diffuse > 0.0 {
+            (fresnel / (fresnel + diffuse)).clamp(0.05, 1.0)
+        } else {
+            1.0
+        };
+        self.transmission = Some(Transmission {
+            factor,
+            probability,
+            eta,
+        });
+        self
+    }
+
+    fn f0(&self) -> Vec3 {
+        Vec3::splat(0.04).lerp(self.material.base_color, self.material.metallic)
+    }
+
+    /// The share of the diffuse lobe left after transmission took its part.
+    fn diffuse_share(&self) -> f32 {
+        1.0 - self.transmission.map_or(0.0, |t| t.factor)
+    }
+
+    /// Chance of drawing a non-delta lobe (reflection or diffuse).
+    fn p_nondelta(&self) -> f32 {
+        1.0 - self.transmission.map_or(0.0, |t| t.probability)
     }
 
     /// f(v, l) · max(n·l, 0): the reflected radiance per unit incident radiance from `to_light`.
@@ -73,7 +154,24 @@ impl Bsdf {
         if cos <= 0.0 || self.normal.dot(to_eye) <= 0.0 {
             return Vec3::ZERO;
         }
-        gltf_brdf(&self.material, self.normal, to_light, to_eye) * cos
+        let share = self.diffuse_share();
+        if share >= 1.0 {
+            return gltf_brdf(&self.material, self.normal, to_light, to_eye) * cos;
+        }
+        // The diffuse part scaled by its share: f = f_spec + share · f_diffuse, where the full
+        // BRDF and its specular part (black base: c_diff = 0) are the Appendix B functions.
+        let full = gltf_brdf(&self.material, self.normal, to_light, to_eye);
+        let specular_only = gltf_brdf(
+            &SurfaceMaterial {
+                base_color: Vec3::ZERO,
+                metallic: 0.0,
+                ..self.material
+            },
+            self.normal,
+            to_light,
+            to_eye,
+        );
+        (specular_only + (full - specular_only) * share) * cos
     }
 
     /// The pdf per steradian with which [`Bsdf::sample`] draws `to_light`.
@@ -86,7 +184,7 @@ impl Bsdf {
         let h = (to_eye + to_light).normalize_or_zero();
         let specular =
             ggx_d(n.dot(h), self.alpha) * smith_g1(n_dot_v, self.alpha) / (4.0 * n_dot_v);
-        self.p_specular * specular + (1.0 - self.p_specular) * n_dot_l / PI
+        self.p_nondelta() * (self.p_specular * specular + (1.0 - self.p_specular) * n_dot_l / PI)
     }
 
     /// Draws a direction from two uniform numbers in [0, 1) and a third choosing the lobe.
@@ -96,6 +194,16 @@ impl Bsdf {
         if n.dot(to_eye) <= 0.0 {
             return None;
         }
+        if let Some(transmission) = self.transmission {
+            if u_lobe < transmission.probability {
+                return self.sample_transmission(to_eye, transmission);
+            }
+        }
+        // Reuse the lobe number within the non-delta lobes.
+        let u_lobe = match self.transmission {
+            Some(t) if t.probability < 1.0 => (u_lobe - t.probability) / (1.0 - t.probability),
+            _ => u_lobe,
+        };
         let (t, b) = frame(n);
         let to_local = |d: Vec3| Vec3::new(d.dot(t), d.dot(b), d.dot(n));
         let to_world = |d: Vec3| t * d.x + b * d.y + n * d.z;
@@ -115,6 +223,34 @@ impl Bsdf {
             direction,
             weight,
             pdf,
+            delta: false,
+        })
+    }
+
+    /// The smooth transmission lobe: straight through a thin sheet, refracted by Snell's law
+    /// into or out of a volume (total internal reflection turns it into a mirror reflection).
+    fn sample_transmission(&self, to_eye: Vec3, t: Transmission) -> Option<BsdfSample> {
+        let n = self.normal;
+        let cos_i = n.dot(to_eye).clamp(0.0, 1.0);
+        let fresnel = luminance(self.f0() + (Vec3::ONE - self.f0()) * (1.0 - cos_i).powi(5));
+        let sin2_t = t.eta * t.eta * (1.0 - cos_i * cos_i);
+        let direction = if t.eta == 1.0 {
+            -to_eye
+        } else if sin2_t >= 1.0 {
+            2.0 * cos_i * n - to_eye
+        } else {
+            let cos_t = (1.0 - sin2_t).sqrt();
+            (-to_eye * t.eta + n * (t.eta * cos_i - cos_t)).normalize_or_zero()
+        };
+        if direction == Vec3::ZERO || t.probability <= 0.0 {
+            return None;
+        }
+        let weight = self.material.base_color * (t.factor * (1.0 - fresnel) / t.probability);
+        weight.is_finite().then_some(BsdfSample {
+            direction,
+            weight,
+            pdf: f32::INFINITY,
+            delta: true,
         })
     }
 }

@@ -68,7 +68,7 @@ impl Prepared {
         let any_alpha = scene
             .materials
             .iter()
-            .any(|m| m.alpha_mode != AlphaMode::Opaque);
+            .any(|m| m.alpha_mode != AlphaMode::Opaque || m.see_through());
         let mut prepared = Prepared {
             scene,
             accel,

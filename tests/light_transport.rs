@@ -397,3 +397,86 @@ fn noise_falls_as_one_over_the_square_root_of_spp() {
         "noise ratio 16 -> 64 spp: {ratio}"
     );
 }
+
+/// Clear glass (`KHR_materials_transmission` 1, thin-walled) over a red floor, lit from 27° off
+/// vertical and seen straight down: the floor shows through the glass in its own colour, dimmed
+/// only by the glass's Fresnel reflection (4% at ior 1.5) where the light and the view cross
+/// it, in both integrators (the direct one approximates glass as see-through). Before
+/// transmission was read, the glass was an opaque white sheet.
+#[test]
+fn clear_glass_shows_what_is_behind_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let rect =
+        |x0: f32, x1: f32, z: f32| [[x0, -2.0, z], [x1, -2.0, z], [x1, 2.0, z], [x0, 2.0, z]];
+    let travel = glam::Vec3::new(0.5, 0.0, -1.0).normalize();
+    let light = glam::Quat::from_rotation_arc(glam::Vec3::NEG_Z, travel);
+    let (json, bin) = common::quads_gltf(
+        &[(rect(-3.0, 3.0, 0.0), 0), (rect(-2.0, 0.0, 1.0), 1)],
+        json!({
+            "materials": [
+                {"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.05, 0.05, 1.0],
+                    "metallicFactor": 0.0, "roughnessFactor": 1.0}},
+                {"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+                    "metallicFactor": 0.0, "roughnessFactor": 0.3},
+                 "doubleSided": true,
+                 "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}}}
+            ],
+            "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_transmission"],
+            "cameras": [{"type": "orthographic", "orthographic": {"xmag": 3.0, "ymag": 2.0, "znear": 0.1, "zfar": 20.0}}],
+            "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 3.0}]}},
+            "nodes": [
+                {"camera": 0, "translation": [0.0, 0.0, 5.0]},
+                {"rotation": light.to_array(), "extensions": {"KHR_lights_punctual": {"light": 0}}}
+            ]
+        }),
+    );
+    let model = write_gltf(dir.path(), "glass.gltf", json, &bin);
+    for integrator in ["direct", "path"] {
+        let out = dir.path().join(format!("{integrator}.exr"));
+        run(
+            &[
+                "render",
+                s(&model),
+                "-o",
+                s(&out),
+                "--quiet",
+                "--width",
+                "120",
+                "--height",
+                "80",
+                "--spp",
+                "16",
+                "--integrator",
+                integrator,
+                "--ambient",
+                "0",
+                "--bounces",
+                "2",
+            ],
+            true,
+        );
+        let (w, _, pixels) = read_rgba(&out);
+        // Mean colour over a band of columns (x from -3 to 3 across 120 pixels).
+        let mean = |x0: f32, x1: f32| {
+            let (mut sum, mut n) = (glam::Vec3::ZERO, 0.0);
+            for (i, p) in pixels.iter().enumerate() {
+                let x = -3.0 + ((i % w as usize) as f32 + 0.5) * 6.0 / w as f32;
+                if x > x0 && x < x1 {
+                    sum += glam::Vec3::new(p[0], p[1], p[2]);
+                    n += 1.0;
+                }
+            }
+            sum / n
+        };
+        let (behind, open) = (mean(-1.2, -0.3), mean(1.5, 2.5));
+        let ratio = behind.x / open.x;
+        assert!(
+            (0.85..=1.0).contains(&ratio),
+            "{integrator}: red through the glass {behind} vs in the open {open} (ratio {ratio})"
+        );
+        assert!(
+            behind.y < 0.2 * behind.x,
+            "{integrator}: the glass is not clear: {behind}"
+        );
+    }
+}

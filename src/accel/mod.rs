@@ -109,9 +109,9 @@ impl Accel {
             .material
             .iter()
             .map(|&m| {
-                materials
-                    .get(m as usize)
-                    .is_some_and(|m| m.alpha_mode != crate::scene::AlphaMode::Opaque)
+                materials.get(m as usize).is_some_and(|m| {
+                    m.alpha_mode != crate::scene::AlphaMode::Opaque || m.see_through()
+                })
             })
             .collect();
         let mut accel = match kind {

@@ -39,6 +39,7 @@ impl Integrator for Direct {
     ) -> (Vec3, f32) {
         let mut color = Vec3::ZERO;
         let mut transmittance = 1.0f32;
+        let mut tint = Vec3::ONE;
         let mut ray = camera.ray;
         for _ in 0..MAX_BLEND_LAYERS {
             counts.primary += 1;
@@ -47,12 +48,23 @@ impl Integrator for Direct {
             };
             let surface = scene.surface(&ray, &hit, camera.footprint(hit.t));
             let shaded = self.shade(scene, &ray, &surface, &mut counts.shadow);
-            let alpha = if surface.source.alpha_mode == AlphaMode::Blend {
+            let mut alpha = if surface.source.alpha_mode == AlphaMode::Blend {
                 surface.alpha
             } else {
                 1.0
             };
-            color += shaded * alpha * transmittance;
+            // Transmission (glass, KHR_materials_transmission, OBJ illum 4-7) is approximated
+            // as see-through: the surface shades with weight 1 - transmission and the rest of
+            // the camera ray goes on straight, tinted by the base colour (no refraction, no
+            // Fresnel); its shadows let thin sheets through tinted (see shadow_transmittance).
+            let transmission = surface.source.transmission * (1.0 - surface.material.metallic);
+            if transmission > 0.0 {
+                alpha *= 1.0 - transmission;
+            }
+            color += shaded * alpha * transmittance * tint;
+            if transmission > 0.0 {
+                tint *= surface.material.base_color;
+            }
             transmittance *= 1.0 - alpha;
             if transmittance < 1e-3 {
                 transmittance = 0.0;

@@ -66,6 +66,8 @@ impl Integrator for PathTracer {
         let mut bounces = 0u32;
         let mut pass_throughs = 0usize;
         let mut cone = (camera.spread_base, camera.spread_per_distance);
+        // Extinction coefficient of the volume the path is inside, if any.
+        let mut medium: Option<Vec3> = None;
         loop {
             if bounces == 0 {
                 counts.primary += 1;
@@ -89,6 +91,10 @@ impl Integrator for PathTracer {
                 }
                 break;
             };
+            if let Some(sigma) = medium {
+                // KHR_materials_volume: T = exp(-σ·d) along the segment inside the volume.
+                throughput *= (-sigma * hit.t).exp();
+            }
             let surface = scene.surface(&ray, &hit, cone.0 + cone.1 * hit.t);
             if surface.source.alpha_mode == AlphaMode::Blend
                 && rng.next_f32() >= surface.alpha
@@ -120,7 +126,14 @@ impl Integrator for PathTracer {
                 break;
             }
             let to_eye = -direction;
-            let bsdf = Bsdf::new(surface.material, surface.normal, to_eye);
+            let material = surface.source;
+            let bsdf = Bsdf::new(surface.material, surface.normal, to_eye).with_transmission(
+                to_eye,
+                material.transmission,
+                material.ior,
+                material.thin_walled,
+                hit.front,
+            );
             // Punctual lights: every one, through a shadow ray.
             for light in &self.lights {
                 let Some(incoming) = incident(light, surface.spawn.point) else {
@@ -189,12 +202,20 @@ impl Integrator for PathTracer {
             let Some(sample) = bsdf.sample(to_eye, u_lobe, u1, u2) else {
                 break;
             };
-            // A reflected ray may not leave through the geometric surface.
-            if sample.direction.dot(surface.geometric) <= 0.0 {
+            // A reflected ray may not leave through the geometric surface; a transmitted one
+            // goes through it.
+            if !sample.delta && sample.direction.dot(surface.geometric) <= 0.0 {
                 break;
             }
             throughput *= sample.weight;
             bsdf_pdf = Some(sample.pdf);
+            if sample.delta
+                && !material.thin_walled
+                && sample.direction.dot(surface.geometric) < 0.0
+            {
+                // Into the volume (Beer-Lambert attenuation until the next surface), or out.
+                medium = hit.front.then(|| extinction(material)).flatten();
+            }
             cone = (cone.0 + cone.1 * hit.t, cone.1);
             ray = surface.spawn.ray(sample.direction, f32::INFINITY);
             bounces += 1;
@@ -211,4 +232,18 @@ impl Integrator for PathTracer {
         }
         (radiance, coverage)
     }
+}
+
+/// The extinction coefficient σ of a `KHR_materials_volume`: light keeps
+/// `attenuation_color` after `attenuation_distance`, so σ = -ln(color) / distance per channel.
+/// `None` without attenuation (infinite distance or white).
+fn extinction(material: &crate::scene::Material) -> Option<Vec3> {
+    let d = material.attenuation_distance;
+    if !(d.is_finite() && d > 0.0) || material.attenuation_color == Vec3::ONE {
+        return None;
+    }
+    let c = material
+        .attenuation_color
+        .clamp(Vec3::splat(1e-6), Vec3::ONE);
+    Some(Vec3::new(-c.x.ln(), -c.y.ln(), -c.z.ln()) / d)
 }

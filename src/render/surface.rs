@@ -352,6 +352,13 @@ impl Prepared {
                     transmittance.set(transmittance.get() * (1.0 - alpha));
                     transmittance.get() < 1e-3
                 }
+                AlphaMode::Opaque if material.see_through() => {
+                    // Luminance of the straight-through share: a scalar attenuation (the tint
+                    // is lost in shadows; the camera sees it).
+                    let pass = crate::bsdf::luminance(material.straight_transmittance());
+                    transmittance.set(transmittance.get() * pass.clamp(0.0, 1.0));
+                    transmittance.get() < 1e-3
+                }
                 AlphaMode::Opaque => true,
             }
         };

@@ -1080,6 +1080,22 @@ fn material(m: &gltf::Material) -> Material {
         alpha_cutoff: m.alpha_cutoff().unwrap_or(0.5),
         double_sided: m.double_sided(),
         specular: None,
+        // KHR_materials_transmission, _ior, _volume (their defaults when absent). Factors
+        // only: the transmission and thickness textures are not read.
+        transmission: m
+            .transmission()
+            .map_or(0.0, |t| t.transmission_factor().clamp(0.0, 1.0)),
+        ior: m
+            .ior()
+            .filter(|i| i.is_finite() && *i >= 1.0)
+            .unwrap_or(1.5),
+        thin_walled: m.volume().is_none_or(|v| v.thickness_factor() <= 0.0),
+        attenuation_color: m
+            .volume()
+            .map_or(Vec3::ONE, |v| Vec3::from(v.attenuation_color())),
+        attenuation_distance: m
+            .volume()
+            .map_or(f32::INFINITY, |v| v.attenuation_distance()),
     }
 }
 

@@ -217,9 +217,40 @@ pub struct Material {
     /// Classic Phong specular colour, when the source had one (OBJ `Ks`); the Blinn-Phong
     /// shader otherwise derives it from metallic/roughness.
     pub specular: Option<Vec3>,
+    /// `KHR_materials_transmission` factor: the share of the dielectric base that transmits
+    /// light instead of scattering it diffusely (0 = opaque; OBJ `illum` 4, 6, 7: 1).
+    pub transmission: f32,
+    /// Index of refraction (`KHR_materials_ior`, OBJ `Ni`; 1.5 when absent).
+    pub ior: f32,
+    /// True without `KHR_materials_volume` (or with thickness 0): the surface is an
+    /// infinitely thin sheet, so light passes straight through it; false: the mesh bounds a
+    /// refracting volume.
+    pub thin_walled: bool,
+    /// `KHR_materials_volume` Beer-Lambert attenuation: colour light reaches after
+    /// `attenuation_distance` inside the volume (white and infinite: none).
+    pub attenuation_color: Vec3,
+    /// Distance at which light inside the volume is reduced to `attenuation_color`.
+    pub attenuation_distance: f32,
 }
 
 impl Material {
+    /// A thin-walled transmissive sheet (`KHR_materials_transmission` without a volume): light
+    /// passes straight through it, so shadow rays do too (tinted). A glass *volume* bends light,
+    /// which a straight shadow ray cannot follow: it blocks them (as in Cycles).
+    pub fn see_through(&self) -> bool {
+        self.transmission > 0.0 && self.thin_walled && self.metallic < 1.0
+    }
+
+    /// The share of light a see-through sheet lets pass straight through (0 for any other
+    /// material): transmission × (1 - metallic) × (1 - F0) × base colour.
+    pub fn straight_transmittance(&self) -> Vec3 {
+        if !self.see_through() {
+            return Vec3::ZERO;
+        }
+        let f0 = ((self.ior - 1.0) / (self.ior + 1.0)).powi(2);
+        self.base_color.truncate() * (self.transmission * (1.0 - self.metallic) * (1.0 - f0))
+    }
+
     /// Every texture the material references (base colour, metallic-roughness, normal,
     /// occlusion, emissive), in that order, skipping those it lacks.
     pub fn texture_refs(&self) -> impl Iterator<Item = TextureRef> {
@@ -344,6 +375,11 @@ impl Default for Material {
             alpha_cutoff: 0.5,
             double_sided: false,
             specular: None,
+            transmission: 0.0,
+            ior: 1.5,
+            thin_walled: true,
+            attenuation_color: Vec3::ONE,
+            attenuation_distance: f32::INFINITY,
         }
     }
 }

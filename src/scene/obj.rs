@@ -351,9 +351,37 @@ fn mtl_material(m: &tobj::Material) -> Material {
         .filter(|ns| ns.is_finite() && *ns >= 0.0)
         .map_or(1.0, |ns| (2.0 / (ns + 2.0)).sqrt().sqrt());
     let no_highlights = matches!(m.illumination_model, Some(0 | 1));
+    let glass = matches!(m.illumination_model, Some(4 | 6 | 7));
+    // Glass passes light through its transmission filter Tf (white when absent), not Kd: that is
+    // what tints the transmission lobe, as base colour does in glTF.
+    let tint = if glass {
+        m.unknown_param
+            .get("Tf")
+            .and_then(|tf| {
+                let v: Vec<f32> = tf
+                    .split_whitespace()
+                    .filter_map(|x| x.parse().ok())
+                    .collect();
+                match v.as_slice() {
+                    [r, g, b] => Some([*r, *g, *b]),
+                    [x] => Some([*x; 3]),
+                    _ => None,
+                }
+            })
+            .unwrap_or([1.0; 3])
+            .map(|c| {
+                if c.is_finite() {
+                    c.clamp(0.0, 1.0)
+                } else {
+                    1.0
+                }
+            })
+    } else {
+        kd
+    };
     Material {
         name: Some(m.name.trim().to_string()),
-        base_color: Vec4::new(kd[0], kd[1], kd[2], alpha),
+        base_color: Vec4::new(tint[0], tint[1], tint[2], alpha),
         metallic: 0.0,
         roughness: if no_highlights { 1.0 } else { roughness },
         emissive: m.emissive.map_or(Vec3::ZERO, Vec3::from),
@@ -362,6 +390,15 @@ fn mtl_material(m: &tobj::Material) -> Material {
         } else {
             AlphaMode::Opaque
         },
+        // illum 4, 6 and 7 are glass (refraction, with Ni as the index); Tf tints what passes.
+        transmission: if glass { 1.0 } else { 0.0 },
+        ior: m
+            .optical_density
+            .filter(|n| n.is_finite() && *n >= 1.0)
+            .unwrap_or(1.5),
+        thin_walled: false,
+        attenuation_color: Vec3::ONE,
+        attenuation_distance: f32::INFINITY,
         double_sided: true,
         specular: if no_highlights {
             Some(Vec3::ZERO)
