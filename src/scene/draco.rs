@@ -143,10 +143,9 @@ pub(crate) fn decode(
             && accessor.count() != decoded.indices.len()
         {
             return Err(format!(
-                "indices accessor {} has count {}, but the stream decodes to {} triangles ({} indices)",
+                "indices accessor {} has count {}, but the stream decodes to {} indices",
                 accessor.index(),
                 accessor.count(),
-                decoded.indices.len() / 3,
                 decoded.indices.len()
             ));
         }
