@@ -119,6 +119,43 @@ fn meshopt_edited(
     gltf_case(name, json, bin, expect)
 }
 
+/// `base()`'s triangle as a Draco stream: 70 bytes written by draco-core 2.3.3's `MeshEncoder`
+/// with default `EncoderOptions` (EdgeBreaker, positions quantized to 11 bits) from one Float32
+/// POSITION attribute (unique id 0) and one face. Kept as bytes so that the tests need no
+/// Draco encoder (the crate is built decoder-only).
+const DRACO_TRIANGLE: [u8; 70] = [
+    68, 82, 65, 67, 79, 2, 2, 1, 1, 0, 0, 0, 3, 1, 0, 1, 0, 0, 1, 7, 255, 1, 17, 1, 255, 0, 0, 1,
+    0, 9, 3, 0, 0, 0, 0, 0, 128, 63, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 128, 63, 0, 0, 0, 0,
+    0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0,
+];
+
+/// The base triangle compressed with `KHR_draco_mesh_compression`: its POSITION and indices
+/// accessors keep count and type but have no bufferView; bufferView 0 holds the stream.
+fn draco_base() -> (Value, Vec<u8>) {
+    let (mut json, _) = base();
+    json["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
+    json["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+    json["meshes"][0]["primitives"][0]["extensions"] = json!({"KHR_draco_mesh_compression":
+        {"bufferView": 0, "attributes": {"POSITION": 0}}});
+    for accessor in json["accessors"].as_array_mut().unwrap() {
+        accessor.as_object_mut().unwrap().remove("bufferView");
+    }
+    json["bufferViews"] = json!([{"buffer": 0, "byteLength": DRACO_TRIANGLE.len()}]);
+    json["buffers"] = json!([{"byteLength": DRACO_TRIANGLE.len(), "uri": "tri.bin"}]);
+    (json, DRACO_TRIANGLE.to_vec())
+}
+
+/// `draco_base()` modified by `edit`.
+fn draco_edited(
+    name: &'static str,
+    edit: impl FnOnce(&mut Value, &mut Vec<u8>),
+    expect: fn(&K) -> bool,
+) -> Case {
+    let (mut json, mut bin) = draco_base();
+    edit(&mut json, &mut bin);
+    gltf_case(name, json, bin, expect)
+}
+
 /// The base triangle as a GLB with the buffer in its BIN chunk.
 fn glb() -> Vec<u8> {
     let (mut json, bin) = base();
@@ -532,12 +569,12 @@ fn cases() -> Vec<Case> {
             |k| matches!(k, K::Gltf(_)),
         ),
         edited(
-            "required Draco extension",
+            "required extension meshtracer does not know",
             |j, _| {
-                j["extensionsUsed"] = json!(["KHR_draco_mesh_compression"]);
-                j["extensionsRequired"] = json!(["KHR_draco_mesh_compression"]);
+                j["extensionsUsed"] = json!(["EXT_made_up_geometry"]);
+                j["extensionsRequired"] = json!(["EXT_made_up_geometry"]);
             },
-            |k| matches!(k, K::UnsupportedExtension { name, what } if name == "KHR_draco_mesh_compression" && what.contains("Draco")),
+            |k| matches!(k, K::UnsupportedExtension { name, .. } if name == "EXT_made_up_geometry"),
         ),
         // Images.
         edited(
@@ -652,6 +689,70 @@ fn cases() -> Vec<Case> {
             |k| matches!(k, K::NoTriangles(d) if d.contains("NaN")),
         ),
     ];
+    // Draco-compressed primitives (issue 14): a truncated or corrupt stream, an attribute id the
+    // stream does not have, accessors that disagree with the decoded data.
+    let draco_primitive_0 =
+        |k: &K| matches!(k, K::Draco { at, .. } if at.mesh == 0 && at.primitive == 0);
+    cases.extend([
+        draco_edited(
+            "Draco stream truncated",
+            |j, _| j["bufferViews"][0]["byteLength"] = json!(DRACO_TRIANGLE.len() - 20),
+            draco_primitive_0,
+        ),
+        draco_edited(
+            "Draco stream cut after its header",
+            |j, _| j["bufferViews"][0]["byteLength"] = json!(12),
+            draco_primitive_0,
+        ),
+        draco_edited(
+            "Draco stream that is not Draco",
+            |_, bin| bin[..5].copy_from_slice(b"OCARD"),
+            draco_primitive_0,
+        ),
+        draco_edited(
+            "Draco attribute id that does not exist",
+            |j, _| {
+                j["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]
+                    ["attributes"]["POSITION"] = json!(7)
+            },
+            |k| matches!(k, K::Draco { problem, .. } if problem.contains("id 7")),
+        ),
+        draco_edited(
+            "Draco attribute the primitive does not have",
+            |j, _| {
+                j["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]
+                    ["attributes"]["NORMAL"] = json!(0)
+            },
+            draco_primitive_0,
+        ),
+        draco_edited(
+            "Draco bufferView that does not exist",
+            |j, _| {
+                j["meshes"][0]["primitives"][0]["extensions"]["KHR_draco_mesh_compression"]
+                    ["bufferView"] = json!(9)
+            },
+            draco_primitive_0,
+        ),
+        draco_edited(
+            "Draco accessor count that differs from the stream",
+            |j, _| j["accessors"][0]["count"] = json!(4),
+            |k| matches!(k, K::Draco { problem, .. } if problem.contains("count 4")),
+        ),
+        draco_edited(
+            "Draco accessor componentType that differs from the stream",
+            |j, _| {
+                j["extensionsUsed"] =
+                    json!(["KHR_draco_mesh_compression", "KHR_mesh_quantization"]);
+                j["accessors"][0]["componentType"] = json!(5123);
+            },
+            draco_primitive_0,
+        ),
+        draco_edited(
+            "Draco indices count that differs from the stream",
+            |j, _| j["accessors"][1]["count"] = json!(6),
+            draco_primitive_0,
+        ),
+    ]);
     // Meshopt-compressed views (issue 14): a wrong count, a truncated or lying stream, a
     // stream outside its buffer, a fallback buffer too large to allocate.
     let meshopt_view_0 = |k: &K| matches!(k, K::Meshopt { view: 0, .. });
@@ -854,6 +955,54 @@ fn a_broken_meshopt_view_is_named_with_its_file() {
 }
 
 #[test]
+fn a_broken_draco_primitive_is_named_with_its_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut json, bin) = draco_base();
+    json["bufferViews"][0]["byteLength"] = json!(30);
+    write_case(dir.path(), &gltf_case("truncated", json, bin, |_| true));
+    let model = dir.path().join("model.gltf");
+    let message = Scene::load(&model).unwrap_err().to_string();
+    assert!(
+        message.starts_with(&format!(
+            "{}: mesh 0 primitive 0 (KHR_draco_mesh_compression): ",
+            model.display()
+        )),
+        "{message}"
+    );
+}
+
+#[test]
+fn every_cut_or_corrupted_draco_stream_is_an_error_or_a_triangle() {
+    // Every prefix of the stream, and every byte inverted: the decoder must refuse (a Draco
+    // error naming the primitive) or decode something; a panic fails the test.
+    let dir = tempfile::tempdir().unwrap();
+    let mut variants: Vec<(String, Value, Vec<u8>)> = Vec::new();
+    for cut in 0..DRACO_TRIANGLE.len() {
+        let (mut json, bin) = draco_base();
+        json["bufferViews"][0]["byteLength"] = json!(cut);
+        variants.push((format!("cut at {cut}"), json, bin));
+    }
+    for at in 0..DRACO_TRIANGLE.len() {
+        let (json, mut bin) = draco_base();
+        bin[at] ^= 0xff;
+        variants.push((format!("byte {at} inverted"), json, bin));
+    }
+    for (what, json, bin) in variants {
+        write_case(dir.path(), &gltf_case("draco", json, bin, |_| true));
+        match Scene::load(dir.path().join("model.gltf")) {
+            Ok(scene) => assert!(scene.soup.len() <= 1, "{what}"),
+            Err(e) => assert!(
+                matches!(
+                    e.kind,
+                    K::Draco { .. } | K::NoTriangles(_) | K::TooManyTriangles { .. }
+                ),
+                "{what}: {e}"
+            ),
+        }
+    }
+}
+
+#[test]
 fn the_valid_bases_load() {
     let dir = tempfile::tempdir().unwrap();
     let (json, bin) = base();
@@ -881,6 +1030,11 @@ fn the_valid_bases_load() {
     write_case(dir.path(), &gltf_case("base", json, bin, |_| true));
     let plain = Scene::load(dir.path().join("model.gltf")).unwrap();
     assert_eq!(meshopt.soup.positions, plain.soup.positions);
+    // So does the Draco-compressed one (its corners are exact under 11-bit quantization).
+    let (json, bin) = draco_base();
+    write_case(dir.path(), &gltf_case("draco", json, bin, |_| true));
+    let draco = Scene::load(dir.path().join("model.gltf")).unwrap();
+    assert_eq!(draco.soup.positions, plain.soup.positions);
     // A GLB named .gltf and a glTF named .glb still load: the content decides.
     std::fs::write(dir.path().join("swapped.gltf"), glb()).unwrap();
     assert_eq!(

@@ -35,6 +35,31 @@ const PAIRS: &[(&str, &str, f64)] = &[
         MESH_MAX_FLIP,
     ),
     (
+        "Box/glTF/Box.gltf",
+        "Box/glTF-Draco/Box.gltf",
+        MESH_MAX_FLIP,
+    ),
+    (
+        "Duck/glTF/Duck.gltf",
+        "Duck/glTF-Draco/Duck.gltf",
+        MESH_MAX_FLIP,
+    ),
+    (
+        "CesiumMilkTruck/glTF/CesiumMilkTruck.gltf",
+        "CesiumMilkTruck/glTF-Draco/CesiumMilkTruck.gltf",
+        MESH_MAX_FLIP,
+    ),
+    (
+        "RiggedSimple/glTF/RiggedSimple.gltf",
+        "RiggedSimple/glTF-Draco/RiggedSimple.gltf",
+        MESH_MAX_FLIP,
+    ),
+    (
+        "CesiumMan/glTF/CesiumMan.gltf",
+        "CesiumMan/glTF-Draco/CesiumMan.gltf",
+        MESH_MAX_FLIP,
+    ),
+    (
         "Duck/glTF/Duck.gltf",
         "Duck/glTF-WebP/Duck.glb",
         TEXTURE_MAX_FLIP,

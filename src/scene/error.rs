@@ -119,6 +119,15 @@ pub enum LoadErrorKind {
         /// What is wrong.
         problem: String,
     },
+    /// A `KHR_draco_mesh_compression` primitive cannot be decoded, or its decoded data does not
+    /// match its accessors.
+    #[error("{at} (KHR_draco_mesh_compression): {problem}")]
+    Draco {
+        /// Where.
+        at: PrimitiveAt,
+        /// What is wrong.
+        problem: String,
+    },
     /// An accessor is inconsistent with its buffer view or its use.
     #[error("{at}: accessor {accessor} ({semantic}): {problem}")]
     Accessor {

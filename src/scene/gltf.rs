@@ -14,6 +14,7 @@
 
 use super::attributes;
 use super::builder::TriangleIn;
+use super::draco;
 use super::error::PrimitiveAt;
 use super::extensions::{known, ExtensionUse};
 use super::meshopt;
@@ -26,7 +27,9 @@ use base64::Engine;
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
+use std::collections::HashMap;
 use std::path::Path;
+use std::rc::Rc;
 use std::sync::Arc;
 
 /// Most node visits a hierarchy may expand to. A node shared by two parents is instanced twice,
@@ -70,7 +73,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     root.extensions_required.clear();
     let webp_fallbacks = choose_texture_sources(&mut root);
     check_attribute_indices(&root).map_err(err)?;
-    let document = gltf::Document::from_json(root).map_err(|e| err(convert(e)))?;
+    let document = validate(root).map_err(|e| err(convert(e)))?;
     let access = FileAccess::new(
         path,
         options.allow_external_files,
@@ -106,6 +109,8 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         quantization: document
             .extensions_used()
             .any(|name| name == "KHR_mesh_quantization"),
+        limits: options.limits,
+        draco: HashMap::new(),
     };
     importer.walk_default_scene().map_err(err)?;
     let mut materials = importer.materials();
@@ -252,9 +257,47 @@ fn check_attribute_indices(root: &gltf::json::Root) -> Result<(), LoadErrorKind>
     Ok(())
 }
 
+/// The `gltf` crate's validation, except that the accessors of `KHR_draco_mesh_compression`
+/// primitives may lack a bufferView: their data is the decoded stream (gltf-json 1.4 requires
+/// a bufferView on every accessor that is not sparse).
+fn validate(root: gltf::json::Root) -> Result<gltf::Document, gltf::Error> {
+    use gltf::json::validation::{Error, Validate};
+    let mut decoded = std::collections::HashSet::new();
+    for mesh in &root.meshes {
+        for primitive in &mesh.primitives {
+            let has_draco = primitive
+                .extensions
+                .as_ref()
+                .is_some_and(|e| e.others.contains_key(draco::EXTENSION));
+            if has_draco {
+                let accessors = primitive
+                    .attributes
+                    .values()
+                    .chain(primitive.indices.iter());
+                decoded.extend(accessors.map(|i| i.value()));
+            }
+        }
+    }
+    let exempt: std::collections::HashSet<String> = decoded
+        .iter()
+        .map(|i| format!("accessors[{i}].bufferView"))
+        .collect();
+    let mut errors = Vec::new();
+    root.validate(&root, gltf::json::Path::new, &mut |path, error| {
+        let path = path();
+        if !(matches!(error, Error::Missing) && exempt.contains(path.as_str())) {
+            errors.push((path, error));
+        }
+    });
+    if errors.is_empty() {
+        Ok(gltf::Document::from_json_without_validation(root))
+    } else {
+        Err(gltf::Error::Validation(errors))
+    }
+}
+
 fn unsupported_extension(name: &str) -> LoadErrorKind {
     let what = match name {
-        "KHR_draco_mesh_compression" => " (Draco mesh compression)",
         "EXT_meshopt_compression" | "KHR_meshopt_compression" => " (meshoptimizer compression)",
         "KHR_mesh_quantization" => " (quantized vertex attributes)",
         "KHR_texture_basisu" => " (Basis Universal / KTX2 textures)",
@@ -536,6 +579,51 @@ fn check_accessor(
     expect: &Expect,
     quantization: bool,
 ) -> Result<(), LoadErrorKind> {
+    check_accessor_type(accessor, at, expect, quantization)?;
+    let fail = |problem: String| LoadErrorKind::Accessor {
+        at,
+        accessor: accessor.index(),
+        semantic: expect.semantic.to_string(),
+        problem,
+    };
+    let element = accessor.size();
+    match accessor.view() {
+        Some(view) => check_range(&view, accessor.offset(), accessor.count(), element)
+            .map_err(|p| fail(format!("bufferView {}: {p}", view.index())))?,
+        None if accessor.sparse().is_none() => {
+            return Err(fail(
+                "has no bufferView (all-zero accessors are not supported)".to_string(),
+            ))
+        }
+        None => {}
+    }
+    if let Some(sparse) = accessor.sparse() {
+        let count = sparse.count();
+        if count == 0 || count > accessor.count() {
+            return Err(fail(format!(
+                "sparse count {count} is not in 1..={}",
+                accessor.count()
+            )));
+        }
+        let indices = sparse.indices();
+        let index_size = indices.index_type().size();
+        check_range(&indices.view(), indices.offset(), count, index_size)
+            .map_err(|p| fail(format!("sparse indices: {p}")))?;
+        let values = sparse.values();
+        check_range(&values.view(), values.offset(), count, element)
+            .map_err(|p| fail(format!("sparse values: {p}")))?;
+    }
+    Ok(())
+}
+
+/// Checks that an accessor's type is what the semantic allows and that it is not empty; for
+/// accessors whose data is decoded elsewhere (Draco), this is all that is checked of them.
+fn check_accessor_type(
+    accessor: &gltf::Accessor,
+    at: PrimitiveAt,
+    expect: &Expect,
+    quantization: bool,
+) -> Result<(), LoadErrorKind> {
     let fail = |problem: String| LoadErrorKind::Accessor {
         at,
         accessor: accessor.index(),
@@ -579,33 +667,6 @@ fn check_accessor(
     }
     if accessor.count() == 0 {
         return Err(fail("count is 0".to_string()));
-    }
-    let element = accessor.size();
-    match accessor.view() {
-        Some(view) => check_range(&view, accessor.offset(), accessor.count(), element)
-            .map_err(|p| fail(format!("bufferView {}: {p}", view.index())))?,
-        None if accessor.sparse().is_none() => {
-            return Err(fail(
-                "has no bufferView (all-zero accessors are not supported)".to_string(),
-            ))
-        }
-        None => {}
-    }
-    if let Some(sparse) = accessor.sparse() {
-        let count = sparse.count();
-        if count == 0 || count > accessor.count() {
-            return Err(fail(format!(
-                "sparse count {count} is not in 1..={}",
-                accessor.count()
-            )));
-        }
-        let indices = sparse.indices();
-        let index_size = indices.index_type().size();
-        check_range(&indices.view(), indices.offset(), count, index_size)
-            .map_err(|p| fail(format!("sparse indices: {p}")))?;
-        let values = sparse.values();
-        check_range(&values.view(), values.offset(), count, element)
-            .map_err(|p| fail(format!("sparse values: {p}")))?;
     }
     Ok(())
 }
@@ -656,6 +717,10 @@ struct Importer<'a> {
     variant: Option<(u32, String)>,
     /// The file declares `KHR_mesh_quantization`: integer attribute types are allowed.
     quantization: bool,
+    /// Bounds for decoders (Draco).
+    limits: super::LoadLimits,
+    /// Draco primitives decoded so far, by (mesh, primitive): instanced meshes decode once.
+    draco: HashMap<(usize, usize), Rc<draco::Decoded>>,
 }
 
 /// One primitive's vertex data in world space.
@@ -790,10 +855,18 @@ impl Importer<'_> {
             self.warnings
                 .push("morph targets are ignored; meshes are drawn in their base shape".into());
         }
-        let vertices = self.read_vertices(primitive, at, world)?;
+        let draco = self.decode_draco(primitive, at)?;
+        let vertices = self.read_vertices(primitive, at, world, draco.as_deref())?;
         let vertex_count = vertices.positions.len();
-        let indices: Vec<u32> = match primitive.indices() {
-            Some(accessor) => {
+        let indices: Vec<u32> = match (&draco, primitive.indices()) {
+            // Checked against the point count and the indices accessor by draco::decode.
+            (Some(decoded), indices) => {
+                if let Some(accessor) = indices {
+                    check_accessor_type(&accessor, at, &INDICES, self.quantization)?;
+                }
+                decoded.indices.clone()
+            }
+            (None, Some(accessor)) => {
                 check_accessor(&accessor, at, &INDICES, self.quantization)?;
                 let reader = primitive.reader(|b| self.buffers.get(b.index()).map(Vec::as_slice));
                 let indices: Vec<u32> = reader
@@ -809,7 +882,14 @@ impl Importer<'_> {
                 }
                 indices
             }
-            None => (0..vertex_count as u32).collect(),
+            (None, None) => (0..vertex_count as u32).collect(),
+        };
+        // Draco decodes to a triangle list whatever the mode says (the extension allows
+        // TRIANGLES and TRIANGLE_STRIP; a strip's triangles are already unrolled).
+        let mode = if draco.is_some() {
+            Mode::Triangles
+        } else {
+            mode
         };
         let n = indices.len();
         let triangle_count = match mode {
@@ -863,23 +943,59 @@ impl Importer<'_> {
         Ok(())
     }
 
+    /// The primitive's Draco stream decoded, if it has `KHR_draco_mesh_compression` (decoded
+    /// on its first instance, shared by the others).
+    fn decode_draco(
+        &mut self,
+        primitive: &gltf::Primitive,
+        at: PrimitiveAt,
+    ) -> Result<Option<Rc<draco::Decoded>>, LoadErrorKind> {
+        let Some(ext) = draco::extension(primitive) else {
+            return Ok(None);
+        };
+        let key = (at.mesh, at.primitive);
+        if let Some(decoded) = self.draco.get(&key) {
+            return Ok(Some(Rc::clone(decoded)));
+        }
+        let decoded = draco::decode(primitive, ext, self.document, self.buffers, &self.limits)
+            .map_err(|problem| LoadErrorKind::Draco { at, problem })?;
+        let decoded = Rc::new(decoded);
+        self.draco.insert(key, Rc::clone(&decoded));
+        Ok(Some(decoded))
+    }
+
+    /// Reads (and transforms to world space) the attributes the soup uses. With `draco`, the
+    /// attributes its extension maps come from the decoded stream, the others from their
+    /// accessors.
     fn read_vertices(
         &self,
         primitive: &gltf::Primitive,
         at: PrimitiveAt,
         world: Mat4,
+        draco: Option<&draco::Decoded>,
     ) -> Result<WorldVertices, LoadErrorKind> {
         use gltf::Semantic;
+        let decoded = |semantic: &Semantic| draco.filter(|d| d.has(&semantic.to_string()));
+        let check = |accessor: &gltf::Accessor,
+                     semantic: &Semantic,
+                     expect: &Expect|
+         -> Result<(), LoadErrorKind> {
+            match decoded(semantic) {
+                // draco::decode checked count, type and componentType against the stream.
+                Some(_) => check_accessor_type(accessor, at, expect, self.quantization),
+                None => check_accessor(accessor, at, expect, self.quantization),
+            }
+        };
         let position_accessor = primitive
             .get(&Semantic::Positions)
             .ok_or(LoadErrorKind::MissingPositions { at })?;
-        check_accessor(&position_accessor, at, &POSITION, self.quantization)?;
+        check(&position_accessor, &Semantic::Positions, &POSITION)?;
         let count = position_accessor.count();
         let optional = |semantic: Semantic, expect: &Expect| -> Result<(), LoadErrorKind> {
             match primitive.get(&semantic) {
                 None => Ok(()),
                 Some(accessor) => {
-                    check_accessor(&accessor, at, expect, self.quantization)?;
+                    check(&accessor, &semantic, expect)?;
                     if accessor.count() != count {
                         return Err(LoadErrorKind::Accessor {
                             at,
@@ -914,23 +1030,34 @@ impl Importer<'_> {
                     semantic: expect.semantic.to_string(),
                     problem,
                 };
+                let name = semantic.to_string();
+                let source = decoded(&semantic);
                 // Three-component colours get alpha 1; others fill unused lanes with 0.
                 let values: Vec<Vec4> = match accessor.dimensions() {
-                    Dimensions::Vec2 => attributes::read::<2>(&accessor, self.buffers, normalized)
-                        .map_err(fail)?
-                        .into_iter()
-                        .map(|[x, y]| Vec4::new(x, y, 0.0, 0.0))
-                        .collect(),
-                    Dimensions::Vec3 => attributes::read::<3>(&accessor, self.buffers, normalized)
-                        .map_err(fail)?
-                        .into_iter()
-                        .map(|[x, y, z]| Vec4::new(x, y, z, 1.0))
-                        .collect(),
-                    _ => attributes::read::<4>(&accessor, self.buffers, normalized)
-                        .map_err(fail)?
-                        .into_iter()
-                        .map(Vec4::from)
-                        .collect(),
+                    Dimensions::Vec2 => match source {
+                        Some(d) => d.read::<2>(&name, normalized),
+                        None => attributes::read::<2>(&accessor, self.buffers, normalized),
+                    }
+                    .map_err(fail)?
+                    .into_iter()
+                    .map(|[x, y]| Vec4::new(x, y, 0.0, 0.0))
+                    .collect(),
+                    Dimensions::Vec3 => match source {
+                        Some(d) => d.read::<3>(&name, normalized),
+                        None => attributes::read::<3>(&accessor, self.buffers, normalized),
+                    }
+                    .map_err(fail)?
+                    .into_iter()
+                    .map(|[x, y, z]| Vec4::new(x, y, z, 1.0))
+                    .collect(),
+                    _ => match source {
+                        Some(d) => d.read::<4>(&name, normalized),
+                        None => attributes::read::<4>(&accessor, self.buffers, normalized),
+                    }
+                    .map_err(fail)?
+                    .into_iter()
+                    .map(Vec4::from)
+                    .collect(),
                 };
                 if values.len() != count {
                     return Err(fail(format!("read {} of {count} elements", values.len())));

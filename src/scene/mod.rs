@@ -5,6 +5,7 @@
 
 mod attributes;
 mod builder;
+mod draco;
 mod error;
 pub mod extensions;
 pub mod gltf;
