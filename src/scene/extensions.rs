@@ -42,7 +42,7 @@ const fn ext(
     }
 }
 
-use ExtensionStatus::{Ignored, Supported};
+use ExtensionStatus::{Approximated, Ignored, Supported};
 
 /// Every extension meshtracer knows. One not listed is ignored when used and refused when
 /// required (it may change what the geometry is).
@@ -62,10 +62,20 @@ pub const EXTENSIONS: &[KnownExtension] = &[
         false,
         "KTX2 images are not decoded: textures use their core source if any, else the materials' factors",
     ),
-    ext("KHR_materials_ior", Ignored, false, "drawn with the core metallic-roughness material"),
+    ext("KHR_materials_ior", Supported, false, "refraction index of transmission (path tracer)"),
     ext("KHR_materials_specular", Ignored, false, "drawn with the core metallic-roughness material"),
-    ext("KHR_materials_transmission", Ignored, false, "drawn opaque (or as its alpha mode says)"),
-    ext("KHR_materials_volume", Ignored, false, "drawn with the core metallic-roughness material"),
+    ext(
+        "KHR_materials_transmission",
+        Approximated,
+        false,
+        "factor only, as smooth glass whatever the roughness (path); see-through (direct)",
+    ),
+    ext(
+        "KHR_materials_volume",
+        Approximated,
+        false,
+        "thickness factor and Beer-Lambert attenuation (path); no thickness texture",
+    ),
     ext("KHR_materials_clearcoat", Ignored, false, "drawn with the core metallic-roughness material"),
     ext("KHR_materials_sheen", Ignored, false, "drawn with the core metallic-roughness material"),
     ext("KHR_materials_iridescence", Ignored, false, "drawn with the core metallic-roughness material"),
