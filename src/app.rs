@@ -17,6 +17,27 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
+/// The spp that fits `limit` seconds: one sample per pixel is rendered and timed, and the
+/// rest of the budget buys as many more passes of that cost as fit (at least 1, at most
+/// `max_spp`).
+fn spp_for_time_limit(
+    prepared: &Prepared,
+    settings: &RenderSettings,
+    cancel: &AtomicBool,
+    limit: f64,
+    max_spp: u32,
+) -> Result<u32> {
+    let calibration = RenderSettings {
+        spp: 1,
+        aovs: false,
+        ..settings.clone()
+    };
+    let (_, stats, _) = render(prepared, &calibration, cancel, &|_, _| {})?;
+    let per_sample = stats.time.as_secs_f64().max(1e-6);
+    let fit = ((limit - per_sample) / per_sample).floor();
+    Ok((fit.max(1.0) as u32).min(max_spp.max(1)))
+}
+
 /// Most path bounces `--bounces` accepts: far beyond any visible difference.
 const MAX_BOUNCES: u32 = 1024;
 
@@ -250,6 +271,11 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             args.max_spp
         );
     }
+    if let Some(limit) = args.time_limit {
+        if !(limit > 0.0 && limit.is_finite()) {
+            bail!("--time-limit {limit}: must be a positive number of seconds");
+        }
+    }
     if !args.exposure.is_finite() {
         bail!("--exposure must be a finite number");
     }
@@ -396,7 +422,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             "warning: no lights (--no-default-lights): only ambient and emissive light the scene"
         );
     }
-    let settings = RenderSettings {
+    let mut settings = RenderSettings {
         view,
         spp: args.spp,
         seed: args.seed,
@@ -437,6 +463,9 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let (prepared, (image, stats, aovs)) = pool.install(|| -> Result<_> {
         let accel = Accel::build(&scene.soup, &scene.materials, args.accel, args.bvh_preset);
         let prepared = Prepared::from_parts(scene, accel, textures);
+        if let Some(limit) = args.time_limit {
+            settings.spp = spp_for_time_limit(&prepared, &settings, &cancel, limit, args.max_spp)?;
+        }
         let bar = progress_bar(args.quiet);
         let result = render(&prepared, &settings, &cancel, &|done, total| {
             bar.set_length(total);
@@ -536,7 +565,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             load_time.as_secs_f64() * 1e3,
             textures.bytes >> 20,
             texture_time.as_secs_f64() * 1e3,
-            args.spp,
+            settings.spp,
             stats.time.as_secs_f64(),
             stats.samples_per_second(),
             stats

@@ -72,6 +72,12 @@ pub struct RenderArgs {
     /// samples (square numbers stratify best).
     #[arg(long, default_value_t = crate::setup::DEFAULT_SPP)]
     pub spp: u32,
+    /// Render for about this many seconds instead of a fixed --spp: one sample per pixel is
+    /// timed, then the image is rendered at the largest spp that fits the rest of the budget
+    /// (at most --max-spp); the summary says which. The result is exactly the --spp render of
+    /// that count, so the same spp reached gives the same image.
+    #[arg(long, value_name = "SECS")]
+    pub time_limit: Option<f64>,
     /// Seed of the sample pattern (the output is identical for the same seed).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,

@@ -480,3 +480,47 @@ fn clear_glass_shows_what_is_behind_it() {
         );
     }
 }
+
+/// `--time-limit` renders at the spp that fits the budget and says which; the image is then the
+/// same bytes as `--spp` of that count.
+#[test]
+fn a_time_limited_render_is_the_render_of_the_spp_it_reached() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = common::root().join("assets/shapes.obj");
+    let timed = dir.path().join("timed.png");
+    let size = ["--width", "40", "--height", "30", "--integrator", "path"];
+    let mut args = vec!["render", s(&model), "-o", s(&timed), "--time-limit", "0.5"];
+    args.extend(size);
+    let err = common::stderr(&run(&args, true));
+    let at = err.find(" spp rendered").unwrap_or_else(|| panic!("{err}"));
+    let spp: String = err[..at]
+        .chars()
+        .rev()
+        .take_while(char::is_ascii_digit)
+        .collect::<Vec<_>>()
+        .into_iter()
+        .rev()
+        .collect();
+    assert!(spp.parse::<u32>().unwrap() >= 1, "{err}");
+    let fixed = dir.path().join("fixed.png");
+    let mut args = vec![
+        "render",
+        s(&model),
+        "-o",
+        s(&fixed),
+        "--quiet",
+        "--spp",
+        &spp,
+    ];
+    args.extend(size);
+    run(&args, true);
+    assert_eq!(
+        std::fs::read(&timed).unwrap(),
+        std::fs::read(&fixed).unwrap()
+    );
+    let refused = run(
+        &["render", s(&model), "-o", s(&fixed), "--time-limit", "0"],
+        false,
+    );
+    assert!(common::stderr(&refused).contains("--time-limit"));
+}
