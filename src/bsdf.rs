@@ -296,14 +296,7 @@ mod tests {
     use super::*;
     use crate::sampling::Rng;
 
-    fn material(base: f32, metallic: f32, roughness: f32) -> SurfaceMaterial {
-        SurfaceMaterial {
-            base_color: Vec3::splat(base),
-            metallic,
-            roughness,
-            specular: None,
-        }
-    }
+    use crate::shading::test_material as material;
 
     /// The sampler's pdf integrates to (nearly) 1 over the hemisphere (checked by uniform-sphere Monte
     /// Carlo), and the mean sample weight equals the directional albedo computed by uniform

@@ -50,6 +50,17 @@ pub struct SurfaceMaterial {
     pub specular: Option<Vec3>,
 }
 
+/// A grey test material: base colour `base` in every channel, no explicit specular.
+#[cfg(test)]
+pub(crate) fn test_material(base: f32, metallic: f32, roughness: f32) -> SurfaceMaterial {
+    SurfaceMaterial {
+        base_color: Vec3::splat(base),
+        metallic,
+        roughness,
+        specular: None,
+    }
+}
+
 /// Smallest α: keeps the exponent finite for roughness 0 (a perfect mirror has no Phong lobe).
 const MIN_ALPHA: f32 = 0.01;
 
@@ -167,14 +178,7 @@ mod tests {
         );
     }
 
-    fn material(base: f32, metallic: f32, roughness: f32) -> SurfaceMaterial {
-        SurfaceMaterial {
-            base_color: Vec3::splat(base),
-            metallic,
-            roughness,
-            specular: None,
-        }
-    }
+    use super::test_material as material;
 
     /// At normal incidence (n = l = v): D = 1/(πα²), V = 1/4, F = F0, so
     /// f = (1 - F0)·c_diff/π + F0/(4πα²).

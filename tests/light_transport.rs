@@ -8,6 +8,13 @@ use meshtracer::shading::{gltf_brdf, SurfaceMaterial};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
+/// `meshtracer render MODEL -o OUT ARGS...`, expected to succeed.
+fn render(model: &Path, out: &Path, args: &[&str]) -> std::process::Output {
+    let mut all = vec!["render", s(model), "-o", s(out)];
+    all.extend_from_slice(args);
+    run(&all, true)
+}
+
 /// A constant-radiance panorama as a Radiance .hdr.
 fn uniform_hdr(dir: &Path, radiance: f32) -> PathBuf {
     let path = dir.join("uniform.hdr");
@@ -68,12 +75,10 @@ fn white_furnace_returns_the_brdf_albedo() {
     let env = uniform_hdr(dir.path(), 1.0);
     let out = dir.path().join("furnace.exr");
     let normals = dir.path().join("normals.exr");
-    run(
+    render(
+        &model,
+        &out,
         &[
-            "render",
-            s(&model),
-            "-o",
-            s(&out),
             "--quiet",
             "--width",
             "48",
@@ -88,7 +93,6 @@ fn white_furnace_returns_the_brdf_albedo() {
             "--normal-out",
             s(&normals),
         ],
-        true,
     );
     let (_, _, radiance) = read_rgba(&out);
     let (_, _, normal) = read_rgba(&normals);
@@ -139,12 +143,10 @@ fn the_cornell_box_is_lit_by_its_ceiling() {
     // From inside the open front, looking at the back wall.
     let lit_fraction = |integrator: &str| {
         let out = dir.path().join(format!("{integrator}.exr"));
-        run(
+        render(
+            &model,
+            &out,
             &[
-                "render",
-                s(&model),
-                "-o",
-                s(&out),
                 "--quiet",
                 "--width",
                 "64",
@@ -162,7 +164,6 @@ fn the_cornell_box_is_lit_by_its_ceiling() {
                 "--yfov",
                 "40",
             ],
-            true,
         );
         let (_, _, radiance) = read_rgba(&out);
         let lit = radiance
@@ -186,12 +187,10 @@ fn path_tracing_is_deterministic() {
     let model = common::root().join("assets/cornell-box.gltf");
     let render = |name: &str, threads: &str| {
         let out = dir.path().join(name);
-        run(
+        render(
+            &model,
+            &out,
             &[
-                "render",
-                s(&model),
-                "-o",
-                s(&out),
                 "--quiet",
                 "--width",
                 "64",
@@ -204,7 +203,6 @@ fn path_tracing_is_deterministic() {
                 "--threads",
                 threads,
             ],
-            true,
         );
         std::fs::read(out).unwrap()
     };
@@ -257,12 +255,10 @@ fn the_builtin_studio_can_be_written_out() {
     let model = common::root().join("assets/shapes.obj");
     let out = dir.path().join("shapes.png");
     let env = dir.path().join("studio.hdr");
-    run(
+    render(
+        &model,
+        &out,
         &[
-            "render",
-            s(&model),
-            "-o",
-            s(&out),
             "--quiet",
             "--width",
             "32",
@@ -275,7 +271,6 @@ fn the_builtin_studio_can_be_written_out() {
             "--env-out",
             s(&env),
         ],
-        true,
     );
     let (w, h, texels) = read_rgba(&env);
     assert_eq!((w, h), (256, 128));
@@ -364,12 +359,10 @@ fn noise_falls_as_one_over_the_square_root_of_spp() {
     let model = common::root().join("assets/shapes.obj");
     let noise = |spp: &str| -> f32 {
         let out = dir.path().join(format!("n{spp}.png"));
-        let result = run(
+        let result = render(
+            &model,
+            &out,
             &[
-                "render",
-                s(&model),
-                "-o",
-                s(&out),
                 "--width",
                 "48",
                 "--height",
@@ -379,7 +372,6 @@ fn noise_falls_as_one_over_the_square_root_of_spp() {
                 "--integrator",
                 "path",
             ],
-            true,
         );
         let err = common::stderr(&result);
         let at = err
@@ -433,12 +425,10 @@ fn clear_glass_shows_what_is_behind_it() {
     let model = write_gltf(dir.path(), "glass.gltf", json, &bin);
     for integrator in ["direct", "path"] {
         let out = dir.path().join(format!("{integrator}.exr"));
-        run(
+        render(
+            &model,
+            &out,
             &[
-                "render",
-                s(&model),
-                "-o",
-                s(&out),
                 "--quiet",
                 "--width",
                 "120",
@@ -453,7 +443,6 @@ fn clear_glass_shows_what_is_behind_it() {
                 "--bounces",
                 "2",
             ],
-            true,
         );
         let (w, _, pixels) = read_rgba(&out);
         // Mean colour over a band of columns (x from -3 to 3 across 120 pixels).
