@@ -17,6 +17,29 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
+/// Wall time and peak memory after each phase of a render, for `--stats`.
+#[derive(Default)]
+struct Phases {
+    /// (phase, seconds, peak resident memory in bytes after it).
+    list: Vec<(&'static str, f64, Option<u64>)>,
+}
+
+impl Phases {
+    fn mark(&mut self, phase: &'static str, start: Instant) {
+        self.list
+            .push((phase, start.elapsed().as_secs_f64(), peak_memory_bytes()));
+    }
+}
+
+/// The process's peak resident memory so far (Linux: `VmHWM` of /proc/self/status); `None`
+/// where it cannot be read.
+pub fn peak_memory_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
 /// The spp that fits `limit` seconds: one sample per pixel is rendered and timed, and the
 /// rest of the budget buys as many more passes of that cost as fit (at least 1, at most
 /// `max_spp`).
@@ -263,6 +286,7 @@ fn check_size(args: &RenderArgs, width: u32, height: u32) -> Result<()> {
 }
 
 fn render_command(args: &RenderArgs) -> Result<()> {
+    let run_start = Instant::now();
     // Everything that can be refused is refused before any work: options, output, then model.
     if args.spp == 0 || args.spp > args.max_spp {
         bail!(
@@ -325,6 +349,9 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     if let Some(p) = &args.env_out {
         crate::aov::check(p, &["hdr"])?;
     }
+    if let Some(p) = &args.stats {
+        crate::aov::check(p, &["json"])?;
+    }
     let env_file = match &args.env {
         Some(path) => {
             Some(Environment::load(path)?.with_transform(args.env_rotation, args.env_intensity))
@@ -340,8 +367,12 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         variant: args.variant.clone(),
         ..load_options(&args.load)
     };
+    let mut phases = Phases::default();
     let mut scene = load(&args.model, &load_options)?;
+    phases.mark("parse and flatten", load_start);
+    let tangent_start = Instant::now();
     crate::scene::tangents::generate_missing(&mut scene);
+    phases.mark("tangents", tangent_start);
     let load_time = load_start.elapsed();
     if !args.quiet {
         for w in &scene.warnings {
@@ -446,6 +477,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         args.strict,
         &mut texture_warnings,
     )?;
+    phases.mark("textures", texture_start);
     let texture_time = texture_start.elapsed();
     if !args.quiet {
         for w in &texture_warnings {
@@ -461,8 +493,13 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
     }
     let (prepared, (image, stats, aovs)) = pool.install(|| -> Result<_> {
+        let bvh_start = Instant::now();
         let accel = Accel::build(&scene.soup, &scene.materials, args.accel, args.bvh_preset);
+        phases.mark("bvh build", bvh_start);
+        let prepare_start = Instant::now();
         let prepared = Prepared::from_parts(scene, accel, textures);
+        phases.mark("prepare (area lights)", prepare_start);
+        let render_start = Instant::now();
         if let Some(limit) = args.time_limit {
             settings.spp = spp_for_time_limit(&prepared, &settings, &cancel, limit, args.max_spp)?;
         }
@@ -472,8 +509,10 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             bar.set_position(done);
         });
         bar.finish_and_clear();
+        phases.mark("render", render_start);
         Ok((prepared, result?))
     })?;
+    let write_start = Instant::now();
     let (scene, accel, textures) = (&prepared.scene, &prepared.accel, &prepared.textures);
     let background = args.background;
     output.commit(&image, background)?;
@@ -549,6 +588,25 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         }
         view.write(path)?;
     }
+    phases.mark("write", write_start);
+    if let Some(path) = &args.stats {
+        let json = serde_json::json!({
+            "model": args.model,
+            "triangles": scene.soup.len(),
+            "width": width,
+            "height": height,
+            "spp": settings.spp,
+            "threads": threads,
+            "phases": phases.list.iter().map(|(name, seconds, peak)| serde_json::json!({
+                "phase": name, "seconds": seconds, "peak_memory_bytes": peak,
+            })).collect::<Vec<_>>(),
+            "total_seconds": run_start.elapsed().as_secs_f64(),
+            "peak_memory_bytes": peak_memory_bytes(),
+            "rays": stats.rays(),
+            "mrays_per_second": stats.mrays_per_second(),
+        });
+        crate::output::write_atomic(path, serde_json::to_string_pretty(&json)?.as_bytes())?;
+    }
     if !args.quiet {
         let structure = match accel.kind() {
             AccelKind::Bvh => format!(
@@ -559,7 +617,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             AccelKind::Linear => "linear scan (no BVH)".to_string(),
         };
         eprintln!(
-            "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {} spp rendered in {:.3} s ({:.0} samples/s{}): {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {threads} threads -> {}",
+            "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {} spp rendered in {:.3} s ({:.0} samples/s{}), peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {threads} threads -> {}",
             args.model.display(),
             scene.soup.len(),
             load_time.as_secs_f64() * 1e3,
@@ -571,6 +629,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             stats
                 .noise
                 .map_or(String::new(), |n| format!(", noise ±{n:.4}")),
+            peak_memory_bytes().map_or("unknown".to_string(), |b| format!("{} MB", b >> 20)),
             stats.rays(),
             stats.primary_rays,
             stats.shadow_rays,

@@ -181,6 +181,11 @@ pub struct RenderArgs {
     /// .npy; the id table is in the --view-out JSON.
     #[arg(long, value_name = "FILE")]
     pub segmentation_out: Option<PathBuf>,
+    /// Write where the time and memory went as JSON: each phase (parse and flatten, tangents,
+    /// textures, BVH build, prepare, render, write) with its wall time and the peak memory
+    /// after it.
+    #[arg(long, value_name = "FILE.json")]
+    pub stats: Option<PathBuf>,
     /// Write the camera and lights actually used as JSON (the schema is in the README).
     #[arg(long, value_name = "FILE")]
     pub view_out: Option<PathBuf>,

@@ -737,6 +737,7 @@ fn the_summary_reports_what_the_render_did() {
         "rays",
         "Mrays/s",
         "samples/s",
+        "peak memory",
     ] {
         assert!(err.contains(needle), "'{needle}' missing from: {err}");
     }
@@ -745,6 +746,30 @@ fn the_summary_reports_what_the_render_did() {
     let err = common::stderr(&render(&["--spp", "4"]));
     assert!(err.contains("noise ±"), "{err}");
     assert!(render(&["--quiet"]).stderr.is_empty());
+    // --stats: every phase with its time and the peak memory after it.
+    let stats = out.with_file_name("stats.json");
+    render(&["--quiet", "--stats", s(&stats)]);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&stats).unwrap()).unwrap();
+    let phases: Vec<&str> = json["phases"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["phase"].as_str().unwrap())
+        .collect();
+    for phase in [
+        "parse and flatten",
+        "tangents",
+        "textures",
+        "bvh build",
+        "render",
+        "write",
+    ] {
+        assert!(phases.contains(&phase), "{phase} missing from {phases:?}");
+    }
+    assert!(json["phases"][0]["seconds"].as_f64().unwrap() >= 0.0);
+    assert!(json["total_seconds"].as_f64().unwrap() > 0.0);
+    assert_eq!(json["triangles"], 2244);
 }
 
 /// `--view-out` then `--view` renders the same image, byte for byte, for a file camera with
