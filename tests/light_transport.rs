@@ -513,3 +513,49 @@ fn a_time_limited_render_is_the_render_of_the_spp_it_reached() {
     );
     assert!(common::stderr(&refused).contains("--time-limit"));
 }
+
+/// `KHR_materials_unlit`: a quad shows exactly its base colour as linear radiance, whatever
+/// lights the scene, in both integrators.
+#[test]
+fn unlit_materials_show_their_base_colour() {
+    let dir = tempfile::tempdir().unwrap();
+    let colour = [0.2f32, 0.5, 0.8];
+    let (json, bin) = common::quads_gltf(
+        &[(common::square(1.0, 0.0), 0)],
+        json!({
+            "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [colour[0], colour[1], colour[2], 1.0]},
+                "extensions": {"KHR_materials_unlit": {}}}],
+            "extensionsUsed": ["KHR_materials_unlit"],
+            "cameras": [{"type": "orthographic", "orthographic": {"xmag": 0.5, "ymag": 0.5, "znear": 0.1, "zfar": 10.0}}],
+            "nodes": [{"camera": 0, "translation": [0.0, 0.0, 2.0]}]
+        }),
+    );
+    let model = write_gltf(dir.path(), "unlit.gltf", json, &bin);
+    for integrator in ["direct", "path"] {
+        let out = dir.path().join(format!("{integrator}.exr"));
+        render(
+            &model,
+            &out,
+            &[
+                "--quiet",
+                "--width",
+                "8",
+                "--height",
+                "8",
+                "--spp",
+                "4",
+                "--integrator",
+                integrator,
+            ],
+        );
+        let (_, _, pixels) = read_rgba(&out);
+        for p in &pixels {
+            for c in 0..3 {
+                assert!(
+                    (p[c] - colour[c]).abs() < 1e-6,
+                    "{integrator}: pixel {p:?}, expected {colour:?}"
+                );
+            }
+        }
+    }
+}

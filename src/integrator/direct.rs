@@ -81,6 +81,10 @@ impl Direct {
     /// through a shadow ray.
     fn shade(&self, scene: &Prepared, ray: &Ray, s: &Surface, shadow_rays: &mut u64) -> Vec3 {
         let to_eye = -Vec3::from(ray.direction);
+        // KHR_materials_unlit: the base colour is the radiance; no light is involved.
+        if s.source.unlit {
+            return s.material.base_color;
+        }
         let mut color = self.ambient * s.material.base_color * s.occlusion + s.emissive;
         for light in &self.lights {
             let Some(incoming) = incident(light, s.spawn.point) else {

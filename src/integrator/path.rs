@@ -108,6 +108,12 @@ impl Integrator for PathTracer {
             if bsdf_pdf.is_none() {
                 coverage = 1.0;
             }
+            if surface.source.unlit {
+                // KHR_materials_unlit: the base colour is what the camera (or a path) sees;
+                // it neither reflects nor transmits light.
+                radiance += throughput * surface.material.base_color;
+                break;
+            }
             if surface.emissive != Vec3::ZERO {
                 let weight = match bsdf_pdf {
                     None => 1.0,

@@ -81,7 +81,7 @@ pub const EXTENSIONS: &[KnownExtension] = &[
     ext("KHR_materials_iridescence", Ignored, false, "drawn with the core metallic-roughness material"),
     ext("KHR_materials_anisotropy", Ignored, false, "drawn with the core metallic-roughness material"),
     ext("KHR_materials_dispersion", Ignored, false, "drawn with the core metallic-roughness material"),
-    ext("KHR_materials_unlit", Ignored, false, "shaded like any material"),
+    ext("KHR_materials_unlit", Supported, false, "the base colour is the radiance"),
     ext(
         "KHR_materials_pbrSpecularGlossiness",
         Ignored,

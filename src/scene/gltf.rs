@@ -1223,6 +1223,7 @@ fn material(m: &gltf::Material) -> Material {
         attenuation_distance: m
             .volume()
             .map_or(f32::INFINITY, |v| v.attenuation_distance()),
+        unlit: m.unlit(),
     }
 }
 

@@ -232,6 +232,9 @@ pub struct Material {
     pub attenuation_color: Vec3,
     /// Distance at which light inside the volume is reduced to `attenuation_color`.
     pub attenuation_distance: f32,
+    /// `KHR_materials_unlit`: the surface shows its base colour as radiance, unlit (scanned or
+    /// baked-lighting models).
+    pub unlit: bool,
 }
 
 impl Material {
@@ -381,6 +384,7 @@ impl Default for Material {
             thin_walled: true,
             attenuation_color: Vec3::ONE,
             attenuation_distance: f32::INFINITY,
+            unlit: false,
         }
     }
 }
