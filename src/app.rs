@@ -62,7 +62,7 @@ fn spp_for_time_limit(
 }
 
 /// Most path bounces `--bounces` accepts: far beyond any visible difference.
-const MAX_BOUNCES: u32 = 1024;
+const MAX_BOUNCES: u32 = crate::view::MAX_VIEW_BOUNCES;
 
 /// Runs one command.
 pub fn run(command: Command) -> Result<()> {

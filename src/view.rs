@@ -113,6 +113,9 @@ pub struct ViewFile {
     pub environment: Option<ViewEnvironment>,
 }
 
+/// Most bounces a view file may ask for (as `--bounces`).
+pub const MAX_VIEW_BOUNCES: u32 = 1024;
+
 /// The environment of a path-traced view: enough to light another renderer identically.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ViewEnvironment {
@@ -244,6 +247,27 @@ impl ViewFile {
         view.camera()?;
         for l in &view.lights {
             to_light(l).map_err(err)?;
+        }
+        if let Some(env) = &view.environment {
+            if !(env.intensity.is_finite() && env.intensity >= 0.0) {
+                return Err(err(format!(
+                    "environment intensity {}: must be a finite number, 0 or more",
+                    env.intensity
+                )));
+            }
+            if !env.rotation_degrees.is_finite() {
+                return Err(err("environment rotation must be a finite number".into()));
+            }
+            if let EnvironmentSource::Uniform { radiance } = env.source {
+                if !radiance.iter().all(|c| c.is_finite() && *c >= 0.0) {
+                    return Err(err(
+                        "uniform environment radiance must be finite, 0 or more".into(),
+                    ));
+                }
+            }
+        }
+        if view.bounces.is_some_and(|b| b > MAX_VIEW_BOUNCES) {
+            return Err(err(format!("bounces: at most {MAX_VIEW_BOUNCES}")));
         }
         Ok(view)
     }

@@ -559,3 +559,80 @@ fn unlit_materials_show_their_base_colour() {
         }
     }
 }
+
+/// Hostile environment input is refused with one message naming the file and the problem, and
+/// no output: a panorama whose header claims 60,000 x 60,000 texels (decoded, it would take
+/// 43 GB) and a view file whose environment intensity is not a number.
+#[test]
+fn hostile_environments_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = common::root().join("assets/shapes.obj");
+    let out = dir.path().join("never.png");
+    let huge = dir.path().join("huge.hdr");
+    std::fs::write(
+        &huge,
+        b"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 60000 +X 60000\n\x80\x80\x80\x81",
+    )
+    .unwrap();
+    let refused = run(
+        &[
+            "render",
+            s(&model),
+            "-o",
+            s(&out),
+            "--integrator",
+            "path",
+            "--env",
+            s(&huge),
+        ],
+        false,
+    );
+    let message = common::stderr(&refused);
+    assert!(message.contains("huge.hdr"), "{message}");
+    assert!(!message.contains("panicked"), "{message}");
+
+    let env = uniform_hdr(dir.path(), 1.0);
+    let view = dir.path().join("view.json");
+    render(
+        &model,
+        &dir.path().join("first.png"),
+        &[
+            "--quiet",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--spp",
+            "1",
+            "--integrator",
+            "path",
+            "--env",
+            s(&env),
+            "--view-out",
+            s(&view),
+        ],
+    );
+    let mut recorded: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&view).unwrap()).unwrap();
+    recorded["environment"]["intensity"] = json!(-1.0);
+    std::fs::write(&view, recorded.to_string()).unwrap();
+    let refused = run(
+        &[
+            "render",
+            s(&model),
+            "-o",
+            s(&out),
+            "--integrator",
+            "path",
+            "--view",
+            s(&view),
+        ],
+        false,
+    );
+    let message = common::stderr(&refused);
+    assert!(
+        message.contains("view.json") && message.contains("environment intensity"),
+        "{message}"
+    );
+    assert!(!out.exists());
+}
