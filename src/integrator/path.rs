@@ -165,7 +165,8 @@ impl Integrator for PathTracer {
                 if let Some(on_light) = on_light {
                     let offset = on_light.point - surface.spawn.point;
                     let distance = offset.length();
-                    let to_light = offset / distance;
+                    // (A point on the light at the shading point itself is skipped below.)
+                    let to_light = offset / distance.max(f32::MIN_POSITIVE);
                     let cos_light = on_light.normal.dot(to_light).abs();
                     let f = bsdf.eval_cos(to_eye, to_light);
                     if distance > 0.0 && cos_light > 0.0 && f != Vec3::ZERO {
