@@ -20,25 +20,50 @@ use std::time::Instant;
 /// Wall time and peak memory after each phase of a render, for `--stats`.
 #[derive(Default)]
 struct Phases {
-    /// (phase, seconds, peak resident memory in bytes after it).
-    list: Vec<(&'static str, f64, Option<u64>)>,
+    /// (phase, seconds, peak resident memory in bytes after it, its own steps).
+    list: Vec<(&'static str, f64, Option<u64>, Vec<crate::measure::Step>)>,
 }
 
 impl Phases {
     fn mark(&mut self, phase: &'static str, start: Instant) {
+        self.list.push((
+            phase,
+            start.elapsed().as_secs_f64(),
+            peak_memory_bytes(),
+            Vec::new(),
+        ));
+    }
+
+    /// Records the steps the last phase was made of.
+    fn sub_steps(&mut self, steps: &[crate::measure::Step]) {
+        if let Some(last) = self.list.last_mut() {
+            last.3 = steps.to_vec();
+        }
+    }
+
+    /// The phases as JSON: name, seconds, peak memory and, where measured, their steps.
+    fn to_json(&self) -> serde_json::Value {
+        let step = |s: &crate::measure::Step| {
+            serde_json::json!({
+                "step": s.name, "seconds": s.time.as_secs_f64(), "peak_memory_bytes": s.peak_memory,
+            })
+        };
         self.list
-            .push((phase, start.elapsed().as_secs_f64(), peak_memory_bytes()));
+            .iter()
+            .map(|(name, seconds, peak, steps)| {
+                let mut phase = serde_json::json!({
+                    "phase": name, "seconds": seconds, "peak_memory_bytes": peak,
+                });
+                if !steps.is_empty() {
+                    phase["steps"] = steps.iter().map(step).collect();
+                }
+                phase
+            })
+            .collect()
     }
 }
 
-/// The process's peak resident memory so far (Linux: `VmHWM` of /proc/self/status); `None`
-/// where it cannot be read.
-pub fn peak_memory_bytes() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
-}
+pub use crate::measure::peak_memory_bytes;
 
 /// The spp that fits `limit` seconds: one sample per pixel is rendered and timed, and the
 /// rest of the budget buys as many more passes of that cost as fit (at least 1, at most
@@ -496,6 +521,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         let bvh_start = Instant::now();
         let accel = Accel::build(&scene.soup, &scene.materials, args.accel, args.bvh_preset);
         phases.mark("bvh build", bvh_start);
+        phases.sub_steps(accel.build_steps());
         let prepare_start = Instant::now();
         let prepared = Prepared::from_parts(scene, accel, textures);
         phases.mark("prepare (area lights)", prepare_start);
@@ -597,9 +623,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             "height": height,
             "spp": settings.spp,
             "threads": threads,
-            "phases": phases.list.iter().map(|(name, seconds, peak)| serde_json::json!({
-                "phase": name, "seconds": seconds, "peak_memory_bytes": peak,
-            })).collect::<Vec<_>>(),
+            "phases": phases.to_json(),
             "total_seconds": run_start.elapsed().as_secs_f64(),
             "peak_memory_bytes": peak_memory_bytes(),
             "rays": stats.rays(),

@@ -47,6 +47,7 @@ pub mod environment;
 pub mod geometry;
 pub mod integrator;
 pub mod light;
+pub mod measure;
 pub mod output;
 pub mod plot;
 pub mod prepare;

@@ -1,53 +1,79 @@
 //! The obvhs compressed wide BVH (CWBVH): built with PLOC and reinsertion, traversed eight
 //! children at a time with obvhs's `traverse!` macro and our own triangle test.
 
-use super::{Accel, AccelKind, Accept, Closest};
-use crate::geometry::{PreparedTriangle, Ray, EDGE_EPSILON};
+use super::{Accel, Accept, Closest};
+use crate::geometry::{Ray, EDGE_EPSILON};
+use crate::measure::Steps;
 use crate::scene::TriangleSoup;
-use glam::{UVec2, Vec3, Vec3A};
+use glam::{UVec2, Vec3A};
+use rayon::prelude::*;
 use std::time::Duration;
 
+/// Builds the CWBVH over `soup`, marking each step in `steps`. The steps are those of obvhs's
+/// `build_cwbvh_from_tris` (PLOC, reinsertion, conversion to the wide BVH), written out here
+/// so that each temporary is dropped as soon as the next step no longer needs it and each step
+/// is measured: PLOC reads bounding boxes only (32 bytes a triangle instead of the 48 of
+/// obvhs's `Triangle`), and the binary BVH is freed once converted. The presets with spatial
+/// pre-splits need whole triangles and go through obvhs's helper.
 pub(super) fn build(
     soup: &TriangleSoup,
-    prepared: &[PreparedTriangle],
-    single_sided: &[bool],
-    alpha_tested: &[bool],
     params: obvhs::BvhBuildParams,
-) -> Accel {
+    steps: &mut Steps,
+) -> obvhs::cwbvh::CwBvh {
+    use obvhs::{aabb::Aabb, bvh2::reinsertion::ReinsertionOptimizer, ploc::PlocBuilder};
     // The triangle test accepts hits up to EDGE_EPSILON outside each edge (in barycentric
     // units): that region is the triangle scaled by 1 + 3·EDGE_EPSILON about its centroid. The
     // BVH is built over triangles scaled a little more, so its boxes contain every hit the test
     // can report and the BVH finds exactly what the linear scan finds.
     let grow = 1.0 + 4.0 * EDGE_EPSILON;
-    let tris: Vec<obvhs::triangle::Triangle> = soup
-        .positions
-        .iter()
-        .map(|[a, b, c]| {
-            let centroid = (*a + *b + *c) / 3.0;
-            let scaled = |p: Vec3| Vec3A::from(centroid + (p - centroid) * grow);
-            obvhs::triangle::Triangle {
-                v0: scaled(*a),
-                v1: scaled(*b),
-                v2: scaled(*c),
-            }
+    let grown = |i: usize| -> [Vec3A; 3] {
+        let [a, b, c] = soup.triangle(i);
+        let centroid = (a + b + c) / 3.0;
+        [a, b, c].map(|p| Vec3A::from(centroid + (p - centroid) * grow))
+    };
+    let n = soup.len();
+    if params.pre_split {
+        let tris: Vec<obvhs::triangle::Triangle> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let [v0, v1, v2] = grown(i);
+                obvhs::triangle::Triangle { v0, v1, v2 }
+            })
+            .collect();
+        steps.mark("triangles");
+        let bvh =
+            obvhs::cwbvh::builder::build_cwbvh_from_tris(&tris, params, &mut Duration::default());
+        steps.mark("split, ploc, reinsertion, conversion");
+        return bvh;
+    }
+    let boxes: Vec<Aabb> = (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let [a, b, c] = grown(i);
+            Aabb::new(a.min(b).min(c), a.max(b).max(c))
         })
         .collect();
-    let bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(&tris, params, &mut Duration::default());
-    // Store triangles in leaf order so traversal reads them sequentially, without an
-    // indirection (with spatial splits a triangle may appear in several leaves).
-    let ids = bvh.primitive_indices.clone();
-    let triangles = ids.iter().map(|&i| prepared[i as usize]).collect();
-    let single_sided = ids.iter().map(|&i| single_sided[i as usize]).collect();
-    let alpha_tested = ids.iter().map(|&i| alpha_tested[i as usize]).collect();
-    Accel {
-        kind: AccelKind::Bvh,
-        triangles,
-        ids,
-        single_sided,
-        alpha_tested,
-        bvh: Some(bvh),
-        build_time: Duration::ZERO,
-    }
+    steps.mark("bounds");
+    let mut bvh2 = PlocBuilder::with_capacity(n).build(
+        params.ploc_search_distance,
+        &boxes,
+        (0..n as u32).collect(),
+        params.sort_precision,
+        params.search_depth_threshold,
+    );
+    drop(boxes);
+    steps.mark("ploc");
+    ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
+    steps.mark("reinsertion");
+    let cwbvh = obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(
+        &bvh2,
+        params.max_prims_per_leaf.clamp(1, 3),
+        true,
+        false,
+    );
+    drop(bvh2);
+    steps.mark("wide bvh conversion");
+    cwbvh
 }
 
 /// How far (in ray parameter units) obvhs's box test is blind: its CWBVH node test clamps box

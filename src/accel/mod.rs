@@ -10,9 +10,11 @@ mod bvh;
 mod linear;
 
 use crate::geometry::{PreparedTriangle, Ray};
+use crate::measure::{Step, Steps};
 use crate::scene::{Material, TriangleSoup};
 use glam::Vec3;
-use std::time::{Duration, Instant};
+use rayon::prelude::*;
+use std::time::Duration;
 
 /// Which acceleration structure answers ray queries.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
@@ -82,7 +84,8 @@ pub struct Accel {
     /// Whether each entry needs the caller's alpha test (MASK and BLEND materials).
     alpha_tested: Vec<bool>,
     bvh: Option<obvhs::cwbvh::CwBvh>,
-    build_time: Duration,
+    /// How long each step of the build took.
+    steps: Steps,
 }
 
 impl Accel {
@@ -94,46 +97,49 @@ impl Accel {
         kind: AccelKind,
         preset: BvhPreset,
     ) -> Accel {
-        let start = Instant::now();
-        let prepared: Vec<PreparedTriangle> = soup
-            .positions
-            .iter()
-            .map(|[a, b, c]| PreparedTriangle::new(*a, *b, *c).unwrap_or(PreparedTriangle::NEVER))
+        let mut steps = Steps::new();
+        let bvh = match kind {
+            AccelKind::Linear => None,
+            AccelKind::Bvh => Some(bvh::build(soup, preset.params(), &mut steps)),
+        };
+        // Triangles are stored in traversal order (BVH leaf order: with spatial splits a
+        // triangle may appear in several leaves), so traversal reads them sequentially without
+        // an indirection, and they are prepared straight into that order.
+        let ids: Vec<u32> = match &bvh {
+            Some(bvh) => bvh.primitive_indices.clone(),
+            None => (0..soup.len() as u32).collect(),
+        };
+        let triangles: Vec<PreparedTriangle> = ids
+            .par_iter()
+            .map(|&i| {
+                let [a, b, c] = soup.triangle(i as usize);
+                PreparedTriangle::new(a, b, c).unwrap_or(PreparedTriangle::NEVER)
+            })
             .collect();
-        let single_sided: Vec<bool> = soup
-            .material
+        let material = |i: u32| materials.get(soup.material[i as usize] as usize);
+        // glTF 2.0 §3.9.6: `doubleSided: false` surfaces are invisible from behind.
+        let single_sided = ids
             .iter()
-            .map(|&m| materials.get(m as usize).is_some_and(|m| !m.double_sided))
+            .map(|&i| material(i).is_some_and(|m| !m.double_sided))
             .collect();
-        let alpha_tested: Vec<bool> = soup
-            .material
+        let alpha_tested = ids
             .iter()
-            .map(|&m| {
-                materials.get(m as usize).is_some_and(|m| {
+            .map(|&i| {
+                material(i).is_some_and(|m| {
                     m.alpha_mode != crate::scene::AlphaMode::Opaque || m.see_through()
                 })
             })
             .collect();
-        let mut accel = match kind {
-            AccelKind::Linear => Accel {
-                kind,
-                ids: (0..prepared.len() as u32).collect(),
-                triangles: prepared,
-                single_sided,
-                alpha_tested,
-                bvh: None,
-                build_time: Duration::ZERO,
-            },
-            AccelKind::Bvh => bvh::build(
-                soup,
-                &prepared,
-                &single_sided,
-                &alpha_tested,
-                preset.params(),
-            ),
-        };
-        accel.build_time = start.elapsed();
-        accel
+        steps.mark("triangle test data");
+        Accel {
+            kind,
+            triangles,
+            ids,
+            single_sided,
+            alpha_tested,
+            bvh,
+            steps,
+        }
     }
 
     /// The structure's kind.
@@ -143,7 +149,12 @@ impl Accel {
 
     /// Wall time of [`Accel::build`], including triangle preparation.
     pub fn build_time(&self) -> Duration {
-        self.build_time
+        self.steps.total()
+    }
+
+    /// The steps of [`Accel::build`] with their times and the peak memory after each.
+    pub fn build_steps(&self) -> &[Step] {
+        self.steps.list()
     }
 
     /// Number of triangles the structure holds (leaf references, for a BVH with splits).

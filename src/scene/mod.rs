@@ -131,6 +131,12 @@ impl TriangleSoup {
         self.positions.is_empty()
     }
 
+    /// The three vertex positions of triangle `i`.
+    #[inline]
+    pub fn triangle(&self, i: usize) -> [Vec3; 3] {
+        self.positions[i]
+    }
+
     /// Approximate heap size in bytes.
     pub fn heap_bytes(&self) -> usize {
         use std::mem::size_of_val;
