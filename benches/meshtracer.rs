@@ -256,14 +256,14 @@ fn bare_obvhs(c: &mut Criterion) {
         BvhPreset::Medium,
     );
     let rays = make_rays(&scene, &bvh, RayKind::Primary, 256, 7);
-    let tris: Vec<obvhs::triangle::Triangle> = scene
-        .soup
-        .positions
-        .iter()
-        .map(|[a, b, c]| obvhs::triangle::Triangle {
-            v0: (*a).into(),
-            v1: (*b).into(),
-            v2: (*c).into(),
+    let tris: Vec<obvhs::triangle::Triangle> = (0..scene.soup.len())
+        .map(|t| {
+            let [a, b, c] = scene.soup.triangle(t);
+            obvhs::triangle::Triangle {
+                v0: a.into(),
+                v1: b.into(),
+                v2: c.into(),
+            }
         })
         .collect();
     let cw = obvhs::cwbvh::builder::build_cwbvh_from_tris(

@@ -76,10 +76,8 @@ pub fn generated_mesh(triangles: usize, seed: u64) -> TriangleSoup {
 /// BVH and linear scan do the same work).
 pub fn scene_from_soup(soup: TriangleSoup, name: &str) -> Scene {
     let mut bounds = crate::scene::Bounds::EMPTY;
-    for tri in &soup.positions {
-        for p in tri {
-            bounds.grow(*p);
-        }
+    for p in &soup.positions {
+        bounds.grow(*p);
     }
     Scene {
         source: name.into(),
@@ -131,7 +129,7 @@ pub fn make_rays(
         .iter()
         .filter_map(|ray| reference.intersect(ray).map(|hit| (ray, hit)))
         .map(|(ray, hit)| {
-            let [a, b, c] = scene.soup.positions[hit.triangle as usize];
+            let [a, b, c] = scene.soup.triangle(hit.triangle as usize);
             let mut n = (b - a).cross(c - a).normalize();
             if n.dot(Vec3::from(ray.direction)) > 0.0 {
                 n = -n;

@@ -122,7 +122,7 @@ impl AreaLights {
             }
             let power = estimate(tri);
             if power > 0.0 && power.is_finite() {
-                let [a, b, c] = soup.positions[tri];
+                let [a, b, c] = soup.triangle(tri);
                 let area = 0.5 * (b - a).cross(c - a).length();
                 if area > 0.0 && area.is_finite() {
                     lights.triangles.push(tri as u32);

@@ -221,6 +221,7 @@ fn box_variants_give_identical_soups() {
         let s = load(other);
         assert_eq!(s.soup.positions, separate.soup.positions, "{other}");
         assert_eq!(s.soup.normals, separate.soup.normals, "{other}");
+        assert_eq!(s.soup.indices, separate.soup.indices, "{other}");
         assert_eq!(s.soup.material, separate.soup.material, "{other}");
         assert_eq!(s.materials, separate.materials, "{other}");
     }

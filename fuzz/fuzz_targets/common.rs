@@ -21,10 +21,9 @@ pub fn load(name: &str, data: &[u8]) {
     if let Ok(scene) = Scene::from_bytes(&path, data, &options) {
         // Whatever loads must be a soup the tracer can trust.
         assert!(!scene.soup.is_empty());
-        assert_eq!(scene.soup.normals.len(), scene.soup.len());
-        for tri in &scene.soup.positions {
-            assert!(tri.iter().all(|p| p.is_finite()));
-        }
+        assert!(scene.check_references().is_ok());
+        assert!(scene.soup.positions.iter().all(|p| p.is_finite()));
+        assert!(scene.soup.normals.iter().all(|n| n.is_finite()));
         for &m in &scene.soup.material {
             assert!((m as usize) < scene.materials.len());
         }

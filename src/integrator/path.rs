@@ -160,7 +160,7 @@ impl Integrator for PathTracer {
             let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
             if let Some(sample) = scene.area_lights.sample(u0, u1, u2) {
                 let tri = sample.triangle as usize;
-                let [a, b, c] = scene.scene.soup.positions[tri];
+                let [a, b, c] = scene.scene.soup.triangle(tri);
                 let on_light = SpawnPoint::on_triangle([a, b, c], sample.barycentric);
                 if let Some(on_light) = on_light {
                     let offset = on_light.point - surface.spawn.point;

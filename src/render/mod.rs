@@ -317,8 +317,8 @@ impl<'a> PixelLoop<'a> {
                 let soup = &self.scene.scene.soup;
                 let tri = hit.triangle as usize;
                 let b = hit.barycentric;
-                let [na, nb, nc] = soup.normals[tri];
-                let [pa, pb, pc] = soup.positions[tri];
+                let [na, nb, nc] = soup.corner_normals(tri);
+                let [pa, pb, pc] = soup.triangle(tri);
                 let direction = Vec3::from(ray.direction);
                 let mut n = (na * b.x + nb * b.y + nc * b.z)
                     .try_normalize()

@@ -105,7 +105,7 @@ impl Prepared {
             return 1.0;
         };
         let mut alpha = material.base_color.w;
-        if let Some([a, b, c]) = soup.colors.get(tri) {
+        if let Some([a, b, c]) = soup.corner_colors(tri) {
             alpha *= a.w * barycentric.x + b.w * barycentric.y + c.w * barycentric.z;
         }
         if let Some(r) = &material.base_color_texture {
@@ -127,13 +127,8 @@ impl Prepared {
     }
 
     fn uv(&self, tri: usize, set: u32, b: Vec3) -> Vec2 {
-        let uvs = if set == 1 {
-            &self.scene.soup.uv1
-        } else {
-            &self.scene.soup.uv0
-        };
-        match uvs.get(tri) {
-            Some([ua, ub, uc]) => *ua * b.x + *ub * b.y + *uc * b.z,
+        match self.scene.soup.corner_uvs(set, tri) {
+            Some([ua, ub, uc]) => ua * b.x + ub * b.y + uc * b.z,
             None => Vec2::ZERO,
         }
     }
@@ -151,13 +146,8 @@ impl Prepared {
         srgb: bool,
     ) -> Option<Vec4> {
         let (image, sampler) = self.textures.lookup(&self.scene, r)?;
-        let uvs = if r.tex_coord == 1 {
-            &self.scene.soup.uv1
-        } else {
-            &self.scene.soup.uv0
-        };
-        let [pa, pb, pc] = self.scene.soup.positions[tri];
-        let lod = match uvs.get(tri) {
+        let [pa, pb, pc] = self.scene.soup.triangle(tri);
+        let lod = match self.scene.soup.corner_uvs(r.tex_coord, tri) {
             Some(corners) => {
                 // The footprint is measured in the coordinates that address the texture, after
                 // KHR_texture_transform (quantized files scale integer UVs by 1/4096 or so).
@@ -180,7 +170,7 @@ impl Prepared {
         let soup = &self.scene.soup;
         let tri = hit.triangle as usize;
         let b = hit.barycentric;
-        let [pa, pb, pc] = soup.positions[tri];
+        let [pa, pb, pc] = soup.triangle(tri);
         // The importer drops degenerate triangles, so this always succeeds; the fallback keeps a
         // bad triangle from panicking (its shadow rays start at the interpolated point).
         let spawn = SpawnPoint::on_triangle([pa, pb, pc], b).unwrap_or(SpawnPoint {
@@ -195,7 +185,7 @@ impl Prepared {
             geometric = -geometric;
         }
         let cos = geometric.dot(direction);
-        let [na, nb, nc] = soup.normals[tri];
+        let [na, nb, nc] = soup.corner_normals(tri);
         let mut normal = (na * b.x + nb * b.y + nc * b.z)
             .try_normalize()
             .unwrap_or(geometric);
@@ -212,8 +202,8 @@ impl Prepared {
             .get(soup.material[tri] as usize)
             .unwrap_or_else(|| DEFAULT.get_or_init(Material::default));
         let mut base = material.base_color;
-        if let Some([ca, cb, cc]) = soup.colors.get(tri) {
-            base *= *ca * b.x + *cb * b.y + *cc * b.z;
+        if let Some([ca, cb, cc]) = soup.corner_colors(tri) {
+            base *= ca * b.x + cb * b.y + cc * b.z;
         }
         let sample = |r: &Option<TextureRef>, srgb: bool| {
             r.as_ref()
@@ -282,18 +272,13 @@ impl Prepared {
         scale: f32,
     ) -> Vec3 {
         let soup = &self.scene.soup;
-        let from_file = soup.tangents.get(tri).and_then(|[ta, tb, tc]| {
-            let t = *ta * b.x + *tb * b.y + *tc * b.z;
+        let from_file = soup.corner_tangents(tri).and_then(|[ta, tb, tc]| {
+            let t = ta * b.x + tb * b.y + tc * b.z;
             (ta.w != 0.0).then(|| (t.truncate(), if ta.w < 0.0 { -1.0 } else { 1.0 }))
         });
         let frame = from_file.or_else(|| {
-            let uvs = if r.tex_coord == 1 {
-                &soup.uv1
-            } else {
-                &soup.uv0
-            };
-            let [ua, ub, uc] = *uvs.get(tri)?;
-            let [pa, pb, pc] = soup.positions[tri];
+            let [ua, ub, uc] = soup.corner_uvs(r.tex_coord, tri)?;
+            let [pa, pb, pc] = soup.triangle(tri);
             let (e1, e2) = (pb - pa, pc - pa);
             let (d1, d2) = (ub - ua, uc - ua);
             let det = d1.x * d2.y - d2.x * d1.y;

@@ -5,7 +5,8 @@ use super::{Bounds, LoadErrorKind, TriangleSoup};
 use glam::{Vec2, Vec3, Vec4};
 
 /// One triangle as an importer hands it over, already in world space and front-face
-/// counter-clockwise. Missing attributes are `None`.
+/// counter-clockwise. Missing attributes are `None`. It gets three vertices of its own; a
+/// primitive whose triangles share vertices goes through [`SoupBuilder::push_primitive`].
 #[derive(Clone, Copy, Debug, Default)]
 pub struct TriangleIn {
     /// Vertex positions.
@@ -20,6 +21,55 @@ pub struct TriangleIn {
     pub colors: Option<[Vec4; 3]>,
     /// Tangents (xyz) with handedness (w).
     pub tangents: Option<[Vec4; 3]>,
+}
+
+/// A primitive's vertices as an importer hands them over, world space; every present
+/// attribute is as long as `positions`.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct VerticesIn<'a> {
+    /// Vertex positions.
+    pub positions: &'a [Vec3],
+    /// Shading normals (need not be unit length).
+    pub normals: Option<&'a [Vec3]>,
+    /// Texture coordinates, set 0.
+    pub uv0: Option<&'a [Vec2]>,
+    /// Texture coordinates, set 1.
+    pub uv1: Option<&'a [Vec2]>,
+    /// Vertex colours, linear RGBA.
+    pub colors: Option<&'a [Vec4]>,
+    /// Tangents (xyz) with handedness (w).
+    pub tangents: Option<&'a [Vec4]>,
+}
+
+impl VerticesIn<'_> {
+    /// Triangle `corners` of these vertices as a [`TriangleIn`].
+    fn triangle(&self, corners: [usize; 3]) -> TriangleIn {
+        TriangleIn {
+            positions: corners.map(|i| self.positions[i]),
+            normals: self.normals.map(|a| corners.map(|i| a[i])),
+            uv0: self.uv0.map(|a| corners.map(|i| a[i])),
+            uv1: self.uv1.map(|a| corners.map(|i| a[i])),
+            colors: self.colors.map(|a| corners.map(|i| a[i])),
+            tangents: self.tangents.map(|a| corners.map(|i| a[i])),
+        }
+    }
+
+    /// These vertices without any attribute that is not as long as `positions` (importers
+    /// check their accessors; this keeps a slip from indexing out of range).
+    fn sanitized(&self) -> Self {
+        let n = self.positions.len();
+        fn keep<T>(a: Option<&[T]>, n: usize) -> Option<&[T]> {
+            a.filter(|a| a.len() == n)
+        }
+        Self {
+            positions: self.positions,
+            normals: keep(self.normals, n),
+            uv0: keep(self.uv0, n),
+            uv1: keep(self.uv1, n),
+            colors: keep(self.colors, n),
+            tangents: keep(self.tangents, n),
+        }
+    }
 }
 
 /// Builds a [`TriangleSoup`], counting what it drops.
@@ -56,19 +106,91 @@ impl SoupBuilder {
                 limit: self.max_triangles,
             });
         }
-        self.soup.positions.reserve(additional);
-        self.soup.normals.reserve(additional);
+        self.soup.indices.reserve(additional);
         self.soup.material.reserve(additional);
         self.soup.instance.reserve(additional);
         Ok(())
     }
 
-    /// Adds a triangle unless it is degenerate or not finite (then it is counted and dropped).
+    /// Adds a triangle with three vertices of its own, unless it is degenerate or not finite
+    /// (then it is counted and dropped).
     pub fn push(&mut self, tri: &TriangleIn, material: u32, instance: u32) {
-        let [a, b, c] = tri.positions;
+        if let Some(flat) = self.check(&tri.positions) {
+            let normals = tri
+                .normals
+                .map(|ns| ns.map(|n| n.normalize_or_zero()))
+                .filter(|ns| ns.iter().all(|n| usable_normal(*n)))
+                .unwrap_or([flat; 3]);
+            self.push_own_vertices(tri, normals, material, instance);
+        }
+    }
+
+    /// Adds the triangles of one primitive: `triangles` index `vertices` (in range: the
+    /// importer checked them) and are counter-clockwise from the front. The vertices are stored
+    /// once and shared by the triangles that use them. A triangle whose normals are missing or
+    /// unusable (zero, NaN) gets three vertices of its own with its flat normal; degenerate and
+    /// non-finite triangles are counted and dropped.
+    pub fn push_primitive(
+        &mut self,
+        vertices: &VerticesIn,
+        triangles: impl Iterator<Item = [usize; 3]>,
+        material: u32,
+        instance: u32,
+    ) {
+        let vertices = &vertices.sanitized();
+        let Some(normals) = vertices.normals else {
+            for corners in triangles {
+                self.push(&vertices.triangle(corners), material, instance);
+            }
+            return;
+        };
+        let base = self.soup.positions.len();
+        let count = vertices.positions.len();
+        // Positions no kept triangle uses (a NaN vertex) are stored as the origin, so that
+        // nothing reading the vertex arrays meets a non-finite value.
+        let soup = &mut self.soup;
+        soup.positions.extend(vertices.positions.iter().map(|p| {
+            if p.is_finite() {
+                *p
+            } else {
+                Vec3::ZERO
+            }
+        }));
+        soup.normals
+            .extend(normals.iter().map(|n| n.normalize_or_zero()));
+        append(&mut soup.uv0, base, count, vertices.uv0, Vec2::ZERO);
+        append(&mut soup.uv1, base, count, vertices.uv1, Vec2::ZERO);
+        append(&mut soup.colors, base, count, vertices.colors, Vec4::ONE);
+        append(
+            &mut soup.tangents,
+            base,
+            count,
+            vertices.tangents,
+            Vec4::ZERO,
+        );
+        for corners in triangles {
+            let positions = corners.map(|i| vertices.positions[i]);
+            let Some(flat) = self.check(&positions) else {
+                continue;
+            };
+            let shared = corners.map(|i| base + i);
+            if shared.iter().all(|&v| usable_normal(self.soup.normals[v])) {
+                self.soup.indices.push(shared.map(|v| v as u32));
+                self.soup.material.push(material);
+                self.soup.instance.push(instance);
+            } else {
+                self.push_own_vertices(&vertices.triangle(corners), [flat; 3], material, instance);
+            }
+        }
+    }
+
+    /// Counts and refuses a non-finite or degenerate triangle; otherwise grows the bounds and
+    /// returns its flat (unit geometric) normal.
+    fn check(&mut self, positions: &[Vec3; 3]) -> Option<Vec3> {
+        let [a, b, c] = *positions;
         if !(a.is_finite() && b.is_finite() && c.is_finite()) {
             self.non_finite += 1;
-            return;
+            return None;
         }
         let cross = (b - a).cross(c - a);
         let area2 = cross.length_squared();
@@ -76,31 +198,58 @@ impl SoupBuilder {
         // intersection precompute; such a triangle has no visible area anyway.
         if !(area2 >= f32::MIN_POSITIVE && area2.is_finite()) {
             self.degenerate += 1;
-            return;
+            return None;
         }
-        let flat = cross / area2.sqrt();
-        let normals = tri
-            .normals
-            .map(|ns| ns.map(|n| n.normalize_or_zero()))
-            .filter(|ns| ns.iter().all(|n| n.is_finite() && *n != Vec3::ZERO))
-            .unwrap_or([flat; 3]);
-        let index = self.soup.len();
-        push_optional(&mut self.soup.uv0, index, tri.uv0, [Vec2::ZERO; 3]);
-        push_optional(&mut self.soup.uv1, index, tri.uv1, [Vec2::ZERO; 3]);
-        push_optional(&mut self.soup.colors, index, tri.colors, [Vec4::ONE; 3]);
-        push_optional(
-            &mut self.soup.tangents,
-            index,
-            tri.tangents,
-            [Vec4::ZERO; 3],
+        for p in positions {
+            self.bounds.grow(*p);
+        }
+        Some(cross / area2.sqrt())
+    }
+
+    /// Appends `tri` as three new vertices with `normals` (unit) and one triangle using them.
+    fn push_own_vertices(
+        &mut self,
+        tri: &TriangleIn,
+        normals: [Vec3; 3],
+        material: u32,
+        instance: u32,
+    ) {
+        let soup = &mut self.soup;
+        let base = soup.positions.len();
+        soup.positions.extend(tri.positions);
+        soup.normals.extend(normals);
+        append(
+            &mut soup.uv0,
+            base,
+            3,
+            tri.uv0.as_ref().map(|a| a.as_slice()),
+            Vec2::ZERO,
         );
-        self.soup.positions.push(tri.positions);
-        self.soup.normals.push(normals);
-        self.soup.material.push(material);
-        self.soup.instance.push(instance);
-        for p in tri.positions {
-            self.bounds.grow(p);
-        }
+        append(
+            &mut soup.uv1,
+            base,
+            3,
+            tri.uv1.as_ref().map(|a| a.as_slice()),
+            Vec2::ZERO,
+        );
+        append(
+            &mut soup.colors,
+            base,
+            3,
+            tri.colors.as_ref().map(|a| a.as_slice()),
+            Vec4::ONE,
+        );
+        append(
+            &mut soup.tangents,
+            base,
+            3,
+            tri.tangents.as_ref().map(|a| a.as_slice()),
+            Vec4::ZERO,
+        );
+        let v = base as u32;
+        soup.indices.push([v, v + 1, v + 2]);
+        soup.material.push(material);
+        soup.instance.push(instance);
     }
 
     /// Number of triangles kept so far.
@@ -136,17 +285,23 @@ impl SoupBuilder {
     }
 }
 
-/// Keeps an optional per-triangle array either empty (no triangle had the attribute) or exactly
-/// as long as the soup, padding earlier triangles with `default` when the attribute first shows up.
-fn push_optional<T: Copy>(vec: &mut Vec<T>, index: usize, value: Option<T>, default: T) {
-    match value {
+/// A normal a triangle can shade with: unit length after normalising (not zero, not NaN).
+fn usable_normal(n: Vec3) -> bool {
+    n.is_finite() && n != Vec3::ZERO
+}
+
+/// Appends `count` values of an optional per-vertex attribute for the vertices from `base` on:
+/// the array stays empty while no vertex has the attribute, and once one has, it is exactly as
+/// long as the positions, earlier vertices padded with `default`.
+fn append<T: Copy>(vec: &mut Vec<T>, base: usize, count: usize, values: Option<&[T]>, default: T) {
+    match values {
         Some(v) => {
-            if vec.len() < index {
-                vec.resize(index, default);
+            if vec.len() < base {
+                vec.resize(base, default);
             }
-            vec.push(v);
+            vec.extend_from_slice(v);
         }
-        None if !vec.is_empty() => vec.push(default),
+        None if !vec.is_empty() => vec.resize(base + count, default),
         None => {}
     }
 }
@@ -176,7 +331,7 @@ mod tests {
         assert_eq!((b.len(), b.degenerate, b.non_finite), (1, 1, 2));
         let (soup, bounds) = b.finish();
         assert_eq!(
-            soup.normals[0],
+            soup.corner_normals(0),
             [Vec3::Z; 3],
             "flat normal of a CCW triangle in XY"
         );
@@ -192,10 +347,63 @@ mod tests {
         b.push(&t, 0, 0);
         b.push(&tri(Vec3::ZERO, Vec3::X, Vec3::Y), 0, 0);
         let (soup, _) = b.finish();
-        assert_eq!(soup.uv0.len(), 3);
-        assert_eq!(soup.uv0[0], [Vec2::ZERO; 3]);
-        assert_eq!(soup.uv0[1], [Vec2::ONE; 3]);
+        assert_eq!(soup.uv0.len(), 9, "three vertices a triangle");
+        assert_eq!(soup.corner_uvs(0, 0), Some([Vec2::ZERO; 3]));
+        assert_eq!(soup.corner_uvs(0, 1), Some([Vec2::ONE; 3]));
+        assert_eq!(soup.corner_uvs(0, 2), Some([Vec2::ZERO; 3]));
         assert!(soup.colors.is_empty());
+    }
+
+    #[test]
+    fn a_primitive_shares_its_vertices() {
+        // A quad of two triangles over four vertices, then a triangle whose normal is zero at
+        // one corner (it gets its own vertices and its flat normal) and a degenerate one.
+        let positions = [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::Y,
+            Vec3::X * 2.0,
+        ];
+        let normals = [Vec3::Z * 2.0, Vec3::Z, Vec3::Z, Vec3::ZERO, Vec3::Z];
+        let uv0 = [Vec2::ZERO, Vec2::X, Vec2::ONE, Vec2::Y, Vec2::X];
+        let vertices = VerticesIn {
+            positions: &positions,
+            normals: Some(&normals),
+            uv0: Some(&uv0),
+            ..Default::default()
+        };
+        let mut b = SoupBuilder::new(100);
+        b.push_primitive(
+            &vertices,
+            [[0, 1, 2], [0, 2, 3], [0, 1, 4]].into_iter(),
+            3,
+            1,
+        );
+        assert_eq!((b.len(), b.degenerate), (2, 1));
+        let (soup, _) = b.finish();
+        assert_eq!(soup.indices[0], [0, 1, 2]);
+        assert_eq!(
+            soup.vertex_count(),
+            5 + 3,
+            "the shared block, then the fallback's own"
+        );
+        assert_eq!(soup.corner_normals(0), [Vec3::Z; 3], "normalised");
+        assert_eq!(
+            soup.triangle(1),
+            [Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0), Vec3::Y]
+        );
+        assert_eq!(
+            soup.corner_normals(1),
+            [Vec3::Z; 3],
+            "flat normal where one was zero"
+        );
+        assert_eq!(
+            soup.corner_uvs(0, 1),
+            Some([Vec2::ZERO, Vec2::ONE, Vec2::Y])
+        );
+        assert_eq!(soup.material, [3, 3]);
+        assert_eq!(soup.instance, [1, 1]);
     }
 
     #[test]

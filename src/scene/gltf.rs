@@ -13,7 +13,7 @@
 //! - KHR_lights_punctual: lights shine along local -Z; candela (point, spot), lux (directional).
 
 use super::attributes;
-use super::builder::TriangleIn;
+use super::builder::VerticesIn;
 use super::draco;
 use super::error::PrimitiveAt;
 use super::extensions::{known, ExtensionUse};
@@ -922,24 +922,25 @@ impl Importer<'_> {
                 self.default_material
             }
         };
-        for t in 0..triangle_count {
+        let corners = (0..triangle_count).map(|t| {
             let [a, b, c] = match mode {
                 Mode::Triangles => [3 * t, 3 * t + 1, 3 * t + 2],
                 Mode::TriangleStrip => [t, t + 1 + t % 2, t + 2 - t % 2],
                 _ => [t + 1, t + 2, 0],
             };
             let corners = if flip { [a, c, b] } else { [a, b, c] };
-            let v = corners.map(|k| indices[k] as usize);
-            let tri = TriangleIn {
-                positions: v.map(|i| vertices.positions[i]),
-                normals: vertices.normals.as_ref().map(|ns| v.map(|i| ns[i])),
-                uv0: vertices.uv0.as_ref().map(|uv| v.map(|i| uv[i])),
-                uv1: vertices.uv1.as_ref().map(|uv| v.map(|i| uv[i])),
-                colors: vertices.colors.as_ref().map(|cs| v.map(|i| cs[i])),
-                tangents: vertices.tangents.as_ref().map(|ts| v.map(|i| ts[i])),
-            };
-            self.builder.push(&tri, material, instance);
-        }
+            corners.map(|k| indices[k] as usize)
+        });
+        let vertices_in = VerticesIn {
+            positions: &vertices.positions,
+            normals: vertices.normals.as_deref(),
+            uv0: vertices.uv0.as_deref(),
+            uv1: vertices.uv1.as_deref(),
+            colors: vertices.colors.as_deref(),
+            tangents: vertices.tangents.as_deref(),
+        };
+        self.builder
+            .push_primitive(&vertices_in, corners, material, instance);
         Ok(())
     }
 

@@ -14,7 +14,7 @@ pub mod obj;
 mod paths;
 pub mod tangents;
 
-pub use builder::{SoupBuilder, TriangleIn};
+pub use builder::{SoupBuilder, TriangleIn, VerticesIn};
 pub use error::{LoadError, LoadErrorKind};
 pub use paths::{resolve_relative, FileAccess};
 
@@ -96,24 +96,32 @@ impl Format {
     }
 }
 
-/// Every triangle of the scene in world space, as parallel per-triangle arrays.
+/// Every triangle of the scene in world space: shared vertices, and triangles that index them.
 ///
-/// Optional attributes (`uv0`, `uv1`, `colors`, `tangents`) are either empty, when no primitive
-/// had them, or exactly as long as `positions`, with defaults where a primitive lacked them.
+/// Vertex attributes are stored once per vertex (a vertex shared by six triangles, as in most
+/// meshes, is stored once, not six times); the intersection test reads its own packed copy of
+/// the positions ([`crate::accel`]), so the soup serves shading and building only.
+///
+/// Optional vertex attributes (`uv0`, `uv1`, `colors`, `tangents`) are either empty, when no
+/// primitive had them, or exactly as long as `positions`, with defaults where a primitive
+/// lacked them. [`Scene::check_references`] checks all of this once, at load.
 #[derive(Clone, Debug, Default)]
 pub struct TriangleSoup {
-    /// World-space vertex positions, counter-clockwise seen from the front face.
-    pub positions: Vec<[Vec3; 3]>,
-    /// World-space unit shading normals (flat normals where the file has none).
-    pub normals: Vec<[Vec3; 3]>,
+    /// World-space vertex positions.
+    pub positions: Vec<Vec3>,
+    /// World-space unit shading normals (a triangle with no usable normals in the file gets
+    /// vertices of its own, with its flat normal).
+    pub normals: Vec<Vec3>,
     /// Texture coordinate set 0 (glTF `TEXCOORD_0`; OBJ `vt`), (0,0) = image top-left.
-    pub uv0: Vec<[Vec2; 3]>,
+    pub uv0: Vec<Vec2>,
     /// Texture coordinate set 1 (glTF `TEXCOORD_1`).
-    pub uv1: Vec<[Vec2; 3]>,
+    pub uv1: Vec<Vec2>,
     /// Linear RGBA vertex colours (glTF `COLOR_0`), white where absent.
-    pub colors: Vec<[Vec4; 3]>,
+    pub colors: Vec<Vec4>,
     /// World-space tangents with handedness in w (glTF `TANGENT`), zero where absent.
-    pub tangents: Vec<[Vec4; 3]>,
+    pub tangents: Vec<Vec4>,
+    /// The three vertices of each triangle, counter-clockwise seen from its front face.
+    pub indices: Vec<[u32; 3]>,
     /// Index into [`Scene::materials`] for each triangle.
     pub material: Vec<u32>,
     /// Index into [`Scene::instances`] for each triangle.
@@ -123,18 +131,56 @@ pub struct TriangleSoup {
 impl TriangleSoup {
     /// Number of triangles.
     pub fn len(&self) -> usize {
-        self.positions.len()
+        self.indices.len()
     }
 
     /// True when the soup holds no triangle.
     pub fn is_empty(&self) -> bool {
-        self.positions.is_empty()
+        self.indices.is_empty()
     }
 
-    /// The three vertex positions of triangle `i`.
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// An attribute at the three corners of triangle `t`.
     #[inline]
-    pub fn triangle(&self, i: usize) -> [Vec3; 3] {
-        self.positions[i]
+    fn corners<T: Copy>(&self, values: &[T], t: usize) -> [T; 3] {
+        self.indices[t].map(|v| values[v as usize])
+    }
+
+    /// The three vertex positions of triangle `t`.
+    #[inline]
+    pub fn triangle(&self, t: usize) -> [Vec3; 3] {
+        self.corners(&self.positions, t)
+    }
+
+    /// The shading normals at the corners of triangle `t`.
+    #[inline]
+    pub fn corner_normals(&self, t: usize) -> [Vec3; 3] {
+        self.corners(&self.normals, t)
+    }
+
+    /// Texture coordinates of set `set` (1: `TEXCOORD_1`, otherwise `TEXCOORD_0`) at the
+    /// corners of triangle `t`; `None` when no primitive had that set.
+    #[inline]
+    pub fn corner_uvs(&self, set: u32, t: usize) -> Option<[Vec2; 3]> {
+        let uvs = if set == 1 { &self.uv1 } else { &self.uv0 };
+        (!uvs.is_empty()).then(|| self.corners(uvs, t))
+    }
+
+    /// Vertex colours at the corners of triangle `t`; `None` when no primitive had colours.
+    #[inline]
+    pub fn corner_colors(&self, t: usize) -> Option<[Vec4; 3]> {
+        (!self.colors.is_empty()).then(|| self.corners(&self.colors, t))
+    }
+
+    /// Tangents at the corners of triangle `t`; `None` when no primitive had (or was given)
+    /// tangents. A zero `w` marks a vertex without one.
+    #[inline]
+    pub fn corner_tangents(&self, t: usize) -> Option<[Vec4; 3]> {
+        (!self.tangents.is_empty()).then(|| self.corners(&self.tangents, t))
     }
 
     /// Approximate heap size in bytes.
@@ -146,6 +192,7 @@ impl TriangleSoup {
             + size_of_val(self.uv1.as_slice())
             + size_of_val(self.colors.as_slice())
             + size_of_val(self.tangents.as_slice())
+            + size_of_val(self.indices.as_slice())
             + size_of_val(self.material.as_slice())
             + size_of_val(self.instance.as_slice())
     }
@@ -671,14 +718,37 @@ impl Scene {
     pub fn check_references(&self) -> Result<(), LoadErrorKind> {
         let bad =
             |what, index: usize, count| Err(LoadErrorKind::BadReference { what, index, count });
-        let triangles = self.soup.positions.len();
+        let soup = &self.soup;
+        let triangles = soup.indices.len();
         for (what, len) in [
-            ("triangle normals", self.soup.normals.len()),
-            ("triangle materials", self.soup.material.len()),
+            ("triangle materials", soup.material.len()),
+            ("triangle instances", soup.instance.len()),
         ] {
             if len != triangles {
                 return bad(what, len, triangles);
             }
+        }
+        let vertices = soup.positions.len();
+        if soup.normals.len() != vertices {
+            return bad("vertex normals", soup.normals.len(), vertices);
+        }
+        for (what, len) in [
+            ("vertex uv0", soup.uv0.len()),
+            ("vertex uv1", soup.uv1.len()),
+            ("vertex colours", soup.colors.len()),
+            ("vertex tangents", soup.tangents.len()),
+        ] {
+            if len != 0 && len != vertices {
+                return bad(what, len, vertices);
+            }
+        }
+        if let Some(&v) = soup
+            .indices
+            .iter()
+            .flatten()
+            .find(|&&v| v as usize >= vertices)
+        {
+            return bad("triangle vertex", v as usize, vertices);
         }
         if let Some(&m) = self
             .soup

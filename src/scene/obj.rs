@@ -15,7 +15,7 @@
 //!   specular term off: Blinn-Phong specular 0 and roughness 1.
 //! - `map_Bump`/`bump`/`norm` -> normal map.
 
-use super::builder::TriangleIn;
+use super::builder::VerticesIn;
 use super::{
     AlphaMode, FileAccess, Format, ImageSource, Instance, LoadError, LoadErrorKind, LoadOptions,
     Material, Sampler, Scene, SoupBuilder, Texture, TextureRef, UnusableImage,
@@ -214,17 +214,44 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         });
         let triangles = mesh.indices.len() / 3;
         builder.reserve(triangles).map_err(err)?;
-        for t in 0..triangles {
-            let corner = [3 * t, 3 * t + 1, 3 * t + 2];
-            let tri = TriangleIn {
-                positions: corner.map(|k| positions[mesh.indices[k] as usize]),
-                normals: has_normals
-                    .then(|| corner.map(|k| normals[mesh.normal_indices[k] as usize])),
-                uv0: has_uvs.then(|| corner.map(|k| texcoords[mesh.texcoord_indices[k] as usize])),
-                ..Default::default()
+        // OBJ indexes positions, normals and texture coordinates separately; a vertex is one
+        // distinct (position, normal, uv) triple, stored once however many faces share it.
+        let mut vertex_of = std::collections::HashMap::with_capacity(positions.len());
+        let mut vertices = ObjVertices::default();
+        let mut corners = Vec::with_capacity(mesh.indices.len());
+        for k in 0..triangles * 3 {
+            let p = mesh.indices[k];
+            let n = if has_normals {
+                mesh.normal_indices[k]
+            } else {
+                0
             };
-            builder.push(&tri, material, instance);
+            let t = if has_uvs { mesh.texcoord_indices[k] } else { 0 };
+            let next = vertices.positions.len();
+            let v = *vertex_of.entry((p, n, t)).or_insert_with(|| {
+                vertices.positions.push(positions[p as usize]);
+                if has_normals {
+                    vertices.normals.push(normals[n as usize]);
+                }
+                if has_uvs {
+                    vertices.uv0.push(texcoords[t as usize]);
+                }
+                next
+            });
+            corners.push(v);
         }
+        let vertices_in = VerticesIn {
+            positions: &vertices.positions,
+            normals: has_normals.then_some(vertices.normals.as_slice()),
+            uv0: has_uvs.then_some(vertices.uv0.as_slice()),
+            ..Default::default()
+        };
+        builder.push_primitive(
+            &vertices_in,
+            corners.chunks_exact(3).map(|c| [c[0], c[1], c[2]]),
+            material,
+            instance,
+        );
     }
     if uses_default {
         materials.push(obj_default_material());
@@ -457,4 +484,12 @@ mod tests {
         assert_eq!(mat.base_color.w, 0.75);
         assert_eq!(mat.alpha_mode, AlphaMode::Blend);
     }
+}
+
+/// One OBJ mesh's distinct vertices.
+#[derive(Default)]
+struct ObjVertices {
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    uv0: Vec<Vec2>,
 }

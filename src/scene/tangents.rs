@@ -21,19 +21,16 @@ impl bevy_mikktspace::Geometry for Faces<'_> {
         3
     }
     fn position(&self, face: usize, vert: usize) -> [f32; 3] {
-        self.soup.positions[self.faces[face]][vert].to_array()
+        self.soup.triangle(self.faces[face])[vert].to_array()
     }
     fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
-        self.soup.normals[self.faces[face]][vert].to_array()
+        self.soup.corner_normals(self.faces[face])[vert].to_array()
     }
     fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
-        let tri = self.faces[face];
-        let uvs = if self.uv_set[face] == 1 {
-            &self.soup.uv1
-        } else {
-            &self.soup.uv0
-        };
-        let uv = uvs.get(tri).map_or(glam::Vec2::ZERO, |t| t[vert]);
+        let uv = self
+            .soup
+            .corner_uvs(self.uv_set[face], self.faces[face])
+            .map_or(glam::Vec2::ZERO, |t| t[vert]);
         // MikkTSpace works with v up (OpenGL); glTF's v points down the image, and its normal
         // maps' green channel points up the image.
         [uv.x, 1.0 - uv.y]
@@ -63,7 +60,7 @@ pub fn generate_missing(scene: &mut Scene) -> usize {
         let Some(normal_map) = material.normal_texture else {
             continue;
         };
-        if soup.tangents.get(tri).is_some_and(|t| t[0].w != 0.0) {
+        if soup.corner_tangents(tri).is_some_and(|t| t[0].w != 0.0) {
             continue;
         }
         faces.push(tri);
@@ -82,13 +79,43 @@ pub fn generate_missing(scene: &mut Scene) -> usize {
         return 0;
     }
     let out = geometry.out;
-    let count = soup.len();
-    let tangents = &mut scene.soup.tangents;
-    if tangents.len() < count {
-        tangents.resize(count, [Vec4::ZERO; 3]);
+    let soup = &mut scene.soup;
+    let vertices = soup.vertex_count();
+    if soup.tangents.len() < vertices {
+        soup.tangents.resize(vertices, Vec4::ZERO);
     }
-    for (face, tri) in faces.iter().enumerate() {
-        tangents[*tri] = out[face];
+    // Tangents are stored per vertex. MikkTSpace gives one per triangle corner, the same at
+    // every corner of a vertex except where it splits the tangent space (a mirrored UV seam
+    // inside one vertex, say): there the corner gets a copy of the vertex of its own.
+    let mut assigned = vec![false; vertices];
+    for (face, &tri) in faces.iter().enumerate() {
+        for (corner, &tangent) in out[face].iter().enumerate() {
+            let v = soup.indices[tri][corner] as usize;
+            if !assigned.get(v).copied().unwrap_or(true) {
+                assigned[v] = true;
+                soup.tangents[v] = tangent;
+            } else if soup.tangents[v] != tangent {
+                soup.indices[tri][corner] = duplicate_vertex(soup, v);
+                soup.tangents.push(tangent);
+            }
+        }
     }
     faces.len()
+}
+
+/// Appends a copy of vertex `v` (every attribute but the tangent, which the caller pushes)
+/// and returns its index.
+fn duplicate_vertex(soup: &mut TriangleSoup, v: usize) -> u32 {
+    let new = soup.positions.len() as u32;
+    soup.positions.push(soup.positions[v]);
+    soup.normals.push(soup.normals[v]);
+    for uvs in [&mut soup.uv0, &mut soup.uv1] {
+        if let Some(&uv) = uvs.get(v) {
+            uvs.push(uv);
+        }
+    }
+    if let Some(&c) = soup.colors.get(v) {
+        soup.colors.push(c);
+    }
+    new
 }
