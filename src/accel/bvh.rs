@@ -65,12 +65,10 @@ pub(super) fn build(
     steps.mark("ploc");
     ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
     steps.mark("reinsertion");
-    let cwbvh = obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(
-        &bvh2,
-        params.max_prims_per_leaf.clamp(1, 3),
-        true,
-        false,
-    );
+    let max_prims = params.max_prims_per_leaf.clamp(1, 3);
+    let cwbvh = super::wide::convert(&bvh2, max_prims).unwrap_or_else(|| {
+        obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&bvh2, max_prims, true, false)
+    });
     drop(bvh2);
     steps.mark("wide bvh conversion");
     cwbvh

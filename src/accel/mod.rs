@@ -8,6 +8,7 @@
 
 mod bvh;
 mod linear;
+mod wide;
 
 use crate::geometry::{PreparedTriangle, Ray};
 use crate::measure::{Step, Steps};
