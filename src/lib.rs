@@ -11,7 +11,7 @@
 //! ```
 //!
 //! Many views of one prepared scene (`render --views`): [`views`] turns a spec into cameras
-//! and names their files.
+//! and names their files, [`dataset`] writes the `transforms.json` that NeRF tools read.
 //!
 //! Every default (image size, field of view, ambient, the light rig) is in [`setup`]. Importers
 //! ([`scene`]) never call the tracer; the tracer never sees a glTF or OBJ type; only [`cli`] and
@@ -46,6 +46,7 @@ pub mod bsdf;
 pub mod camera;
 pub mod cli;
 pub mod compare;
+pub mod dataset;
 pub mod environment;
 pub mod geometry;
 pub mod integrator;
