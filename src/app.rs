@@ -17,6 +17,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
+mod multi_view;
+
 /// Wall time and peak memory after each phase of a render, for `--stats`.
 #[derive(Default)]
 struct Phases {
@@ -383,6 +385,10 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         }
         None => None,
     };
+    if let Some(spec) = &args.views {
+        // Many views after one load and one BVH build: its own flow, in app/multi_view.rs.
+        return multi_view::render_views(args, spec, env_file);
+    }
     let output = PendingOutput::reserve(&args.output, args.no_clobber)?;
     let (threads, pool) = worker_pool(args.threads)?;
 

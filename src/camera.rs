@@ -132,15 +132,8 @@ impl View {
 pub fn auto_camera(bounds: &Bounds, aspect: f32) -> Camera {
     let yfov = crate::setup::DEFAULT_YFOV_DEGREES.to_radians();
     let center = bounds.center();
-    // Any positive radius is framed as it is (a model in micrometres is still a model); only an
-    // empty or single-point scene gets a unit sphere.
-    let radius = match bounds.radius() {
-        r if r > 0.0 && r.is_finite() => r,
-        _ => 1.0,
-    };
-    let half_h = (yfov * 0.5).tan();
-    let half_fov = half_h.min(half_h * aspect).atan();
-    let distance = radius / half_fov.sin() * 1.05;
+    let radius = framing_radius(bounds);
+    let distance = framing_distance(radius, yfov, aspect);
     let direction = Vec3::new(0.55, 0.45, 1.0).normalize();
     look_at(
         center + direction * distance,
@@ -150,6 +143,25 @@ pub fn auto_camera(bounds: &Bounds, aspect: f32) -> Camera {
         distance,
         radius,
     )
+}
+
+/// The radius of the sphere the automatic camera frames: the bounding sphere's. Any positive
+/// radius is framed as it is (a model in micrometres is still a model); only an empty or
+/// single-point scene gets a unit sphere.
+pub fn framing_radius(bounds: &Bounds) -> f32 {
+    match bounds.radius() {
+        r if r > 0.0 && r.is_finite() => r,
+        _ => 1.0,
+    }
+}
+
+/// How far from the centre of a sphere of `radius` a perspective camera with vertical field of
+/// view `yfov` (radians) and image aspect `aspect` (width / height) stands to see all of it,
+/// with a 5% margin: the sphere fits the narrower of the two fields of view.
+pub fn framing_distance(radius: f32, yfov: f32, aspect: f32) -> f32 {
+    let half_h = (yfov * 0.5).tan();
+    let half_fov = half_h.min(half_h * aspect).atan();
+    radius / half_fov.sin() * 1.05
 }
 
 /// A perspective camera at `from` looking at `at` with `up`; near and far planes bracket a

@@ -59,7 +59,8 @@ pub struct InfoArgs {
 pub struct RenderArgs {
     /// The model: .gltf, .glb or .obj.
     pub model: PathBuf,
-    /// Output image: .png (8-bit sRGB with alpha), .exr or .hdr (linear float).
+    /// Output image: .png (8-bit sRGB with alpha), .exr or .hdr (linear float); with --views,
+    /// the folder the views are written to.
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
     /// Image width in pixels [default: 1024].
@@ -87,7 +88,8 @@ pub struct RenderArgs {
     /// Place the camera here instead (X,Y,Z); with --look-at, --up and --yfov.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub look_from: Option<Vec3>,
-    /// Point the camera at this point (X,Y,Z) [default: the scene's centre].
+    /// Point the camera (with --views: every generated view) at this point (X,Y,Z)
+    /// [default: the scene's centre].
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub look_at: Option<Vec3>,
     /// Camera up vector (X,Y,Z) [default: 0,1,0].
@@ -96,6 +98,36 @@ pub struct RenderArgs {
     /// Vertical field of view in degrees [default: 45, or the file camera's].
     #[arg(long, value_name = "DEG")]
     pub yfov: Option<f32>,
+    /// Render many views after one load and one BVH build, into the folder -o names:
+    /// orbit:N (a circle around the model), sphere:N (spread evenly over a sphere), random:N
+    /// (random directions from --seed), cameras (every camera of the file), or a JSON file of
+    /// views (format in the README). Each view writes its image, the AOVs asked for and its
+    /// view file; the folder gets a transforms.json (nerfstudio, instant-ngp).
+    #[arg(
+        long,
+        value_name = "SPEC",
+        conflicts_with_all = ["view", "camera", "look_from", "up", "time_limit", "stats"]
+    )]
+    pub views: Option<String>,
+    /// With --views orbit:N: elevation of the circle above the target, in degrees.
+    #[arg(
+        long,
+        default_value_t = crate::setup::DEFAULT_ORBIT_ELEVATION_DEGREES,
+        value_name = "DEG",
+        allow_hyphen_values = true,
+        requires = "views"
+    )]
+    pub orbit_elevation: f32,
+    /// With --views orbit:N, sphere:N or random:N: distance of the views from the target
+    /// [default: the automatic camera's, which frames the whole model].
+    #[arg(long, value_name = "X", requires = "views", allow_hyphen_values = true)]
+    pub orbit_radius: Option<f32>,
+    /// With --views: each view's image, relative to the -o folder; {view} is the view number,
+    /// {view:03} the number padded to 3 digits [default: {view:03}.png, wider past 1000
+    /// views]. With --views, --depth-out, --normal-out, --mask-out, --segmentation-out and
+    /// --view-out take such patterns too (--view-out default: {view:03}.view.json).
+    #[arg(long, value_name = "PATTERN", requires = "views")]
+    pub view_name: Option<String>,
     /// Acceleration structure: the BVH, or a linear scan of every triangle (the baseline).
     #[arg(long, value_enum, default_value_t = AccelKind::Bvh)]
     pub accel: AccelKind,

@@ -10,6 +10,9 @@
 //! outputs      PendingOutput::commit, aov::write_*        output.rs, aov.rs, view.rs
 //! ```
 //!
+//! Many views of one prepared scene (`render --views`): [`views`] turns a spec into cameras
+//! and names their files, [`dataset`] writes the `transforms.json` that NeRF tools read.
+//!
 //! Every default (image size, field of view, ambient, the light rig) is in [`setup`]. Importers
 //! ([`scene`]) never call the tracer; the tracer never sees a glTF or OBJ type; only [`cli`] and
 //! [`app`] know the command line.
@@ -43,6 +46,7 @@ pub mod bsdf;
 pub mod camera;
 pub mod cli;
 pub mod compare;
+pub mod dataset;
 pub mod environment;
 pub mod geometry;
 pub mod integrator;
@@ -58,5 +62,6 @@ pub mod setup;
 pub mod shading;
 pub mod texture;
 pub mod view;
+pub mod views;
 
 pub use scene::{LoadError, LoadErrorKind, LoadOptions, Scene};

@@ -24,6 +24,14 @@ pub const DEFAULT_HEIGHT: u32 = 768;
 /// Vertical field of view of the automatic camera and of `--look-from` cameras, in degrees.
 pub const DEFAULT_YFOV_DEGREES: f32 = 45.0;
 
+/// Elevation of `--views orbit:N` above the model's centre, in degrees: high enough to see the
+/// top of a model standing on the ground, low enough to see its sides.
+pub const DEFAULT_ORBIT_ELEVATION_DEGREES: f32 = 20.0;
+
+/// Most views one `--views` run renders: far more than any dataset of one model needs, few
+/// enough that the file names and poses of all of them are planned up front in a few MB.
+pub const MAX_VIEWS: usize = 100_000;
+
 /// Ambient factor with the default light rig: enough to show the unlit side of a model.
 pub const AMBIENT_WITH_DEFAULT_RIG: f32 = 0.08;
 

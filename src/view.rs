@@ -223,13 +223,21 @@ impl ViewFile {
 
     /// Reads and checks a view file.
     pub fn read(path: &Path) -> Result<ViewFile, ViewError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ViewError {
+            path: path.display().to_string(),
+            problem: e.to_string(),
+        })?;
+        ViewFile::from_json(&text, path)
+    }
+
+    /// Parses and checks the text of a view file; `path` names it in errors.
+    pub fn from_json(text: &str, path: &Path) -> Result<ViewFile, ViewError> {
         let err = |problem: String| ViewError {
             path: path.display().to_string(),
             problem,
         };
-        let text = std::fs::read_to_string(path).map_err(|e| err(e.to_string()))?;
         let view: ViewFile =
-            serde_json::from_str(&text).map_err(|e| err(format!("not a meshtracer view: {e}")))?;
+            serde_json::from_str(text).map_err(|e| err(format!("not a meshtracer view: {e}")))?;
         if view.meshtracer_view != VIEW_VERSION {
             return Err(err(format!(
                 "view version {} (this meshtracer reads {VIEW_VERSION})",
@@ -274,11 +282,47 @@ impl ViewFile {
 
     /// The camera this view describes.
     pub fn camera(&self) -> Result<Camera, ViewError> {
-        let c = &self.camera;
-        let err = |problem: &str| ViewError {
+        self.camera.to_camera().map_err(|problem| ViewError {
             path: "view".into(),
-            problem: problem.into(),
-        };
+            problem,
+        })
+    }
+
+    /// The lights this view describes.
+    pub fn lights(&self) -> Vec<Light> {
+        self.lights
+            .iter()
+            .filter_map(|l| to_light(l).ok())
+            .collect()
+    }
+
+    /// The view as the pretty JSON text [`ViewFile::write`] writes.
+    pub fn to_json(&self) -> String {
+        let mut text = serde_json::to_string_pretty(self).unwrap_or_default();
+        text.push('\n');
+        text
+    }
+
+    /// Writes the view as pretty JSON, atomically.
+    pub fn write(&self, path: &Path) -> Result<(), crate::output::SaveError> {
+        crate::output::write_atomic(path, self.to_json().as_bytes())
+    }
+}
+
+impl ViewCamera {
+    /// The camera this record describes, or what is wrong with it.
+    pub fn to_camera(&self) -> Result<Camera, String> {
+        let c = self;
+        let err = |problem: &str| problem.to_string();
+        let finite = |v: [f32; 3]| v.iter().all(|x| x.is_finite());
+        if !(finite(c.position) && finite(c.look_at) && finite(c.up)) {
+            return Err(err("camera vectors must be finite"));
+        }
+        if !(c.znear.is_finite() && c.znear >= 0.0) || c.zfar.is_some_and(f32::is_nan) {
+            return Err(err(
+                "znear must be a finite number, 0 or more, and zfar a number",
+            ));
+        }
         let position = Vec3::from(c.position);
         let forward = (Vec3::from(c.look_at) - position)
             .try_normalize()
@@ -315,21 +359,6 @@ impl ViewFile {
             up,
             projection,
         })
-    }
-
-    /// The lights this view describes.
-    pub fn lights(&self) -> Vec<Light> {
-        self.lights
-            .iter()
-            .filter_map(|l| to_light(l).ok())
-            .collect()
-    }
-
-    /// Writes the view as pretty JSON, atomically.
-    pub fn write(&self, path: &Path) -> Result<(), crate::output::SaveError> {
-        let mut text = serde_json::to_string_pretty(self).unwrap_or_default();
-        text.push('\n');
-        crate::output::write_atomic(path, text.as_bytes())
     }
 }
 
