@@ -205,6 +205,12 @@ pub struct Row {
     pub rays: usize,
     /// Threads used.
     pub threads: usize,
+    /// The steps of the median build, with their times.
+    pub build_steps: Vec<(&'static str, Duration)>,
+    /// Heap bytes of the triangle soup (vertices, indices, materials).
+    pub soup_bytes: usize,
+    /// Heap bytes of the acceleration structure (nodes and the triangles' test data).
+    pub accel_bytes: usize,
 }
 
 impl Row {
@@ -277,12 +283,20 @@ pub fn measure(scene: &Scene, name: &str, options: &BenchOptions) -> Result<Row,
             AccelKind::Bvh,
             options.preset,
         );
-        builds.push(start.elapsed());
+        let time = start.elapsed();
+        let steps: Vec<(&'static str, Duration)> = built
+            .build_steps()
+            .iter()
+            .map(|s| (s.name, s.time))
+            .collect();
+        builds.push((time, steps));
         accel = Some(built);
     }
     let Some(bvh) = accel else {
         unreachable!("runs >= 1")
     };
+    builds.sort_by_key(|(time, _)| *time);
+    let (build, build_steps) = builds.swap_remove(builds.len() / 2);
     let rays = make_rays(scene, &bvh, options.kind, options.side, 7);
     // Warm-up run, which is also the reference answer.
     let expected = trace(&bvh, &rays, options.kind);
@@ -319,7 +333,10 @@ pub fn measure(scene: &Scene, name: &str, options: &BenchOptions) -> Result<Row,
     Ok(Row {
         name: name.into(),
         triangles: scene.soup.len(),
-        build: median(builds),
+        build,
+        build_steps,
+        soup_bytes: scene.soup.heap_bytes(),
+        accel_bytes: bvh.heap_bytes(),
         bvh_mrays: rays.len() as f64 / bvh_time.as_secs_f64().max(1e-9) / 1e6,
         linear_mrays: linear_mrays.map(|(_, _, m)| m),
         rays: rays.len(),
@@ -327,16 +344,16 @@ pub fn measure(scene: &Scene, name: &str, options: &BenchOptions) -> Result<Row,
     })
 }
 
-/// The table as Markdown.
+/// The tables as Markdown: throughput and memory, then the build's steps.
 pub fn markdown_table(rows: &[Row]) -> String {
     let mut out = String::from(
-        "| scene | triangles | build ms | BVH Mrays/s | linear Mrays/s | speedup | BVH ns/ray/thread | linear ns/ray/thread |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| scene | triangles | build ms | BVH Mrays/s | linear Mrays/s | speedup | BVH ns/ray/thread | linear ns/ray/thread | soup MB | BVH MB |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         let opt =
             |v: Option<f64>, digits: usize| v.map_or("-".to_string(), |v| format!("{v:.digits$}"));
         out.push_str(&format!(
-            "| {} | {} | {:.1} | {:.2} | {} | {} | {:.0} | {} |\n",
+            "| {} | {} | {:.1} | {:.2} | {} | {} | {:.0} | {} | {:.1} | {:.1} |\n",
             r.name,
             r.triangles,
             r.build.as_secs_f64() * 1e3,
@@ -345,7 +362,36 @@ pub fn markdown_table(rows: &[Row]) -> String {
             opt(r.speedup(), 0),
             r.bvh_ns_per_ray(),
             opt(r.linear_ns_per_ray(), 0),
+            r.soup_bytes as f64 / 1e6,
+            r.accel_bytes as f64 / 1e6,
         ));
+    }
+    // The build's steps, in the order they ran, as columns (presets with spatial splits
+    // have steps of their own).
+    let mut steps: Vec<&str> = Vec::new();
+    for (name, _) in rows.iter().flat_map(|r| &r.build_steps) {
+        if !steps.contains(name) {
+            steps.push(name);
+        }
+    }
+    if !steps.is_empty() {
+        out.push_str(&format!(
+            "\n| build steps, ms | {} |\n|---|{}\n",
+            steps.join(" | "),
+            "---:|".repeat(steps.len())
+        ));
+        for r in rows {
+            let cells: Vec<String> = steps
+                .iter()
+                .map(|step| {
+                    r.build_steps
+                        .iter()
+                        .find(|(name, _)| name == step)
+                        .map_or("-".into(), |(_, t)| format!("{:.1}", t.as_secs_f64() * 1e3))
+                })
+                .collect();
+            out.push_str(&format!("| {} | {} |\n", r.name, cells.join(" | ")));
+        }
     }
     out
 }
@@ -381,5 +427,48 @@ mod tests {
             assert!(row.rays > 100, "{kind:?}: {}", row.rays);
             assert!(row.linear_mrays.is_some());
         }
+    }
+
+    #[test]
+    fn the_report_gives_memory_and_build_steps() {
+        let scene = scene_from_soup(generated_mesh(2_000, 1), "test");
+        let options = BenchOptions {
+            side: 16,
+            runs: 3,
+            linear_budget: 0,
+            ..BenchOptions::default()
+        };
+        let row = measure(&scene, "gen", &options).unwrap();
+        let steps: Vec<&str> = row.build_steps.iter().map(|(name, _)| *name).collect();
+        assert_eq!(
+            steps,
+            [
+                "bounds",
+                "ploc",
+                "reinsertion",
+                "wide bvh conversion",
+                "triangle test data"
+            ]
+        );
+        let sum: Duration = row.build_steps.iter().map(|(_, t)| *t).sum();
+        assert!(
+            sum <= row.build,
+            "the steps are inside the build: {sum:?} vs {:?}",
+            row.build
+        );
+        // 2,000 triangles on 3 own vertices each: 6,000 x (12 + 12) + 2,000 x (12 + 4 + 4).
+        assert_eq!(row.soup_bytes, scene.soup.len() * (3 * 24 + 20));
+        assert!(
+            row.accel_bytes >= scene.soup.len() * 64,
+            "{}",
+            row.accel_bytes
+        );
+        let table = markdown_table(&[row]);
+        assert!(table.contains("| soup MB | BVH MB |"), "{table}");
+        assert!(
+            table.contains("| build steps, ms | bounds | ploc |"),
+            "{table}"
+        );
+        assert!(table.contains("\n| gen | "), "{table}");
     }
 }

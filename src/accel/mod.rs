@@ -163,6 +163,19 @@ impl Accel {
         self.triangles.len()
     }
 
+    /// Heap bytes: the triangles' test data in traversal order, their soup indices and flags,
+    /// and the BVH's nodes and primitive indices.
+    pub fn heap_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(self.triangles.as_slice())
+            + size_of_val(self.ids.as_slice())
+            + size_of_val(self.single_sided.as_slice())
+            + size_of_val(self.alpha_tested.as_slice())
+            + self.bvh.as_ref().map_or(0, |b| {
+                size_of_val(b.nodes.as_slice()) + size_of_val(b.primitive_indices.as_slice())
+            })
+    }
+
     /// True when it holds nothing.
     pub fn is_empty(&self) -> bool {
         self.triangles.is_empty()
