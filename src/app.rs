@@ -67,6 +67,19 @@ impl Phases {
 
 pub use crate::measure::peak_memory_bytes;
 
+/// The preset a BVH was built with, for the summary line: "VeryFast, auto" when `--bvh-preset
+/// auto` chose it.
+pub(crate) fn preset_label(
+    asked: crate::accel::BvhPreset,
+    built: crate::accel::BvhPreset,
+) -> String {
+    if asked == crate::accel::BvhPreset::Auto {
+        format!("{built:?}, auto")
+    } else {
+        format!("{built:?}")
+    }
+}
+
 /// The spp that fits `limit` seconds: one sample per pixel is rendered and timed, and the
 /// rest of the budget buys as many more passes of that cost as fit (at least 1, at most
 /// `max_spp`).
@@ -525,7 +538,15 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     }
     let (prepared, (image, stats, aovs)) = pool.install(|| -> Result<_> {
         let bvh_start = Instant::now();
-        let accel = Accel::build(&scene.soup, &scene.materials, args.accel, args.bvh_preset);
+        let rays = crate::setup::expected_rays(
+            u64::from(width) * u64::from(height),
+            settings.spp,
+            settings.lights.len(),
+            settings.integrator,
+            settings.bounces,
+        );
+        let preset = args.bvh_preset.for_work(scene.soup.len(), rays);
+        let accel = Accel::build(&scene.soup, &scene.materials, args.accel, preset);
         phases.mark("bvh build", bvh_start);
         phases.sub_steps(accel.build_steps());
         let prepare_start = Instant::now();
@@ -640,8 +661,8 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     if !args.quiet {
         let structure = match accel.kind() {
             AccelKind::Bvh => format!(
-                "BVH ({:?}) built in {:.1} ms",
-                args.bvh_preset,
+                "BVH ({}) built in {:.1} ms",
+                preset_label(args.bvh_preset, accel.preset()),
                 accel.build_time().as_secs_f64() * 1e3
             ),
             AccelKind::Linear => "linear scan (no BVH)".to_string(),

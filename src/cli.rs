@@ -131,8 +131,9 @@ pub struct RenderArgs {
     /// Acceleration structure: the BVH, or a linear scan of every triangle (the baseline).
     #[arg(long, value_enum, default_value_t = AccelKind::Bvh)]
     pub accel: AccelKind,
-    /// obvhs build preset for the BVH.
-    #[arg(long, value_enum, default_value_t = BvhPreset::Medium)]
+    /// obvhs build preset for the BVH; `auto` picks `very-fast` when the render traces fewer
+    /// than 32 rays a triangle (a big model, a small image), `medium` otherwise.
+    #[arg(long, value_enum, default_value_t = BvhPreset::Auto)]
     pub bvh_preset: BvhPreset,
     /// Worker threads (0 = one per core).
     #[arg(long, default_value_t = 0)]

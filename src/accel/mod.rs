@@ -27,9 +27,13 @@ pub enum AccelKind {
     Linear,
 }
 
-/// obvhs build presets, from fastest build to fastest traversal.
+/// obvhs build presets, from fastest build to fastest traversal, or chosen by the work.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum BvhPreset {
+    /// Chosen by the work at hand ([`BvhPreset::for_work`]): `very-fast` for few rays per
+    /// triangle, `medium` otherwise.
+    #[default]
+    Auto,
     /// `BvhBuildParams::fastest_build`.
     Fastest,
     /// `BvhBuildParams::very_fast_build`.
@@ -37,7 +41,6 @@ pub enum BvhPreset {
     /// `BvhBuildParams::fast_build`.
     Fast,
     /// `BvhBuildParams::medium_build`.
-    #[default]
     Medium,
     /// `BvhBuildParams::slow_build` (spatial pre-splits).
     Slow,
@@ -46,10 +49,26 @@ pub enum BvhPreset {
 }
 
 impl BvhPreset {
-    /// The obvhs parameters for this preset.
+    /// The preset to build over `triangles` triangles for about `rays` rays: `Auto` resolves
+    /// to `VeryFast` below [`crate::setup::AUTO_PRESET_RAYS_PER_TRIANGLE`] rays a triangle
+    /// and to `Medium` above; any other preset is kept.
+    pub fn for_work(self, triangles: usize, rays: f64) -> BvhPreset {
+        match self {
+            BvhPreset::Auto
+                if rays < crate::setup::AUTO_PRESET_RAYS_PER_TRIANGLE * triangles as f64 =>
+            {
+                BvhPreset::VeryFast
+            }
+            BvhPreset::Auto => BvhPreset::Medium,
+            other => other,
+        }
+    }
+
+    /// The obvhs parameters for this preset (`Auto`, unresolved, builds as `Medium`).
     pub fn params(self) -> obvhs::BvhBuildParams {
         use obvhs::BvhBuildParams as P;
         match self {
+            BvhPreset::Auto => P::medium_build(),
             BvhPreset::Fastest => P::fastest_build(),
             BvhPreset::VeryFast => P::very_fast_build(),
             BvhPreset::Fast => P::fast_build(),
@@ -87,6 +106,8 @@ pub struct Accel {
     bvh: Option<obvhs::cwbvh::CwBvh>,
     /// How long each step of the build took.
     steps: Steps,
+    /// The preset it was built with (resolved: never `Auto`).
+    preset: BvhPreset,
 }
 
 impl Accel {
@@ -140,7 +161,17 @@ impl Accel {
             alpha_tested,
             bvh,
             steps,
+            preset: if preset == BvhPreset::Auto {
+                BvhPreset::Medium
+            } else {
+                preset
+            },
         }
+    }
+
+    /// The preset the BVH was built with (`Medium` for an unresolved `Auto`).
+    pub fn preset(&self) -> BvhPreset {
+        self.preset
     }
 
     /// The structure's kind.

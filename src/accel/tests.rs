@@ -184,3 +184,22 @@ fn single_sided_triangles_are_invisible_from_behind() {
         assert!(both.intersect(&back).is_some_and(|h| !h.front));
     }
 }
+
+#[test]
+fn the_auto_preset_follows_the_rays_a_triangle() {
+    use crate::accel::BvhPreset;
+    // 1M triangles at 640x480, 4 spp, two lights: about 3.7M rays, under 32 a triangle.
+    assert_eq!(
+        BvhPreset::Auto.for_work(1_000_000, 3.7e6),
+        BvhPreset::VeryFast
+    );
+    assert_eq!(BvhPreset::Auto.for_work(15_000, 3.7e6), BvhPreset::Medium);
+    assert_eq!(BvhPreset::Slow.for_work(1_000_000, 1.0), BvhPreset::Slow);
+    let (soup, materials) = test_soup();
+    let built = Accel::build(&soup, &materials, AccelKind::Bvh, BvhPreset::Auto);
+    assert_eq!(
+        built.preset(),
+        BvhPreset::Medium,
+        "unresolved auto builds as medium"
+    );
+}

@@ -321,7 +321,16 @@ pub(super) fn render_views(
 
     let (summary, frames) = pool.install(|| -> Result<_> {
         let bvh_start = Instant::now();
-        let accel = Accel::build(&scene.soup, &scene.materials, args.accel, args.bvh_preset);
+        // Every view's rays count toward the choice of preset: the tree is built once.
+        let rays = crate::setup::expected_rays(
+            u64::from(width) * u64::from(height),
+            args.spp,
+            lights.len(),
+            args.integrator,
+            args.bounces,
+        ) * cameras.len() as f64;
+        let preset = args.bvh_preset.for_work(scene.soup.len(), rays);
+        let accel = Accel::build(&scene.soup, &scene.materials, args.accel, preset);
         let bvh_time = bvh_start.elapsed();
         let prepared = Prepared::from_parts(scene, accel, textures);
         let run = ViewRun {
@@ -351,6 +360,7 @@ pub(super) fn render_views(
         let summary = Summary {
             triangles: prepared.scene.soup.len(),
             accel: prepared.accel.kind(),
+            preset: prepared.accel.preset(),
             load_time,
             bvh_time,
             views: cameras.len(),
@@ -577,6 +587,7 @@ fn segmentation_ids(scene: &Scene) -> Vec<SegmentId> {
 struct Summary {
     triangles: usize,
     accel: AccelKind,
+    preset: crate::accel::BvhPreset,
     load_time: Duration,
     bvh_time: Duration,
     views: usize,
@@ -592,8 +603,8 @@ impl Summary {
     fn print(&self, args: &RenderArgs, wall: Duration) {
         let structure = match self.accel {
             AccelKind::Bvh => format!(
-                "BVH ({:?}) built once in {:.1} ms",
-                args.bvh_preset,
+                "BVH ({}) built once in {:.1} ms",
+                super::preset_label(args.bvh_preset, self.preset),
                 self.bvh_time.as_secs_f64() * 1e3
             ),
             AccelKind::Linear => "linear scan (no BVH)".to_string(),
