@@ -13,6 +13,14 @@ struct Faces<'a> {
     out: Vec<[Vec4; 3]>,
 }
 
+impl Faces<'_> {
+    /// The soup vertex at corner `vert` of face `face`.
+    #[inline]
+    fn vertex(&self, face: usize, vert: usize) -> usize {
+        self.soup.indices[self.faces[face]][vert] as usize
+    }
+}
+
 impl bevy_mikktspace::Geometry for Faces<'_> {
     fn num_faces(&self) -> usize {
         self.faces.len()
@@ -21,16 +29,21 @@ impl bevy_mikktspace::Geometry for Faces<'_> {
         3
     }
     fn position(&self, face: usize, vert: usize) -> [f32; 3] {
-        self.soup.triangle(self.faces[face])[vert].to_array()
+        self.soup.positions[self.vertex(face, vert)].to_array()
     }
     fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
-        self.soup.corner_normals(self.faces[face])[vert].to_array()
+        self.soup.normals[self.vertex(face, vert)].to_array()
     }
     fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
-        let uv = self
-            .soup
-            .corner_uvs(self.uv_set[face], self.faces[face])
-            .map_or(glam::Vec2::ZERO, |t| t[vert]);
+        let uvs = if self.uv_set[face] == 1 {
+            &self.soup.uv1
+        } else {
+            &self.soup.uv0
+        };
+        let uv = uvs
+            .get(self.vertex(face, vert))
+            .copied()
+            .unwrap_or(glam::Vec2::ZERO);
         // MikkTSpace works with v up (OpenGL); glTF's v points down the image, and its normal
         // maps' green channel points up the image.
         [uv.x, 1.0 - uv.y]
