@@ -15,7 +15,7 @@
 //!   specular term off: Blinn-Phong specular 0 and roughness 1.
 //! - `map_Bump`/`bump`/`norm` -> normal map.
 
-use super::builder::VerticesIn;
+use super::builder::{TriangleIn, VerticesIn};
 use super::{
     AlphaMode, FileAccess, Format, ImageSource, Instance, LoadError, LoadErrorKind, LoadOptions,
     Material, Sampler, Scene, SoupBuilder, Texture, TextureRef, UnusableImage,
@@ -214,6 +214,21 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         });
         let triangles = mesh.indices.len() / 3;
         builder.reserve(triangles).map_err(err)?;
+        if !has_normals {
+            // Flat shading: every triangle gets its own vertices with its face normal anyway,
+            // so there is nothing to weld.
+            for t in 0..triangles {
+                let corner = [3 * t, 3 * t + 1, 3 * t + 2];
+                let tri = TriangleIn {
+                    positions: corner.map(|k| positions[mesh.indices[k] as usize]),
+                    uv0: has_uvs
+                        .then(|| corner.map(|k| texcoords[mesh.texcoord_indices[k] as usize])),
+                    ..Default::default()
+                };
+                builder.push(&tri, material, instance);
+            }
+            continue;
+        }
         // OBJ indexes positions, normals and texture coordinates separately; a vertex is one
         // distinct (position, normal, uv) triple, stored once however many faces share it.
         let mut vertex_of = std::collections::HashMap::with_capacity(positions.len());
@@ -230,9 +245,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
             let next = vertices.positions.len();
             let v = *vertex_of.entry((p, n, t)).or_insert_with(|| {
                 vertices.positions.push(positions[p as usize]);
-                if has_normals {
-                    vertices.normals.push(normals[n as usize]);
-                }
+                vertices.normals.push(normals[n as usize]);
                 if has_uvs {
                     vertices.uv0.push(texcoords[t as usize]);
                 }
@@ -242,7 +255,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         }
         let vertices_in = VerticesIn {
             positions: &vertices.positions,
-            normals: has_normals.then_some(vertices.normals.as_slice()),
+            normals: Some(vertices.normals.as_slice()),
             uv0: has_uvs.then_some(vertices.uv0.as_slice()),
             ..Default::default()
         };
