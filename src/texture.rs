@@ -74,6 +74,30 @@ impl MipImage {
             }
             let (w, h) = ((last.width / 2).max(1), (last.height / 2).max(1));
             let mut texels = Vec::with_capacity((w * h) as usize);
+            if last.width % 2 == 0 && last.height % 2 == 0 {
+                // Even sides (power-of-two textures, nearly all of them): every 2x2 block is
+                // inside the level, so rows are read in pairs without clamping. Same sums,
+                // same rounding as the general loop below.
+                let lw = last.width as usize;
+                for pair in last.texels.chunks_exact(2 * lw) {
+                    let (top, bottom) = pair.split_at(lw);
+                    for (t, b) in top.chunks_exact(2).zip(bottom.chunks_exact(2)) {
+                        texels.push(std::array::from_fn(|c| {
+                            let sum = u32::from(t[0][c])
+                                + u32::from(t[1][c])
+                                + u32::from(b[0][c])
+                                + u32::from(b[1][c]);
+                            ((sum + 2) / 4) as u8
+                        }));
+                    }
+                }
+                levels.push(Level {
+                    width: w,
+                    height: h,
+                    texels,
+                });
+                continue;
+            }
             for y in 0..h {
                 for x in 0..w {
                     let mut sum = [0u32; 4];
@@ -245,7 +269,19 @@ fn decode(source: &ImageSource) -> Result<image::RgbaImage, String> {
         }
         (None, None) => return Err("no image data".into()),
     };
-    Ok(reader.map_err(|e| e.to_string())?.to_rgba8())
+    // into_rgba8 keeps an RGBA8 decode as it is; others (JPEG's RGB8) are converted once.
+    Ok(reader.map_err(|e| e.to_string())?.into_rgba8())
+}
+
+/// An RGBA8 image's texels, reusing its buffer (a copy only if the buffer's capacity is not a
+/// whole number of texels): a 2048² texture is 16 MB that need not be allocated, zeroed by the
+/// kernel and copied again.
+fn texels_of(img: image::RgbaImage) -> Vec<[u8; 4]> {
+    bytemuck::allocation::try_cast_vec(img.into_raw()).unwrap_or_else(|(_, raw)| {
+        raw.chunks_exact(4)
+            .map(|c| [c[0], c[1], c[2], c[3]])
+            .collect()
+    })
 }
 
 /// The materials that use an image, for messages: `material 'wood' (2)` or `materials 0, 3`.
@@ -401,8 +437,7 @@ impl TextureSet {
             .into_par_iter()
             .map(|(index, img)| {
                 let (w, h) = img.dimensions();
-                let texels: Vec<[u8; 4]> = img.pixels().map(|p| p.0).collect();
-                (index, MipImage::new(w, h, texels))
+                (index, MipImage::new(w, h, texels_of(img)))
             })
             .collect();
         for (index, mip) in built {
@@ -439,6 +474,21 @@ pub fn transform_uv(r: &TextureRef, uv: Vec2) -> Vec2 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn even_levels_average_like_odd_ones() {
+        // A 4x4 level takes the even fast path; the same texels inside a 5x4 image (odd width)
+        // take the clamping loop, whose first two blocks see the same 2x2 texels.
+        let texel = |x: u32, y: u32| [(x * 60 + y) as u8, (y * 50) as u8, (x * y * 9) as u8, 255];
+        let even = MipImage::new(4, 4, (0..16).map(|i| texel(i % 4, i / 4)).collect());
+        let odd = MipImage::new(5, 4, (0..20).map(|i| texel(i % 5, i / 5)).collect());
+        for y in 0..2 {
+            for x in 0..2 {
+                let at = |m: &MipImage| m.levels[1].texels[(y * m.levels[1].width + x) as usize];
+                assert_eq!(at(&even), at(&odd), "{x},{y}");
+            }
+        }
+    }
 
     #[test]
     fn chain_bytes_is_what_the_chain_takes() {
