@@ -17,6 +17,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+mod batch;
 mod multi_view;
 
 /// Wall time and peak memory after each phase of a render, for `--stats`.
@@ -96,6 +97,8 @@ pub fn run(command: Command) -> Result<()> {
     match command {
         Command::Info(args) => info(&args),
         Command::Render(args) => render_command(&args),
+        Command::Batch(args) => batch::batch_command(&args),
+        Command::BatchMerge(args) => batch::merge_command(&args),
         Command::Bench(args) => bench_command(&args),
         Command::Compare(args) => compare_command(&args),
     }
