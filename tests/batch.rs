@@ -460,9 +460,10 @@ fn shards_together_equal_the_whole_run_and_survive_a_shuffled_manifest() {
     assert_eq!(shard_ids(&reordered), shards);
 }
 
-/// A shard whose run was damaged (one job's output corrupted, another's record lost as if the
-/// run had been killed in the middle of it) resumes: --resume redoes those two jobs only,
-/// reports the others skipped, and the files are again the undamaged run's.
+/// A shard whose run was damaged (one job's output corrupted, another's record lost and a
+/// temporary file left, as if the run had been killed in the middle of it) resumes: --resume
+/// redoes those two jobs only, reports the others skipped, and the files are again the
+/// undamaged run's.
 #[test]
 fn resume_redoes_only_unfinished_or_damaged_jobs() {
     let dir = tempfile::tempdir().unwrap();
@@ -490,6 +491,12 @@ fn resume_redoes_only_unfinished_or_damaged_jobs() {
     std::fs::write(out.join(&first_output), &bytes[..bytes.len() / 2]).unwrap();
     let unrecorded = &ids[1];
     std::fs::remove_file(out.join(unrecorded).join("job.json")).unwrap();
+    // What a kill leaves of a file being written (it cannot clean up): gone once the job is redone.
+    std::fs::write(
+        out.join(unrecorded).join(".meshtracer-AbC123.partial"),
+        b"half",
+    )
+    .unwrap();
 
     batch(&manifest, &out, &["--shard", "1/2", "--resume"], &[], true);
     let resumed = by_id(&records(&shard));
@@ -505,7 +512,7 @@ fn resume_redoes_only_unfinished_or_damaged_jobs() {
     assert_eq!(
         outputs_tree(&out),
         pristine,
-        "the redone jobs wrote the same bytes"
+        "the redone jobs wrote the same bytes and left no temporary file"
     );
     assert_eq!(
         std::fs::read(out.join("results.0-of-2.jsonl")).unwrap(),

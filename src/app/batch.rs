@@ -221,33 +221,11 @@ fn run_job(args: &BatchArgs, dir: &Path, entry: &Entry, progress: &Progress) -> 
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
         Err(e) => return fail(format!("{}: {e}", record_path.display())),
     }
-    // render --views makes the folders its names need; a single view's outputs are files
-    // whose folders must exist.
-    let mut folders = vec![job_dir.clone()];
-    if render_args.views.is_none() {
-        let a = &render_args;
-        let files = [
-            Some(&a.output),
-            a.depth_out.as_ref(),
-            a.normal_out.as_ref(),
-            a.mask_out.as_ref(),
-            a.segmentation_out.as_ref(),
-            a.view_out.as_ref(),
-            a.env_out.as_ref(),
-            a.stats.as_ref(),
-        ];
-        folders.extend(
-            files
-                .into_iter()
-                .flatten()
-                .filter_map(|f| f.parent())
-                .map(Path::to_path_buf),
-        );
-    }
-    for folder in folders {
+    for folder in output_folders(&render_args, &job_dir) {
         if let Err(e) = std::fs::create_dir_all(&folder) {
             return fail(format!("cannot create {}: {e}", folder.display()));
         }
+        remove_leftovers(&folder);
     }
     progress.start_job(&job.id);
     let rendered = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
@@ -280,6 +258,56 @@ fn run_job(args: &BatchArgs, dir: &Path, entry: &Entry, progress: &Progress) -> 
         return fail(format!("job '{}': {e}", job.id));
     }
     Outcome::Done(Box::new(record), note)
+}
+
+/// The folders a job writes into (those a `{view}` pattern names excepted: render --views
+/// makes them).
+fn output_folders(args: &RenderArgs, job_dir: &Path) -> Vec<PathBuf> {
+    let names = [
+        args.depth_out.as_ref(),
+        args.normal_out.as_ref(),
+        args.mask_out.as_ref(),
+        args.segmentation_out.as_ref(),
+        args.view_out.as_ref(),
+        args.env_out.as_ref(),
+        args.stats.as_ref(),
+    ];
+    let image = match &args.views {
+        // With views the names are relative to the job's folder, the image a --view-name.
+        Some(_) => args.view_name.as_ref().map(PathBuf::from),
+        None => Some(args.output.clone()),
+    };
+    let mut folders = vec![job_dir.to_path_buf()];
+    for file in names.into_iter().flatten().cloned().chain(image) {
+        // A single view's paths already start with the job's folder; --views names are
+        // relative to it.
+        let file = if args.views.is_some() {
+            job_dir.join(file)
+        } else {
+            file
+        };
+        if let Some(folder) = file.parent() {
+            if !folder.to_string_lossy().contains('{') && !folders.iter().any(|f| f == folder) {
+                folders.push(folder.to_path_buf());
+            }
+        }
+    }
+    folders
+}
+
+/// Removes the temporary files (`.meshtracer-*.partial`) that a killed run left in `folder`
+/// (a kill cannot clean up): a job about to be redone owns its folders.
+fn remove_leftovers(folder: &Path) {
+    let Ok(listing) = std::fs::read_dir(folder) else {
+        return;
+    };
+    for item in listing.flatten() {
+        let name = item.file_name();
+        let name = name.to_string_lossy();
+        if name.starts_with(".meshtracer-") && name.ends_with(".partial") {
+            let _ = std::fs::remove_file(item.path());
+        }
+    }
 }
 
 /// The record of a finished render: its timings and every output with its hash.
