@@ -15,8 +15,9 @@ use crate::setup::{
 use anyhow::{bail, Context, Result};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
+mod batch;
 mod multi_view;
 
 /// Wall time and peak memory after each phase of a render, for `--stats`.
@@ -109,6 +110,8 @@ pub fn run(command: Command) -> Result<()> {
     match command {
         Command::Info(args) => info(&args),
         Command::Render(args) => render_command(&args),
+        Command::Batch(args) => batch::batch_command(&args),
+        Command::BatchMerge(args) => batch::merge_command(&args),
         Command::Bench(args) => bench_command(&args),
         Command::Compare(args) => compare_command(&args),
     }
@@ -325,7 +328,43 @@ fn check_size(args: &RenderArgs, width: u32, height: u32) -> Result<()> {
     Ok(())
 }
 
+/// What one render (one view, or `--views`) did: for a caller that records it.
+pub(crate) struct RenderReport {
+    /// Triangles traced.
+    pub triangles: usize,
+    /// Wall time of the load (parse, flatten, tangents).
+    pub load: Duration,
+    /// Wall time of the BVH build (zero for the linear scan).
+    pub bvh: Duration,
+    /// Render time, of every view together.
+    pub render: Duration,
+    /// Every file written, in the order written.
+    pub outputs: Vec<std::path::PathBuf>,
+}
+
+/// The process's Ctrl-C flag, shared by every render of the process (a batch runs many):
+/// ctrlc takes one handler per process, so a flag made per render would go unheard after the
+/// first. Without a handler Ctrl-C kills the process; every file is still whole (renamed into
+/// place after a complete write).
+fn interrupt_flag() -> Arc<AtomicBool> {
+    static FLAG: std::sync::OnceLock<Arc<AtomicBool>> = std::sync::OnceLock::new();
+    Arc::clone(FLAG.get_or_init(|| {
+        let flag = Arc::new(AtomicBool::new(false));
+        let handler_flag = Arc::clone(&flag);
+        let _ = ctrlc::set_handler(move || handler_flag.store(true, Ordering::SeqCst));
+        flag
+    }))
+}
+
 fn render_command(args: &RenderArgs) -> Result<()> {
+    render_model(args, &|_, _| {}).map(|_| ())
+}
+
+/// Renders one model as `render` does, calling `on_view(done, total)` as views finish.
+fn render_model(
+    args: &RenderArgs,
+    on_view: &(dyn Fn(usize, usize) + Sync),
+) -> Result<RenderReport> {
     let run_start = Instant::now();
     // Everything that can be refused is refused before any work: options, output, then model.
     if args.spp == 0 || args.spp > args.max_spp {
@@ -400,7 +439,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     };
     if let Some(spec) = &args.views {
         // Many views after one load and one BVH build: its own flow, in app/multi_view.rs.
-        return multi_view::render_views(args, spec, env_file);
+        return multi_view::render_views(args, spec, env_file, on_view);
     }
     let output = PendingOutput::reserve(&args.output, args.no_clobber)?;
     let (threads, pool) = worker_pool(args.threads)?;
@@ -529,13 +568,7 @@ fn render_command(args: &RenderArgs) -> Result<()> {
         }
     }
 
-    let cancel = Arc::new(AtomicBool::new(false));
-    {
-        let cancel = Arc::clone(&cancel);
-        // If a handler cannot be installed, Ctrl-C simply kills the process; the output file is
-        // still safe because it is only renamed into place after a complete write.
-        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
-    }
+    let cancel = interrupt_flag();
     let (prepared, (image, stats, aovs)) = pool.install(|| -> Result<_> {
         let bvh_start = Instant::now();
         let rays = crate::setup::expected_rays(
@@ -693,7 +726,25 @@ fn render_command(args: &RenderArgs) -> Result<()> {
             args.output.display()
         );
     }
-    Ok(())
+    on_view(1, 1);
+    // Every path given was written above (AOVs whenever one is asked for).
+    let outputs = [
+        Some(&args.output),
+        args.depth_out.as_ref(),
+        args.normal_out.as_ref(),
+        args.segmentation_out.as_ref(),
+        args.mask_out.as_ref(),
+        args.env_out.as_ref(),
+        args.view_out.as_ref(),
+        args.stats.as_ref(),
+    ];
+    Ok(RenderReport {
+        triangles: scene.soup.len(),
+        load: load_time,
+        bvh: accel.build_time(),
+        render: stats.time,
+        outputs: outputs.into_iter().flatten().cloned().collect(),
+    })
 }
 
 fn choose_camera(

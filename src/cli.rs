@@ -19,6 +19,11 @@ pub struct Cli {
 pub enum Command {
     /// Render a model to an image (.png 8-bit sRGB, .exr/.hdr linear float).
     Render(Box<RenderArgs>),
+    /// Render every job of a manifest (a folder of models, or a JSONL file of jobs) into
+    /// DIR/<job id>/, recording each job in DIR/results.jsonl; --resume, --shard I/N.
+    Batch(Box<BatchArgs>),
+    /// Join the results.I-of-N.jsonl of every shard of a batch into DIR/results.jsonl.
+    BatchMerge(BatchMergeArgs),
     /// Show what the importer read from a model: triangles, materials, cameras, lights, bounds.
     Info(InfoArgs),
     /// Measure BVH build time and BVH vs. linear-scan throughput on generated meshes of growing
@@ -55,7 +60,7 @@ pub struct InfoArgs {
 }
 
 /// `meshtracer render`.
-#[derive(Debug, Args)]
+#[derive(Debug, Args, Clone)]
 pub struct RenderArgs {
     /// The model: .gltf, .glb or .obj.
     pub model: PathBuf,
@@ -248,6 +253,53 @@ pub struct RenderArgs {
     /// Loading options.
     #[command(flatten)]
     pub load: LoadArgs,
+}
+
+/// `meshtracer batch`: the render options are the defaults of every job, with the model
+/// argument naming the manifest and `-o` the output folder. Output options (`--depth-out`...)
+/// name files inside each job's folder.
+#[derive(Debug, Args)]
+#[command(
+    mut_arg("model", |a| a
+        .value_name("MANIFEST")
+        .help("A folder of models (every .gltf, .glb and .obj below it, sorted) or a JSONL file of jobs, one a line: {\"id\", \"model\", \"views\", \"width\", \"height\", \"spp\", \"seed\", \"outputs\"}; relative model paths resolve against the manifest's folder")),
+    mut_arg("output", |a| a
+        .value_name("DIR")
+        .help("The output folder: each job writes into DIR/<job id>/, the batch records every job in DIR/results.jsonl (results.I-of-N.jsonl for a shard)")),
+)]
+pub struct BatchArgs {
+    /// The manifest, the output folder and the render options every job starts from.
+    #[command(flatten)]
+    pub render: RenderArgs,
+    /// Each job's image, relative to its folder [default: image.png; for a job with views,
+    /// --view-name, else {view:03}.png]. For a job with views, this name and the other output
+    /// names of the command line (--depth-out...) are numbered per view when they have no
+    /// {view}: depth.exr becomes {view:03}.depth.exr.
+    #[arg(long, value_name = "NAME")]
+    pub image_name: Option<String>,
+    /// Skip the jobs whose job.json says they finished with these options and whose outputs
+    /// still have the recorded SHA-256 hashes; redo the others.
+    #[arg(long)]
+    pub resume: bool,
+    /// Render only shard I of N (0-based, I < N): the jobs whose id hashes (FNV-1a 64 of its
+    /// UTF-8 bytes) to I modulo N [default: from SLURM_ARRAY_TASK_ID and
+    /// SLURM_ARRAY_TASK_COUNT, or JOB_COMPLETION_INDEX and --shard-count; 0/1 for all jobs].
+    #[arg(long, value_name = "I/N", value_parser = crate::batch::Shard::parse)]
+    pub shard: Option<crate::batch::Shard>,
+    /// The number of shards when JOB_COMPLETION_INDEX (a Kubernetes Indexed Job) gives the
+    /// index [default: MESHTRACER_SHARD_COUNT].
+    #[arg(long, value_name = "N", conflicts_with = "shard")]
+    pub shard_count: Option<usize>,
+}
+
+/// `meshtracer batch-merge`.
+#[derive(Debug, Args)]
+pub struct BatchMergeArgs {
+    /// The output folder of a sharded batch, holding results.I-of-N.jsonl for every I < N.
+    pub dir: PathBuf,
+    /// No summary line.
+    #[arg(short, long)]
+    pub quiet: bool,
 }
 
 /// `meshtracer bench`.

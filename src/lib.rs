@@ -12,6 +12,8 @@
 //!
 //! Many views of one prepared scene (`render --views`): [`views`] turns a spec into cameras
 //! and names their files, [`dataset`] writes the `transforms.json` that NeRF tools read.
+//! Many models (`batch`): [`batch`] reads manifests, assigns jobs to shards and defines the
+//! per-job record of `results.jsonl`.
 //!
 //! Every default (image size, field of view, ambient, the light rig) is in [`setup`]. Importers
 //! ([`scene`]) never call the tracer; the tracer never sees a glTF or OBJ type; only [`cli`] and
@@ -41,6 +43,7 @@
 pub mod accel;
 pub mod aov;
 pub mod app;
+pub mod batch;
 pub mod bench;
 pub mod bsdf;
 pub mod camera;

@@ -6,7 +6,10 @@
 //! Kept apart from the single-view flow in `app.rs`, which hands over after checking the
 //! options they share.
 
-use super::{check_size, image_size, load, load_options, worker_pool, Interrupted};
+use super::{
+    check_size, image_size, interrupt_flag, load, load_options, worker_pool, Interrupted,
+    RenderReport,
+};
 use crate::accel::{Accel, AccelKind};
 use crate::camera::{auto_camera, framing_distance, framing_radius, View};
 use crate::cli::RenderArgs;
@@ -27,7 +30,7 @@ use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -194,13 +197,14 @@ fn name_of<'a>(
     claim(taken, dir, &pattern.expand(view), option, no_clobber)
 }
 
-/// Renders every view of `spec_text`; the options shared with a single render were checked by
-/// the caller.
+/// Renders every view of `spec_text`, calling `on_view(done, total)` as views finish; the
+/// options shared with a single render were checked by the caller.
 pub(super) fn render_views(
     args: &RenderArgs,
     spec_text: &str,
     env_file: Option<Environment>,
-) -> Result<()> {
+    on_view: &(dyn Fn(usize, usize) + Sync),
+) -> Result<RenderReport> {
     let run_start = Instant::now();
     // Everything that can be refused without the model is refused before loading it.
     let spec = ViewSpec::parse(spec_text)?;
@@ -311,13 +315,7 @@ pub(super) fn render_views(
     if let (Some(path), Some(env)) = (&args.env_out, &environment) {
         write_panorama(path, env)?;
     }
-    let cancel = Arc::new(AtomicBool::new(false));
-    {
-        let cancel = Arc::clone(&cancel);
-        // Without a handler Ctrl-C kills the process; every file is still whole (renamed
-        // into place after a complete write).
-        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
-    }
+    let cancel = interrupt_flag();
 
     let (summary, frames) = pool.install(|| -> Result<_> {
         let bvh_start = Instant::now();
@@ -348,8 +346,10 @@ pub(super) fn render_views(
         };
         let mut frames = Vec::with_capacity(cameras.len());
         let mut totals = RenderStats::default();
+        on_view(0, cameras.len());
         for (k, (camera, names)) in cameras.iter().zip(&names).enumerate() {
             let (frame, stats) = run.render(k, camera, names)?;
+            on_view(k + 1, cameras.len());
             frames.push(frame);
             totals.primary_rays += stats.primary_rays;
             totals.shadow_rays += stats.shadow_rays;
@@ -390,7 +390,28 @@ pub(super) fn render_views(
     if !args.quiet {
         summary.print(args, run_start.elapsed());
     }
-    Ok(())
+    // In the order written: the panorama, each view's files as ViewRun::render writes them,
+    // transforms.json.
+    let mut outputs: Vec<PathBuf> = args.env_out.iter().cloned().collect();
+    for view in &names {
+        let files = [
+            Some(&view.image),
+            view.depth.as_ref(),
+            view.normal.as_ref(),
+            view.segmentation.as_ref(),
+            view.mask.as_ref(),
+            Some(&view.view),
+        ];
+        outputs.extend(files.into_iter().flatten().map(|name| dir.join(name)));
+    }
+    outputs.push(dir.join(TRANSFORMS_FILE));
+    Ok(RenderReport {
+        triangles: summary.triangles,
+        load: summary.load_time,
+        bvh: summary.bvh_time,
+        render: summary.totals.time,
+        outputs,
+    })
 }
 
 /// The cameras of a spec, all perspective (transforms.json describes pinhole cameras only).

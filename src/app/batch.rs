@@ -1,0 +1,663 @@
+//! `meshtracer batch MANIFEST -o DIR` and `meshtracer batch-merge DIR`: many models, each
+//! rendered by the same code as `render` (one view, or `--views` after one load and one BVH
+//! build), a failure recorded without stopping the others; `--resume` and `--shard I/N` make
+//! each task of a scheduler a clean, resumable, deterministic slice of the work.
+//!
+//! How records survive a kill: each job, once its outputs are written, writes
+//! `DIR/<id>/job.json` atomically (temporary file, fsync, rename), and a job about to be
+//! (re)done first deletes its job.json, so a job killed halfway never passes for finished.
+//! The results file (`results.jsonl`, or `results.I-of-N.jsonl` for a shard) is rebuilt from
+//! this run's records, sorted by id, and written the same way once every job has run. A
+//! killed run therefore leaves whole files only, never a torn line: the job.json of every
+//! job it finished, which `--resume` reads, and the results file of an earlier run if any.
+
+use super::{interrupt_flag, render_model, Interrupted, RenderReport};
+use crate::batch::{
+    check_output_name, output_key, read_manifest, read_results, results_jsonl, sha256_file, Entry,
+    Job, JobRecord, OutputRecord, Shard, Status, Timings, JOB_FILE, RESULTS_FILE,
+};
+use crate::cli::{BatchArgs, BatchMergeArgs, RenderArgs};
+use anyhow::{anyhow, bail, Context, Result};
+use std::collections::{BTreeMap, HashSet};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+/// The image of a job without views, unless `--image-name` or the manifest says otherwise.
+const DEFAULT_IMAGE: &str = "image.png";
+
+/// How many failed jobs the final error lists by name (the results file has them all).
+const FAILURES_LISTED: usize = 3;
+
+/// Runs every job of the manifest that belongs to this shard.
+pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
+    let start = Instant::now();
+    let defaults = &args.render;
+    let dir = defaults.output.as_path();
+    // Refused before any work: names on the command line apply to every job.
+    for (option, name) in default_output_names(args)? {
+        check_output_name(&name, option).map_err(anyhow::Error::msg)?;
+    }
+    let shard = match args.shard {
+        Some(shard) => shard,
+        None => Shard::from_env(|name| std::env::var(name).ok(), args.shard_count)
+            .map_err(anyhow::Error::msg)?
+            .unwrap_or(Shard::ALL),
+    };
+    let entries = read_manifest(&defaults.model)?;
+    if entries.is_empty() {
+        bail!(
+            "{}: no jobs (no .gltf, .glb or .obj file below the folder, or no line in the file)",
+            defaults.model.display()
+        );
+    }
+    if dir.is_file() {
+        bail!(
+            "-o {}: is a file; a batch writes into a folder",
+            dir.display()
+        );
+    }
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create the output folder {}", dir.display()))?;
+    let mine: Vec<&Entry> = entries.iter().filter(|e| shard.holds(&e.key)).collect();
+
+    let progress = Progress::new(defaults.quiet, mine.len());
+    let cancel = interrupt_flag();
+    let mut records = Vec::with_capacity(mine.len());
+    for (k, entry) in mine.iter().enumerate() {
+        let outcome = if cancel.load(Ordering::SeqCst) {
+            Outcome::Interrupted
+        } else {
+            run_job(args, dir, entry, &progress)
+        };
+        match outcome {
+            Outcome::Done(record, note) => {
+                progress.job_done(k, &record, note.as_deref());
+                records.push(*record);
+            }
+            Outcome::Interrupted => {
+                progress.finish();
+                return Err(Interrupted(format!(
+                    "{k} of {} jobs done; each finished job is recorded in {}/<id>/{JOB_FILE}: run the same command with --resume to finish",
+                    mine.len(),
+                    dir.display()
+                ))
+                .into());
+            }
+        }
+    }
+    progress.finish();
+    let results = dir.join(shard.results_file());
+    crate::output::write_atomic(&results, results_jsonl(&records).as_bytes())?;
+    let count = |status| records.iter().filter(|r| r.status == status).count();
+    let failed = count(Status::Failed);
+    if !defaults.quiet {
+        let of = if shard == Shard::ALL {
+            String::new()
+        } else {
+            format!(" of shard {shard} ({} in the manifest)", entries.len())
+        };
+        eprintln!(
+            "batch: {} jobs{of}: {} ok, {} skipped, {failed} failed in {:.1} s -> {}",
+            records.len(),
+            count(Status::Ok),
+            count(Status::Skipped),
+            start.elapsed().as_secs_f64(),
+            results.display()
+        );
+    }
+    failures(&records, &results)
+}
+
+/// `Err` listing the failed jobs, if any.
+fn failures(records: &[JobRecord], results: &Path) -> Result<()> {
+    let failed: Vec<&JobRecord> = records
+        .iter()
+        .filter(|r| r.status == Status::Failed)
+        .collect();
+    if failed.is_empty() {
+        return Ok(());
+    }
+    let mut list: Vec<String> = failed
+        .iter()
+        .take(FAILURES_LISTED)
+        .map(|r| {
+            format!(
+                "{}: {}",
+                r.id.as_deref().unwrap_or("(no id)"),
+                r.error.as_deref().unwrap_or("failed")
+            )
+        })
+        .collect();
+    if failed.len() > FAILURES_LISTED {
+        list.push(format!("and {} more", failed.len() - FAILURES_LISTED));
+    }
+    bail!(
+        "{} of {} jobs failed (all recorded in {}): {}",
+        failed.len(),
+        records.len(),
+        results.display(),
+        list.join("; ")
+    )
+}
+
+/// The output names the command line gives every job, with their options.
+fn default_output_names(args: &BatchArgs) -> Result<Vec<(&'static str, String)>> {
+    let r = &args.render;
+    let paths = [
+        ("--depth-out", r.depth_out.as_ref()),
+        ("--normal-out", r.normal_out.as_ref()),
+        ("--mask-out", r.mask_out.as_ref()),
+        ("--segmentation-out", r.segmentation_out.as_ref()),
+        ("--view-out", r.view_out.as_ref()),
+        ("--env-out", r.env_out.as_ref()),
+        ("--stats", r.stats.as_ref()),
+    ];
+    let mut names = Vec::new();
+    for (option, path) in paths {
+        if let Some(path) = path {
+            names.push((option, utf8(path, option)?));
+        }
+    }
+    names.extend(args.image_name.iter().map(|n| ("--image-name", n.clone())));
+    names.extend(r.view_name.iter().map(|n| ("--view-name", n.clone())));
+    Ok(names)
+}
+
+fn utf8(path: &Path, option: &str) -> Result<String> {
+    path.to_str()
+        .map(str::to_string)
+        .with_context(|| format!("{option} {}: not valid UTF-8", path.display()))
+}
+
+/// What became of one job.
+enum Outcome {
+    /// Recorded (ok, failed or skipped), with a note for the progress line.
+    Done(Box<JobRecord>, Option<String>),
+    /// Ctrl-C: the job was not finished and is not recorded.
+    Interrupted,
+}
+
+/// Runs one job: refused, skipped (`--resume`, verified), or rendered and recorded.
+fn run_job(args: &BatchArgs, dir: &Path, entry: &Entry, progress: &Progress) -> Outcome {
+    let start = Instant::now();
+    let fail = |error: String| {
+        Outcome::Done(
+            Box::new(JobRecord::failed(
+                entry,
+                error,
+                start.elapsed().as_secs_f64(),
+            )),
+            None,
+        )
+    };
+    let job = match &entry.job {
+        Ok(job) => job,
+        Err(e) => return fail(e.clone()),
+    };
+    let job_dir = dir.join(&job.id);
+    let (render_args, fingerprint) = match job_args(args, job, &job_dir) {
+        Ok(prepared) => prepared,
+        Err(e) => return fail(format!("job '{}': {e:#}", job.id)),
+    };
+    let record_path = job_dir.join(JOB_FILE);
+    let mut note = None;
+    if args.resume {
+        match finished_record(&record_path, &fingerprint, dir) {
+            Ok(Some(mut record)) => {
+                record.status = Status::Skipped;
+                return Outcome::Done(
+                    Box::new(record),
+                    Some("done before, outputs verified".into()),
+                );
+            }
+            Ok(None) => {}
+            Err(why) => note = Some(format!("redone: {why}")),
+        }
+    }
+    // From here until the new record is written, the job must not pass for finished.
+    match std::fs::remove_file(&record_path) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return fail(format!("{}: {e}", record_path.display())),
+    }
+    for folder in output_folders(&render_args, &job_dir) {
+        if let Err(e) = std::fs::create_dir_all(&folder) {
+            return fail(format!("cannot create {}: {e}", folder.display()));
+        }
+        remove_leftovers(&folder);
+    }
+    progress.start_job(&job.id);
+    let rendered = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+        render_model(&render_args, &|done, total| progress.view(done, total))
+    }))
+    .unwrap_or_else(|panic| {
+        let what = panic
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| panic.downcast_ref::<&str>().copied())
+            .unwrap_or("unknown panic");
+        Err(anyhow!(
+            "{}: internal error (please report this model): {what}",
+            job.model.display()
+        ))
+    });
+    let mut record = match rendered.and_then(|report| finished(entry, dir, &report)) {
+        Ok(record) => record,
+        Err(e) => {
+            if interrupt_flag().load(Ordering::SeqCst) {
+                return Outcome::Interrupted;
+            }
+            JobRecord::failed(entry, format!("{e:#}"), 0.0)
+        }
+    };
+    record.seconds.total = start.elapsed().as_secs_f64();
+    record.fingerprint = Some(fingerprint);
+    let text = serde_json::to_string_pretty(&record).expect("a record serialises") + "\n";
+    if let Err(e) = crate::output::write_atomic(&record_path, text.as_bytes()) {
+        return fail(format!("job '{}': {e}", job.id));
+    }
+    Outcome::Done(Box::new(record), note)
+}
+
+/// The folders a job writes into (those a `{view}` pattern names excepted: render --views
+/// makes them).
+fn output_folders(args: &RenderArgs, job_dir: &Path) -> Vec<PathBuf> {
+    let names = [
+        args.depth_out.as_ref(),
+        args.normal_out.as_ref(),
+        args.mask_out.as_ref(),
+        args.segmentation_out.as_ref(),
+        args.view_out.as_ref(),
+        args.env_out.as_ref(),
+        args.stats.as_ref(),
+    ];
+    let image = match &args.views {
+        // With views the names are relative to the job's folder, the image a --view-name.
+        Some(_) => args.view_name.as_ref().map(PathBuf::from),
+        None => Some(args.output.clone()),
+    };
+    let mut folders = vec![job_dir.to_path_buf()];
+    for file in names.into_iter().flatten().cloned().chain(image) {
+        // A single view's paths already start with the job's folder; --views names are
+        // relative to it.
+        let file = if args.views.is_some() {
+            job_dir.join(file)
+        } else {
+            file
+        };
+        if let Some(folder) = file.parent() {
+            if !folder.to_string_lossy().contains('{') && !folders.iter().any(|f| f == folder) {
+                folders.push(folder.to_path_buf());
+            }
+        }
+    }
+    folders
+}
+
+/// Removes the temporary files (`.meshtracer-*.partial`) that a killed run left in `folder`
+/// (a kill cannot clean up): a job about to be redone owns its folders.
+fn remove_leftovers(folder: &Path) {
+    let Ok(listing) = std::fs::read_dir(folder) else {
+        return;
+    };
+    for item in listing.flatten() {
+        let name = item.file_name();
+        let name = name.to_string_lossy();
+        if name.starts_with(".meshtracer-") && name.ends_with(".partial") {
+            let _ = std::fs::remove_file(item.path());
+        }
+    }
+}
+
+/// The record of a finished render: its timings and every output with its hash.
+fn finished(entry: &Entry, dir: &Path, report: &RenderReport) -> Result<JobRecord> {
+    let mut outputs = Vec::with_capacity(report.outputs.len());
+    for path in &report.outputs {
+        let relative = path.strip_prefix(dir).unwrap_or(path);
+        let sha256 =
+            sha256_file(path).with_context(|| format!("{}: cannot hash", path.display()))?;
+        outputs.push(OutputRecord {
+            path: slash_path(relative),
+            sha256,
+        });
+    }
+    let seconds = |d: Duration| Some(d.as_secs_f64());
+    Ok(JobRecord {
+        id: entry.id.clone(),
+        model: entry.model.clone(),
+        status: Status::Ok,
+        error: None,
+        triangles: Some(report.triangles),
+        seconds: Timings {
+            load: seconds(report.load),
+            bvh: seconds(report.bvh),
+            render: seconds(report.render),
+            total: 0.0,
+        },
+        outputs,
+        fingerprint: None,
+    })
+}
+
+fn slash_path(path: &Path) -> String {
+    path.components()
+        .map(|c| c.as_os_str().to_string_lossy().into_owned())
+        .collect::<Vec<_>>()
+        .join("/")
+}
+
+/// The record of an earlier run of this job when it may be skipped: it finished (ok) with the
+/// same fingerprint and every output still has its recorded hash. `Ok(None)` when there is
+/// no record; `Err` says why an existing record does not count.
+fn finished_record(
+    record_path: &Path,
+    fingerprint: &str,
+    dir: &Path,
+) -> Result<Option<JobRecord>, String> {
+    let text = match std::fs::read_to_string(record_path) {
+        Ok(text) => text,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(None),
+        Err(e) => return Err(format!("{JOB_FILE}: {e}")),
+    };
+    let record: JobRecord =
+        serde_json::from_str(&text).map_err(|e| format!("{JOB_FILE} unreadable: {e}"))?;
+    if record.status != Status::Ok {
+        return Err("it failed last time".into());
+    }
+    if record.fingerprint.as_deref() != Some(fingerprint) {
+        return Err("the options or the model changed".into());
+    }
+    record.verify(dir)?;
+    Ok(Some(record))
+}
+
+/// The render options of one job: the command line's, overridden by the manifest's, with
+/// every output inside `job_dir`; and the job's fingerprint.
+fn job_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<(RenderArgs, String)> {
+    let args = render_args(batch, job, job_dir)?;
+    // The fingerprint sees the options as they are for any output folder and thread count
+    // (the output is the same bytes for any), the model path as the manifest gives it, and
+    // the model file's bytes (not the files it refers to).
+    let mut canonical = render_args(batch, job, Path::new(""))?;
+    canonical.model = PathBuf::from(&job.model_text);
+    canonical.threads = 0;
+    let model_hash = sha256_file(&job.model).unwrap_or_else(|e| format!("unreadable ({e})"));
+    let fingerprint = crate::batch::sha256_hex(
+        format!(
+            "meshtracer {}\nmodel sha256 {model_hash}\n{canonical:?}",
+            env!("CARGO_PKG_VERSION")
+        )
+        .as_bytes(),
+    );
+    Ok((args, fingerprint))
+}
+
+fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArgs> {
+    let mut args = batch.render.clone();
+    args.model = job.model.clone();
+    args.quiet = true;
+    if job.width.is_some() {
+        args.width = job.width;
+    }
+    if job.height.is_some() {
+        args.height = job.height;
+    }
+    if let Some(spp) = job.spp {
+        args.spp = spp;
+    }
+    if let Some(seed) = job.seed {
+        args.seed = seed;
+    }
+    if job.views.is_some() {
+        args.views = job.views.clone();
+    }
+    let views = args.views.is_some();
+    // The command line's names serve jobs with and without views alike: for a job with views
+    // a name without {view} is numbered per view, as the view files are ({view:03}.NAME).
+    let numbered = |name: String| {
+        if !views || name.contains("{view") {
+            return name;
+        }
+        match name.rsplit_once('/') {
+            Some((folder, file)) => format!("{folder}/{{view:03}}.{file}"),
+            None => format!("{{view:03}}.{name}"),
+        }
+    };
+    let given = |name: &Option<String>, default: &Option<PathBuf>, option: &str| match name {
+        Some(n) => Ok(Some(n.clone())),
+        None => default
+            .as_deref()
+            .map(|p| utf8(p, option).map(numbered))
+            .transpose(),
+    };
+    let o = &job.outputs;
+    let image = o
+        .image
+        .clone()
+        .or_else(|| batch.image_name.clone().map(numbered))
+        .or_else(|| if views { args.view_name.clone() } else { None });
+    let depth = given(&o.depth, &args.depth_out, "--depth-out")?;
+    let normal = given(&o.normal, &args.normal_out, "--normal-out")?;
+    let mask = given(&o.mask, &args.mask_out, "--mask-out")?;
+    let segmentation = given(
+        &o.segmentation,
+        &args.segmentation_out,
+        "--segmentation-out",
+    )?;
+    let view = given(&o.view, &args.view_out, "--view-out")?;
+    let env_out = given(&None, &args.env_out, "--env-out")?;
+    let stats = given(&None, &args.stats, "--stats")?;
+    let names = [
+        ("image", image.as_ref()),
+        ("depth", depth.as_ref()),
+        ("normal", normal.as_ref()),
+        ("mask", mask.as_ref()),
+        ("segmentation", segmentation.as_ref()),
+        ("view", view.as_ref()),
+        ("--env-out", env_out.as_ref()),
+        ("--stats", stats.as_ref()),
+    ];
+    let mut taken = HashSet::new();
+    for (what, name) in names {
+        if let Some(name) = name {
+            check_output_name(name, what).map_err(anyhow::Error::msg)?;
+            if !taken.insert(output_key(name)) {
+                bail!("two outputs are named '{name}': give them different names");
+            }
+        }
+    }
+    let inside = |name: Option<String>| name.map(|n| job_dir.join(n));
+    // The panorama is written where named, with or without views.
+    args.env_out = inside(env_out);
+    if views {
+        if stats.is_some() {
+            bail!("--stats measures a single-view render; this job has views");
+        }
+        // render --views names every file relative to the folder it writes into.
+        args.output = job_dir.to_path_buf();
+        args.view_name = image;
+        args.depth_out = depth.map(PathBuf::from);
+        args.normal_out = normal.map(PathBuf::from);
+        args.mask_out = mask.map(PathBuf::from);
+        args.segmentation_out = segmentation.map(PathBuf::from);
+        args.view_out = view.map(PathBuf::from);
+    } else {
+        args.output = job_dir.join(image.as_deref().unwrap_or(DEFAULT_IMAGE));
+        args.depth_out = inside(depth);
+        args.normal_out = inside(normal);
+        args.mask_out = inside(mask);
+        args.segmentation_out = inside(segmentation);
+        args.view_out = inside(view);
+        args.stats = inside(stats);
+    }
+    Ok(args)
+}
+
+/// Progress on standard error: a bar of jobs with an ETA and a bar of the current job's
+/// views (drawn only on a terminal), and one line per job (also in logs, e.g. Slurm's).
+struct Progress {
+    quiet: bool,
+    multi: indicatif::MultiProgress,
+    jobs: indicatif::ProgressBar,
+    views: indicatif::ProgressBar,
+    total: usize,
+    start: Instant,
+}
+
+impl Progress {
+    fn new(quiet: bool, total: usize) -> Progress {
+        let multi = if quiet {
+            indicatif::MultiProgress::with_draw_target(indicatif::ProgressDrawTarget::hidden())
+        } else {
+            indicatif::MultiProgress::new()
+        };
+        let style = |template: &str| {
+            indicatif::ProgressStyle::with_template(template)
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+                .progress_chars("=> ")
+        };
+        let jobs = multi.add(indicatif::ProgressBar::new(total as u64));
+        jobs.set_style(style(
+            "{spinner} jobs  [{bar:30}] {pos}/{len} eta {eta} {msg}",
+        ));
+        let views = multi.add(indicatif::ProgressBar::new(0));
+        views.set_style(style("  views [{bar:30}] {pos}/{len}"));
+        Progress {
+            quiet,
+            multi,
+            jobs,
+            views,
+            total,
+            start: Instant::now(),
+        }
+    }
+
+    fn start_job(&self, id: &str) {
+        self.jobs.set_message(id.to_string());
+        self.views.set_length(1);
+        self.views.set_position(0);
+    }
+
+    fn view(&self, done: usize, total: usize) {
+        self.views.set_length(total as u64);
+        self.views.set_position(done as u64);
+    }
+
+    /// Job `k` (from 0) is recorded: one line, with the ETA of the rest at the mean pace.
+    fn job_done(&self, k: usize, record: &JobRecord, note: Option<&str>) {
+        self.jobs.inc(1);
+        if self.quiet {
+            return;
+        }
+        let done = k + 1;
+        let remaining = self.total - done;
+        let eta = if remaining > 0 {
+            let each = self.start.elapsed() / done as u32;
+            format!(
+                "; eta {}",
+                indicatif::HumanDuration(each * remaining as u32)
+            )
+        } else {
+            String::new()
+        };
+        let id = record.id.as_deref().unwrap_or("(no id)");
+        let what = match record.status {
+            Status::Ok => format!(
+                "ok, {} triangles, {} file{}, load {:.0} ms, BVH {:.0} ms, render {:.3} s",
+                record.triangles.unwrap_or(0),
+                record.outputs.len(),
+                if record.outputs.len() == 1 { "" } else { "s" },
+                record.seconds.load.unwrap_or(0.0) * 1e3,
+                record.seconds.bvh.unwrap_or(0.0) * 1e3,
+                record.seconds.render.unwrap_or(0.0),
+            ),
+            Status::Skipped => "skipped".to_string(),
+            Status::Failed => format!(
+                "FAILED: {}",
+                record.error.as_deref().unwrap_or("unknown error")
+            ),
+        };
+        let note = note.map_or(String::new(), |n| format!(" ({n})"));
+        self.multi.suspend(|| {
+            eprintln!("[{done}/{}] {id}: {what}{note}{eta}", self.total);
+        });
+    }
+
+    fn finish(&self) {
+        self.views.finish_and_clear();
+        self.jobs.finish_and_clear();
+    }
+}
+
+/// Joins the results of every shard of a batch into `DIR/results.jsonl`.
+pub(super) fn merge_command(args: &BatchMergeArgs) -> Result<()> {
+    let dir = args.dir.as_path();
+    let mut by_count: BTreeMap<usize, BTreeMap<usize, PathBuf>> = BTreeMap::new();
+    let listing =
+        std::fs::read_dir(dir).with_context(|| format!("cannot read {}", dir.display()))?;
+    for item in listing {
+        let item = item.with_context(|| format!("cannot read {}", dir.display()))?;
+        if let Some(shard) = item.file_name().to_str().and_then(Shard::of_results_file) {
+            by_count
+                .entry(shard.count)
+                .or_default()
+                .insert(shard.index, item.path());
+        }
+    }
+    let (count, files) = match by_count.len() {
+        0 => bail!(
+            "{}: no results.I-of-N.jsonl: no shard of a batch has finished here",
+            dir.display()
+        ),
+        1 => by_count.into_iter().next().expect("one shard count"),
+        _ => {
+            let counts: Vec<String> = by_count.keys().map(|n| format!("{n} shards")).collect();
+            bail!(
+                "{}: results of batches split differently ({}): remove the files of the old split",
+                dir.display(),
+                counts.join(" and ")
+            );
+        }
+    };
+    let missing: Vec<String> = (0..count)
+        .filter(|i| !files.contains_key(i))
+        .map(|i| format!("{i}/{count}"))
+        .collect();
+    if !missing.is_empty() {
+        bail!(
+            "{}: shard {} of {count} has no results file yet (still running, killed or failed to start): run it with --shard I/{count} --resume, then merge again",
+            dir.display(),
+            missing.join(", ")
+        );
+    }
+    let mut records = Vec::new();
+    let mut seen = HashSet::new();
+    for path in files.values() {
+        for record in read_results(path)? {
+            if let Some(id) = &record.id {
+                if !seen.insert(id.clone()) {
+                    bail!(
+                        "{}: job '{id}' is recorded by two shards: were the shards run with different manifests?",
+                        path.display()
+                    );
+                }
+            }
+            records.push(record);
+        }
+    }
+    let results = dir.join(RESULTS_FILE);
+    crate::output::write_atomic(&results, results_jsonl(&records).as_bytes())?;
+    if !args.quiet {
+        let count_of = |status| records.iter().filter(|r| r.status == status).count();
+        eprintln!(
+            "batch-merge: {count} shards, {} jobs: {} ok, {} skipped, {} failed -> {}",
+            records.len(),
+            count_of(Status::Ok),
+            count_of(Status::Skipped),
+            count_of(Status::Failed),
+            results.display()
+        );
+    }
+    failures(&records, &results)
+}

@@ -1,0 +1,650 @@
+//! `meshtracer batch` and `batch-merge` through the real binary: a folder manifest with a
+//! broken model, a JSONL manifest with a malformed line and ids or names that try to leave the
+//! output folder, shards (by --shard and by the Slurm variables) whose union is the whole run
+//! byte for byte and whose assignment survives a shuffled manifest, --resume after damage,
+//! and the example Slurm and Kubernetes scripts run locally for every index.
+
+mod common;
+
+use common::{root, s};
+use serde_json::Value;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Every job renders this small: the tests check bookkeeping, not pictures.
+const SMALL: [&str; 7] = ["--width", "32", "--height", "24", "--spp", "1", "-q"];
+
+/// Scheduler variables a developer's or CI's shell might carry, which would shard a run.
+const SCHEDULER_VARS: [&str; 8] = [
+    "SLURM_ARRAY_TASK_ID",
+    "SLURM_ARRAY_TASK_COUNT",
+    "SLURM_ARRAY_TASK_MIN",
+    "SLURM_ARRAY_TASK_MAX",
+    "SLURM_ARRAY_TASK_STEP",
+    "JOB_COMPLETION_INDEX",
+    "MESHTRACER_SHARD_COUNT",
+    "MESHTRACER_OPTIONS",
+];
+
+/// The binary with no scheduler variables but `env`.
+fn command(program: &str, args: &[&str], env: &[(&str, &str)]) -> Command {
+    let mut cmd = Command::new(program);
+    cmd.args(args);
+    for var in SCHEDULER_VARS {
+        cmd.env_remove(var);
+    }
+    cmd.envs(env.iter().copied());
+    cmd
+}
+
+/// Runs a command; on an unexpected outcome, panics with the command, stdout and stderr.
+fn check(mut cmd: Command, expect_success: bool) -> Output {
+    let out = cmd.output().expect("the command runs");
+    if out.status.success() != expect_success {
+        panic!(
+            "{cmd:?}\nexpected success = {expect_success}, got {}\n--- stdout\n{}\n--- stderr\n{}",
+            out.status,
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    out
+}
+
+/// `meshtracer batch MANIFEST -o OUT` at the small size, with `extra` options and `env`.
+fn batch(manifest: &Path, out: &Path, extra: &[&str], env: &[(&str, &str)], ok: bool) -> Output {
+    let mut args = vec!["batch", s(manifest), "-o", s(out)];
+    args.extend_from_slice(&SMALL);
+    args.extend_from_slice(extra);
+    check(command(env!("CARGO_BIN_EXE_meshtracer"), &args, env), ok)
+}
+
+fn merge(out: &Path, ok: bool) -> Output {
+    let args = ["batch-merge", s(out), "-q"];
+    check(command(env!("CARGO_BIN_EXE_meshtracer"), &args, &[]), ok)
+}
+
+/// The records of a results file, in file order.
+fn records(path: &Path) -> Vec<Value> {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    text.lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("{}: {e}: {l}", path.display())))
+        .collect()
+}
+
+/// Records keyed by id (failed lines without one under their error).
+fn by_id(records: &[Value]) -> BTreeMap<String, Value> {
+    records
+        .iter()
+        .map(|r| {
+            let key = r["id"]
+                .as_str()
+                .map_or_else(|| format!("(no id) {}", r["error"]), str::to_string);
+            (key, r.clone())
+        })
+        .collect()
+}
+
+/// A record without its timings, which differ from run to run.
+fn timeless(record: &Value) -> Value {
+    let mut r = record.clone();
+    r.as_object_mut().unwrap().remove("seconds");
+    r
+}
+
+fn sha256(path: &Path) -> String {
+    use sha2::Digest;
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    sha2::Sha256::digest(&bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// Every output a record lists exists under `out` with the recorded hash, and lies inside
+/// the job's folder.
+fn assert_hashes_match(out: &Path, record: &Value) {
+    let id = record["id"].as_str().unwrap();
+    let outputs = record["outputs"].as_array().unwrap();
+    assert!(!outputs.is_empty(), "{id}: no outputs");
+    for o in outputs {
+        let path = o["path"].as_str().unwrap();
+        assert!(
+            path.starts_with(&format!("{id}/")),
+            "{path} is not in {id}/"
+        );
+        assert_eq!(
+            sha256(&out.join(path)),
+            o["sha256"].as_str().unwrap(),
+            "{path}"
+        );
+    }
+}
+
+/// Every file below `dir` (relative path -> bytes), without the run records (job.json and
+/// results files hold timings).
+fn outputs_tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
+    fn walk(dir: &Path, base: &Path, files: &mut BTreeMap<String, Vec<u8>>) {
+        for item in std::fs::read_dir(dir).unwrap().flatten() {
+            let path = item.path();
+            if path.is_dir() {
+                walk(&path, base, files);
+                continue;
+            }
+            let name = path.file_name().unwrap().to_str().unwrap();
+            if name == "job.json" || (name.starts_with("results") && name.ends_with(".jsonl")) {
+                continue;
+            }
+            let relative = path
+                .strip_prefix(base)
+                .unwrap()
+                .to_str()
+                .unwrap()
+                .to_string();
+            files.insert(relative, std::fs::read(&path).unwrap());
+        }
+    }
+    let mut files = BTreeMap::new();
+    walk(dir, dir, &mut files);
+    files
+}
+
+/// Every path below `dir`, folders included.
+fn all_paths(dir: &Path) -> BTreeSet<PathBuf> {
+    let mut paths = BTreeSet::new();
+    let mut pending = vec![dir.to_path_buf()];
+    while let Some(d) = pending.pop() {
+        for item in std::fs::read_dir(&d).unwrap().flatten() {
+            let path = item.path();
+            if path.is_dir() {
+                pending.push(path.clone());
+            }
+            paths.insert(path);
+        }
+    }
+    paths
+}
+
+/// A folder of models: the Cornell box, the OBJ shapes one folder down (with their MTL), and
+/// optionally a broken file.
+fn models_folder(dir: &Path, broken: bool) -> PathBuf {
+    let models = dir.join("models");
+    std::fs::create_dir_all(models.join("sub")).unwrap();
+    let assets = root().join("assets");
+    std::fs::copy(
+        assets.join("cornell-box.gltf"),
+        models.join("cornell-box.gltf"),
+    )
+    .unwrap();
+    for name in ["shapes.obj", "shapes.mtl"] {
+        std::fs::copy(assets.join(name), models.join("sub").join(name)).unwrap();
+    }
+    if broken {
+        std::fs::write(models.join("broken.glb"), b"glTF this is not").unwrap();
+    }
+    models
+}
+
+/// A JSONL manifest of `lines` beside a copy of the models, and its path.
+fn jsonl_manifest(dir: &Path, name: &str, lines: &[String]) -> PathBuf {
+    let models = models_folder(dir, false);
+    let path = models.join(name);
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    path
+}
+
+/// Nine jobs of both models: different seeds, sample counts and sizes, two orbits with depth,
+/// one path-traced; enough for every one of 3 shards to get some.
+fn nine_jobs() -> Vec<String> {
+    (0..9)
+        .map(|k| {
+            let model = if k % 2 == 0 {
+                "cornell-box.gltf"
+            } else {
+                "sub/shapes.obj"
+            };
+            let extra = match k {
+                2 => r#", "views": "orbit:2", "outputs": {"depth": "depth/{view}.npy"}"#,
+                5 => r#", "views": "orbit:2", "width": 20"#,
+                7 => r#", "spp": 2, "outputs": {"image": "beauty.exr", "mask": "mask.png"}"#,
+                _ => "",
+            };
+            format!(r#"{{"id": "job-{k}", "model": "{model}", "seed": {k}{extra}}}"#)
+        })
+        .collect()
+}
+
+/// A folder of two good models and a broken file: two jobs ok, one failed naming the file,
+/// exit non-zero; results.jsonl has the three, with hashes that match the files.
+#[test]
+fn a_folder_batch_records_every_model_and_isolates_the_broken_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let models = models_folder(dir.path(), true);
+    let out = dir.path().join("out");
+    let run = batch(&models, &out, &["--depth-out", "aov/depth.npy"], &[], false);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("1 of 3 jobs failed"), "{stderr}");
+    assert!(stderr.contains("broken.glb"), "{stderr}");
+
+    let results = records(&out.join("results.jsonl"));
+    assert_eq!(results.len(), 3);
+    let jobs = by_id(&results);
+    assert_eq!(
+        jobs.keys().collect::<Vec<_>>(),
+        ["broken", "cornell-box", "sub/shapes"],
+        "ids are the model paths without extension"
+    );
+    let broken = &jobs["broken"];
+    assert_eq!(broken["status"], "failed");
+    assert!(
+        broken["error"].as_str().unwrap().contains("broken.glb"),
+        "{broken}"
+    );
+    assert!(broken["outputs"].as_array().unwrap().is_empty());
+    for id in ["cornell-box", "sub/shapes"] {
+        let job = &jobs[id];
+        assert_eq!(job["status"], "ok", "{job}");
+        assert!(job["triangles"].as_u64().unwrap() > 0);
+        for phase in ["load", "bvh", "render", "total"] {
+            assert!(
+                job["seconds"][phase].as_f64().is_some(),
+                "{id}: no {phase} time"
+            );
+        }
+        let paths: Vec<&str> = job["outputs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|o| o["path"].as_str().unwrap())
+            .collect();
+        assert_eq!(
+            paths,
+            [format!("{id}/image.png"), format!("{id}/aov/depth.npy")]
+        );
+        assert_hashes_match(&out, job);
+        let image = image::open(out.join(id).join("image.png")).unwrap();
+        assert_eq!((image.width(), image.height()), (32, 24));
+    }
+    // The hash is the one coreutils prints, so anyone can check a file.
+    if let Ok(sum) = Command::new("sha256sum")
+        .arg(out.join("cornell-box/image.png"))
+        .output()
+    {
+        let printed = String::from_utf8_lossy(&sum.stdout);
+        let recorded = jobs["cornell-box"]["outputs"][0]["sha256"]
+            .as_str()
+            .unwrap();
+        assert!(printed.starts_with(recorded), "{printed} vs {recorded}");
+    }
+}
+
+/// A JSONL manifest with a malformed line, ids and output names that leave the output folder
+/// (`../escape`, absolute) and a misspelt option: those jobs fail with a message, the others
+/// render (one with views), and nothing is written outside the output folder.
+#[test]
+fn a_jsonl_batch_refuses_bad_lines_and_escaping_names_and_writes_only_inside_dir() {
+    let dir = tempfile::tempdir().unwrap();
+    let lines = [
+        r#"{"model": "cornell-box.gltf"}"#,
+        r#"{"id": "shapes", "model": "sub/shapes.obj", "views": "orbit:2", "outputs": {"normal": "n/{view:03}.png"}}"#,
+        r#"{"model": "cornell-box.gltf", "spp": 2,"#,
+        r#"{"id": "../escape", "model": "cornell-box.gltf"}"#,
+        r#"{"id": "/tmp/absolute", "model": "cornell-box.gltf"}"#,
+        r#"{"id": "climber", "model": "cornell-box.gltf", "outputs": {"image": "../../climbed.png"}}"#,
+        r#"{"id": "typo", "model": "cornell-box.gltf", "sp": 2}"#,
+    ]
+    .map(String::from);
+    let manifest = jsonl_manifest(dir.path(), "jobs.jsonl", &lines);
+    let out = dir.path().join("out");
+    let before: BTreeSet<PathBuf> = all_paths(dir.path());
+    batch(&manifest, &out, &[], &[], false);
+
+    let results = records(&out.join("results.jsonl"));
+    assert_eq!(results.len(), 7, "one record per line");
+    let jobs = by_id(&results);
+    for id in ["cornell-box", "shapes"] {
+        assert_eq!(jobs[id]["status"], "ok", "{}", jobs[id]);
+        assert_hashes_match(&out, &jobs[id]);
+    }
+    assert!(out.join("shapes/n/001.png").is_file());
+    assert!(out.join("shapes/transforms.json").is_file());
+    let error = |key: &str| {
+        let job = &jobs[key];
+        assert_eq!(job["status"], "failed", "{job}");
+        job["error"].as_str().unwrap().to_string()
+    };
+    let malformed = jobs
+        .keys()
+        .find(|k| k.starts_with("(no id)"))
+        .expect("the malformed line is recorded without an id")
+        .clone();
+    assert!(
+        error(&malformed).contains("jobs.jsonl line 3"),
+        "{}",
+        error(&malformed)
+    );
+    assert!(error("../escape").contains("'../escape' refused"));
+    assert!(error("/tmp/absolute").contains("absolute"));
+    assert!(error("climber").contains("'../../climbed.png' refused"));
+    assert!(error("typo").contains("unknown field `sp`"));
+
+    // Nothing new outside the output folder: the manifest's folder is as it was.
+    let created: Vec<PathBuf> = all_paths(dir.path())
+        .difference(&before)
+        .filter(|p| !p.starts_with(&out))
+        .cloned()
+        .collect();
+    assert_eq!(created, Vec::<PathBuf>::new());
+    assert!(!dir.path().join("escape").exists() && !Path::new("/tmp/absolute").exists());
+    let folders: BTreeSet<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(
+        folders,
+        ["cornell-box", "results.jsonl", "shapes"]
+            .map(String::from)
+            .into(),
+        "only the good jobs have folders"
+    );
+}
+
+/// Three shards, chosen by --shard and by the Slurm array variables, together do every job
+/// exactly once and write the same files, byte for byte, as one unsharded run; batch-merge
+/// gives the same results.jsonl (timings aside); a shuffled manifest puts every job in the
+/// same shard.
+#[test]
+fn shards_together_equal_the_whole_run_and_survive_a_shuffled_manifest() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = jsonl_manifest(dir.path(), "jobs.jsonl", &nine_jobs());
+    let whole = dir.path().join("whole");
+    batch(&manifest, &whole, &[], &[], true);
+    let whole_results = records(&whole.join("results.jsonl"));
+    assert_eq!(whole_results.len(), 9);
+    let whole_files = outputs_tree(&whole);
+
+    let shard_ids = |out: &Path| -> Vec<BTreeSet<String>> {
+        (0..3)
+            .map(|i| {
+                let file = out.join(format!("results.{i}-of-3.jsonl"));
+                records(&file)
+                    .iter()
+                    .map(|r| {
+                        assert_eq!(r["status"], "ok", "{r}");
+                        r["id"].as_str().unwrap().to_string()
+                    })
+                    .collect()
+            })
+            .collect()
+    };
+    let by_flag = dir.path().join("by-flag");
+    for i in 0..3 {
+        batch(
+            &manifest,
+            &by_flag,
+            &["--shard", &format!("{i}/3")],
+            &[],
+            true,
+        );
+    }
+    let by_slurm = dir.path().join("by-slurm");
+    for i in 0..3 {
+        let id = i.to_string();
+        let env = [
+            ("SLURM_ARRAY_TASK_ID", id.as_str()),
+            ("SLURM_ARRAY_TASK_COUNT", "3"),
+        ];
+        batch(&manifest, &by_slurm, &[], &env, true);
+    }
+    let shards = shard_ids(&by_flag);
+    assert!(
+        shards.iter().filter(|ids| !ids.is_empty()).count() >= 2,
+        "the nine jobs spread over the shards: {shards:?}"
+    );
+    let mut union = BTreeSet::new();
+    for ids in &shards {
+        for id in ids {
+            assert!(union.insert(id.clone()), "{id} done by two shards");
+        }
+    }
+    assert_eq!(union, by_id(&whole_results).keys().cloned().collect());
+    assert_eq!(
+        shard_ids(&by_slurm),
+        shards,
+        "Slurm's variables pick the same shards"
+    );
+    // The documented rule, computed here on its own: FNV-1a 64 of the id's bytes, modulo N.
+    let fnv1a64 = |text: &str| {
+        text.bytes().fold(0xcbf29ce484222325u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x100000001b3)
+        })
+    };
+    for (i, ids) in shards.iter().enumerate() {
+        for id in ids {
+            assert_eq!(fnv1a64(id) % 3, i as u64, "{id} in shard {i}");
+        }
+    }
+
+    for out in [&by_flag, &by_slurm] {
+        assert!(
+            outputs_tree(out) == whole_files,
+            "{}: not the same files",
+            out.display()
+        );
+        merge(out, true);
+        let merged: Vec<Value> = records(&out.join("results.jsonl"));
+        assert_eq!(
+            merged.iter().map(timeless).collect::<Vec<_>>(),
+            whole_results.iter().map(timeless).collect::<Vec<_>>()
+        );
+    }
+
+    // The same jobs in another order land in the same shards.
+    let mut shuffled = nine_jobs();
+    shuffled.reverse();
+    shuffled.swap(1, 6);
+    let shuffled_manifest = manifest.with_file_name("shuffled.jsonl");
+    std::fs::write(&shuffled_manifest, shuffled.join("\n")).unwrap();
+    let reordered = dir.path().join("reordered");
+    for i in 0..3 {
+        batch(
+            &shuffled_manifest,
+            &reordered,
+            &["--shard", &format!("{i}/3")],
+            &[],
+            true,
+        );
+    }
+    assert_eq!(shard_ids(&reordered), shards);
+}
+
+/// A shard whose run was damaged (one job's output corrupted, another's record lost and a
+/// temporary file left, as if the run had been killed in the middle of it) resumes: --resume
+/// redoes those two jobs only, reports the others skipped, and the files are again the
+/// undamaged run's.
+#[test]
+fn resume_redoes_only_unfinished_or_damaged_jobs() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = jsonl_manifest(dir.path(), "jobs.jsonl", &nine_jobs());
+    let out = dir.path().join("out");
+    for i in 0..2 {
+        batch(&manifest, &out, &["--shard", &format!("{i}/2")], &[], true);
+    }
+    let pristine = outputs_tree(&out);
+    let shard = out.join("results.1-of-2.jsonl");
+    let ids: Vec<String> = records(&shard)
+        .iter()
+        .map(|r| r["id"].as_str().unwrap().to_string())
+        .collect();
+    assert!(ids.len() >= 3, "shard 1 has enough jobs: {ids:?}");
+    let other_shard = std::fs::read(out.join("results.0-of-2.jsonl")).unwrap();
+
+    // Damage: truncate one output; lose one job's record (killed after writing its images).
+    let damaged = &ids[0];
+    let first_output = records(&shard)[0]["outputs"][0]["path"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let bytes = std::fs::read(out.join(&first_output)).unwrap();
+    std::fs::write(out.join(&first_output), &bytes[..bytes.len() / 2]).unwrap();
+    let unrecorded = &ids[1];
+    std::fs::remove_file(out.join(unrecorded).join("job.json")).unwrap();
+    // What a kill leaves of a file being written (it cannot clean up): gone once the job is redone.
+    std::fs::write(
+        out.join(unrecorded).join(".meshtracer-AbC123.partial"),
+        b"half",
+    )
+    .unwrap();
+
+    batch(&manifest, &out, &["--shard", "1/2", "--resume"], &[], true);
+    let resumed = by_id(&records(&shard));
+    for id in &ids {
+        let expected = if id == damaged || id == unrecorded {
+            "ok"
+        } else {
+            "skipped"
+        };
+        assert_eq!(resumed[id]["status"], expected, "{id}");
+        assert_hashes_match(&out, &resumed[id]);
+    }
+    assert_eq!(
+        outputs_tree(&out),
+        pristine,
+        "the redone jobs wrote the same bytes and left no temporary file"
+    );
+    assert_eq!(
+        std::fs::read(out.join("results.0-of-2.jsonl")).unwrap(),
+        other_shard
+    );
+    merge(&out, true);
+    assert_eq!(records(&out.join("results.jsonl")).len(), 9);
+}
+
+/// Reads `key: value` from a YAML or sbatch text (first match).
+fn setting<'a>(text: &'a str, key: &str) -> &'a str {
+    text.lines()
+        .find_map(|l| l.trim().strip_prefix(key))
+        .unwrap_or_else(|| panic!("no '{key}' in the example"))
+        .trim()
+}
+
+/// The example scripts run the real command for every index of their array with the
+/// variables the scheduler sets: the shards together cover every job once, and merged they
+/// equal the unsharded run. The Slurm script is run by bash; the Kubernetes Job's command is
+/// read from the YAML and run with JOB_COMPLETION_INDEX (its size options made small, /data
+/// mapped to a temporary folder).
+#[test]
+fn the_slurm_and_kubernetes_examples_cover_every_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = jsonl_manifest(dir.path(), "manifest.jsonl", &nine_jobs());
+    let whole = dir.path().join("whole");
+    batch(&manifest, &whole, &[], &[], true);
+    let whole_results: Vec<Value> = records(&whole.join("results.jsonl"))
+        .iter()
+        .map(timeless)
+        .collect();
+    let exe = env!("CARGO_BIN_EXE_meshtracer");
+    let small = SMALL.join(" ");
+
+    let script = root().join("examples/slurm/render_array.sbatch");
+    let text = std::fs::read_to_string(&script).unwrap();
+    let array = setting(&text, "#SBATCH --array=");
+    let (min, max) = array.split_once('-').expect("--array=MIN-MAX");
+    let (min, max): (usize, usize) = (min.parse().unwrap(), max.parse().unwrap());
+    let slurm_out = dir.path().join("slurm");
+    for task in min..=max {
+        let (id, count) = (task.to_string(), (max - min + 1).to_string());
+        let (min_s, max_s) = (min.to_string(), max.to_string());
+        let env = [
+            ("SLURM_ARRAY_TASK_ID", id.as_str()),
+            ("SLURM_ARRAY_TASK_COUNT", count.as_str()),
+            ("SLURM_ARRAY_TASK_MIN", min_s.as_str()),
+            ("SLURM_ARRAY_TASK_MAX", max_s.as_str()),
+            ("SLURM_CPUS_PER_TASK", "1"),
+            ("MESHTRACER", exe),
+            ("MESHTRACER_OPTIONS", small.as_str()),
+        ];
+        let args = [s(&script), s(&manifest), s(&slurm_out)];
+        check(command("bash", &args, &env), true);
+    }
+
+    let yaml = std::fs::read_to_string(root().join("examples/k8s/indexed-job.yaml")).unwrap();
+    let completions: usize = setting(&yaml, "completions:").parse().unwrap();
+    let command_line: Vec<String> = serde_json::from_str(setting(&yaml, "command:")).unwrap();
+    let data = dir.path().join("data");
+    std::fs::create_dir_all(&data).unwrap();
+    std::fs::copy(&manifest, data.join("manifest.jsonl")).unwrap();
+    let models = manifest.parent().unwrap();
+    std::fs::copy(
+        models.join("cornell-box.gltf"),
+        data.join("cornell-box.gltf"),
+    )
+    .unwrap();
+    std::fs::create_dir_all(data.join("sub")).unwrap();
+    for name in ["shapes.obj", "shapes.mtl"] {
+        std::fs::copy(models.join("sub").join(name), data.join("sub").join(name)).unwrap();
+    }
+    let mut args: Vec<String> = Vec::new();
+    let mut words = command_line.iter().skip(1).peekable();
+    assert_eq!(command_line[0], "meshtracer");
+    while let Some(word) = words.next() {
+        match word.as_str() {
+            // Size and sample options: the test's small ones below.
+            "--width" | "--height" | "--spp" => {
+                words.next();
+            }
+            "--shard-count" => {
+                let count = words.next().unwrap();
+                assert_eq!(
+                    count.parse::<usize>().unwrap(),
+                    completions,
+                    "--shard-count is the Job's completions"
+                );
+                args.extend([word.clone(), count.clone()]);
+            }
+            w => args.push(w.replace("/data", s(&data))),
+        }
+    }
+    args.extend(SMALL.iter().map(|w| w.to_string()));
+    for index in 0..completions {
+        let index = index.to_string();
+        let argv: Vec<&str> = args.iter().map(String::as_str).collect();
+        check(
+            command(exe, &argv, &[("JOB_COMPLETION_INDEX", &index)]),
+            true,
+        );
+    }
+
+    for out in [slurm_out, data.join("out")] {
+        let mut seen = BTreeSet::new();
+        for entry in std::fs::read_dir(&out).unwrap().flatten() {
+            let name = entry.file_name().to_string_lossy().into_owned();
+            if name.starts_with("results.") {
+                for r in records(&entry.path()) {
+                    assert!(
+                        seen.insert(r["id"].to_string()),
+                        "{}: {} twice",
+                        out.display(),
+                        r["id"]
+                    );
+                }
+            }
+        }
+        assert_eq!(seen.len(), 9, "{}: every job once", out.display());
+        merge(&out, true);
+        let merged: Vec<Value> = records(&out.join("results.jsonl"))
+            .iter()
+            .map(timeless)
+            .collect();
+        let strip = |rs: &[Value]| -> Vec<Value> {
+            // The example's outputs (depth.exr, mask.png) differ from the unsharded run's:
+            // compare what every run shares.
+            rs.iter()
+                .map(|r| serde_json::json!({"id": r["id"], "status": r["status"], "triangles": r["triangles"], "image": r["outputs"][0]}))
+                .collect()
+        };
+        assert_eq!(strip(&merged), strip(&whole_results), "{}", out.display());
+    }
+}
