@@ -129,7 +129,11 @@ fn ctrl_c_stops_a_benchmark_with_its_finished_measurements() {
         assert!(text.contains("| generated 1000000 |"), "{text}");
         // Once in the measurements table (name, then its 1,024 triangles); the build-steps
         // table names it again.
-        assert_eq!(text.matches("| generated 1000 | 1024 |").count(), 1, "{text}");
+        assert_eq!(
+            text.matches("| generated 1000 | 1024 |").count(),
+            1,
+            "{text}"
+        );
         assert!(text.contains("stopped early: 2 of 3"), "{text}");
     }
 }
