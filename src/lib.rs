@@ -61,6 +61,7 @@ pub mod scene;
 pub mod setup;
 pub mod shading;
 pub mod texture;
+pub mod tiles;
 pub mod view;
 pub mod views;
 
