@@ -573,6 +573,10 @@ fn render_command(args: &RenderArgs) -> Result<()> {
     let (scene, accel, textures) = (&prepared.scene, &prepared.accel, &prepared.textures);
     let background = args.background;
     output.commit(&image, background)?;
+    if let Some(mode) = args.preview {
+        let force = mode == crate::cli::PreviewMode::Blocks;
+        crate::preview::show(&image, background, force).context("--preview")?;
+    }
     if let Some(a) = &aovs {
         if let Some(p) = &args.depth_out {
             crate::aov::write_depth(p, image.width, image.height, &a.depth, args.depth_scale)?;

@@ -152,6 +152,18 @@ pub struct RenderArgs {
         conflicts_with_all = ["views", "time_limit"]
     )]
     pub crop: Option<crate::render::Region>,
+    /// Show the finished image in the terminal as Unicode half blocks (24-bit colour), sized
+    /// to the terminal. `--preview` (auto) prints only when standard output is a terminal;
+    /// `--preview=blocks` prints in any case (80x24 when the size cannot be asked).
+    #[arg(
+        long,
+        value_enum,
+        value_name = "MODE",
+        num_args = 0..=1,
+        require_equals = true,
+        default_missing_value = "auto"
+    )]
+    pub preview: Option<PreviewMode>,
     /// Acceleration structure: the BVH, or a linear scan of every triangle (the baseline).
     #[arg(long, value_enum, default_value_t = AccelKind::Bvh)]
     pub accel: AccelKind,
@@ -272,6 +284,15 @@ pub struct RenderArgs {
     /// Loading options.
     #[command(flatten)]
     pub load: LoadArgs,
+}
+
+/// When `render --preview` prints.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum PreviewMode {
+    /// Only when standard output is a terminal.
+    Auto,
+    /// Always, as half blocks.
+    Blocks,
 }
 
 /// `meshtracer merge`.

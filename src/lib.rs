@@ -55,6 +55,7 @@ pub mod measure;
 pub mod output;
 pub mod plot;
 pub mod prepare;
+pub mod preview;
 pub mod render;
 pub mod sampling;
 pub mod scene;
