@@ -38,7 +38,7 @@ pub fn check(path: &Path, allowed: &[&str]) -> Result<(), SaveError> {
 }
 
 /// A NumPy `.npy` file (format 1.0): magic, a padded header dict, little-endian data.
-fn npy(descr: &str, shape: &[usize], data: &[u8]) -> Vec<u8> {
+pub(crate) fn npy(descr: &str, shape: &[usize], data: &[u8]) -> Vec<u8> {
     let dims: Vec<String> = shape.iter().map(usize::to_string).collect();
     let shape = if dims.len() == 1 {
         format!("({},)", dims[0])

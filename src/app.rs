@@ -7,7 +7,7 @@ use crate::environment::Environment;
 use crate::integrator::IntegratorKind;
 use crate::output::PendingOutput;
 use crate::prepare::Prepared;
-use crate::render::{render, RenderSettings};
+use crate::render::{render, render_region, RenderSettings};
 use crate::scene::{Camera, LightKind, LoadOptions, Projection, Scene};
 use crate::setup::{
     default_rig, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_HEIGHT, DEFAULT_WIDTH, DEFAULT_YFOV_DEGREES,
@@ -19,6 +19,7 @@ use std::time::{Duration, Instant};
 
 mod batch;
 mod multi_view;
+mod tiles;
 
 /// Wall time and peak memory after each phase of a render, for `--stats`.
 #[derive(Default)]
@@ -114,6 +115,7 @@ pub fn run(command: Command) -> Result<()> {
         Command::BatchMerge(args) => batch::merge_command(&args),
         Command::Bench(args) => bench_command(&args),
         Command::Compare(args) => compare_command(&args),
+        Command::Merge(args) => tiles::merge_command(&args),
     }
 }
 
@@ -431,6 +433,7 @@ fn render_model(
     if let Some(p) = &args.stats {
         crate::aov::check(p, &["json"])?;
     }
+    tiles::check_render(args)?;
     let env_file = match &args.env {
         Some(path) => {
             Some(Environment::load(path)?.with_transform(args.env_rotation, args.env_intensity))
@@ -491,6 +494,7 @@ fn render_model(
         None => choose_camera(args, &scene, file_camera, aspect),
     };
     let view = View::from_camera(&camera, width, height);
+    let region = tiles::region(args, width, height)?;
 
     let using_rig =
         view_file.is_none() && scene.lights.is_empty() && !args.no_default_lights && !path_tracing;
@@ -590,7 +594,7 @@ fn render_model(
             settings.spp = spp_for_time_limit(&prepared, &settings, &cancel, limit, args.max_spp)?;
         }
         let bar = progress_bar(args.quiet);
-        let result = render(&prepared, &settings, &cancel, &|done, total| {
+        let result = render_region(&prepared, &settings, region, &cancel, &|done, total| {
             bar.set_length(total);
             bar.set_position(done);
         });
@@ -602,20 +606,24 @@ fn render_model(
     let (scene, accel, textures) = (&prepared.scene, &prepared.accel, &prepared.textures);
     let background = args.background;
     output.commit(&image, background)?;
+    if let Some(mode) = args.preview {
+        let force = mode == crate::cli::PreviewMode::Blocks;
+        crate::preview::show(&image, background, force).context("--preview")?;
+    }
     if let Some(a) = &aovs {
         if let Some(p) = &args.depth_out {
-            crate::aov::write_depth(p, width, height, &a.depth, args.depth_scale)?;
+            crate::aov::write_depth(p, image.width, image.height, &a.depth, args.depth_scale)?;
         }
         if let Some(p) = &args.normal_out {
-            crate::aov::write_normals(p, width, height, &a.normal)?;
+            crate::aov::write_normals(p, image.width, image.height, &a.normal)?;
         }
         if let Some(p) = &args.segmentation_out {
-            crate::aov::write_segmentation(p, width, height, &a.instance)?;
+            crate::aov::write_segmentation(p, image.width, image.height, &a.instance)?;
         }
     }
     if let Some(p) = &args.mask_out {
         let coverage: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();
-        crate::aov::write_mask(p, width, height, &coverage)?;
+        crate::aov::write_mask(p, image.width, image.height, &coverage)?;
     }
     if let (Some(path), Some(env)) = (&args.env_out, &settings.environment) {
         let panorama = env.to_rgb32f();
@@ -674,6 +682,7 @@ fn render_model(
         }
         view.write(path)?;
     }
+    tiles::write_sidecar(args, region, &settings, scene)?;
     phases.mark("write", write_start);
     if let Some(path) = &args.stats {
         let json = serde_json::json!({

@@ -32,6 +32,11 @@ pub enum Command {
     /// Compare two images (A is the reference): PSNR, SSIM, mean FLIP, RMSE, max error and
     /// coverage IoU; optionally a FLIP heatmap and an A | B | heatmap strip.
     Compare(CompareArgs),
+    /// Join tiles rendered with `render --tile I/N` or `--crop` (and, the same way, their
+    /// AOVs) into the whole image, identical to a single render's; refuses tiles that are
+    /// missing, overlap or come from different renders.
+    #[command(visible_alias = "merge-tiles")]
+    Merge(MergeArgs),
 }
 
 /// Options shared by every command that loads a model.
@@ -133,6 +138,37 @@ pub struct RenderArgs {
     /// --view-out take such patterns too (--view-out default: {view:03}.view.json).
     #[arg(long, value_name = "PATTERN", requires = "views")]
     pub view_name: Option<String>,
+    /// Render only tile I of N (counted from 0): the image cut into N bands of whole rows.
+    /// The outputs (image and AOVs) hold the tile alone, with a sidecar OUT.tile.json saying
+    /// where it belongs; `meshtracer merge` joins the tiles into the single render's image.
+    #[arg(
+        long,
+        value_name = "I/N",
+        value_parser = parse_tile,
+        conflicts_with_all = ["views", "time_limit", "crop"]
+    )]
+    pub tile: Option<crate::tiles::TileIndex>,
+    /// Render only the rectangle of W x H pixels whose top-left pixel is X,Y (from the
+    /// image's top-left corner); written like a --tile, with its sidecar.
+    #[arg(
+        long,
+        value_name = "X,Y,W,H",
+        value_parser = parse_crop,
+        conflicts_with_all = ["views", "time_limit"]
+    )]
+    pub crop: Option<crate::render::Region>,
+    /// Show the finished image in the terminal as Unicode half blocks (24-bit colour), sized
+    /// to the terminal. `--preview` (auto) prints only when standard output is a terminal;
+    /// `--preview=blocks` prints in any case (80x24 when the size cannot be asked).
+    #[arg(
+        long,
+        value_enum,
+        value_name = "MODE",
+        num_args = 0..=1,
+        require_equals = true,
+        default_missing_value = "auto"
+    )]
+    pub preview: Option<PreviewMode>,
     /// Acceleration structure: the BVH, or a linear scan of every triangle (the baseline).
     #[arg(long, value_enum, default_value_t = AccelKind::Bvh)]
     pub accel: AccelKind,
@@ -302,6 +338,45 @@ pub struct BatchMergeArgs {
     pub quiet: bool,
 }
 
+/// When `render --preview` prints.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum PreviewMode {
+    /// Only when standard output is a terminal.
+    Auto,
+    /// Always, as half blocks.
+    Blocks,
+}
+
+/// `meshtracer merge`.
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// The tiles: their images (the sidecar IMAGE.tile.json beside each is read) or their
+    /// sidecars.
+    #[arg(required = true, value_name = "TILE")]
+    pub tiles: Vec<PathBuf>,
+    /// The whole image; the same format as the tiles' images.
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+    /// Join the tiles' depth maps into this file (the tiles' format).
+    #[arg(long, value_name = "FILE")]
+    pub depth_out: Option<PathBuf>,
+    /// Join the tiles' normal maps into this file (the tiles' format).
+    #[arg(long, value_name = "FILE")]
+    pub normal_out: Option<PathBuf>,
+    /// Join the tiles' masks into this file (the tiles' format).
+    #[arg(long, value_name = "FILE")]
+    pub mask_out: Option<PathBuf>,
+    /// Join the tiles' segmentation maps into this file (the tiles' format).
+    #[arg(long, value_name = "FILE")]
+    pub segmentation_out: Option<PathBuf>,
+    /// Refuse to overwrite an existing output file.
+    #[arg(long)]
+    pub no_clobber: bool,
+    /// No summary line.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
 /// `meshtracer bench`.
 #[derive(Debug, Args)]
 pub struct BenchArgs {
@@ -393,6 +468,16 @@ pub fn parse_threshold(s: &str) -> Result<(String, f64), String> {
         .parse()
         .map_err(|_| format!("'{value}' is not a number"))?;
     Ok((metric, value))
+}
+
+/// Parses `--tile I/N`.
+pub fn parse_tile(s: &str) -> Result<crate::tiles::TileIndex, String> {
+    crate::tiles::TileIndex::parse(s).map_err(|e| e.to_string())
+}
+
+/// Parses `--crop X,Y,W,H`.
+pub fn parse_crop(s: &str) -> Result<crate::render::Region, String> {
+    crate::tiles::parse_crop(s).map_err(|e| e.to_string())
 }
 
 /// Parses `X,Y,Z` into a vector of three finite numbers.

@@ -58,12 +58,14 @@ pub mod measure;
 pub mod output;
 pub mod plot;
 pub mod prepare;
+pub mod preview;
 pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod setup;
 pub mod shading;
 pub mod texture;
+pub mod tiles;
 pub mod view;
 pub mod views;
 

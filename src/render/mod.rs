@@ -112,6 +112,69 @@ impl RenderStats {
 #[error("render interrupted")]
 pub struct Cancelled;
 
+/// A rectangle of the image in pixels: columns `x..x + width`, rows `y..y + height`, row 0 at
+/// the top.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Region {
+    /// First column.
+    pub x: u32,
+    /// First row.
+    pub y: u32,
+    /// Columns.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+}
+
+impl Region {
+    /// The whole of a `width` x `height` image.
+    pub fn full(width: u32, height: u32) -> Region {
+        Region {
+            x: 0,
+            y: 0,
+            width,
+            height,
+        }
+    }
+
+    /// One past the last column.
+    pub fn right(&self) -> u32 {
+        self.x + self.width
+    }
+
+    /// One past the last row.
+    pub fn bottom(&self) -> u32 {
+        self.y + self.height
+    }
+
+    /// Pixels in the region.
+    pub fn pixels(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height)
+    }
+
+    /// Whether the region is non-empty and lies inside a `width` x `height` image.
+    pub fn fits(&self, width: u32, height: u32) -> bool {
+        self.width > 0
+            && self.height > 0
+            && u64::from(self.x) + u64::from(self.width) <= u64::from(width)
+            && u64::from(self.y) + u64::from(self.height) <= u64::from(height)
+    }
+
+    /// The rectangle both regions cover, if any.
+    pub fn intersection(&self, other: &Region) -> Option<Region> {
+        let x = self.x.max(other.x);
+        let y = self.y.max(other.y);
+        let right = self.right().min(other.right());
+        let bottom = self.bottom().min(other.bottom());
+        (x < right && y < bottom).then(|| Region {
+            x,
+            y,
+            width: right - x,
+            height: bottom - y,
+        })
+    }
+}
+
 /// Renders a prepared scene. `progress` is called with the number of finished tiles and the
 /// total; setting `cancel` stops the render at the next tile.
 pub fn render(
@@ -120,8 +183,24 @@ pub fn render(
     cancel: &AtomicBool,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<(Image, RenderStats, Option<Aovs>), Cancelled> {
+    let full = Region::full(settings.view.width, settings.view.height);
+    render_region(scene, settings, full, cancel, progress)
+}
+
+/// Renders the part `region` of the image `settings.view` describes: the image and AOVs are
+/// `region.width` x `region.height`, and each pixel is the same, bit for bit, as the pixel at
+/// that place of the whole render (every pixel's samples are keyed by its position in the
+/// whole image and the seed, never by the region). `region` must fit the view's image.
+pub fn render_region(
+    scene: &Prepared,
+    settings: &RenderSettings,
+    region: Region,
+    cancel: &AtomicBool,
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Result<(Image, RenderStats, Option<Aovs>), Cancelled> {
     let start = Instant::now();
-    let (width, height) = (settings.view.width, settings.view.height);
+    debug_assert!(region.fits(settings.view.width, settings.view.height));
+    let (width, height) = (region.width, region.height);
     let tiles_x = width.div_ceil(TILE_SIZE);
     let tiles_y = height.div_ceil(TILE_SIZE);
     let total = u64::from(tiles_x) * u64::from(tiles_y);
@@ -147,7 +226,7 @@ pub fn render(
             &path
         }
     };
-    let tracer = PixelLoop::new(scene, integrator, settings);
+    let tracer = PixelLoop::new(scene, integrator, settings, region);
     let tiles: Vec<(u32, u32)> = (0..tiles_y)
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
         .collect();
@@ -157,7 +236,7 @@ pub fn render(
             if cancel.load(Ordering::Relaxed) {
                 return None;
             }
-            let tile = tracer.tile(tx * TILE_SIZE, ty * TILE_SIZE);
+            let tile = tracer.tile(region.x + tx * TILE_SIZE, region.y + ty * TILE_SIZE);
             progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
             Some(tile)
         })
@@ -182,8 +261,8 @@ pub fn render(
         noise_sum += tile.noise_sum;
         noise_pixels += tile.noise_pixels;
         for (row, chunk) in tile.pixels.chunks(tile.width as usize).enumerate() {
-            let y = tile.y + row as u32;
-            let begin = (y * width + tile.x) as usize;
+            let y = tile.y - region.y + row as u32;
+            let begin = (y * width + tile.x - region.x) as usize;
             image.pixels[begin..begin + chunk.len()].copy_from_slice(chunk);
             if let Some(a) = aovs.as_mut() {
                 let at = row * tile.width as usize;
@@ -218,6 +297,8 @@ struct PixelLoop<'a> {
     scene: &'a Prepared,
     integrator: &'a dyn Integrator,
     settings: &'a RenderSettings,
+    /// The part of the image rendered.
+    region: Region,
     /// 2^exposure.
     scale: f32,
     /// Strata per axis for jittered sampling.
@@ -232,6 +313,7 @@ impl<'a> PixelLoop<'a> {
         scene: &'a Prepared,
         integrator: &'a dyn Integrator,
         settings: &'a RenderSettings,
+        region: Region,
     ) -> Self {
         let sx = (settings.spp as f32).sqrt().floor().max(1.0) as u32;
         let sy = settings.spp.div_ceil(sx);
@@ -244,6 +326,7 @@ impl<'a> PixelLoop<'a> {
             scene,
             integrator,
             settings,
+            region,
             scale: settings.exposure.exp2(),
             strata: (sx, sy),
             spread,
@@ -252,8 +335,8 @@ impl<'a> PixelLoop<'a> {
 
     fn tile(&self, x0: u32, y0: u32) -> Tile {
         let view = &self.settings.view;
-        let x1 = (x0 + TILE_SIZE).min(view.width);
-        let y1 = (y0 + TILE_SIZE).min(view.height);
+        let x1 = (x0 + TILE_SIZE).min(self.region.right());
+        let y1 = (y0 + TILE_SIZE).min(self.region.bottom());
         let mut tile = Tile {
             x: x0,
             y: y0,

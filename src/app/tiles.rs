@@ -1,0 +1,216 @@
+//! `render --tile I/N` / `--crop X,Y,W,H` (the part of the image a render covers, and the
+//! sidecar it leaves) and `merge` (tiles joined into the whole image). The formats and checks
+//! are in [`crate::tiles`].
+
+use crate::cli::{MergeArgs, RenderArgs};
+use crate::render::{Region, RenderSettings};
+use crate::scene::Scene;
+use crate::tiles::{check_cover, extension, fingerprint, Raster, TileFile, TILE_FILE_VERSION};
+use anyhow::{bail, Context, Result};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Whether this render is a tile.
+fn tiled(args: &RenderArgs) -> bool {
+    args.tile.is_some() || args.crop.is_some()
+}
+
+/// Refusals a tiled render makes before any work: tiles are merged exactly only from formats
+/// that keep the pixels as written (PNG, EXR, `.npy`), not from RGBE `.hdr`.
+pub(super) fn check_render(args: &RenderArgs) -> Result<()> {
+    if tiled(args) && extension(&args.output) == "hdr" {
+        bail!(
+            "{}: a tile's image must be .png or .exr (an .hdr tile cannot be merged exactly)",
+            args.output.display()
+        );
+    }
+    Ok(())
+}
+
+/// The part of the `width` x `height` image this render covers: the whole image unless
+/// `--tile` or `--crop` says otherwise.
+pub(super) fn region(args: &RenderArgs, width: u32, height: u32) -> Result<Region> {
+    Ok(match (args.tile, args.crop) {
+        (Some(tile), _) => tile.region(width, height)?,
+        (None, Some(crop)) => crate::tiles::check_crop(crop, width, height)?,
+        (None, None) => Region::full(width, height),
+    })
+}
+
+/// Everything that decides a pixel's value, as text: tiles join only when this agrees.
+fn render_fingerprint(args: &RenderArgs, settings: &RenderSettings, scene: &Scene) -> String {
+    let environment = settings
+        .environment
+        .as_ref()
+        .map(|e| format!("{:?} {} {}", e.source, e.rotation_degrees(), e.intensity()));
+    fingerprint(&format!(
+        "view {:?}; spp {}; seed {}; lights {:?}; ambient {:?}; exposure {}; shading {:?}; integrator {:?}; bounces {}; environment {environment:?} visible {}; background {:?}; depth scale {}; triangles {}; bounds {:?}",
+        settings.view,
+        settings.spp,
+        settings.seed,
+        settings.lights,
+        settings.ambient,
+        settings.exposure,
+        settings.shading,
+        settings.integrator,
+        settings.bounces,
+        settings.environment_visible,
+        args.background,
+        args.depth_scale,
+        scene.soup.len(),
+        scene.bounds,
+    ))
+}
+
+/// A path as the sidecar in `dir` records it: relative to `dir` when the file is inside it,
+/// else absolute.
+fn relative_to(file: &Path, dir: &Path) -> PathBuf {
+    let (Ok(file), Ok(dir)) = (file.canonicalize(), dir.canonicalize()) else {
+        return file.to_path_buf();
+    };
+    file.strip_prefix(&dir)
+        .map(Path::to_path_buf)
+        .unwrap_or(file)
+}
+
+/// Writes the sidecar of a tiled render, after its outputs: a sidecar means a complete tile.
+pub(super) fn write_sidecar(
+    args: &RenderArgs,
+    region: Region,
+    settings: &RenderSettings,
+    scene: &Scene,
+) -> Result<()> {
+    if !tiled(args) {
+        return Ok(());
+    }
+    let sidecar = TileFile::sidecar_path(&args.output);
+    let dir = match sidecar.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let outputs: BTreeMap<String, PathBuf> = [
+        ("image", Some(&args.output)),
+        ("depth", args.depth_out.as_ref()),
+        ("normal", args.normal_out.as_ref()),
+        ("mask", args.mask_out.as_ref()),
+        ("segmentation", args.segmentation_out.as_ref()),
+    ]
+    .into_iter()
+    .filter_map(|(kind, path)| path.map(|p| (kind.to_string(), relative_to(p, &dir))))
+    .collect();
+    let file = TileFile {
+        meshtracer_tile: TILE_FILE_VERSION,
+        image: crate::tiles::ImageSize {
+            width: settings.view.width,
+            height: settings.view.height,
+        },
+        region,
+        tile: args.tile,
+        render: render_fingerprint(args, settings, scene),
+        outputs,
+    };
+    let text = serde_json::to_string_pretty(&file)?;
+    crate::output::write_atomic(&sidecar, text.as_bytes())?;
+    Ok(())
+}
+
+/// `meshtracer merge -o OUT TILE...`.
+pub(super) fn merge_command(args: &MergeArgs) -> Result<()> {
+    let tiles: Vec<(PathBuf, TileFile)> = args
+        .tiles
+        .iter()
+        .map(|t| {
+            let sidecar = TileFile::sidecar_path(t);
+            TileFile::read(&sidecar).map(|file| (sidecar, file))
+        })
+        .collect::<Result<_, _>>()?;
+    let size = check_cover(&tiles)?;
+    let (_, first) = &tiles[0];
+    let asked = [
+        ("image", Some(&args.output), "-o"),
+        ("depth", args.depth_out.as_ref(), "--depth-out"),
+        ("normal", args.normal_out.as_ref(), "--normal-out"),
+        ("mask", args.mask_out.as_ref(), "--mask-out"),
+        (
+            "segmentation",
+            args.segmentation_out.as_ref(),
+            "--segmentation-out",
+        ),
+    ];
+    // Every refusal before any file is read or written.
+    let mut jobs = Vec::new();
+    for (kind, out, option) in asked {
+        let tile_file = first.outputs.get(kind);
+        match (out, tile_file) {
+            (Some(out), Some(tile_file)) => {
+                if extension(out) != extension(tile_file) {
+                    bail!(
+                        "{option} {}: the tiles' {kind} files are .{}: merge into the same format (no conversion, so the pixels stay exact)",
+                        out.display(),
+                        extension(tile_file)
+                    );
+                }
+                if args.no_clobber && out.exists() {
+                    bail!("{}: already exists (--no-clobber)", out.display());
+                }
+                jobs.push((kind, out));
+            }
+            (Some(out), None) => bail!(
+                "{option} {}: the tiles have no {kind} output (render them with {option})",
+                out.display()
+            ),
+            (None, Some(_)) if !args.quiet => {
+                eprintln!("note: the tiles also have {kind} files; add {option} FILE to merge them")
+            }
+            (None, _) => {}
+        }
+    }
+    for (kind, out) in jobs {
+        let mut whole: Option<Raster> = None;
+        let mut first_layout = String::new();
+        for (sidecar, tile) in &tiles {
+            let path = tile
+                .output_path(sidecar, kind)
+                .with_context(|| format!("{}: lists no {kind} file", sidecar.display()))?;
+            let part = Raster::read(&path)?;
+            let region = tile.region;
+            if part.size() != (u64::from(region.width), u64::from(region.height)) {
+                bail!(
+                    "{}: {}x{} pixels, but its sidecar {} says the tile is {}x{}",
+                    path.display(),
+                    part.size().0,
+                    part.size().1,
+                    sidecar.display(),
+                    region.width,
+                    region.height
+                );
+            }
+            let whole = whole.get_or_insert_with(|| {
+                first_layout = part.layout();
+                part.blank_like(size.width, size.height)
+            });
+            if part.layout() != first_layout {
+                bail!(
+                    "{}: pixel layout {}, the other tiles' {kind} files are {first_layout}",
+                    path.display(),
+                    part.layout()
+                );
+            }
+            whole.paste(&part, region.x, region.y)?;
+        }
+        if let Some(whole) = whole {
+            let bytes = whole.encode(out)?;
+            crate::output::write_atomic(out, &bytes)?;
+        }
+    }
+    if !args.quiet {
+        eprintln!(
+            "merged {} tiles into {}x{} -> {}",
+            tiles.len(),
+            size.width,
+            size.height,
+            args.output.display()
+        );
+    }
+    Ok(())
+}

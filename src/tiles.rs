@@ -1,0 +1,610 @@
+//! Tiles: one image rendered in parts (`render --tile I/N` or `--crop X,Y,W,H`), possibly on
+//! different machines, and joined again (`merge`) into the image a single render gives, byte
+//! for byte.
+//!
+//! Every pixel's samples are keyed by the seed and the pixel's place in the whole image
+//! ([`crate::render::render_region`]), so a tile's pixels are the whole render's pixels. A tile
+//! writes its image and AOVs at the tile's size, in the formats asked for, and then a sidecar,
+//! `OUT.tile.json` beside its image ([`TileFile`]): where the tile belongs, which files it
+//! wrote and a fingerprint of everything that decides a pixel's value, so tiles of different
+//! renders are not joined. The merge decodes each tile's files ([`Raster`]), pastes them and
+//! encodes the whole with the same encoder the render uses, so the bytes match.
+
+use crate::render::Region;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// The version of the sidecar format.
+pub const TILE_FILE_VERSION: u32 = 1;
+
+/// What a sidecar's name adds to its image's name: `tile-0.png` -> `tile-0.png.tile.json`.
+pub const SIDECAR_SUFFIX: &str = ".tile.json";
+
+/// The outputs a tile can carry, in the order they are merged: the image, then the AOVs.
+pub const OUTPUT_KINDS: [&str; 5] = ["image", "depth", "normal", "mask", "segmentation"];
+
+/// Why tiles could not be cut or joined.
+#[derive(Debug, thiserror::Error)]
+pub enum TileError {
+    /// A `--tile` or `--crop` value that does not describe a part of the image.
+    #[error("{0}")]
+    Spec(String),
+    /// A sidecar that cannot be read or is not one.
+    #[error("{}: {message}", path.display())]
+    Sidecar {
+        /// The sidecar.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A tile's output file that cannot be read or does not fit its tile.
+    #[error("{}: {message}", path.display())]
+    Output {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// Tiles that do not belong to one image, or do not cover it exactly once.
+    #[error("{0}")]
+    Mismatch(String),
+}
+
+/// Tile `index` of `count` (0-based, as Slurm array and Kubernetes Indexed Job indices are):
+/// the image cut into `count` bands of whole rows, as even as they can be.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct TileIndex {
+    /// Which band, 0 to `count - 1`.
+    pub index: u32,
+    /// How many bands.
+    pub count: u32,
+}
+
+impl TileIndex {
+    /// Parses `I/N`.
+    pub fn parse(text: &str) -> Result<TileIndex, TileError> {
+        let bad = |why: &str| TileError::Spec(why.to_string());
+        let (i, n) = text
+            .split_once('/')
+            .ok_or_else(|| bad("expected I/N, e.g. 0/4 (tile I of N, counted from 0)"))?;
+        let index: u32 = i.trim().parse().map_err(|_| bad("I is not a number"))?;
+        let count: u32 = n.trim().parse().map_err(|_| bad("N is not a number"))?;
+        if count == 0 {
+            return Err(bad("N must be at least 1"));
+        }
+        if index >= count {
+            return Err(bad(&format!(
+                "I must be between 0 and {} (tiles are counted from 0)",
+                count - 1
+            )));
+        }
+        Ok(TileIndex { index, count })
+    }
+
+    /// The rows of a `width` x `height` image this tile covers: band `index` of `count`,
+    /// rows `index * height / count` up to `(index + 1) * height / count`.
+    pub fn region(&self, width: u32, height: u32) -> Result<Region, TileError> {
+        if self.count > height {
+            return Err(TileError::Spec(format!(
+                "--tile {}/{}: the image has only {height} rows, fewer than the {} tiles",
+                self.index, self.count, self.count
+            )));
+        }
+        let row = |i: u32| (u64::from(i) * u64::from(height) / u64::from(self.count)) as u32;
+        let (top, bottom) = (row(self.index), row(self.index + 1));
+        Ok(Region {
+            x: 0,
+            y: top,
+            width,
+            height: bottom - top,
+        })
+    }
+}
+
+/// Parses `--crop X,Y,W,H` (pixels, from the top-left corner).
+pub fn parse_crop(text: &str) -> Result<Region, TileError> {
+    let numbers: Vec<Option<u32>> = text.split(',').map(|p| p.trim().parse().ok()).collect();
+    match numbers.as_slice() {
+        [Some(x), Some(y), Some(width), Some(height)] if *width > 0 && *height > 0 => Ok(Region {
+            x: *x,
+            y: *y,
+            width: *width,
+            height: *height,
+        }),
+        _ => Err(TileError::Spec(
+            "expected X,Y,W,H in whole pixels with W and H at least 1".into(),
+        )),
+    }
+}
+
+/// Checks that a crop lies inside the image.
+pub fn check_crop(crop: Region, width: u32, height: u32) -> Result<Region, TileError> {
+    if crop.fits(width, height) {
+        Ok(crop)
+    } else {
+        Err(TileError::Spec(format!(
+            "--crop {},{},{},{}: does not fit the {width}x{height} image",
+            crop.x, crop.y, crop.width, crop.height
+        )))
+    }
+}
+
+/// The size of the whole image, in a sidecar.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ImageSize {
+    /// Columns.
+    pub width: u32,
+    /// Rows.
+    pub height: u32,
+}
+
+/// The sidecar of a tile, `OUT.tile.json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TileFile {
+    /// Format version, [`TILE_FILE_VERSION`].
+    pub meshtracer_tile: u32,
+    /// The whole image.
+    pub image: ImageSize,
+    /// The part this tile covers.
+    pub region: Region,
+    /// `--tile I/N`, if the tile was cut that way (`None` for `--crop`).
+    pub tile: Option<TileIndex>,
+    /// Fingerprint of the render ([`fingerprint`]): tiles join only when theirs agree.
+    pub render: String,
+    /// The files the tile wrote, by kind ([`OUTPUT_KINDS`]); relative paths are relative to
+    /// the sidecar's folder.
+    pub outputs: BTreeMap<String, PathBuf>,
+}
+
+impl TileFile {
+    /// The sidecar of the tile whose image is `image` (or `image` itself, if it names one).
+    pub fn sidecar_path(image: &Path) -> PathBuf {
+        if image.to_string_lossy().ends_with(SIDECAR_SUFFIX) {
+            image.to_path_buf()
+        } else {
+            let mut name = image.as_os_str().to_os_string();
+            name.push(SIDECAR_SUFFIX);
+            PathBuf::from(name)
+        }
+    }
+
+    /// Reads and checks a sidecar.
+    pub fn read(path: &Path) -> Result<TileFile, TileError> {
+        let bad = |message: String| TileError::Sidecar {
+            path: path.to_path_buf(),
+            message,
+        };
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            bad(format!(
+                "cannot read the tile's sidecar ({e}); a tile is the image or the .tile.json that `render --tile` or `--crop` wrote"
+            ))
+        })?;
+        let file: TileFile = serde_json::from_str(&text)
+            .map_err(|e| bad(format!("not a meshtracer tile sidecar: {e}")))?;
+        if file.meshtracer_tile != TILE_FILE_VERSION {
+            return Err(bad(format!(
+                "tile format version {} (this meshtracer reads {TILE_FILE_VERSION})",
+                file.meshtracer_tile
+            )));
+        }
+        if !file.region.fits(file.image.width, file.image.height) {
+            return Err(bad(format!(
+                "region {:?} does not fit the {}x{} image",
+                file.region, file.image.width, file.image.height
+            )));
+        }
+        if !file.outputs.contains_key("image") {
+            return Err(bad("lists no image".into()));
+        }
+        if let Some(kind) = file
+            .outputs
+            .keys()
+            .find(|k| !OUTPUT_KINDS.contains(&k.as_str()))
+        {
+            return Err(bad(format!("unknown output kind '{kind}'")));
+        }
+        Ok(file)
+    }
+
+    /// Where output `kind` is, resolved against the sidecar's folder.
+    pub fn output_path(&self, sidecar: &Path, kind: &str) -> Option<PathBuf> {
+        let path = self.outputs.get(kind)?;
+        Some(match sidecar.parent() {
+            Some(dir) if path.is_relative() => dir.join(path),
+            _ => path.clone(),
+        })
+    }
+}
+
+/// A 64-bit FNV-1a hash of `text`, as 16 hex digits: stable across machines, platforms and
+/// versions of Rust (unlike `std`'s hasher), which is what tiles rendered apart need.
+pub fn fingerprint(text: &str) -> String {
+    let mut hash: u64 = 0xcbf2_9ce4_8422_2325;
+    for byte in text.bytes() {
+        hash ^= u64::from(byte);
+        hash = hash.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    format!("{hash:016x}")
+}
+
+/// Checks that `tiles` (sidecar path, contents) belong to one image and cover it exactly
+/// once; returns the image size.
+pub fn check_cover(tiles: &[(PathBuf, TileFile)]) -> Result<ImageSize, TileError> {
+    let Some((first_path, first)) = tiles.first() else {
+        return Err(TileError::Mismatch("no tiles given".into()));
+    };
+    for (path, tile) in &tiles[1..] {
+        let differ = |what: &str| {
+            TileError::Mismatch(format!(
+                "{} and {}: different {what}: tiles of different renders cannot be merged",
+                first_path.display(),
+                path.display()
+            ))
+        };
+        if tile.image != first.image {
+            return Err(differ(&format!(
+                "image sizes ({}x{} and {}x{})",
+                first.image.width, first.image.height, tile.image.width, tile.image.height
+            )));
+        }
+        if tile.render != first.render {
+            return Err(differ(
+                "render settings (model, camera, lights, spp, seed, shading or AOV scale)",
+            ));
+        }
+        let kinds = |t: &TileFile| -> Vec<(String, String)> {
+            t.outputs
+                .iter()
+                .map(|(k, p)| (k.clone(), extension(p)))
+                .collect()
+        };
+        if kinds(tile) != kinds(first) {
+            return Err(differ("outputs (kinds or formats)"));
+        }
+    }
+    for (i, (path_a, a)) in tiles.iter().enumerate() {
+        for (path_b, b) in &tiles[i + 1..] {
+            if let Some(both) = a.region.intersection(&b.region) {
+                return Err(TileError::Mismatch(format!(
+                    "{} and {} overlap (both cover pixel {},{}): give each tile once",
+                    path_a.display(),
+                    path_b.display(),
+                    both.x,
+                    both.y
+                )));
+            }
+        }
+    }
+    let size = first.image;
+    let covered: u64 = tiles.iter().map(|(_, t)| t.region.pixels()).sum();
+    let whole = u64::from(size.width) * u64::from(size.height);
+    if covered != whole {
+        // Name the missing tiles when they were cut as I/N, else the first pixel not covered.
+        let counts: Vec<Option<u32>> = tiles.iter().map(|(_, t)| t.tile.map(|i| i.count)).collect();
+        let missing = match counts.first() {
+            Some(Some(n)) if counts.iter().all(|c| *c == Some(*n)) => {
+                let have: Vec<u32> = tiles
+                    .iter()
+                    .filter_map(|(_, t)| t.tile.map(|i| i.index))
+                    .collect();
+                let absent: Vec<String> = (0..*n)
+                    .filter(|i| !have.contains(i))
+                    .map(|i| format!("{i}/{n}"))
+                    .collect();
+                format!("missing tile(s) {}", absent.join(", "))
+            }
+            _ => {
+                let pixel = first_uncovered(tiles.iter().map(|(_, t)| t.region), size)
+                    .map_or(String::new(), |(x, y)| format!(", e.g. pixel {x},{y}"));
+                format!("some pixels are not covered{pixel}")
+            }
+        };
+        return Err(TileError::Mismatch(format!(
+            "the tiles cover {covered} of the {whole} pixels of the {}x{} image: {missing}",
+            size.width, size.height
+        )));
+    }
+    Ok(size)
+}
+
+/// The first pixel (in row order of candidates) no region covers. An uncovered area's
+/// top-left pixel lies on column 0 or a region's right edge, and row 0 or a region's bottom
+/// edge, so those candidates suffice.
+fn first_uncovered(
+    regions: impl Iterator<Item = Region> + Clone,
+    size: ImageSize,
+) -> Option<(u32, u32)> {
+    let xs = std::iter::once(0).chain(regions.clone().map(|r| r.right()));
+    let ys: Vec<u32> = std::iter::once(0)
+        .chain(regions.clone().map(|r| r.bottom()))
+        .collect();
+    let mut candidates: Vec<(u32, u32)> = xs
+        .flat_map(|x| ys.iter().map(move |&y| (x, y)))
+        .filter(|&(x, y)| x < size.width && y < size.height)
+        .collect();
+    candidates.sort_by_key(|&(x, y)| (y, x));
+    candidates.into_iter().find(|&(x, y)| {
+        !regions
+            .clone()
+            .any(|r| x >= r.x && x < r.right() && y >= r.y && y < r.bottom())
+    })
+}
+
+/// A file's extension, lower case.
+pub fn extension(path: &Path) -> String {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase()
+}
+
+/// The decoded contents of one output file, at its own size: what a merge pastes.
+#[derive(Clone, Debug)]
+pub enum Raster {
+    /// A PNG or EXR image, in the layout it was written with (8- or 16-bit, float).
+    Image(image::DynamicImage),
+    /// A NumPy array of shape (rows, columns, ...) as [`crate::aov`] writes it.
+    Npy {
+        /// The element type, e.g. `<f4`.
+        descr: String,
+        /// The shape; the first two are rows and columns.
+        shape: Vec<usize>,
+        /// Little-endian elements, row-major.
+        data: Vec<u8>,
+    },
+}
+
+impl Raster {
+    /// Reads `.png`, `.exr` or `.npy`.
+    pub fn read(path: &Path) -> Result<Raster, TileError> {
+        let bad = |message: String| TileError::Output {
+            path: path.to_path_buf(),
+            message,
+        };
+        let bytes = std::fs::read(path).map_err(|e| bad(format!("cannot read: {e}")))?;
+        match extension(path).as_str() {
+            "png" | "exr" => {
+                let format = if extension(path) == "png" {
+                    image::ImageFormat::Png
+                } else {
+                    image::ImageFormat::OpenExr
+                };
+                image::load_from_memory_with_format(&bytes, format)
+                    .map(Raster::Image)
+                    .map_err(|e| bad(format!("cannot decode: {e}")))
+            }
+            "npy" => parse_npy(&bytes).map_err(bad),
+            other => Err(bad(format!(
+                "tiles in .{other} cannot be merged exactly (use .png, .exr or .npy)"
+            ))),
+        }
+    }
+
+    /// Columns and rows.
+    pub fn size(&self) -> (u64, u64) {
+        match self {
+            Raster::Image(i) => (u64::from(i.width()), u64::from(i.height())),
+            Raster::Npy { shape, .. } => (
+                shape.get(1).copied().unwrap_or(0) as u64,
+                shape.first().copied().unwrap_or(0) as u64,
+            ),
+        }
+    }
+
+    /// The pixel layout, to compare tiles: "Rgba8", "npy <f4 (3)".
+    pub fn layout(&self) -> String {
+        match self {
+            Raster::Image(i) => format!("{:?}", i.color()),
+            Raster::Npy { descr, shape, .. } => format!("npy {descr} {:?}", &shape[2..]),
+        }
+    }
+
+    /// A blank raster of this one's layout at `width` x `height`.
+    pub fn blank_like(&self, width: u32, height: u32) -> Raster {
+        match self {
+            Raster::Image(i) => Raster::Image(image::DynamicImage::new(width, height, i.color())),
+            Raster::Npy { descr, shape, .. } => {
+                let mut whole = vec![height as usize, width as usize];
+                whole.extend(&shape[2..]);
+                let bytes = whole.iter().product::<usize>() * item_size(descr);
+                Raster::Npy {
+                    descr: descr.clone(),
+                    shape: whole,
+                    data: vec![0; bytes],
+                }
+            }
+        }
+    }
+
+    /// Copies `tile` (of the same layout, checked by the caller) with its top-left corner at
+    /// column `x`, row `y`.
+    pub fn paste(&mut self, tile: &Raster, x: u32, y: u32) -> Result<(), TileError> {
+        use image::{DynamicImage as D, GenericImage};
+        let layout_error = || TileError::Mismatch("tiles of different pixel layouts".into());
+        match (self, tile) {
+            (Raster::Image(whole), Raster::Image(part)) => {
+                let pasted = match (whole, part) {
+                    (D::ImageLuma8(w), D::ImageLuma8(p)) => w.copy_from(p, x, y),
+                    (D::ImageLuma16(w), D::ImageLuma16(p)) => w.copy_from(p, x, y),
+                    (D::ImageRgb8(w), D::ImageRgb8(p)) => w.copy_from(p, x, y),
+                    (D::ImageRgba8(w), D::ImageRgba8(p)) => w.copy_from(p, x, y),
+                    (D::ImageRgb16(w), D::ImageRgb16(p)) => w.copy_from(p, x, y),
+                    (D::ImageRgba16(w), D::ImageRgba16(p)) => w.copy_from(p, x, y),
+                    (D::ImageRgb32F(w), D::ImageRgb32F(p)) => w.copy_from(p, x, y),
+                    (D::ImageRgba32F(w), D::ImageRgba32F(p)) => w.copy_from(p, x, y),
+                    _ => return Err(layout_error()),
+                };
+                pasted.map_err(|e| TileError::Mismatch(format!("a tile does not fit: {e}")))
+            }
+            (
+                Raster::Npy {
+                    descr, shape, data, ..
+                },
+                Raster::Npy {
+                    shape: part_shape,
+                    data: part_data,
+                    ..
+                },
+            ) => {
+                let pixel = shape[2..].iter().product::<usize>() * item_size(descr);
+                let (columns, part_rows, part_columns) = (shape[1], part_shape[0], part_shape[1]);
+                let row_bytes = part_columns * pixel;
+                for row in 0..part_rows {
+                    let at = ((y as usize + row) * columns + x as usize) * pixel;
+                    data[at..at + row_bytes]
+                        .copy_from_slice(&part_data[row * row_bytes..(row + 1) * row_bytes]);
+                }
+                Ok(())
+            }
+            _ => Err(layout_error()),
+        }
+    }
+
+    /// Encodes the raster for `path`'s format, as the render's writers do.
+    pub fn encode(&self, path: &Path) -> Result<Vec<u8>, TileError> {
+        let bad = |message: String| TileError::Output {
+            path: path.to_path_buf(),
+            message,
+        };
+        match self {
+            Raster::Image(i) => {
+                let format = match extension(path).as_str() {
+                    "png" => image::ImageFormat::Png,
+                    "exr" => image::ImageFormat::OpenExr,
+                    other => return Err(bad(format!("cannot write an image as .{other}"))),
+                };
+                let mut bytes = Vec::new();
+                i.write_to(&mut std::io::Cursor::new(&mut bytes), format)
+                    .map_err(|e| bad(format!("encoding failed: {e}")))?;
+                Ok(bytes)
+            }
+            Raster::Npy { descr, shape, data } => Ok(crate::aov::npy(descr, shape, data)),
+        }
+    }
+}
+
+/// Bytes of one element of a NumPy type such as `<f4`.
+fn item_size(descr: &str) -> usize {
+    descr[2..].parse().unwrap_or(1)
+}
+
+/// Parses a `.npy` file as [`crate::aov`] writes them: format 1.0, little-endian `f4` or
+/// `u4`, C order, at least two dimensions.
+fn parse_npy(bytes: &[u8]) -> Result<Raster, String> {
+    if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
+        return Err("not a .npy file".into());
+    }
+    let header_len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    let header = bytes
+        .get(10..10 + header_len)
+        .and_then(|h| std::str::from_utf8(h).ok())
+        .ok_or("truncated .npy header")?;
+    let field = |name: &str, open: char, close: char| -> Option<&str> {
+        let start = header.find(&format!("'{name}': {open}"))? + name.len() + 4 + open.len_utf8();
+        let end = header[start..].find(close)? + start;
+        Some(&header[start..end])
+    };
+    let descr = field("descr", '\'', '\'').ok_or("no 'descr' in the .npy header")?;
+    if !["<f4", "<u4"].contains(&descr) {
+        return Err(format!("element type {descr} (tiles are <f4 or <u4)"));
+    }
+    if !header.contains("'fortran_order': False") {
+        return Err("Fortran-order arrays are not tiles".into());
+    }
+    let shape: Vec<usize> = field("shape", '(', ')')
+        .ok_or("no 'shape' in the .npy header")?
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(|s| s.parse().map_err(|_| format!("bad shape entry '{s}'")))
+        .collect::<Result<_, _>>()?;
+    if shape.len() < 2 {
+        return Err(format!("shape {shape:?}: an image has rows and columns"));
+    }
+    let data = bytes[10 + header_len..].to_vec();
+    let expected = shape
+        .iter()
+        .try_fold(item_size(descr), |n, &d| n.checked_mul(d))
+        .ok_or("shape too large")?;
+    if data.len() != expected {
+        return Err(format!(
+            "shape {shape:?} needs {expected} bytes of data, the file has {}",
+            data.len()
+        ));
+    }
+    Ok(Raster::Npy {
+        descr: descr.to_string(),
+        shape,
+        data,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bands_cover_the_image_once() {
+        for (height, count) in [(32, 4), (33, 4), (7, 7), (100, 3)] {
+            let mut next = 0;
+            for index in 0..count {
+                let r = TileIndex { index, count }.region(48, height).unwrap();
+                assert_eq!((r.x, r.width, r.y), (0, 48, next));
+                next = r.bottom();
+            }
+            assert_eq!(next, height);
+        }
+        assert!(TileIndex { index: 0, count: 9 }.region(8, 8).is_err());
+    }
+
+    #[test]
+    fn specs_parse_strictly() {
+        assert_eq!(
+            TileIndex::parse("3/4").unwrap(),
+            TileIndex { index: 3, count: 4 }
+        );
+        for bad in ["4/4", "1/0", "a/4", "1", "-1/4", ""] {
+            assert!(TileIndex::parse(bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_crop("1, 2,3,4").unwrap().right(), 4);
+        for bad in ["1,2,0,4", "1,2,3", "1,2,3,4,5", "a,b,c,d", "-1,0,2,2"] {
+            assert!(parse_crop(bad).is_err(), "{bad}");
+        }
+        assert!(check_crop(parse_crop("40,0,9,1").unwrap(), 48, 32).is_err());
+    }
+
+    #[test]
+    fn npy_round_trips_through_the_writer() {
+        let data: Vec<u8> = (0..2 * 3 * 3 * 4).map(|i| i as u8).collect();
+        let bytes = crate::aov::npy("<f4", &[2, 3, 3], &data);
+        let raster = parse_npy(&bytes).unwrap();
+        assert_eq!(raster.size(), (3, 2));
+        assert_eq!(raster.encode(Path::new("x.npy")).unwrap(), bytes);
+        assert!(parse_npy(&bytes[..bytes.len() - 1]).is_err());
+    }
+
+    #[test]
+    fn uncovered_pixels_are_found() {
+        let size = ImageSize {
+            width: 4,
+            height: 4,
+        };
+        let top = Region {
+            x: 0,
+            y: 0,
+            width: 4,
+            height: 2,
+        };
+        let left = Region {
+            x: 0,
+            y: 2,
+            width: 2,
+            height: 2,
+        };
+        assert_eq!(first_uncovered([top, left].into_iter(), size), Some((2, 2)));
+        let right = Region { x: 2, ..left };
+        assert_eq!(first_uncovered([top, left, right].into_iter(), size), None);
+    }
+}
