@@ -69,6 +69,27 @@ impl Phases {
 
 pub use crate::measure::peak_memory_bytes;
 
+/// Refuses `--env-out` when no environment lights the render, and warns when nothing but
+/// ambient and emission lights it (shared by single- and multi-view renders).
+pub(crate) fn check_lighting(
+    args: &RenderArgs,
+    lights: &[crate::scene::Light],
+    environment: Option<&Environment>,
+) -> Result<()> {
+    if let (Some(path), None) = (&args.env_out, environment) {
+        bail!(
+            "{}: --env-out: no environment lights this render (the file has lights; give --env)",
+            path.display()
+        );
+    }
+    if lights.is_empty() && environment.is_none() && !args.quiet {
+        eprintln!(
+            "warning: no lights (--no-default-lights): only ambient and emissive light the scene"
+        );
+    }
+    Ok(())
+}
+
 /// The preset a BVH was built with, for the summary line: "VeryFast, auto" when `--bvh-preset
 /// auto` chose it.
 pub(crate) fn preset_label(
@@ -529,17 +550,7 @@ fn render_model(
         None => None,
     }
     .map(Arc::new);
-    if let (Some(path), None) = (&args.env_out, &environment) {
-        bail!(
-            "{}: --env-out: no environment lights this render (the file has lights; give --env)",
-            path.display()
-        );
-    }
-    if lights.is_empty() && environment.is_none() && !args.quiet {
-        eprintln!(
-            "warning: no lights (--no-default-lights): only ambient and emissive light the scene"
-        );
-    }
+    check_lighting(args, &lights, environment.as_deref())?;
     let mut settings = RenderSettings {
         view,
         spp: args.spp,

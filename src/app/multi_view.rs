@@ -289,17 +289,7 @@ pub(super) fn render_views(
         None => None,
     }
     .map(Arc::new);
-    if let (Some(path), None) = (&args.env_out, &environment) {
-        bail!(
-            "{}: --env-out: no environment lights this render (the file has lights; give --env)",
-            path.display()
-        );
-    }
-    if lights.is_empty() && environment.is_none() && !args.quiet {
-        eprintln!(
-            "warning: no lights (--no-default-lights): only ambient and emissive light the scene"
-        );
-    }
+    super::check_lighting(args, &lights, environment.as_deref())?;
     let mut texture_warnings = Vec::new();
     let textures = crate::texture::TextureSet::load(
         &scene,
