@@ -125,14 +125,10 @@ impl PendingOutput {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        let file = tempfile::Builder::new()
-            .prefix(".meshtracer-")
-            .suffix(".partial")
-            .tempfile_in(&dir)
-            .map_err(|source| SaveError::Unwritable {
-                path: path.to_path_buf(),
-                source,
-            })?;
+        let file = temporary_beside(&dir).map_err(|source| SaveError::Unwritable {
+            path: path.to_path_buf(),
+            source,
+        })?;
         Ok(PendingOutput {
             path: path.to_path_buf(),
             format,
@@ -212,6 +208,20 @@ impl PendingOutput {
     }
 }
 
+/// A temporary file in `dir`, renamed over the output once complete. It is created with the
+/// permissions any new file gets (0666 less the umask: 0644 usually), not tempfile's private
+/// 0600, since it becomes the user's output (an image served or shared must be readable).
+fn temporary_beside(dir: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".meshtracer-").suffix(".partial");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    builder.tempfile_in(dir)
+}
+
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so the
 /// destination is either untouched or complete.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SaveError> {
@@ -223,11 +233,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SaveError> {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    let mut file = tempfile::Builder::new()
-        .prefix(".meshtracer-")
-        .suffix(".partial")
-        .tempfile_in(&dir)
-        .map_err(io_err)?;
+    let mut file = temporary_beside(&dir).map_err(io_err)?;
     file.write_all(bytes).map_err(io_err)?;
     file.as_file().sync_all().map_err(io_err)?;
     file.persist(path).map_err(|e| io_err(e.error))?;
@@ -288,6 +294,19 @@ impl Image {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[cfg(unix)]
+    #[test]
+    fn outputs_get_the_permissions_of_any_new_file() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().unwrap();
+        let plain = dir.path().join("plain");
+        std::fs::write(&plain, b"x").unwrap();
+        let ours = dir.path().join("ours.png");
+        write_atomic(&ours, b"x").unwrap();
+        let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode(&ours), mode(&plain), "umask applies as to any file");
+    }
 
     #[test]
     fn srgb_round_trips_and_clamps() {
