@@ -69,6 +69,16 @@ impl Phases {
 
 pub use crate::measure::peak_memory_bytes;
 
+/// How `render` (one view or many) loads its model: the shared load options, `--strict` and
+/// `--variant`.
+pub(crate) fn render_load_options(args: &RenderArgs) -> LoadOptions {
+    LoadOptions {
+        strict: args.strict,
+        variant: args.variant.clone(),
+        ..load_options(&args.load)
+    }
+}
+
 /// Refuses `--env-out` when no environment lights the render, and warns when nothing but
 /// ambient and emission lights it (shared by single- and multi-view renders).
 pub(crate) fn check_lighting(
@@ -469,11 +479,7 @@ fn render_model(
     let (threads, pool) = worker_pool(args.threads)?;
 
     let load_start = Instant::now();
-    let load_options = LoadOptions {
-        strict: args.strict,
-        variant: args.variant.clone(),
-        ..load_options(&args.load)
-    };
+    let load_options = render_load_options(args);
     let mut phases = Phases::default();
     let mut scene = load(&args.model, &load_options)?;
     phases.mark("parse and flatten", load_start);

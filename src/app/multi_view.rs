@@ -6,10 +6,7 @@
 //! Kept apart from the single-view flow in `app.rs`, which hands over after checking the
 //! options they share.
 
-use super::{
-    check_size, image_size, interrupt_flag, load, load_options, worker_pool, Interrupted,
-    RenderReport,
-};
+use super::{check_size, image_size, interrupt_flag, load, worker_pool, Interrupted, RenderReport};
 use crate::accel::{Accel, AccelKind};
 use crate::camera::{auto_camera, framing_distance, framing_radius, View};
 use crate::cli::RenderArgs;
@@ -19,7 +16,7 @@ use crate::integrator::IntegratorKind;
 use crate::output::{OutputFormat, PendingOutput};
 use crate::prepare::Prepared;
 use crate::render::{render, RenderSettings, RenderStats};
-use crate::scene::{Camera, Light, LoadOptions, Projection, Scene};
+use crate::scene::{Camera, Light, Projection, Scene};
 use crate::setup::{default_rig, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_YFOV_DEGREES};
 use crate::view::{SegmentId, ViewEnvironment, ViewFile};
 use crate::views::{
@@ -242,11 +239,7 @@ pub(super) fn render_views(
     let (threads, pool) = worker_pool(args.threads)?;
 
     let load_start = Instant::now();
-    let load_options = LoadOptions {
-        strict: args.strict,
-        variant: args.variant.clone(),
-        ..load_options(&args.load)
-    };
+    let load_options = super::render_load_options(args);
     let mut scene = load(&args.model, &load_options)?;
     crate::scene::tangents::generate_missing(&mut scene);
     let load_time = load_start.elapsed();
