@@ -69,6 +69,27 @@ impl Phases {
 
 pub use crate::measure::peak_memory_bytes;
 
+/// Decodes the textures `render` (one view or many) draws, within `--max-texture-memory`,
+/// printing the decoder's warnings unless `--quiet`.
+pub(crate) fn load_textures(
+    args: &RenderArgs,
+    scene: &crate::scene::Scene,
+) -> Result<crate::texture::TextureSet> {
+    let mut warnings = Vec::new();
+    let textures = crate::texture::TextureSet::load(
+        scene,
+        args.max_texture_memory.saturating_mul(1 << 20),
+        args.strict,
+        &mut warnings,
+    )?;
+    if !args.quiet {
+        for w in &warnings {
+            eprintln!("warning: {}: {w}", args.model.display());
+        }
+    }
+    Ok(textures)
+}
+
 /// How `render` (one view or many) loads its model: the shared load options, `--strict` and
 /// `--variant`.
 pub(crate) fn render_load_options(args: &RenderArgs) -> LoadOptions {
@@ -574,20 +595,9 @@ fn render_model(
         environment_visible: args.env_visible,
     };
     let texture_start = Instant::now();
-    let mut texture_warnings = Vec::new();
-    let textures = crate::texture::TextureSet::load(
-        &scene,
-        args.max_texture_memory.saturating_mul(1 << 20),
-        args.strict,
-        &mut texture_warnings,
-    )?;
+    let textures = load_textures(args, &scene)?;
     phases.mark("textures", texture_start);
     let texture_time = texture_start.elapsed();
-    if !args.quiet {
-        for w in &texture_warnings {
-            eprintln!("warning: {}: {w}", args.model.display());
-        }
-    }
 
     let cancel = interrupt_flag();
     let (prepared, (image, stats, aovs)) = pool.install(|| -> Result<_> {

@@ -283,18 +283,7 @@ pub(super) fn render_views(
     }
     .map(Arc::new);
     super::check_lighting(args, &lights, environment.as_deref())?;
-    let mut texture_warnings = Vec::new();
-    let textures = crate::texture::TextureSet::load(
-        &scene,
-        args.max_texture_memory.saturating_mul(1 << 20),
-        args.strict,
-        &mut texture_warnings,
-    )?;
-    if !args.quiet {
-        for w in &texture_warnings {
-            eprintln!("warning: {}: {w}", args.model.display());
-        }
-    }
+    let textures = super::load_textures(args, &scene)?;
     if let (Some(path), Some(env)) = (&args.env_out, &environment) {
         write_panorama(path, env)?;
     }
