@@ -282,3 +282,42 @@ pub fn sphere_gltf(
     });
     (json, bin)
 }
+
+/// Isolated dark pixels ("speckles", the signature of shadow acne) of an 8-bit image: pixels
+/// more than `40/255` darker than the median of their 3x3 neighbourhood, counted only where
+/// the whole neighbourhood is covered (`mask` nonzero), with brightness the mean of R, G and B.
+/// Returns the speckles' positions and the number of covered pixels judged.
+pub fn speckles(
+    (w, h, rgba): (u32, u32, Vec<[f32; 4]>),
+    mask: &[bool],
+) -> (Vec<(u32, u32)>, usize) {
+    let (w, h) = (w as usize, h as usize);
+    let value: Vec<f32> = rgba
+        .iter()
+        .map(|p| (p[0] + p[1] + p[2]) / 3.0 * 255.0)
+        .collect();
+    let (mut found, mut judged) = (Vec::new(), 0);
+    for y in 1..h.saturating_sub(1) {
+        for x in 1..w.saturating_sub(1) {
+            let mut around = [0.0f32; 9];
+            let mut covered = true;
+            for (k, (dx, dy)) in (0..3)
+                .flat_map(|dy| (0..3).map(move |dx| (dx, dy)))
+                .enumerate()
+            {
+                let i = (y + dy - 1) * w + (x + dx - 1);
+                covered &= mask[i];
+                around[k] = value[i];
+            }
+            if !covered {
+                continue;
+            }
+            judged += 1;
+            around.sort_by(f32::total_cmp);
+            if value[y * w + x] < around[4] - 40.0 {
+                found.push((x as u32, y as u32));
+            }
+        }
+    }
+    (found, judged)
+}
