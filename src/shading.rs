@@ -14,6 +14,21 @@
 //! L = f · E · (n·l)                                            punctual light of irradiance E
 //! ```
 //!
+//! # Material extensions layered on it
+//!
+//! - `KHR_materials_ior` and `KHR_materials_specular` change the dielectric's Fresnel: F0 =
+//!   min(((ior - 1)/(ior + 1))²·specularColor, 1)·specular and F90 = specular, so F = mix(F0_d,
+//!   baseColor, metallic) + (mix(F90_d, 1, metallic) - that)·(1 - v·h)⁵. With ior 1.5 and no
+//!   specular extension this is the core model exactly. The diffuse keeps (1 - F) per channel
+//!   (the extension's reference uses 1 - max(F); they differ only for a coloured specular).
+//! - `KHR_materials_sheen` (Charlie distribution, Estevez and Kulla 2017, with Neubelt and
+//!   Pettineo's visibility 1/(4(n·l + n·v - n·l·n·v))): f = f_sheen + f_base·min(1 -
+//!   max(sheenColor)·E(n·v), 1 - max(sheenColor)·E(n·l)), E the sheen lobe's directional albedo
+//!   (a table integrated once, [`sheen_albedo`]).
+//! - `KHR_materials_clearcoat` (as the Khronos Sample Viewer evaluates it): a GGX layer of
+//!   roughness clearcoatRoughness with F0 0.04 and its own normal on top, f = f_base·(1 -
+//!   c·F_c(n_c·v)) + c·F_c(v·h)·D_c·V_c.
+//!
 //! # Blinn-Phong
 //!
 //! For a light delivering irradiance E from direction l onto a point with normal n, seen from
@@ -46,19 +61,84 @@ pub struct SurfaceMaterial {
     pub metallic: f32,
     /// Perceptual roughness.
     pub roughness: f32,
-    /// Explicit specular colour (OBJ `Ks`), if any.
+    /// Explicit specular colour (OBJ `Ks`), if any: Blinn-Phong's `ks`.
     pub specular: Option<Vec3>,
+    /// The dielectric's reflectance at normal incidence before `specular_weight`:
+    /// min(((ior - 1)/(ior + 1))² · specularColor, 1) (`KHR_materials_ior`,
+    /// `KHR_materials_specular`); 0.04 for the core material.
+    pub dielectric_f0: Vec3,
+    /// `KHR_materials_specular`'s specular factor (× texture alpha): scales the dielectric's
+    /// specular reflection, F0 and F90 alike (1 for the core material).
+    pub specular_weight: f32,
+    /// `KHR_materials_sheen`, when the material has a sheen colour.
+    pub sheen: Option<Sheen>,
+    /// `KHR_materials_clearcoat`, when the material has a coat.
+    pub clearcoat: Option<Clearcoat>,
+}
+
+impl SurfaceMaterial {
+    /// The core metallic-roughness material (no extension changes it).
+    pub fn core(base_color: Vec3, metallic: f32, roughness: f32) -> Self {
+        SurfaceMaterial {
+            base_color,
+            metallic,
+            roughness,
+            specular: None,
+            dielectric_f0: Vec3::splat(0.04),
+            specular_weight: 1.0,
+            sheen: None,
+            clearcoat: None,
+        }
+    }
+
+    /// Fresnel reflectance at normal incidence (F0) and grazing (F90) of the dielectric/metal
+    /// mix: F0 = mix(specular·F0_d, baseColor, metallic), F90 = mix(specular, 1, metallic).
+    pub fn fresnel_ends(&self) -> (Vec3, f32) {
+        let w = self.specular_weight;
+        let f0 = (self.dielectric_f0 * w).lerp(self.base_color, self.metallic);
+        // Written so that w = 1 gives exactly 1.
+        (f0, w + (1.0 - w) * self.metallic)
+    }
+
+    /// Schlick's Fresnel F0 + (F90 - F0)(1 - cos)⁵ of the mix, at `cos` = v·h.
+    pub fn fresnel(&self, cos: f32) -> Vec3 {
+        let (f0, f90) = self.fresnel_ends();
+        f0 + (Vec3::splat(f90) - f0) * (1.0 - cos).powi(5)
+    }
+}
+
+/// `KHR_materials_sheen` at a surface point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sheen {
+    /// Linear sheen colour (factor × texture).
+    pub color: Vec3,
+    /// Sheen roughness (factor × texture alpha); α = roughness².
+    pub roughness: f32,
+}
+
+/// `KHR_materials_clearcoat` at a surface point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Clearcoat {
+    /// Coat weight in [0, 1] (factor × texture red).
+    pub weight: f32,
+    /// Coat roughness (factor × texture green); α = roughness².
+    pub roughness: f32,
+    /// The coat's unit normal: the interpolated vertex normal, or the clearcoat normal map's
+    /// (the base layer's normal map does not apply to the coat).
+    pub normal: Vec3,
+}
+
+impl Clearcoat {
+    /// The coat's Fresnel reflectance (F0 = 0.04, ior 1.5) at `cos`.
+    pub fn fresnel(cos: f32) -> f32 {
+        0.04 + 0.96 * (1.0 - cos.clamp(0.0, 1.0)).powi(5)
+    }
 }
 
 /// A grey test material: base colour `base` in every channel, no explicit specular.
 #[cfg(test)]
 pub(crate) fn test_material(base: f32, metallic: f32, roughness: f32) -> SurfaceMaterial {
-    SurfaceMaterial {
-        base_color: Vec3::splat(base),
-        metallic,
-        roughness,
-        specular: None,
-    }
+    SurfaceMaterial::core(Vec3::splat(base), metallic, roughness)
 }
 
 /// Smallest α: keeps the exponent finite for roughness 0 (a perfect mirror has no Phong lobe).
@@ -82,24 +162,120 @@ pub enum ShadingModel {
     Phong,
 }
 
-/// The glTF metallic-roughness BRDF value f(l, v) (module docs), without the cosine.
-pub fn gltf_brdf(material: &SurfaceMaterial, n: Vec3, to_light: Vec3, to_eye: Vec3) -> Vec3 {
+/// GGX's D·V (distribution times height-correlated visibility) for perceptual `roughness`
+/// around `n`: the specular lobe of Appendix B without its Fresnel factor.
+fn ggx_dv(roughness: f32, n: Vec3, to_light: Vec3, to_eye: Vec3, h: Vec3) -> f32 {
     let n_dot_l = n.dot(to_light).max(MIN_COSINE);
     let n_dot_v = n.dot(to_eye).max(MIN_COSINE);
-    let h = (to_light + to_eye).normalize_or_zero();
     let n_dot_h = n.dot(h).max(0.0);
-    let v_dot_h = to_eye.dot(h).max(0.0);
-    let alpha = (material.roughness * material.roughness).max(MIN_GGX_ALPHA);
+    let alpha = (roughness * roughness).max(MIN_GGX_ALPHA);
     let a2 = alpha * alpha;
     let d_denom = n_dot_h * n_dot_h * (a2 - 1.0) + 1.0;
     let d = a2 / (PI * d_denom * d_denom);
     let vis = 0.5
         / (n_dot_l * (n_dot_v * n_dot_v * (1.0 - a2) + a2).sqrt()
             + n_dot_v * (n_dot_l * n_dot_l * (1.0 - a2) + a2).sqrt());
-    let f0 = Vec3::splat(0.04).lerp(material.base_color, material.metallic);
-    let fresnel = f0 + (Vec3::ONE - f0) * (1.0 - v_dot_h).powi(5);
+    d * vis
+}
+
+/// The glTF metallic-roughness BRDF value f(l, v) (module docs), without the cosine, with the
+/// material's sheen and clearcoat layers.
+pub fn gltf_brdf(material: &SurfaceMaterial, n: Vec3, to_light: Vec3, to_eye: Vec3) -> Vec3 {
+    let h = (to_light + to_eye).normalize_or_zero();
+    let v_dot_h = to_eye.dot(h).max(0.0);
+    let specular = ggx_dv(material.roughness, n, to_light, to_eye, h);
+    let fresnel = material.fresnel(v_dot_h);
     let c_diff = material.base_color * (1.0 - material.metallic);
-    (Vec3::ONE - fresnel) * c_diff / PI + fresnel * (d * vis)
+    let mut f = (Vec3::ONE - fresnel) * c_diff / PI + fresnel * specular;
+    if let Some(sheen) = material.sheen {
+        f = f * sheen_scaling(&sheen, n.dot(to_eye), n.dot(to_light))
+            + sheen.color * sheen_dv(sheen.roughness, n, to_light, to_eye, h);
+    }
+    if let Some(coat) = material.clearcoat {
+        let cn = coat.normal;
+        let layer = ggx_dv(coat.roughness, cn, to_light, to_eye, h);
+        f = f * (1.0 - coat.weight * Clearcoat::fresnel(cn.dot(to_eye)))
+            + Vec3::splat(coat.weight * Clearcoat::fresnel(v_dot_h) * layer);
+    }
+    f
+}
+
+/// Smallest sheen roughness (as the Khronos Sample Viewer clamps it): keeps the Charlie
+/// exponent 1/α finite.
+const MIN_SHEEN_ROUGHNESS: f32 = 0.07;
+
+/// The sheen lobe D·V without its colour: Charlie's D = (2 + 1/α)·sin(θ_h)^(1/α) / 2π and
+/// Neubelt and Pettineo's V = 1 / (4(n·l + n·v - n·l·n·v)), α = roughness².
+fn sheen_dv(roughness: f32, n: Vec3, to_light: Vec3, to_eye: Vec3, h: Vec3) -> f32 {
+    let n_dot_l = n.dot(to_light).max(MIN_COSINE);
+    let n_dot_v = n.dot(to_eye).max(MIN_COSINE);
+    let r = roughness.max(MIN_SHEEN_ROUGHNESS);
+    let inv_alpha = 1.0 / (r * r);
+    let cos_h = n.dot(h).clamp(-1.0, 1.0);
+    let sin2_h = (1.0 - cos_h * cos_h).max(0.0);
+    let d = (2.0 + inv_alpha) * sin2_h.powf(0.5 * inv_alpha) / (2.0 * PI);
+    let v = 1.0 / (4.0 * (n_dot_l + n_dot_v - n_dot_l * n_dot_v));
+    d * v
+}
+
+/// What the base under a sheen keeps: min(1 - max(C)·E(n·v), 1 - max(C)·E(n·l)).
+fn sheen_scaling(sheen: &Sheen, n_dot_v: f32, n_dot_l: f32) -> f32 {
+    let c = sheen.color.max_element();
+    (1.0 - c * sheen_albedo(n_dot_v, sheen.roughness))
+        .min(1.0 - c * sheen_albedo(n_dot_l, sheen.roughness))
+        .clamp(0.0, 1.0)
+}
+
+/// ∫ f(l)·cosθ dω over the hemisphere around +Z, by the midpoint rule on `cells` = (n_θ, n_φ)
+/// cells of (cosθ, φ), where dω = d(cosθ) dφ.
+pub(crate) fn cosine_integral(cells: (u32, u32), f: impl Fn(Vec3) -> Vec3) -> Vec3 {
+    let (steps_t, steps_p) = cells;
+    let mut sum = Vec3::ZERO;
+    for i in 0..steps_t {
+        let cos_t = (i as f32 + 0.5) / steps_t as f32;
+        let sin_t = (1.0 - cos_t * cos_t).sqrt();
+        for j in 0..steps_p {
+            let phi = std::f32::consts::TAU * (j as f32 + 0.5) / steps_p as f32;
+            let l = Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t);
+            sum += f(l) * cos_t;
+        }
+    }
+    sum * std::f32::consts::TAU / (steps_t * steps_p) as f32
+}
+
+/// Cells of the sheen albedo table per axis (cosine and roughness).
+const SHEEN_TABLE: usize = 24;
+
+/// E(cos θ_v, roughness) = ∫ sheen_dv · cos θ_l dω_l, the directional albedo of a white sheen
+/// lobe, bilinearly interpolated from a table integrated once (midpoint rule, 48 x 48 cells
+/// over the hemisphere per entry, a few milliseconds) the first time a sheen is shaded.
+pub fn sheen_albedo(cos: f32, roughness: f32) -> f32 {
+    static TABLE: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        let n = SHEEN_TABLE;
+        let mut table = vec![0.0; n * n];
+        for (k, entry) in table.iter_mut().enumerate() {
+            let (i, j) = (k % n, k / n);
+            let cos_v = (i as f32 / (n - 1) as f32).max(MIN_COSINE);
+            let roughness = j as f32 / (n - 1) as f32;
+            let to_eye = Vec3::new((1.0 - cos_v * cos_v).sqrt(), 0.0, cos_v);
+            *entry = cosine_integral((48, 48), |l| {
+                let h = (l + to_eye).normalize_or_zero();
+                Vec3::splat(sheen_dv(roughness, Vec3::Z, l, to_eye, h))
+            })
+            .x;
+        }
+        table
+    });
+    let n = SHEEN_TABLE;
+    let x = cos.clamp(0.0, 1.0) * (n - 1) as f32;
+    let y = roughness.clamp(0.0, 1.0) * (n - 1) as f32;
+    let (i, j) = ((x as usize).min(n - 2), (y as usize).min(n - 2));
+    let (fx, fy) = (x - i as f32, y - j as f32);
+    let at = |i: usize, j: usize| table[j * n + i];
+    let bottom = at(i, j) + (at(i + 1, j) - at(i, j)) * fx;
+    let top = at(i, j + 1) + (at(i + 1, j + 1) - at(i, j + 1)) * fx;
+    bottom + (top - bottom) * fy
 }
 
 /// Reflected radiance for one light under `model`: f · E · max(n·l, 0).
@@ -158,10 +334,8 @@ mod tests {
 
     fn white_lambert() -> SurfaceMaterial {
         SurfaceMaterial {
-            base_color: Vec3::ONE,
-            metallic: 0.0,
-            roughness: 1.0,
             specular: Some(Vec3::ZERO),
+            ..SurfaceMaterial::core(Vec3::ONE, 0.0, 1.0)
         }
     }
 
@@ -207,18 +381,8 @@ mod tests {
             for view_angle in [0.0f32, 0.5, 1.0, 1.3] {
                 let to_eye = Vec3::new(view_angle.sin(), 0.0, view_angle.cos());
                 let m = material(1.0, 1.0, roughness);
-                let mut albedo = 0.0;
-                // Midpoint rule over the hemisphere in (cosθ, φ): dω = d(cosθ) dφ.
-                for i in 0..steps_t {
-                    let cos_t = (i as f32 + 0.5) / steps_t as f32;
-                    let sin_t = (1.0 - cos_t * cos_t).sqrt();
-                    for j in 0..steps_p {
-                        let phi = std::f32::consts::TAU * (j as f32 + 0.5) / steps_p as f32;
-                        let l = Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t);
-                        albedo += gltf_brdf(&m, Vec3::Z, l, to_eye).x * cos_t;
-                    }
-                }
-                albedo *= std::f32::consts::TAU / (steps_t * steps_p) as f32;
+                let albedo =
+                    cosine_integral((steps_t, steps_p), |l| gltf_brdf(&m, Vec3::Z, l, to_eye)).x;
                 assert!(
                     albedo <= 1.01,
                     "roughness {roughness} angle {view_angle}: albedo {albedo} > 1"
@@ -231,6 +395,85 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// ∫ f·cosθ dω over the hemisphere (midpoint rule) for a view `angle` from the normal.
+    fn albedo(m: &SurfaceMaterial, angle: f32) -> Vec3 {
+        let to_eye = Vec3::new(angle.sin(), 0.0, angle.cos());
+        cosine_integral((512, 128), |l| gltf_brdf(m, Vec3::Z, l, to_eye))
+    }
+
+    /// KHR_materials_specular: a specular factor of 0 leaves exactly the Lambertian base, and a
+    /// coloured specular tints the reflection at normal incidence: F0 = 0.04·colour.
+    #[test]
+    fn specular_extension_scales_and_tints_the_reflection() {
+        let mut m = material(0.5, 0.0, 0.5);
+        m.specular_weight = 0.0;
+        let l = Vec3::new(0.3, 0.0, 0.954).normalize();
+        let f = gltf_brdf(&m, Vec3::Z, l, Vec3::Z);
+        assert!(
+            (f - Vec3::splat(0.5 / PI)).abs().max_element() < 1e-7,
+            "{f}"
+        );
+        let mut tinted = material(0.0, 0.0, 0.5);
+        tinted.dielectric_f0 = Vec3::new(0.04, 0.02, 0.0);
+        let f = gltf_brdf(&tinted, Vec3::Z, Vec3::Z, Vec3::Z);
+        let alpha = 0.25f32;
+        let expected = Vec3::new(0.04, 0.02, 0.0) / (4.0 * PI * alpha * alpha);
+        assert!(
+            (f - expected).abs().max_element() < 1e-5,
+            "{f} vs {expected}"
+        );
+    }
+
+    /// KHR_materials_sheen and _clearcoat keep energy: a white Lambertian base under a white
+    /// sheen, or under a full coat, reflects no more than the base alone or what arrives,
+    /// whichever is more (white furnace, 1% for the quadrature and the tabulated albedo),
+    /// and each layer adds light where it should: a
+    /// sheen brightens grazing views of a black base, a coat reflects about 4% head-on.
+    #[test]
+    fn sheen_and_clearcoat_layers_conserve_energy() {
+        for roughness in [0.1f32, 0.5, 1.0] {
+            for angle in [0.0f32, 0.7, 1.2, 1.45] {
+                // The core model itself reflects up to 6% too much at grazing views (its
+                // Lambertian part is weighted by 1 - F(v·h), not by the directional albedo):
+                // a layer may not add to that.
+                let base = albedo(&material(1.0, 0.0, 0.6), angle).x.max(1.0);
+                let mut m = material(1.0, 0.0, 0.6);
+                m.sheen = Some(Sheen {
+                    color: Vec3::ONE,
+                    roughness,
+                });
+                let a = albedo(&m, angle).x;
+                assert!(a <= base + 0.01, "sheen {roughness} at {angle}: albedo {a}");
+                let mut m = material(1.0, 0.0, 0.6);
+                m.clearcoat = Some(Clearcoat {
+                    weight: 1.0,
+                    roughness,
+                    normal: Vec3::Z,
+                });
+                let a = albedo(&m, angle).x;
+                assert!(a <= base + 0.01, "coat {roughness} at {angle}: albedo {a}");
+            }
+        }
+        let mut velvet = material(0.0, 0.0, 1.0);
+        velvet.specular_weight = 0.0;
+        velvet.sheen = Some(Sheen {
+            color: Vec3::ONE,
+            roughness: 0.5,
+        });
+        let grazing = albedo(&velvet, 1.4).x;
+        assert!(grazing > 0.1, "sheen at a grazing view reflects {grazing}");
+        assert!((sheen_albedo(0.17, 0.5) - grazing).abs() < 0.02 * grazing.max(0.1));
+        let mut coated_black = material(0.0, 0.0, 1.0);
+        coated_black.specular_weight = 0.0;
+        coated_black.clearcoat = Some(Clearcoat {
+            weight: 1.0,
+            roughness: 0.3,
+            normal: Vec3::Z,
+        });
+        let head_on = albedo(&coated_black, 0.0).x;
+        assert!((0.03..0.05).contains(&head_on), "coat head-on {head_on}");
     }
 
     #[test]

@@ -96,12 +96,7 @@ fn white_furnace_returns_the_brdf_albedo() {
     );
     let (_, _, radiance) = read_rgba(&out);
     let (_, _, normal) = read_rgba(&normals);
-    let material = SurfaceMaterial {
-        base_color: glam::Vec3::ONE,
-        metallic: 0.0,
-        roughness: 1.0,
-        specular: None,
-    };
+    let material = SurfaceMaterial::core(glam::Vec3::ONE, 0.0, 1.0);
     let table: Vec<f64> = (0..=30)
         .map(|k| albedo(&material, 0.7 + 0.3 * k as f32 / 30.0))
         .collect();

@@ -80,12 +80,59 @@ fn render_to(dir: &Path, model: &Path, name: &str, extra: &[&str]) -> PathBuf {
 /// - Blinn-Phong, exponent 1: L = (1/π + 0.04·9/(8π)·(n·h))·E·cosθ.
 #[test]
 fn quad_under_a_point_light_matches_the_closed_form() {
+    for shading in ["pbr", "phong"] {
+        quad_matches(white(false), shading, |cos, half_z, _| {
+            if shading == "pbr" {
+                let fresnel = 0.04 + 0.96 * (1.0 - half_z).powi(5);
+                (1.0 - fresnel) / PI + fresnel * (1.0 / PI) * 0.5 / (cos + 1.0)
+            } else {
+                1.0 / PI + 0.04 * 9.0 / (8.0 * PI) * half_z
+            }
+        });
+    }
+}
+
+/// The material extensions on the same quad (roughness 1, so D = 1/π and V = 1/(2(cosθ + 1))
+/// as above), each against its closed form:
+/// - `KHR_materials_specular` (0.5, colour (1, 0.5, 0.25)): per channel F0 = 0.04·colour·0.5,
+///   F90 = 0.5, F = F0 + (F90 - F0)(1 - v·h)⁵, f = (1 - F)/π + F·D·V;
+/// - `KHR_materials_ior` 2.0: F0 = (1/3)² instead of 0.04;
+/// - `KHR_materials_clearcoat` (1, roughness 1) with v = n: f = f_base·(1 - 0.04) + F_c(v·h)·D·V.
+#[test]
+fn material_extensions_on_a_quad_match_their_closed_forms() {
+    let schlick = |f0: f32, f90: f32, half_z: f32| f0 + (f90 - f0) * (1.0 - half_z).powi(5);
+    let layered = |fresnel: f32, cos: f32| (1.0 - fresnel) / PI + fresnel / PI * 0.5 / (cos + 1.0);
+    let mut specular = white(false);
+    specular["extensions"] = json!({"KHR_materials_specular": {
+        "specularFactor": 0.5, "specularColorFactor": [1.0, 0.5, 0.25]}});
+    quad_matches(specular, "pbr", |cos, half_z, channel| {
+        let f0 = 0.04 * [1.0, 0.5, 0.25][channel] * 0.5;
+        layered(schlick(f0, 0.5, half_z), cos)
+    });
+    let mut ior = white(false);
+    ior["extensions"] = json!({"KHR_materials_ior": {"ior": 2.0}});
+    quad_matches(ior, "pbr", |cos, half_z, _| {
+        layered(schlick(1.0 / 9.0, 1.0, half_z), cos)
+    });
+    let mut coat = white(false);
+    coat["extensions"] = json!({"KHR_materials_clearcoat": {
+        "clearcoatFactor": 1.0, "clearcoatRoughnessFactor": 1.0}});
+    quad_matches(coat, "pbr", |cos, half_z, _| {
+        let base = layered(schlick(0.04, 1.0, half_z), cos);
+        base * (1.0 - 0.04) + schlick(0.04, 1.0, half_z) / PI * 0.5 / (cos + 1.0)
+    });
+}
+
+/// A white 4x4 quad of `material` 2 m under a 4 cd point light, seen from straight above by an
+/// orthographic camera: every pixel's channel c equals brdf(cosθ, n·h, c)·E·cosθ with E =
+/// I/d² (see the test above) within [`RADIANCE_TOLERANCE`].
+fn quad_matches(material: serde_json::Value, shading: &str, brdf: impl Fn(f32, f32, usize) -> f32) {
     let dir = tempfile::tempdir().unwrap();
     let (h, intensity) = (2.0f32, 4.0f32);
     let extra = merge(
         ortho_camera_from_above(5.0, 2.0),
         json!({
-            "materials": [white(false)],
+            "materials": [material],
             "extensionsUsed": ["KHR_lights_punctual"],
             "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": intensity}]}},
             "nodes": [{"translation": [0.0, 0.0, h], "extensions": {"KHR_lights_punctual": {"light": 0}}}]
@@ -94,50 +141,35 @@ fn quad_under_a_point_light_matches_the_closed_form() {
     let quad = common::square(2.0, 0.0);
     let (json, bin) = quads_gltf(&[(quad, 0)], extra);
     let model = write_gltf(dir.path(), "quad.gltf", json, &bin);
-    for shading in ["pbr", "phong"] {
-        let name = format!("quad-{shading}.exr");
-        let args = [
-            "--width",
-            "64",
-            "--height",
-            "64",
-            "--spp",
-            "1",
-            "--ambient",
-            "0",
-            "--shading",
-            shading,
-        ];
-        let out = render_to(dir.path(), &model, &name, &args);
-        let (w, hgt, pixels) = read_rgba(&out);
-        assert_eq!((w, hgt), (64, 64));
-        let mut worst = 0.0f32;
-        for j in 0..64 {
-            for i in 0..64 {
-                let x = -2.0 + (i as f32 + 0.5) * 4.0 / 64.0;
-                let y = 2.0 - (j as f32 + 0.5) * 4.0 / 64.0;
-                let d2 = x * x + y * y + h * h;
-                let d = d2.sqrt();
-                let cos = h / d;
-                let to_light = glam::Vec3::new(-x, -y, h) / d;
-                let half = (to_light + glam::Vec3::Z).normalize();
-                let brdf = if shading == "pbr" {
-                    let fresnel = 0.04 + 0.96 * (1.0 - half.z).powi(5);
-                    (1.0 - fresnel) / PI + fresnel * (1.0 / PI) * 0.5 / (cos + 1.0)
-                } else {
-                    1.0 / PI + 0.04 * 9.0 / (8.0 * PI) * half.z
-                };
-                let expected = brdf * intensity / d2 * cos;
-                let got = pixels[(j * 64 + i) as usize];
-                assert_eq!(got[3], 1.0, "covered");
-                worst = worst.max((got[0] - expected).abs() / expected);
+    let mut args: Vec<&str> = "--width 64 --height 64 --spp 1 --ambient 0"
+        .split(' ')
+        .collect();
+    args.extend(["--shading", shading]);
+    let out = render_to(dir.path(), &model, "quad.exr", &args);
+    let (w, hgt, pixels) = read_rgba(&out);
+    assert_eq!((w, hgt), (64, 64));
+    let mut worst = 0.0f32;
+    for j in 0..64 {
+        for i in 0..64 {
+            let x = -2.0 + (i as f32 + 0.5) * 4.0 / 64.0;
+            let y = 2.0 - (j as f32 + 0.5) * 4.0 / 64.0;
+            let d2 = x * x + y * y + h * h;
+            let d = d2.sqrt();
+            let cos = h / d;
+            let to_light = glam::Vec3::new(-x, -y, h) / d;
+            let half = (to_light + glam::Vec3::Z).normalize();
+            let got = pixels[(j * 64 + i) as usize];
+            assert_eq!(got[3], 1.0, "covered");
+            for (c, value) in got[..3].iter().enumerate() {
+                let expected = brdf(cos, half.z, c) * intensity / d2 * cos;
+                worst = worst.max((value - expected).abs() / expected);
             }
         }
-        assert!(
-            worst < RADIANCE_TOLERANCE,
-            "{shading}: worst relative error {worst}"
-        );
     }
+    assert!(
+        worst < RADIANCE_TOLERANCE,
+        "{shading}: worst relative error {worst}"
+    );
 }
 
 /// A 1x1 occluder 1 m above a ground plane under a directional light at 45° casts a 1x1 shadow

@@ -12,8 +12,9 @@
 //! survives with probability max(throughput) (Russian roulette), at most `max_bounces`.
 //!
 //! BLEND surfaces are hit with probability alpha and passed through otherwise; MASK cut-outs
-//! are skipped in traversal as for camera rays. Materials are the glTF metallic-roughness BRDF;
-//! transmission, volume, clearcoat and sheen are not modelled yet (opaque).
+//! are skipped in traversal as for camera rays. Materials are the glTF metallic-roughness BRDF
+//! with the specular, sheen and clearcoat layers ([`crate::shading`]) and smooth transmission
+//! ([`crate::bsdf`]).
 //!
 //! All randomness comes from the pixel's own stream, in a fixed order, so the image is the same
 //! for any number of threads.

@@ -11,7 +11,7 @@ use crate::accel::Hit;
 use crate::geometry::{Ray, SpawnPoint};
 use crate::prepare::Prepared;
 use crate::scene::{AlphaMode, Material, TextureRef};
-use crate::shading::SurfaceMaterial;
+use crate::shading::{Clearcoat, Sheen, SurfaceMaterial};
 use crate::texture::transform_uv;
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::Cell;
@@ -233,18 +233,80 @@ impl Prepared {
         ) {
             normal = self.normal_mapped(tri, b, r, normal, geometric, t, material.normal_scale);
         }
+        let mut shaded = SurfaceMaterial::core(
+            base.truncate(),
+            metallic.clamp(0.0, 1.0),
+            roughness.clamp(0.0, 1.0),
+        );
+        shaded.specular = material.specular;
+        // KHR_materials_ior: the dielectric's F0 = ((ior - 1)/(ior + 1))²; 0.04 at ior 1.5 is
+        // kept exactly (the core material's constant).
+        let ior_f0 = if material.ior == 1.5 {
+            0.04
+        } else {
+            ((material.ior - 1.0) / (material.ior + 1.0)).powi(2)
+        };
+        shaded.dielectric_f0 = Vec3::splat(ior_f0);
+        if let Some(layer) = &material.specular_layer {
+            // KHR_materials_specular: F0 = min(F0(ior)·colour, 1)·specular, F90 = specular.
+            let mut color = layer.color;
+            if let Some(t) = sample(&layer.color_texture, true) {
+                color *= t.truncate();
+            }
+            let mut weight = layer.factor;
+            if let Some(t) = sample(&layer.texture, false) {
+                weight *= t.w;
+            }
+            shaded.dielectric_f0 = (ior_f0 * color).min(Vec3::ONE);
+            shaded.specular_weight = weight.clamp(0.0, 1.0);
+        }
+        if let Some(layer) = &material.sheen {
+            let mut color = layer.color;
+            if let Some(t) = sample(&layer.color_texture, true) {
+                color *= t.truncate();
+            }
+            let mut sheen_roughness = layer.roughness;
+            if let Some(t) = sample(&layer.roughness_texture, false) {
+                sheen_roughness *= t.w;
+            }
+            if color.max_element() > 0.0 {
+                shaded.sheen = Some(Sheen {
+                    color: color.min(Vec3::ONE),
+                    roughness: sheen_roughness.clamp(0.0, 1.0),
+                });
+            }
+        }
+        if let Some(layer) = &material.clearcoat {
+            let mut weight = layer.factor;
+            if let Some(t) = sample(&layer.texture, false) {
+                weight *= t.x;
+            }
+            let mut coat_roughness = layer.roughness;
+            if let Some(t) = sample(&layer.roughness_texture, false) {
+                coat_roughness *= t.y;
+            }
+            // The coat's own normal map, else the interpolated normal (not the base's map).
+            let coat_normal = match (&layer.normal_texture, sample(&layer.normal_texture, false)) {
+                (Some(r), Some(t)) => {
+                    self.normal_mapped(tri, b, r, smooth, geometric, t, layer.normal_scale)
+                }
+                _ => smooth,
+            };
+            if weight > 0.0 {
+                shaded.clearcoat = Some(Clearcoat {
+                    weight: weight.clamp(0.0, 1.0),
+                    roughness: coat_roughness.clamp(0.0, 1.0),
+                    normal: coat_normal,
+                });
+            }
+        }
         Surface {
             spawn,
             lift,
             geometric,
             smooth,
             normal,
-            material: SurfaceMaterial {
-                base_color: base.truncate(),
-                metallic: metallic.clamp(0.0, 1.0),
-                roughness: roughness.clamp(0.0, 1.0),
-                specular: material.specular,
-            },
+            material: shaded,
             emissive,
             occlusion,
             alpha: if material.alpha_mode == AlphaMode::Opaque {

@@ -19,9 +19,10 @@ use super::error::PrimitiveAt;
 use super::extensions::{known, ExtensionUse};
 use super::meshopt;
 use super::{
-    AlphaMode, Bounds, Camera, FileAccess, Filter, Format, ImageSource, Instance, Light, LightKind,
-    LoadError, LoadErrorKind, LoadOptions, Material, Projection, Sampler, Scene, SoupBuilder,
-    Texture, TextureRef, TextureTransform, UnusableImage, Wrap,
+    AlphaMode, Bounds, Camera, ClearcoatLayer, FileAccess, Filter, Format, ImageSource, Instance,
+    Light, LightKind, LoadError, LoadErrorKind, LoadOptions, Material, Projection, Sampler, Scene,
+    SheenLayer, SoupBuilder, SpecularLayer, Texture, TextureRef, TextureTransform, UnusableImage,
+    Wrap,
 };
 use base64::Engine;
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
@@ -1225,7 +1226,83 @@ fn material(m: &gltf::Material) -> Material {
             .volume()
             .map_or(f32::INFINITY, |v| v.attenuation_distance()),
         unlit: m.unlit(),
+        specular_layer: m.specular().map(|sp| SpecularLayer {
+            factor: finite_or(sp.specular_factor(), 1.0).max(0.0),
+            texture: texture_ref(sp.specular_texture()),
+            color: Vec3::from(sp.specular_color_factor()).max(Vec3::ZERO),
+            color_texture: texture_ref(sp.specular_color_texture()),
+        }),
+        sheen: m
+            .extension_value("KHR_materials_sheen")
+            .map(|e| SheenLayer {
+                color: json_vec3(e.get("sheenColorFactor"), Vec3::ZERO).max(Vec3::ZERO),
+                color_texture: json_texture_ref(e.get("sheenColorTexture")),
+                roughness: json_f32(e.get("sheenRoughnessFactor"), 0.0).clamp(0.0, 1.0),
+                roughness_texture: json_texture_ref(e.get("sheenRoughnessTexture")),
+            }),
+        clearcoat: m
+            .extension_value("KHR_materials_clearcoat")
+            .map(|e| ClearcoatLayer {
+                factor: json_f32(e.get("clearcoatFactor"), 0.0).clamp(0.0, 1.0),
+                texture: json_texture_ref(e.get("clearcoatTexture")),
+                roughness: json_f32(e.get("clearcoatRoughnessFactor"), 0.0).clamp(0.0, 1.0),
+                roughness_texture: json_texture_ref(e.get("clearcoatRoughnessTexture")),
+                normal_texture: json_texture_ref(e.get("clearcoatNormalTexture")),
+                normal_scale: e
+                    .get("clearcoatNormalTexture")
+                    .map_or(1.0, |t| json_f32(t.get("scale"), 1.0)),
+            }),
     }
+}
+
+fn finite_or(v: f32, default: f32) -> f32 {
+    if v.is_finite() {
+        v
+    } else {
+        default
+    }
+}
+
+/// A number of an extension's JSON, or `default` when absent, not a number or not finite.
+fn json_f32(v: Option<&serde_json::Value>, default: f32) -> f32 {
+    v.and_then(serde_json::Value::as_f64)
+        .map_or(default, |x| finite_or(x as f32, default))
+}
+
+/// A 3-vector of an extension's JSON, or `default` unless it is three finite numbers.
+fn json_vec3(v: Option<&serde_json::Value>, default: Vec3) -> Vec3 {
+    match v.and_then(serde_json::Value::as_array).map(Vec::as_slice) {
+        Some([x, y, z]) => match (x.as_f64(), y.as_f64(), z.as_f64()) {
+            (Some(x), Some(y), Some(z)) => {
+                let v = Vec3::new(x as f32, y as f32, z as f32);
+                if v.is_finite() {
+                    v
+                } else {
+                    default
+                }
+            }
+            _ => default,
+        },
+        _ => default,
+    }
+}
+
+/// A texture info of an extension the `gltf` crate does not parse (`KHR_materials_sheen`,
+/// `KHR_materials_clearcoat`): `index`, `texCoord` and `KHR_texture_transform`. One without a
+/// usable index is ignored; an index past the file's textures is refused by the scene's
+/// reference check, like any other.
+fn json_texture_ref(v: Option<&serde_json::Value>) -> Option<TextureRef> {
+    let v = v?;
+    let texture = usize::try_from(v.get("index")?.as_u64()?).ok()?;
+    let tex_coord = v
+        .get("texCoord")
+        .and_then(serde_json::Value::as_u64)
+        .and_then(|c| u32::try_from(c).ok())
+        .unwrap_or(0);
+    let transform = v
+        .get("extensions")
+        .and_then(|e| e.get("KHR_texture_transform"));
+    Some(extension_texture_ref(texture, tex_coord, transform))
 }
 
 /// EXT_texture_webp: a texture whose extension names a WebP image uses it, and keeps its core

@@ -288,6 +288,57 @@ pub struct Material {
     /// `KHR_materials_unlit`: the surface shows its base colour as radiance, unlit (scanned or
     /// baked-lighting models).
     pub unlit: bool,
+    /// `KHR_materials_specular` (absent: the core material's specular reflection).
+    pub specular_layer: Option<SpecularLayer>,
+    /// `KHR_materials_sheen` (absent or black: no sheen).
+    pub sheen: Option<SheenLayer>,
+    /// `KHR_materials_clearcoat` (absent or weight 0: no coat).
+    pub clearcoat: Option<ClearcoatLayer>,
+}
+
+/// `KHR_materials_specular`: the strength and colour of a dielectric's specular reflection.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SpecularLayer {
+    /// `specularFactor`: scales the reflection (F0 and F90).
+    pub factor: f32,
+    /// `specularTexture` (alpha channel), times the factor.
+    pub texture: Option<TextureRef>,
+    /// `specularColorFactor` (linear): tints F0.
+    pub color: Vec3,
+    /// `specularColorTexture` (sRGB RGB), times the colour factor.
+    pub color_texture: Option<TextureRef>,
+}
+
+/// `KHR_materials_sheen`: a cloth-like retro-reflective layer (velvet, fabric).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SheenLayer {
+    /// `sheenColorFactor` (linear).
+    pub color: Vec3,
+    /// `sheenColorTexture` (sRGB RGB), times the factor.
+    pub color_texture: Option<TextureRef>,
+    /// `sheenRoughnessFactor`.
+    pub roughness: f32,
+    /// `sheenRoughnessTexture` (alpha channel), times the factor.
+    pub roughness_texture: Option<TextureRef>,
+}
+
+/// `KHR_materials_clearcoat`: a clear varnish layer (car paint, lacquer) with its own
+/// roughness and normal.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ClearcoatLayer {
+    /// `clearcoatFactor`: the coat's weight.
+    pub factor: f32,
+    /// `clearcoatTexture` (red channel), times the factor.
+    pub texture: Option<TextureRef>,
+    /// `clearcoatRoughnessFactor`.
+    pub roughness: f32,
+    /// `clearcoatRoughnessTexture` (green channel), times the factor.
+    pub roughness_texture: Option<TextureRef>,
+    /// `clearcoatNormalTexture`: the coat's own normal map (without one the coat follows the
+    /// interpolated vertex normal, not the base layer's normal map).
+    pub normal_texture: Option<TextureRef>,
+    /// Scale of the coat's normal map.
+    pub normal_scale: f32,
 }
 
 impl Material {
@@ -309,28 +360,51 @@ impl Material {
     }
 
     /// Every texture the material references (base colour, metallic-roughness, normal,
-    /// occlusion, emissive), in that order, skipping those it lacks.
+    /// occlusion, emissive, then the specular, sheen and clearcoat layers' ones), in that
+    /// order, skipping those it lacks.
     pub fn texture_refs(&self) -> impl Iterator<Item = TextureRef> {
-        [
+        let mut refs = vec![
             self.base_color_texture,
             self.metallic_roughness_texture,
             self.normal_texture,
             self.occlusion_texture,
             self.emissive_texture,
-        ]
-        .into_iter()
-        .flatten()
+        ];
+        if let Some(l) = &self.specular_layer {
+            refs.extend([l.texture, l.color_texture]);
+        }
+        if let Some(l) = &self.sheen {
+            refs.extend([l.color_texture, l.roughness_texture]);
+        }
+        if let Some(l) = &self.clearcoat {
+            refs.extend([l.texture, l.roughness_texture, l.normal_texture]);
+        }
+        refs.into_iter().flatten()
     }
 
-    /// The five texture slots, in the order of [`Material::texture_refs`].
-    fn texture_slots_mut(&mut self) -> [&mut Option<TextureRef>; 5] {
-        [
+    /// The texture slots, in the order of [`Material::texture_refs`].
+    fn texture_slots_mut(&mut self) -> Vec<&mut Option<TextureRef>> {
+        let mut slots = vec![
             &mut self.base_color_texture,
             &mut self.metallic_roughness_texture,
             &mut self.normal_texture,
             &mut self.occlusion_texture,
             &mut self.emissive_texture,
-        ]
+        ];
+        if let Some(l) = &mut self.specular_layer {
+            slots.extend([&mut l.texture, &mut l.color_texture]);
+        }
+        if let Some(l) = &mut self.sheen {
+            slots.extend([&mut l.color_texture, &mut l.roughness_texture]);
+        }
+        if let Some(l) = &mut self.clearcoat {
+            slots.extend([
+                &mut l.texture,
+                &mut l.roughness_texture,
+                &mut l.normal_texture,
+            ]);
+        }
+        slots
     }
 
     /// `'name' (index)` or `index`, for messages.
@@ -438,6 +512,9 @@ impl Default for Material {
             attenuation_color: Vec3::ONE,
             attenuation_distance: f32::INFINITY,
             unlit: false,
+            specular_layer: None,
+            sheen: None,
+            clearcoat: None,
         }
     }
 }

@@ -431,10 +431,12 @@ fn mtl_material(m: &tobj::Material) -> Material {
             AlphaMode::Opaque
         },
         // illum 4, 6 and 7 are glass (refraction, with Ni as the index); Tf tints what passes.
+        // Other illumination models do not use Ni (exporters write Ni 1.0 for plain diffuse
+        // materials), so their reflectance stays the core material's (F0 4%, ior 1.5).
         transmission: if glass { 1.0 } else { 0.0 },
         ior: m
             .optical_density
-            .filter(|n| n.is_finite() && *n >= 1.0)
+            .filter(|n| glass && n.is_finite() && *n >= 1.0)
             .unwrap_or(1.5),
         thin_walled: false,
         attenuation_color: Vec3::ONE,
