@@ -57,8 +57,15 @@ pub struct Bsdf {
 
 /// The specular transmission lobe of `KHR_materials_transmission` (glTF: the dielectric's
 /// diffuse lobe replaced, in proportion `factor`, by transmission tinted by the base colour).
-/// It is treated as perfectly smooth whatever the roughness (an approximation: rough glass
-/// renders as clear glass), so it is a delta lobe: drawn by [`Bsdf::sample`], never evaluated.
+/// Smooth glass refracts into one direction. Rough glass (α = roughness² above the mirror
+/// floor) spreads it by the material's GGX microfacets, drawn from the visible normals (Heitz
+/// 2018) for the view: Walter et al.'s microfacet refraction ("Microfacet Models for Refraction
+/// through Rough Surfaces", EGSR 2007) through a volume, and for a thin-walled sheet the
+/// reflection about the microfacet mirrored through the surface (the glTF transmission
+/// extension's thin-walled BTDF). Either way the sample's weight is (1 - F(v·m))·G2/G1 times
+/// the lobe's tint. The lobe is drawn by [`Bsdf::sample`] only, never evaluated for light
+/// samples (shadow rays do not pass through glass volumes), so its samples count as
+/// delta ones: emission they reach is counted in full, which keeps the estimate unbiased.
 #[derive(Clone, Copy, Debug)]
 struct Transmission {
     /// `transmission` × (1 - metallic).
@@ -221,7 +228,7 @@ impl Bsdf {
         }
         if let Some(transmission) = self.transmission {
             if u_lobe < transmission.probability {
-                return self.sample_transmission(to_eye, transmission);
+                return self.sample_transmission(to_eye, transmission, u1, u2);
             }
         }
         // Reuse the lobe number within the non-delta lobes.
@@ -263,25 +270,62 @@ impl Bsdf {
         })
     }
 
-    /// The smooth transmission lobe: straight through a thin sheet, refracted by Snell's law
-    /// into or out of a volume (total internal reflection turns it into a mirror reflection).
-    fn sample_transmission(&self, to_eye: Vec3, t: Transmission) -> Option<BsdfSample> {
+    /// The transmission lobe: straight through a thin sheet, refracted by Snell's law into or
+    /// out of a volume (total internal reflection turns it into a mirror reflection), about
+    /// the surface normal when smooth and about a drawn microfacet normal when rough.
+    fn sample_transmission(
+        &self,
+        to_eye: Vec3,
+        t: Transmission,
+        u1: f32,
+        u2: f32,
+    ) -> Option<BsdfSample> {
         let n = self.normal;
-        let cos_i = n.dot(to_eye).clamp(0.0, 1.0);
+        let rough = self.alpha > MIN_ALPHA;
+        // The facet that refracts: the surface itself, or a visible GGX normal.
+        let (m, shadowing) = if rough {
+            let (tx, ty) = frame(n);
+            let local = Vec3::new(to_eye.dot(tx), to_eye.dot(ty), to_eye.dot(n));
+            let h = sample_visible_normal(local, self.alpha, u1, u2);
+            (tx * h.x + ty * h.y + n * h.z, true)
+        } else {
+            (n, false)
+        };
+        let cos_i = m.dot(to_eye).clamp(0.0, 1.0);
         let fresnel = luminance(self.material.fresnel(cos_i));
         let sin2_t = t.eta * t.eta * (1.0 - cos_i * cos_i);
         let direction = if t.eta == 1.0 {
-            -to_eye
+            if rough {
+                // Thin-walled: the reflection about the facet, mirrored through the sheet.
+                let r = 2.0 * cos_i * m - to_eye;
+                r - 2.0 * r.dot(n) * n
+            } else {
+                -to_eye
+            }
         } else if sin2_t >= 1.0 {
-            2.0 * cos_i * n - to_eye
+            2.0 * cos_i * m - to_eye
         } else {
             let cos_t = (1.0 - sin2_t).sqrt();
-            (-to_eye * t.eta + n * (t.eta * cos_i - cos_t)).normalize_or_zero()
+            (-to_eye * t.eta + m * (t.eta * cos_i - cos_t)).normalize_or_zero()
         };
         if direction == Vec3::ZERO || t.probability <= 0.0 {
             return None;
         }
-        let weight = self.material.base_color * (t.factor * (1.0 - fresnel) / t.probability);
+        let mut weight = self.material.base_color * (t.factor * (1.0 - fresnel) / t.probability);
+        if shadowing {
+            // Through the surface (or, after total internal reflection, back out of it): on
+            // the wrong side the draw is lost. G2/G1 = (1 + Λ(v)) / (1 + Λ(v) + Λ(l)).
+            let through = direction.dot(n) < 0.0;
+            let reflected = t.eta != 1.0 && sin2_t >= 1.0;
+            if through == reflected {
+                return None;
+            }
+            let (lv, ll) = (
+                smith_lambda(n.dot(to_eye), self.alpha),
+                smith_lambda(direction.dot(n).abs(), self.alpha),
+            );
+            weight *= (1.0 + lv) / (1.0 + lv + ll);
+        }
         weight.is_finite().then_some(BsdfSample {
             direction,
             weight,
@@ -310,6 +354,13 @@ fn ggx_d(n_dot_h: f32, alpha: f32) -> f32 {
     let a2 = alpha * alpha;
     let d = n_dot_h * n_dot_h * (a2 - 1.0) + 1.0;
     a2 / (PI * d * d)
+}
+
+/// Smith's Λ for GGX at cos θ = `cos`: (√(1 + α²·tan²θ) - 1) / 2, so G1 = 1 / (1 + Λ).
+fn smith_lambda(cos: f32, alpha: f32) -> f32 {
+    let cos2 = (cos * cos).max(1e-8);
+    let tan2 = (1.0 - cos2).max(0.0) / cos2;
+    0.5 * ((1.0 + alpha * alpha * tan2).sqrt() - 1.0)
 }
 
 /// Smith's masking function for GGX, G1(v) = 2·n·v / (n·v + √(α² + (1 - α²)(n·v)²)).
@@ -407,6 +458,61 @@ mod tests {
                 (a - b).abs() < 0.02 * a.max(0.1),
                 "{m:?}: albedo {a} (uniform) vs {b} (sampled)"
             );
+        }
+    }
+
+    /// Rough transmission: every sample goes through the surface (or, inside a volume past the
+    /// critical angle, back in), a roughness below the mirror floor refracts exactly like
+    /// smooth glass, the spread about the smooth direction grows with roughness, and the mean
+    /// weight stays at most the smooth lobe's (single scattering only loses energy), close to
+    /// it for slight roughness.
+    #[test]
+    fn rough_transmission_spreads_about_the_smooth_direction() {
+        let to_eye = Vec3::new(0.5, 0.0, 0.866).normalize();
+        let glass = |roughness: f32, thin: bool| {
+            Bsdf::new(material(1.0, 0.0, roughness), Vec3::Z, to_eye)
+                .with_transmission(to_eye, 1.0, 1.5, thin, true)
+        };
+        for thin in [true, false] {
+            let smooth = glass(0.0, thin);
+            let t = smooth.transmission.expect("a transmission lobe");
+            let exact = smooth
+                .sample_transmission(to_eye, t, 0.3, 0.7)
+                .expect("smooth glass transmits");
+            let almost = glass(0.04, thin)
+                .sample_transmission(to_eye, t, 0.3, 0.7)
+                .expect("smooth enough glass transmits");
+            assert_eq!(exact.direction, almost.direction);
+            let mut previous_spread = 0.0;
+            for roughness in [0.1f32, 0.4, 0.8] {
+                let bsdf = glass(roughness, thin);
+                let t = bsdf.transmission.expect("a transmission lobe");
+                let mut rng = Rng::new(3);
+                let (mut spread, mut weight, mut n) = (0.0f64, 0.0f64, 0);
+                let draws = 20_000;
+                for _ in 0..draws {
+                    let Some(s) =
+                        bsdf.sample_transmission(to_eye, t, rng.next_f32(), rng.next_f32())
+                    else {
+                        continue;
+                    };
+                    assert!(s.delta && s.direction.z < 0.0, "{roughness}: {s:?}");
+                    spread += f64::from(1.0 - s.direction.dot(exact.direction));
+                    weight += f64::from(s.weight.x);
+                    n += 1;
+                }
+                let (spread, mean) = (spread / f64::from(n), weight / f64::from(draws));
+                let smooth_weight = f64::from(exact.weight.x);
+                assert!(spread > previous_spread, "{roughness}: spread {spread}");
+                previous_spread = spread;
+                assert!(
+                    mean <= smooth_weight * 1.01,
+                    "thin {thin}, roughness {roughness}: mean weight {mean} > {smooth_weight}"
+                );
+                if roughness <= 0.1 {
+                    assert!(mean > 0.95 * smooth_weight, "{roughness}: {mean}");
+                }
+            }
         }
     }
 }

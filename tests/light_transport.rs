@@ -385,29 +385,33 @@ fn noise_falls_as_one_over_the_square_root_of_spp() {
     );
 }
 
-/// Clear glass (`KHR_materials_transmission` 1, thin-walled) over a red floor, lit from 27° off
-/// vertical and seen straight down: the floor shows through the glass in its own colour, dimmed
-/// only by the glass's Fresnel reflection (4% at ior 1.5) where the light and the view cross
-/// it, in both integrators (the direct one approximates glass as see-through). Before
-/// transmission was read, the glass was an opaque white sheet.
-#[test]
-fn clear_glass_shows_what_is_behind_it() {
-    let dir = tempfile::tempdir().unwrap();
-    let rect =
-        |x0: f32, x1: f32, z: f32| [[x0, -2.0, z], [x1, -2.0, z], [x1, 2.0, z], [x0, 2.0, z]];
+/// A 4 m deep strip quad from x0 to x1 at height z, facing +Z.
+fn strip(x0: f32, x1: f32, z: f32) -> [[f32; 3]; 4] {
+    [[x0, -2.0, z], [x1, -2.0, z], [x1, 2.0, z], [x0, 2.0, z]]
+}
+
+/// `quads` under a directional light of 3 lux travelling 27° off vertical (so that a smooth
+/// pane's mirror image of it is not in view), seen straight down by an orthographic camera
+/// showing x in [-3, 3] and y in [-2, 2], with `materials` and a thin-walled glass of
+/// `roughness` as the last material.
+fn glass_scene(
+    dir: &Path,
+    quads: &[([[f32; 3]; 4], usize)],
+    mut materials: Vec<serde_json::Value>,
+    roughness: f32,
+) -> PathBuf {
     let travel = glam::Vec3::new(0.5, 0.0, -1.0).normalize();
     let light = glam::Quat::from_rotation_arc(glam::Vec3::NEG_Z, travel);
+    materials.push(
+        json!({"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+            "metallicFactor": 0.0, "roughnessFactor": roughness},
+         "doubleSided": true,
+         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}}}),
+    );
     let (json, bin) = common::quads_gltf(
-        &[(rect(-3.0, 3.0, 0.0), 0), (rect(-2.0, 0.0, 1.0), 1)],
+        quads,
         json!({
-            "materials": [
-                {"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.05, 0.05, 1.0],
-                    "metallicFactor": 0.0, "roughnessFactor": 1.0}},
-                {"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
-                    "metallicFactor": 0.0, "roughnessFactor": 0.3},
-                 "doubleSided": true,
-                 "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}}}
-            ],
+            "materials": materials,
             "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_transmission"],
             "cameras": [{"type": "orthographic", "orthographic": {"xmag": 3.0, "ymag": 2.0, "znear": 0.1, "zfar": 20.0}}],
             "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 3.0}]}},
@@ -417,7 +421,21 @@ fn clear_glass_shows_what_is_behind_it() {
             ]
         }),
     );
-    let model = write_gltf(dir.path(), "glass.gltf", json, &bin);
+    write_gltf(dir, &format!("glass-{roughness}.gltf"), json, &bin)
+}
+
+/// Clear glass (`KHR_materials_transmission` 1, thin-walled) over a red floor, lit from 27° off
+/// vertical and seen straight down: the floor shows through the glass in its own colour, dimmed
+/// only by the glass's Fresnel reflection (4% at ior 1.5) where the light and the view cross
+/// it, in both integrators (the direct one approximates glass as see-through). Before
+/// transmission was read, the glass was an opaque white sheet.
+#[test]
+fn clear_glass_shows_what_is_behind_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let red = json!({"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.05, 0.05, 1.0],
+        "metallicFactor": 0.0, "roughnessFactor": 1.0}});
+    let quads = [(strip(-3.0, 3.0, 0.0), 0), (strip(-2.0, 0.0, 1.0), 1)];
+    let model = glass_scene(dir.path(), &quads, vec![red], 0.0);
     for integrator in ["direct", "path"] {
         let out = dir.path().join(format!("{integrator}.exr"));
         render(
@@ -463,6 +481,61 @@ fn clear_glass_shows_what_is_behind_it() {
             "{integrator}: the glass is not clear: {behind}"
         );
     }
+}
+
+/// Frosted glass (`KHR_materials_transmission` 1, thin-walled, roughness 0.6) 1 m over a floor
+/// of 0.25 m black and white stripes, lit as above and seen straight down by the path tracer: through the pane
+/// the stripes blur (their contrast drops below half of that in the open), while a smooth
+/// pane (roughness 0) keeps them as sharp as in the open (within 10%). Before rough
+/// transmission, every pane refracted as clear glass whatever its roughness.
+#[test]
+fn frosted_glass_blurs_what_is_behind_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let stripe = |x: f32| ((x + 3.0) / 0.25).floor() as usize % 2;
+    let mut quads: Vec<([[f32; 3]; 4], usize)> = (0..24)
+        .map(|k| {
+            let x0 = -3.0 + 0.25 * k as f32;
+            (strip(x0, x0 + 0.25, 0.0), stripe(x0 + 0.1))
+        })
+        .collect();
+    quads.push((strip(-2.5, 0.0, 1.0), 2));
+    let grey = |v: f32| {
+        json!({"pbrMetallicRoughness": {"baseColorFactor": [v, v, v, 1.0],
+            "metallicFactor": 0.0, "roughnessFactor": 1.0}})
+    };
+    let contrast = |roughness: f32| {
+        let model = glass_scene(dir.path(), &quads, vec![grey(0.9), grey(0.02)], roughness);
+        let out = dir.path().join(format!("frosted-{roughness}.exr"));
+        let args = "--quiet --width 240 --height 160 --spp 16 --integrator path --bounces 2";
+        render(&model, &out, &args.split(' ').collect::<Vec<_>>());
+        let (w, _, pixels) = read_rgba(&out);
+        // Mean brightness of the white and of the black stripes' middles, between x0 and x1.
+        let michelson = |x0: f32, x1: f32| {
+            let mut sums = [(0.0f32, 0.0f32); 2];
+            for (i, p) in pixels.iter().enumerate() {
+                let x = -3.0 + ((i % w as usize) as f32 + 0.5) * 6.0 / w as f32;
+                let within = ((x + 3.0) / 0.25).fract();
+                if x > x0 && x < x1 && (0.3..0.7).contains(&within) {
+                    let s = &mut sums[stripe(x)];
+                    *s = (s.0 + p[0], s.1 + 1.0);
+                }
+            }
+            let (white, black) = (sums[0].0 / sums[0].1, sums[1].0 / sums[1].1);
+            (white - black) / (white + black)
+        };
+        (michelson(-2.0, -0.5), michelson(0.5, 2.5))
+    };
+    let (smooth, open) = contrast(0.0);
+    assert!(
+        smooth > 0.9 * open,
+        "a smooth pane blurs: contrast {smooth} behind it, {open} in the open"
+    );
+    let (frosted, open) = contrast(0.6);
+    eprintln!("contrast: smooth {smooth}, frosted {frosted}, open {open}");
+    assert!(
+        frosted < 0.5 * open,
+        "a frosted pane does not blur: contrast {frosted} behind it, {open} in the open"
+    );
 }
 
 /// `--time-limit` renders at the spp that fits the budget and says which; the image is then the

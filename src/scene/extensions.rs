@@ -73,7 +73,7 @@ pub const EXTENSIONS: &[KnownExtension] = &[
         "KHR_materials_transmission",
         Approximated,
         false,
-        "factor only, as smooth glass whatever the roughness (path); see-through (direct)",
+        "factor only (no texture); smooth or rough (GGX) refraction (path); see-through (direct)",
     ),
     ext(
         "KHR_materials_volume",
