@@ -252,6 +252,13 @@ fn decode(source: &ImageSource) -> Result<image::RgbaImage, String> {
     let mut limits = image::Limits::default();
     limits.max_alloc = Some(MAX_DECODE_BYTES);
     let reader = match (&source.bytes, &source.path) {
+        (Some(bytes), _) if crate::scene::ktx2::is_ktx2(bytes) => {
+            return crate::scene::ktx2::decode(bytes);
+        }
+        (None, Some(path)) if crate::scene::ktx2::is_ktx2_source(source) => {
+            let bytes = std::fs::read(path).map_err(|e| format!("'{}': {e}", path.display()))?;
+            return crate::scene::ktx2::decode(&bytes);
+        }
         (Some(bytes), _) => {
             let mut r = image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
                 .with_guessed_format()

@@ -137,3 +137,99 @@ fn encoded_variants_render_like_their_plain_sibling() {
         );
     }
 }
+
+/// KHR_texture_basisu: each KTX2 texture of StainedGlassLamp's glTF-KTX-BasisU folder, drawn on
+/// an unlit quad filling the frame, looks like the same texture from glTF-JPG-PNG: one UASTC
+/// texture with alpha (the glass's base colour, against PNG) and one ETC1S texture (the base's
+/// colour, against JPEG; both lossy). Measured: mean |difference| 0.0004 (UASTC) and 0.0024
+/// (ETC1S) of full scale; the threshold is 0.03. A KTX2 texture whose core `source` also
+/// exists falls back to it when the KTX2 cannot be decoded, with a warning naming the image.
+#[test]
+fn ktx2_textures_look_like_their_png_and_jpeg_versions() {
+    let Some(dir) = samples("ktx2_textures_look_like_their_png_and_jpeg_versions") else {
+        return;
+    };
+    let lamp = dir.join("StainedGlassLamp");
+    let out = tempfile::tempdir().unwrap();
+    let quad = common::square(1.0, 0.0);
+    let draw = |image: &std::path::Path, name: &str, extra_images: serde_json::Value| {
+        let file_name = image.file_name().unwrap().to_str().unwrap().to_string();
+        std::fs::copy(image, out.path().join(&file_name)).unwrap();
+        let ktx2 = file_name.ends_with(".ktx2");
+        let mut images = vec![serde_json::json!({"uri": file_name})];
+        images.extend(extra_images.as_array().cloned().unwrap_or_default());
+        let texture = if ktx2 {
+            let core = (images.len() > 1).then_some(1);
+            let mut t = serde_json::json!({"extensions": {"KHR_texture_basisu": {"source": 0}}});
+            if let Some(core) = core {
+                t["source"] = serde_json::json!(core);
+            }
+            t
+        } else {
+            serde_json::json!({"source": 0})
+        };
+        let (json, bin) = common::quads_gltf(
+            &[(quad, 0)],
+            serde_json::json!({
+                "extensionsUsed": ["KHR_materials_unlit", "KHR_texture_basisu"],
+                "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}},
+                    "extensions": {"KHR_materials_unlit": {}}}],
+                "textures": [texture],
+                "images": images,
+                "cameras": [{"type": "orthographic", "orthographic": {"xmag": 1.0, "ymag": 1.0, "znear": 0.1, "zfar": 10.0}}],
+                "nodes": [{"camera": 0, "translation": [0.0, 0.0, 2.0]}]
+            }),
+        );
+        let model = common::write_gltf(out.path(), &format!("{name}.gltf"), json, &bin);
+        let png = out.path().join(format!("{name}.png"));
+        let args = [
+            "render",
+            s(&model),
+            "-o",
+            s(&png),
+            "--width",
+            "128",
+            "--height",
+            "128",
+        ];
+        let result = run(&[&args[..], &["--spp", "4"]].concat(), true);
+        (common::read_rgba(&png).2, common::stderr(&result))
+    };
+    for (stem, plain) in [
+        ("StainedGlassLamp_glass_basecolor-alpha", "png"),
+        ("StainedGlassLamp_base_basecolor", "jpg"),
+    ] {
+        let ktx2 = lamp.join(format!("glTF-KTX-BasisU/{stem}.ktx2"));
+        let reference = lamp.join(format!("glTF-JPG-PNG/{stem}.{plain}"));
+        let (a, _) = draw(&reference, &format!("{stem}-plain"), serde_json::json!([]));
+        let (b, warnings) = draw(&ktx2, &format!("{stem}-ktx2"), serde_json::json!([]));
+        assert!(!warnings.contains("warning:"), "{stem}: {warnings}");
+        let difference = a
+            .iter()
+            .zip(&b)
+            .map(|(p, q)| (0..4).map(|c| (p[c] - q[c]).abs()).sum::<f32>() / 4.0)
+            .sum::<f32>()
+            / a.len() as f32;
+        eprintln!("{stem}: mean |KTX2 - {plain}| = {difference:.4}");
+        assert!(difference < 0.03, "{stem}: mean difference {difference}");
+    }
+    // A broken KTX2 with a core source: the core image is drawn, with a warning.
+    let broken = out.path().join("broken.ktx2");
+    let mut bytes =
+        std::fs::read(lamp.join("glTF-KTX-BasisU/StainedGlassLamp_base_basecolor.ktx2")).unwrap();
+    bytes.truncate(200);
+    std::fs::write(&broken, bytes).unwrap();
+    let jpeg = lamp.join("glTF-JPG-PNG/StainedGlassLamp_base_basecolor.jpg");
+    std::fs::copy(&jpeg, out.path().join("core.jpg")).unwrap();
+    let (plain, _) = draw(&jpeg, "core-plain", serde_json::json!([]));
+    let (fallen_back, warnings) = draw(
+        &broken,
+        "fallback",
+        serde_json::json!([{"uri": "core.jpg"}]),
+    );
+    assert!(
+        warnings.contains("image 0 (broken.ktx2)") && warnings.contains("fallback"),
+        "{warnings}"
+    );
+    assert_eq!(plain, fallen_back, "the core JPEG is drawn");
+}

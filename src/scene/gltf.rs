@@ -1305,13 +1305,11 @@ fn json_texture_ref(v: Option<&serde_json::Value>) -> Option<TextureRef> {
     Some(extension_texture_ref(texture, tex_coord, transform))
 }
 
-/// EXT_texture_webp: a texture whose extension names a WebP image uses it, and keeps its core
-/// `source` (if any) as the fallback for when the WebP image cannot be decoded.
-/// KHR_texture_basisu: KTX2 is not decoded, so a texture uses its core `source` (the
-/// extension's fallback for clients without KTX2); one without points at the KTX2 image, which
-/// the image check then finds unusable (the materials draw with their factors, with a warning).
-/// Rewritten in the JSON before the `gltf` crate validates it, since gltf-json 1.4 requires
-/// `source` (WebP-only and KTX2-only files have none). Returns each texture's fallback.
+/// EXT_texture_webp and KHR_texture_basisu: a texture whose extension names a WebP or KTX2
+/// image uses it, and keeps its core `source` (if any) as the fallback for when that image
+/// cannot be decoded (the extensions' fallback rule). Rewritten in the JSON before the `gltf`
+/// crate validates it, since gltf-json 1.4 requires `source` (WebP-only and KTX2-only files
+/// have none). Returns each texture's fallback.
 fn choose_texture_sources(root: &mut gltf::json::Root) -> Vec<Option<usize>> {
     let image_count = root.images.len();
     root.textures
@@ -1328,16 +1326,10 @@ fn choose_texture_sources(root: &mut gltf::json::Root) -> Vec<Option<usize>> {
                     .filter(|&i| i < image_count)
             };
             let core = texture.source.value();
-            if let Some(webp) = source_of("EXT_texture_webp") {
-                texture.source = gltf::json::Index::new(webp as u32);
-                return (core < image_count && core != webp).then_some(core);
-            }
-            if let Some(ktx2) = source_of("KHR_texture_basisu") {
-                if core >= image_count {
-                    texture.source = gltf::json::Index::new(ktx2 as u32);
-                }
-            }
-            None
+            let chosen =
+                source_of("EXT_texture_webp").or_else(|| source_of("KHR_texture_basisu"))?;
+            texture.source = gltf::json::Index::new(chosen as u32);
+            (core < image_count && core != chosen).then_some(core)
         })
         .collect()
 }
@@ -1438,9 +1430,6 @@ fn images(
         };
         let checked = match &source.path {
             Some(path) if !path.is_file() => Err(format!("file '{}' not found", path.display())),
-            _ if source.mime_type.as_deref() == Some("image/ktx2") => {
-                Err("KTX2 images (KHR_texture_basisu) are not decoded yet".to_string())
-            }
             _ => check_image_header(&source, options.limits.max_image_pixels),
         };
         if let Err(problem) = checked {
@@ -1474,6 +1463,14 @@ fn images(
 /// over the pixel budget, before anything decodes it.
 pub(crate) fn check_image_header(source: &ImageSource, max_pixels: u64) -> Result<(), String> {
     let dims = match (&source.bytes, &source.path) {
+        (Some(bytes), _) if super::ktx2::is_ktx2(bytes) => Ok(super::ktx2::dimensions(bytes)?),
+        (None, Some(path)) if super::ktx2::is_ktx2_source(source) => {
+            let mut header = [0u8; 28];
+            let read = std::fs::File::open(path)
+                .and_then(|mut f| std::io::Read::read(&mut f, &mut header))
+                .map_err(|e| format!("'{}': {e}", path.display()))?;
+            Ok(super::ktx2::dimensions(&header[..read])?)
+        }
         (Some(bytes), _) => image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
             .with_guessed_format()
             .map_err(|e| e.to_string())?
@@ -1485,7 +1482,7 @@ pub(crate) fn check_image_header(source: &ImageSource, max_pixels: u64) -> Resul
             .into_dimensions(),
         (None, None) => return Err("no data".to_string()),
     };
-    let (w, h) = dims.map_err(|e| format!("not a readable PNG, JPEG or WebP image: {e}"))?;
+    let (w, h) = dims.map_err(|e| format!("not a readable PNG, JPEG, WebP or KTX2 image: {e}"))?;
     let pixels = w as u64 * h as u64;
     if pixels == 0 || pixels > max_pixels {
         return Err(format!(

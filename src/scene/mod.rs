@@ -9,6 +9,7 @@ mod draco;
 mod error;
 pub mod extensions;
 pub mod gltf;
+pub(crate) mod ktx2;
 mod meshopt;
 pub mod obj;
 mod paths;
