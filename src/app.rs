@@ -214,6 +214,10 @@ fn worker_pool(requested: usize) -> Result<(usize, rayon::ThreadPool)> {
 fn load_options(args: &LoadArgs) -> LoadOptions {
     let mut options = LoadOptions {
         allow_external_files: args.allow_external_files,
+        pose: crate::scene::PoseOptions {
+            animation: args.animation.clone(),
+            time: args.time,
+        },
         ..Default::default()
     };
     options.limits.max_triangles = args.max_triangles;
@@ -261,6 +265,26 @@ fn info(args: &InfoArgs) -> Result<()> {
             scene.variants.len(),
             names.join(", ")
         );
+    }
+    if !scene.animations.is_empty() {
+        println!(
+            "animations  {} (--animation NAME|INDEX, --time SECONDS)",
+            scene.animations.len()
+        );
+        for a in &scene.animations {
+            println!(
+                "  [{}] {:.3} s, {} channels{}",
+                a.index,
+                a.duration,
+                a.channels,
+                a.name
+                    .as_deref()
+                    .map_or(String::new(), |n| format!(" '{n}'"))
+            );
+        }
+    }
+    if let Some(pose) = &scene.pose {
+        println!("pose        {pose}");
     }
     println!("cameras     {}", scene.cameras.len());
     for (i, c) in scene.cameras.iter().enumerate() {
@@ -344,6 +368,8 @@ pub fn info_json(scene: &Scene) -> serde_json::Value {
         "bounds": scene.bounds,
         "warnings": scene.warnings,
         "variants": scene.variants,
+        "animations": scene.animations,
+        "pose": scene.pose,
         "extensions": scene.extensions,
         "material_list": scene.materials,
     })
