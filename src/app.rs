@@ -100,6 +100,20 @@ pub(crate) fn render_load_options(args: &RenderArgs) -> LoadOptions {
     }
 }
 
+/// Prints the loaded model's warnings and the pose it is drawn in, unless `--quiet` (shared by
+/// single- and multi-view renders).
+pub(crate) fn report_load(args: &RenderArgs, scene: &Scene) {
+    if args.quiet {
+        return;
+    }
+    for w in &scene.warnings {
+        eprintln!("warning: {}: {w}", args.model.display());
+    }
+    if let Some(pose) = &scene.pose {
+        eprintln!("{}: posed by {pose}", args.model.display());
+    }
+}
+
 /// Refuses `--env-out` when no environment lights the render, and warns when nothing but
 /// ambient and emission lights it (shared by single- and multi-view renders).
 pub(crate) fn check_lighting(
@@ -534,11 +548,7 @@ fn render_model(
     crate::scene::tangents::generate_missing(&mut scene);
     phases.mark("tangents", tangent_start);
     let load_time = load_start.elapsed();
-    if !args.quiet {
-        for w in &scene.warnings {
-            eprintln!("warning: {}: {w}", args.model.display());
-        }
-    }
+    report_load(args, &scene);
 
     let file_camera = match args.camera {
         Some(i) => Some(scene.cameras.get(i).with_context(|| {
