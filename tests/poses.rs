@@ -692,3 +692,72 @@ fn cesium_man_static_pose_matches_its_bind_pose() {
         "{min1:?}..{max1:?}"
     );
 }
+
+/// `render --views` and `batch` take the pose options too (they share render's load options):
+/// the views of a running fox differ from those at rest, and a batch job equals the single
+/// render with the same options.
+#[test]
+fn views_and_batch_jobs_are_posed_too() {
+    let Some(samples) = samples("views_and_batch_jobs_are_posed_too") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let fox = samples.join("Fox/glTF/Fox.gltf");
+    let pose = ["--animation", "Run", "--time", "0.3"];
+    let views = |folder: &str, extra: &[&str]| {
+        let out = dir.path().join(folder);
+        let mut args = vec!["render", s(&fox), "--views", "orbit:1", "-o", s(&out)];
+        args.extend(["--width", "64", "--height", "64", "--spp", "1", "-q"]);
+        args.extend(extra);
+        run(&args, true);
+        out.join("000.png")
+    };
+    let diff = mean_abs_diff(&views("rest", &[]), &views("running", &pose));
+    assert!(
+        diff > 0.005,
+        "posed views differ from the rest pose: {diff}"
+    );
+
+    let manifest = dir.path().join("models");
+    std::fs::create_dir(&manifest).unwrap();
+    for file in ["Fox.gltf", "Fox.bin", "Texture.png"] {
+        std::fs::copy(samples.join("Fox/glTF").join(file), manifest.join(file)).unwrap();
+    }
+    let batch_out = dir.path().join("batch");
+    let mut args = vec!["batch", s(&manifest), "-o", s(&batch_out)];
+    args.extend(["--width", "64", "--height", "64", "--spp", "1", "-q"]);
+    args.extend(pose);
+    run(&args, true);
+    let single = dir.path().join("single.png");
+    render(&fox, &single, 64, &pose);
+    let job_image = batch_out.join("Fox/image.png");
+    assert_eq!(
+        read_rgba(&job_image).2,
+        read_rgba(&single).2,
+        "the batch job draws the same pose as render"
+    );
+}
+
+/// Channel targets are checked before the `gltf` crate indexes them (gltf-json 1.4 does not
+/// validate them): a missing node or an unknown path is one error naming the file.
+#[test]
+fn channel_targets_outside_the_file_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = sliding_square(dir.path());
+    let original: Value = serde_json::from_slice(&std::fs::read(&model).unwrap()).unwrap();
+    for (field, value, expect) in [
+        ("node", json!(99), "targets node 99"),
+        ("path", json!("colour"), "target path"),
+    ] {
+        let mut json = original.clone();
+        json["animations"][0]["channels"][0]["target"][field] = value;
+        let broken = dir.path().join(format!("broken-{field}.gltf"));
+        std::fs::write(&broken, json.to_string()).unwrap();
+        let message = stderr(&run(&["info", s(&broken)], false));
+        assert!(
+            message.contains(&format!("broken-{field}.gltf")) && message.contains(expect),
+            "{message}"
+        );
+        assert!(!message.contains("internal error"), "{message}");
+    }
+}

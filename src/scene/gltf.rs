@@ -1766,6 +1766,45 @@ fn place_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Option<
 mod tests {
     use super::*;
 
+    /// Influences come from every JOINTS_n/WEIGHTS_n set: here set 1 carries the weight of
+    /// vertex 0, and vertex 1 has none at all and is placed by the node's transform.
+    #[test]
+    fn skinning_reads_every_influence_set_and_places_unweighted_vertices_by_the_node() {
+        let lift = Mat4::from_translation(Vec3::Y);
+        let skinning = Skinning::new(&[Mat4::IDENTITY, lift], &[Mat4::IDENTITY; 2]);
+        let set0 = (vec![Vec4::ZERO; 2], vec![Vec4::ZERO; 2]);
+        let set1 = (
+            vec![Vec4::new(1.0, 0.0, 0.0, 0.0), Vec4::ZERO],
+            vec![Vec4::new(1.0, 0.0, 0.0, 0.0), Vec4::ZERO],
+        );
+        let node = Mat4::from_translation(Vec3::new(0.0, 0.0, 5.0));
+        let mut positions = vec![Vec3::X, Vec3::X];
+        let mut normals = vec![Vec3::Z, Vec3::Z];
+        let unweighted = skin_vertices(
+            &skinning,
+            &[set0, set1],
+            node,
+            &mut positions,
+            Some(&mut normals),
+            None,
+        )
+        .unwrap();
+        assert_eq!(unweighted, 1);
+        assert_eq!(
+            positions,
+            vec![Vec3::new(1.0, 1.0, 0.0), Vec3::new(1.0, 0.0, 5.0)]
+        );
+        assert_eq!(normals, vec![Vec3::Z, Vec3::Z]);
+        // A weighted joint past the skin's two is refused, naming the vertex and the joint.
+        let bad = (vec![Vec4::splat(2.0)], vec![Vec4::new(1.0, 0.0, 0.0, 0.0)]);
+        let mut one = vec![Vec3::ZERO];
+        let message = skin_vertices(&skinning, &[bad], node, &mut one, None, None).unwrap_err();
+        assert!(
+            message.contains("vertex 0") && message.contains("joint 2"),
+            "{message}"
+        );
+    }
+
     #[test]
     fn data_uris_decode_and_are_size_checked() {
         let (mime, bytes) =
