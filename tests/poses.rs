@@ -761,3 +761,23 @@ fn channel_targets_outside_the_file_are_refused() {
         assert!(!message.contains("internal error"), "{message}");
     }
 }
+
+/// An animation accessor whose count its buffer view cannot hold is refused before anything
+/// is allocated for it, naming the file and the accessor.
+#[test]
+fn keyframe_accessors_larger_than_their_view_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = sliding_square(dir.path());
+    let mut json: Value = serde_json::from_slice(&std::fs::read(&model).unwrap()).unwrap();
+    let input = json["animations"][0]["samplers"][0]["input"]
+        .as_u64()
+        .unwrap() as usize;
+    json["accessors"][input]["count"] = json!(4_000_000_000u64);
+    let broken = dir.path().join("huge-count.gltf");
+    std::fs::write(&broken, json.to_string()).unwrap();
+    let message = stderr(&run(&["info", s(&broken), "--time", "1"], false));
+    assert!(
+        message.contains("huge-count.gltf") && message.contains("do not fit bufferView"),
+        "{message}"
+    );
+}
