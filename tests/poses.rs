@@ -736,6 +736,30 @@ fn views_and_batch_jobs_are_posed_too() {
         read_rgba(&single).2,
         "the batch job draws the same pose as render"
     );
+
+    // A JSONL manifest poses each job its own way (one frame each), over the command line's.
+    let jobs = dir.path().join("jobs.jsonl");
+    let line = |id: &str, animation: Value, time: f32| {
+        json!({"id": id, "model": s(&fox), "animation": animation, "time": time}).to_string()
+    };
+    let lines = [line("walk", json!("Walk"), 0.2), line("run", json!(2), 0.3)];
+    std::fs::write(&jobs, lines.join("\n")).unwrap();
+    let frames_out = dir.path().join("frames");
+    let mut args = vec!["batch", s(&jobs), "-o", s(&frames_out)];
+    args.extend(["--width", "64", "--height", "64", "--spp", "1", "-q"]);
+    args.extend(["--animation", "Survey"]);
+    run(&args, true);
+    let walk = dir.path().join("walk.png");
+    render(&fox, &walk, 64, &["--animation", "Walk", "--time", "0.2"]);
+    assert_eq!(
+        read_rgba(&frames_out.join("walk/image.png")).2,
+        read_rgba(&walk).2
+    );
+    assert_eq!(
+        read_rgba(&frames_out.join("run/image.png")).2,
+        read_rgba(&single).2,
+        "animation 2 is Run"
+    );
 }
 
 /// Channel targets are checked before the `gltf` crate indexes them (gltf-json 1.4 does not
