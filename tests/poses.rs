@@ -396,6 +396,18 @@ fn skins_follow_their_joints_in_the_static_and_the_animated_pose() {
     let bent = skinned_strip(dir.path(), "bent.gltf", quarter, 1, [0.0, 1.0]);
     let (_, max) = bounds(&info(&bent, &[]));
     assert_close(max, [1.25, 1.0, 0.0], "strip bent at rest");
+    // Without inverseBindMatrices every one is the identity (§3.7.3): joint 1's translation to
+    // x = 1 then moves the vertices bound to it by 1, so the strip reaches x = 3.
+    let mut json: Value = serde_json::from_slice(&std::fs::read(&straight).unwrap()).unwrap();
+    json["skins"][0]
+        .as_object_mut()
+        .unwrap()
+        .remove("inverseBindMatrices");
+    let unbound = dir.path().join("no-inverse-bind.gltf");
+    std::fs::write(&unbound, json.to_string()).unwrap();
+    let (min, max) = bounds(&info(&unbound, &[]));
+    assert_close(min, [0.0, -0.25, 0.0], "identity inverse bind matrices");
+    assert_close(max, [3.0, 0.25, 0.0], "identity inverse bind matrices");
 }
 
 #[test]
