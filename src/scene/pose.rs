@@ -297,7 +297,8 @@ pub(crate) struct Pose {
     pub local: Vec<Mat4>,
     /// Morph weights set by the node or by the animation; `None`: the mesh's defaults.
     pub weights: Vec<Option<Vec<f32>>>,
-    /// The animation sampled and when, for the summary ("'Walk' at 0.50 s").
+    /// The animation sampled and when, for `info` and the render summary
+    /// ("animation 1 'Walk' at 0.2 s"); `None` for the static pose.
     pub description: Option<String>,
 }
 
@@ -319,7 +320,7 @@ impl Pose {
 
     /// The morph weights of `node` drawing `mesh` with `targets` morph targets, resolved as
     /// §3.7.2.2 says, padded with zeros or cut to `targets` (a mismatch is reported in
-    /// `warnings` once per node).
+    /// `warnings`, for each instance of the node).
     pub fn morph_weights(
         &self,
         node: &gltf::Node,
