@@ -100,6 +100,20 @@ pub(crate) fn render_load_options(args: &RenderArgs) -> LoadOptions {
     }
 }
 
+/// Prints the loaded model's warnings and the pose it is drawn in, unless `--quiet` (shared by
+/// single- and multi-view renders).
+pub(crate) fn report_load(args: &RenderArgs, scene: &Scene) {
+    if args.quiet {
+        return;
+    }
+    for w in &scene.warnings {
+        eprintln!("warning: {}: {w}", args.model.display());
+    }
+    if let Some(pose) = &scene.pose {
+        eprintln!("{}: posed by {pose}", args.model.display());
+    }
+}
+
 /// Refuses `--env-out` when no environment lights the render, and warns when nothing but
 /// ambient and emission lights it (shared by single- and multi-view renders).
 pub(crate) fn check_lighting(
@@ -214,6 +228,10 @@ fn worker_pool(requested: usize) -> Result<(usize, rayon::ThreadPool)> {
 fn load_options(args: &LoadArgs) -> LoadOptions {
     let mut options = LoadOptions {
         allow_external_files: args.allow_external_files,
+        pose: crate::scene::PoseOptions {
+            animation: args.animation.clone(),
+            time: args.time,
+        },
         ..Default::default()
     };
     options.limits.max_triangles = args.max_triangles;
@@ -261,6 +279,26 @@ fn info(args: &InfoArgs) -> Result<()> {
             scene.variants.len(),
             names.join(", ")
         );
+    }
+    if !scene.animations.is_empty() {
+        println!(
+            "animations  {} (--animation NAME|INDEX, --time SECONDS)",
+            scene.animations.len()
+        );
+        for a in &scene.animations {
+            println!(
+                "  [{}] {:.3} s, {} channels{}",
+                a.index,
+                a.duration,
+                a.channels,
+                a.name
+                    .as_deref()
+                    .map_or(String::new(), |n| format!(" '{n}'"))
+            );
+        }
+    }
+    if let Some(pose) = &scene.pose {
+        println!("pose        {pose}");
     }
     println!("cameras     {}", scene.cameras.len());
     for (i, c) in scene.cameras.iter().enumerate() {
@@ -344,6 +382,8 @@ pub fn info_json(scene: &Scene) -> serde_json::Value {
         "bounds": scene.bounds,
         "warnings": scene.warnings,
         "variants": scene.variants,
+        "animations": scene.animations,
+        "pose": scene.pose,
         "extensions": scene.extensions,
         "material_list": scene.materials,
     })
@@ -508,11 +548,7 @@ fn render_model(
     crate::scene::tangents::generate_missing(&mut scene);
     phases.mark("tangents", tangent_start);
     let load_time = load_start.elapsed();
-    if !args.quiet {
-        for w in &scene.warnings {
-            eprintln!("warning: {}: {w}", args.model.display());
-        }
-    }
+    report_load(args, &scene);
 
     let file_camera = match args.camera {
         Some(i) => Some(scene.cameras.get(i).with_context(|| {

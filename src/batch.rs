@@ -242,9 +242,32 @@ pub struct ManifestLine {
     pub spp: Option<u32>,
     /// `--seed`.
     pub seed: Option<u64>,
+    /// `--animation`: a name, or an index as a number or a string.
+    #[serde(default, deserialize_with = "animation_ref")]
+    pub animation: Option<String>,
+    /// `--time`, in seconds (0 or more).
+    pub time: Option<f32>,
     /// Output file names.
     #[serde(default)]
     pub outputs: Outputs,
+}
+
+/// A manifest's `"animation"`: `"Walk"`, `"1"` or `1`, kept as the text `--animation` takes.
+fn animation_ref<'de, D: serde::Deserializer<'de>>(
+    deserializer: D,
+) -> Result<Option<String>, D::Error> {
+    #[derive(Deserialize)]
+    #[serde(untagged)]
+    enum NameOrIndex {
+        Name(String),
+        Index(u64),
+    }
+    Ok(
+        Option::<NameOrIndex>::deserialize(deserializer)?.map(|a| match a {
+            NameOrIndex::Name(name) => name,
+            NameOrIndex::Index(index) => index.to_string(),
+        }),
+    )
 }
 
 /// A job: what to render and what to call it. Unset options take the command line's.
@@ -266,6 +289,10 @@ pub struct Job {
     pub spp: Option<u32>,
     /// `--seed`.
     pub seed: Option<u64>,
+    /// `--animation`.
+    pub animation: Option<String>,
+    /// `--time`, checked finite and not negative.
+    pub time: Option<f32>,
     /// Output file names.
     pub outputs: Outputs,
 }
@@ -378,6 +405,8 @@ fn read_folder(root: &Path) -> Result<Vec<Entry>, ManifestError> {
                     height: None,
                     spp: None,
                     seed: None,
+                    animation: None,
+                    time: None,
                     outputs: Outputs::default(),
                 }),
             };
@@ -479,6 +508,12 @@ fn job_of_line(line: ManifestLine, id: String, folder: &Path) -> Result<Job, Str
     if line.model.trim().is_empty() {
         return Err("\"model\" is empty".into());
     }
+    crate::scene::PoseOptions {
+        animation: None,
+        time: line.time,
+    }
+    .check()
+    .map_err(|e| format!("\"time\": {e}"))?;
     Ok(Job {
         id,
         model: folder.join(&line.model),
@@ -488,6 +523,8 @@ fn job_of_line(line: ManifestLine, id: String, folder: &Path) -> Result<Job, Str
         height: line.height,
         spp: line.spp,
         seed: line.seed,
+        animation: line.animation,
+        time: line.time,
         outputs: line.outputs,
     })
 }
@@ -911,6 +948,26 @@ not json
             .as_ref()
             .unwrap_err()
             .contains("outputs.depth"));
+    }
+
+    #[test]
+    fn a_line_may_pose_its_model() {
+        let text = br#"{"id": "a", "model": "a.glb", "animation": "Run", "time": 0.3}
+{"id": "b", "model": "b.glb", "animation": 2}
+{"id": "c", "model": "c.glb", "time": -1}
+{"id": "d", "model": "d.glb", "animation": [1]}
+"#;
+        let entries = read_jsonl(text, Path::new("m/jobs.jsonl"), Path::new("m"));
+        let a = entries[0].job.as_ref().unwrap();
+        assert_eq!((a.animation.as_deref(), a.time), (Some("Run"), Some(0.3)));
+        let b = entries[1].job.as_ref().unwrap();
+        assert_eq!((b.animation.as_deref(), b.time), (Some("2"), None));
+        let c = entries[2].job.as_ref().unwrap_err();
+        assert!(c.contains("\"time\"") && c.contains("-1"), "{c}");
+        assert!(
+            entries[3].job.is_err(),
+            "an animation is a name or an index"
+        );
     }
 
     #[test]

@@ -99,6 +99,8 @@ pub fn scene_from_soup(soup: TriangleSoup, name: &str) -> Scene {
         variants: Vec::new(),
         variant: None,
         extensions: Vec::new(),
+        animations: Vec::new(),
+        pose: None,
         bounds,
         warnings: Vec::new(),
     }

@@ -49,6 +49,29 @@ pub struct LoadArgs {
     /// Refuse scenes with more triangles than this, after instancing.
     #[arg(long, default_value_t = 50_000_000, value_name = "N")]
     pub max_triangles: u64,
+    /// Pose the model by this glTF animation, by name or index (`info` lists them) [default
+    /// with --time: animation 0]. Without --animation and --time the file's static pose is
+    /// drawn: the nodes' own transforms, default morph weights, skins through their joints.
+    #[arg(long, value_name = "NAME|INDEX")]
+    pub animation: Option<String>,
+    /// Seconds into the animation [default with --animation: 0]; past the animation's end the
+    /// last keyframes hold, before a channel's first keyframe its first.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_time, allow_hyphen_values = true)]
+    pub time: Option<f32>,
+}
+
+/// A `--time`: a finite number of seconds, 0 or more.
+fn parse_time(text: &str) -> Result<f32, String> {
+    let time: f32 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{text}' is not a number of seconds"))?;
+    crate::scene::PoseOptions {
+        animation: None,
+        time: Some(time),
+    }
+    .check()?;
+    Ok(time)
 }
 
 /// `meshtracer info`.
@@ -298,7 +321,7 @@ pub struct RenderArgs {
 #[command(
     mut_arg("model", |a| a
         .value_name("MANIFEST")
-        .help("A folder of models (every .gltf, .glb and .obj below it, sorted) or a JSONL file of jobs, one a line: {\"id\", \"model\", \"views\", \"width\", \"height\", \"spp\", \"seed\", \"outputs\"}; relative model paths resolve against the manifest's folder")),
+        .help("A folder of models (every .gltf, .glb and .obj below it, sorted) or a JSONL file of jobs, one a line: {\"id\", \"model\", \"views\", \"width\", \"height\", \"spp\", \"seed\", \"animation\", \"time\", \"outputs\"}; relative model paths resolve against the manifest's folder")),
     mut_arg("output", |a| a
         .value_name("DIR")
         .help("The output folder: each job writes into DIR/<job id>/, the batch records every job in DIR/results.jsonl (results.I-of-N.jsonl for a shard)")),

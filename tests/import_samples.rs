@@ -254,6 +254,30 @@ fn primitive_modes_skip_points_and_lines_with_a_warning() {
     );
 }
 
+/// The skinned and morphed samples are drawn posed (issue 14): they load without the old
+/// "drawn in their bind pose" / "morph targets are ignored" warnings, or any other, and list
+/// their animations.
+#[test]
+fn animated_samples_load_posed_without_warnings() {
+    let Some(dir) = samples("animated_samples_load_posed_without_warnings") else {
+        return;
+    };
+    for (model, animations) in [
+        ("AnimatedMorphCube/glTF/AnimatedMorphCube.gltf", 1),
+        ("AnimatedMorphCube/glTF-Quantized/AnimatedMorphCube.gltf", 1),
+        ("RiggedSimple/glTF/RiggedSimple.gltf", 1),
+        ("RiggedSimple/glTF-Draco/RiggedSimple.gltf", 1),
+        ("CesiumMan/glTF/CesiumMan.gltf", 1),
+        ("CesiumMan/glTF-Draco/CesiumMan.gltf", 1),
+        ("Fox/glTF/Fox.gltf", 3),
+    ] {
+        let s = Scene::load(dir.join(model)).unwrap();
+        assert!(s.warnings.is_empty(), "{model}: {:?}", s.warnings);
+        assert_eq!(s.animations.len(), animations, "{model}");
+        assert!(s.pose.is_none(), "{model}: the static pose by default");
+    }
+}
+
 #[test]
 fn instanced_meshes_are_flattened_per_instance() {
     let Some(dir) = samples("instanced_meshes_are_flattened_per_instance") else {

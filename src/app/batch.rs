@@ -409,6 +409,12 @@ fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArg
     if let Some(seed) = job.seed {
         args.seed = seed;
     }
+    if job.animation.is_some() {
+        args.load.animation = job.animation.clone();
+    }
+    if job.time.is_some() {
+        args.load.time = job.time;
+    }
     if job.views.is_some() {
         args.views = job.views.clone();
     }

@@ -243,11 +243,7 @@ pub(super) fn render_views(
     let mut scene = load(&args.model, &load_options)?;
     crate::scene::tangents::generate_missing(&mut scene);
     let load_time = load_start.elapsed();
-    if !args.quiet {
-        for w in &scene.warnings {
-            eprintln!("warning: {}: {w}", args.model.display());
-        }
-    }
+    super::report_load(args, &scene);
 
     // One image size for all views (transforms.json shares w and h).
     let first_file_camera = match spec {

@@ -117,6 +117,20 @@ pub(crate) fn read<const N: usize>(
         }
         Ok(out)
     };
+    if let Some(view) = accessor.view() {
+        // Refused before allocating: a hostile count must not reserve memory its view cannot
+        // fill (callers that ran `check_accessor` never get here with such a count).
+        let stride = view.stride().unwrap_or(element).max(1);
+        let room = view.length().saturating_sub(accessor.offset());
+        if count > 0 && (count - 1).saturating_mul(stride).saturating_add(element) > room {
+            return Err(format!(
+                "{count} elements of {element} bytes (stride {stride}) from offset {} do not fit bufferView {} ({} bytes)",
+                accessor.offset(),
+                view.index(),
+                view.length()
+            ));
+        }
+    }
     let mut out = Vec::new();
     out.try_reserve_exact(count)
         .map_err(|_| format!("cannot allocate {count} elements"))?;

@@ -159,6 +159,17 @@ pub enum LoadErrorKind {
     /// `--variant` names no variant of the file, or a variant mapping is broken.
     #[error("KHR_materials_variants: {0}")]
     Variant(String),
+    /// `--animation`/`--time` cannot be honoured, or the chosen animation is broken.
+    #[error("animation: {0}")]
+    Animation(String),
+    /// A skin cannot be applied (bad inverse bind matrices, joints, or skinning attributes).
+    #[error("skin {skin}: {problem}")]
+    Skin {
+        /// Skin index.
+        skin: usize,
+        /// What is wrong.
+        problem: String,
+    },
     /// An image reference is broken.
     #[error("image {image}: {problem}")]
     Image {

@@ -11,6 +11,9 @@
 //! - §3.7.2.1 / §5.24: TRIANGLE_STRIP triangle i = (i, i+1+i%2, i+2-i%2), TRIANGLE_FAN = (i+1, i+2, 0).
 //! - §3.10: cameras look down local -Z with +Y up; `yfov` in radians.
 //! - KHR_lights_punctual: lights shine along local -Z; candela (point, spot), lux (directional).
+//! - §3.7.3, §3.7.2.2, §3.11: skins, morph targets and animations pose the model: see
+//!   [`super::pose`]. Without `--animation`/`--time` the static pose is drawn (the nodes' own
+//!   transforms and weights), skinned meshes through their joints.
 
 use super::attributes;
 use super::builder::VerticesIn;
@@ -18,6 +21,7 @@ use super::draco;
 use super::error::PrimitiveAt;
 use super::extensions::{known, ExtensionUse};
 use super::meshopt;
+use super::pose::{self, Pose, Skinning};
 use super::{
     AlphaMode, Bounds, Camera, ClearcoatLayer, FileAccess, Filter, Format, ImageSource, Instance,
     Light, LightKind, LoadError, LoadErrorKind, LoadOptions, Material, Projection, Sampler, Scene,
@@ -74,6 +78,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     root.extensions_required.clear();
     let webp_fallbacks = choose_texture_sources(&mut root);
     check_attribute_indices(&root).map_err(err)?;
+    pose::check_channel_targets(&root).map_err(|p| err(LoadErrorKind::Gltf(p)))?;
     let document = validate(root).map_err(|e| err(convert(e)))?;
     let access = FileAccess::new(
         path,
@@ -91,11 +96,16 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         None => None,
         Some(name) => Some(choose_variant(&variants, name).map_err(err)?),
     };
+    let mut pose_warnings = Vec::new();
+    let animations = pose::list_animations(&document, &buffers, &mut pose_warnings);
+    let pose = pose::pose(&document, &buffers, &animations, &options.pose)
+        .map_err(|p| err(LoadErrorKind::Animation(p)))?;
+    let pose_description = pose.description.clone();
     let mut importer = Importer {
         document: &document,
         buffers: &buffers,
         builder: SoupBuilder::new(options.limits.max_triangles),
-        warnings: Vec::new(),
+        warnings: pose_warnings,
         instances: Vec::new(),
         cameras: Vec::new(),
         lights: Vec::new(),
@@ -104,8 +114,9 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         primitive_count: 0,
         skipped_non_triangle: 0,
         singular_instances: 0,
-        warned_skin: false,
-        warned_morph: false,
+        pose,
+        world: None,
+        skins: HashMap::new(),
         variant,
         quantization: document
             .extensions_used()
@@ -176,6 +187,8 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         variants,
         variant: options.variant.clone(),
         extensions,
+        animations,
+        pose: pose_description,
     })
 }
 
@@ -537,6 +550,46 @@ const COLOR: Expect = Expect {
     types: FLOAT_OR_UNORM,
     quantized: &[],
 };
+/// glTF 2.0 §3.7.3: JOINTS_n are unsigned byte or short joint indices, WEIGHTS_n float or
+/// normalized unsigned byte or short.
+const JOINTS: Expect = Expect {
+    semantic: "JOINTS_n",
+    dims: &[Dimensions::Vec4],
+    types: &[
+        (DataType::U8, Normalized::No),
+        (DataType::U16, Normalized::No),
+    ],
+    quantized: &[],
+};
+const WEIGHTS: Expect = Expect {
+    semantic: "WEIGHTS_n",
+    dims: &[Dimensions::Vec4],
+    types: FLOAT_OR_UNORM,
+    quantized: &[],
+};
+/// §3.7.2.2: morph target deltas are float; `KHR_mesh_quantization` adds (normalized) signed
+/// bytes and shorts for POSITION, normalized ones for NORMAL and TANGENT.
+const MORPH_POSITION: Expect = Expect {
+    semantic: "POSITION",
+    dims: &[Dimensions::Vec3],
+    types: FLOAT,
+    quantized: &[
+        (DataType::I8, Normalized::Either),
+        (DataType::I16, Normalized::Either),
+    ],
+};
+const MORPH_NORMAL: Expect = Expect {
+    semantic: "NORMAL",
+    dims: &[Dimensions::Vec3],
+    types: FLOAT,
+    quantized: UNIT_VECTORS,
+};
+const MORPH_TANGENT: Expect = Expect {
+    semantic: "TANGENT",
+    dims: &[Dimensions::Vec3],
+    types: FLOAT,
+    quantized: UNIT_VECTORS,
+};
 const INDICES: Expect = Expect {
     semantic: "indices",
     dims: &[Dimensions::Scalar],
@@ -712,8 +765,12 @@ struct Importer<'a> {
     primitive_count: usize,
     skipped_non_triangle: usize,
     singular_instances: usize,
-    warned_skin: bool,
-    warned_morph: bool,
+    /// Every node's local transform and morph weights in the pose drawn.
+    pose: Pose,
+    /// World transforms of every node in that pose, computed for the first skin.
+    world: Option<Vec<Mat4>>,
+    /// Joint matrices by skin index, computed on the skin's first use.
+    skins: HashMap<usize, Rc<Skinning>>,
     /// The chosen `KHR_materials_variants` variant (index, name).
     variant: Option<(u32, String)>,
     /// The file declares `KHR_mesh_quantization`: integer attribute types are allowed.
@@ -732,6 +789,18 @@ struct WorldVertices {
     uv0: Option<Vec<Vec2>>,
     uv1: Option<Vec<Vec2>>,
     colors: Option<Vec<Vec4>>,
+    /// Placed by a skin's joints rather than by the node's world transform.
+    skinned: bool,
+    /// Problems met while posing, for the scene's warnings.
+    warnings: Vec<String>,
+}
+
+/// How one mesh instance is deformed: its morph weights, and the skin of its node.
+struct Deform<'a> {
+    /// One weight per morph target (§3.7.2.2), resolved for this node and pose.
+    weights: &'a [f32],
+    /// The node's skin (index, joint matrices), if it has one.
+    skin: Option<(usize, &'a Skinning)>,
 }
 
 impl Importer<'_> {
@@ -775,7 +844,13 @@ impl Importer<'_> {
                     "the node hierarchy expands to more than {MAX_NODE_VISITS} node instances (nodes shared by several parents)"
                 )));
             }
-            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+            let local = self
+                .pose
+                .local
+                .get(index)
+                .copied()
+                .unwrap_or(Mat4::IDENTITY);
+            let world = parent * local;
             self.visit(node, world)?;
             on_path[index] = true;
             stack.push(Step::Leave(index));
@@ -808,11 +883,18 @@ impl Importer<'_> {
             }
         }
         if let Some(mesh) = node.mesh() {
-            if node.skin().is_some() && !self.warned_skin {
-                self.warned_skin = true;
-                self.warnings
-                    .push("skinned meshes are drawn in their bind pose, without animation".into());
-            }
+            let skinning = match node.skin() {
+                Some(skin) => Some(self.skinning(&skin)?),
+                None => None,
+            };
+            let targets = mesh
+                .primitives()
+                .map(|p| p.morph_targets().len())
+                .max()
+                .unwrap_or(0);
+            let weights = self
+                .pose
+                .morph_weights(node, &mesh, targets, &mut self.warnings);
             let instance = self.instances.len() as u32;
             self.instances.push(Instance {
                 node: Some(node.index()),
@@ -820,19 +902,52 @@ impl Importer<'_> {
                 name: name.or_else(|| mesh.name().map(str::to_string)),
             });
             let det = world.determinant();
-            if !world.is_finite() || det == 0.0 || !det.is_finite() {
+            // §3.7.3: a skinned mesh is placed by its joints alone, whatever its node's transform.
+            if skinning.is_none() && (!world.is_finite() || det == 0.0 || !det.is_finite()) {
                 self.singular_instances += 1;
                 return Ok(());
             }
+            let deform = Deform {
+                weights: &weights,
+                skin: node.skin().map(|s| s.index()).zip(skinning.as_deref()),
+            };
             for primitive in mesh.primitives() {
                 let at = PrimitiveAt {
                     mesh: mesh.index(),
                     primitive: primitive.index(),
                 };
-                self.add_primitive(&primitive, at, world, instance)?;
+                self.add_primitive(&primitive, at, world, instance, &deform)?;
             }
         }
         Ok(())
+    }
+
+    /// The joint matrices of `skin` in the pose drawn (computed once per skin).
+    fn skinning(&mut self, skin: &gltf::Skin) -> Result<Rc<Skinning>, LoadErrorKind> {
+        if let Some(done) = self.skins.get(&skin.index()) {
+            return Ok(Rc::clone(done));
+        }
+        if self.world.is_none() {
+            let world = self
+                .pose
+                .world(self.document)
+                .map_err(|node| LoadErrorKind::NodeCycle { node })?;
+            self.world = Some(world);
+        }
+        let world = self.world.as_deref().unwrap_or(&[]);
+        let inverse_bind = pose::inverse_bind_matrices(skin, self.buffers).map_err(|problem| {
+            LoadErrorKind::Skin {
+                skin: skin.index(),
+                problem,
+            }
+        })?;
+        let joints: Vec<Mat4> = skin
+            .joints()
+            .map(|j| world.get(j.index()).copied().unwrap_or(Mat4::IDENTITY))
+            .collect();
+        let skinning = Rc::new(Skinning::new(&joints, &inverse_bind));
+        self.skins.insert(skin.index(), Rc::clone(&skinning));
+        Ok(skinning)
     }
 
     fn add_primitive(
@@ -841,6 +956,7 @@ impl Importer<'_> {
         at: PrimitiveAt,
         world: Mat4,
         instance: u32,
+        deform: &Deform,
     ) -> Result<(), LoadErrorKind> {
         let mode = primitive.mode();
         if !matches!(
@@ -851,13 +967,9 @@ impl Importer<'_> {
             return Ok(());
         }
         self.primitive_count += 1;
-        if primitive.morph_targets().len() > 0 && !self.warned_morph {
-            self.warned_morph = true;
-            self.warnings
-                .push("morph targets are ignored; meshes are drawn in their base shape".into());
-        }
         let draco = self.decode_draco(primitive, at)?;
-        let vertices = self.read_vertices(primitive, at, world, draco.as_deref())?;
+        let mut vertices = self.read_vertices(primitive, at, world, draco.as_deref(), deform)?;
+        self.warnings.append(&mut vertices.warnings);
         let vertex_count = vertices.positions.len();
         let indices: Vec<u32> = match (&draco, primitive.indices()) {
             // Checked against the point count and the indices accessor by draco::decode.
@@ -899,7 +1011,9 @@ impl Importer<'_> {
         };
         self.builder.reserve(triangle_count)?;
         // glTF 2.0 §3.7.2.1: a mirroring transform turns counter-clockwise into clockwise.
-        let flip = world.determinant() < 0.0;
+        // Skinned vertices are placed by their joints, not by `world`; joint matrices that
+        // mirror are not looked for (no sample model has one).
+        let flip = !vertices.skinned && world.determinant() < 0.0;
         let mut chosen = primitive.material();
         if let Some((variant, name)) = &self.variant {
             // KHR_materials_variants: the mapping that lists the variant replaces the material;
@@ -975,6 +1089,7 @@ impl Importer<'_> {
         at: PrimitiveAt,
         world: Mat4,
         draco: Option<&draco::Decoded>,
+        deform: &Deform,
     ) -> Result<WorldVertices, LoadErrorKind> {
         use gltf::Semantic;
         let decoded = |semantic: &Semantic| draco.filter(|d| d.has(&semantic.to_string()));
@@ -1019,6 +1134,17 @@ impl Importer<'_> {
         optional(Semantic::TexCoords(0), &TEXCOORD)?;
         optional(Semantic::TexCoords(1), &TEXCOORD)?;
         optional(Semantic::Colors(0), &COLOR)?;
+        // Skinning influences, as many sets as the file gives (JOINTS_0/WEIGHTS_0, _1...).
+        let mut influence_sets = 0;
+        if deform.skin.is_some() {
+            while primitive.get(&Semantic::Joints(influence_sets)).is_some()
+                && primitive.get(&Semantic::Weights(influence_sets)).is_some()
+            {
+                optional(Semantic::Joints(influence_sets), &JOINTS)?;
+                optional(Semantic::Weights(influence_sets), &WEIGHTS)?;
+                influence_sets += 1;
+            }
+        }
 
         let read =
             |semantic: Semantic, expect: &Expect| -> Result<Option<Vec<Vec4>>, LoadErrorKind> {
@@ -1066,27 +1192,69 @@ impl Importer<'_> {
                 }
                 Ok(Some(values))
             };
-        let positions: Vec<Vec3> = read(Semantic::Positions, &POSITION)?
-            .unwrap_or_default()
-            .into_iter()
-            .map(|p| world.transform_point3(p.truncate()))
-            .collect();
-        let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
-        let linear = Mat3::from_mat4(world);
-        let mirror = if world.determinant() < 0.0 { -1.0 } else { 1.0 };
-        let normals = read(Semantic::Normals, &NORMAL)?.map(|v| {
-            v.into_iter()
-                .map(|n| normal_matrix * n.truncate())
-                .collect::<Vec<_>>()
-        });
-        let tangents = read(Semantic::Tangents, &TANGENT)?.map(|v| {
-            v.into_iter()
-                .map(|t| {
-                    let xyz = (linear * t.truncate()).normalize_or_zero();
-                    xyz.extend(t.w * mirror)
-                })
-                .collect::<Vec<_>>()
-        });
+        let xyz = |v: Vec<Vec4>| v.into_iter().map(Vec4::truncate).collect::<Vec<Vec3>>();
+        let mut positions = xyz(read(Semantic::Positions, &POSITION)?.unwrap_or_default());
+        let mut normals = read(Semantic::Normals, &NORMAL)?.map(xyz);
+        let mut tangents = read(Semantic::Tangents, &TANGENT)?;
+        self.morph(
+            primitive,
+            at,
+            deform.weights,
+            &mut positions,
+            normals.as_deref_mut(),
+            tangents.as_deref_mut(),
+        )?;
+        let mut warnings = Vec::new();
+        let mut influences = Vec::with_capacity(influence_sets as usize);
+        for set in 0..influence_sets {
+            let joints = read(Semantic::Joints(set), &JOINTS)?.unwrap_or_default();
+            let weights = read(Semantic::Weights(set), &WEIGHTS)?.unwrap_or_default();
+            influences.push((joints, weights));
+        }
+        let skinned = match deform.skin {
+            Some((skin, skinning)) if !influences.is_empty() => {
+                let unweighted = skin_vertices(
+                    skinning,
+                    &influences,
+                    world,
+                    &mut positions,
+                    normals.as_deref_mut(),
+                    tangents.as_deref_mut(),
+                )
+                .map_err(|problem| LoadErrorKind::Skin {
+                    skin,
+                    problem: format!("{at}: {problem}"),
+                })?;
+                if unweighted > 0 {
+                    warnings.push(format!(
+                        "{at}: {unweighted} skinned vertices have no joint weight; they are placed by their node's transform"
+                    ));
+                }
+                true
+            }
+            Some((skin, _)) => {
+                warnings.push(format!(
+                    "{at}: the node's skin {skin} has no JOINTS_0/WEIGHTS_0 to apply; drawn by the node's transform"
+                ));
+                false
+            }
+            None => false,
+        };
+        if !skinned {
+            let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
+            let linear = Mat3::from_mat4(world);
+            let mirror = if world.determinant() < 0.0 { -1.0 } else { 1.0 };
+            for p in &mut positions {
+                *p = world.transform_point3(*p);
+            }
+            for n in normals.iter_mut().flatten() {
+                *n = normal_matrix * *n;
+            }
+            for t in tangents.iter_mut().flatten() {
+                let xyz = (linear * t.truncate()).normalize_or_zero();
+                *t = xyz.extend(t.w * mirror);
+            }
+        }
         let uv = |v: Vec<Vec4>| v.into_iter().map(|t| t.truncate().truncate()).collect();
         let uv0 = read(Semantic::TexCoords(0), &TEXCOORD)?.map(uv);
         let uv1 = read(Semantic::TexCoords(1), &TEXCOORD)?.map(uv);
@@ -1098,7 +1266,71 @@ impl Importer<'_> {
             uv0,
             uv1,
             colors,
+            skinned,
+            warnings,
         })
+    }
+
+    /// Adds each morph target's deltas, times its weight, to the primitive's positions,
+    /// normals and tangents in place (§3.7.2.2); targets of weight 0 are not read.
+    fn morph(
+        &self,
+        primitive: &gltf::Primitive,
+        at: PrimitiveAt,
+        weights: &[f32],
+        positions: &mut [Vec3],
+        mut normals: Option<&mut [Vec3]>,
+        mut tangents: Option<&mut [Vec4]>,
+    ) -> Result<(), LoadErrorKind> {
+        let count = positions.len();
+        for (i, target) in primitive.morph_targets().enumerate() {
+            let weight = weights.get(i).copied().unwrap_or(0.0);
+            if weight == 0.0 || !weight.is_finite() {
+                continue;
+            }
+            let read = |accessor: Option<gltf::Accessor>,
+                        expect: &Expect|
+             -> Result<Option<Vec<Vec3>>, LoadErrorKind> {
+                let Some(accessor) = accessor else {
+                    return Ok(None);
+                };
+                let fail = |problem: String| LoadErrorKind::Accessor {
+                    at,
+                    accessor: accessor.index(),
+                    semantic: format!("targets[{i}].{}", expect.semantic),
+                    problem,
+                };
+                check_accessor(&accessor, at, expect, self.quantization).map_err(|e| match e {
+                    LoadErrorKind::Accessor { problem, .. } => fail(problem),
+                    other => other,
+                })?;
+                if accessor.count() != count {
+                    return Err(fail(format!(
+                        "count {} differs from POSITION's {count}",
+                        accessor.count()
+                    )));
+                }
+                let values = attributes::read::<3>(&accessor, self.buffers, accessor.normalized())
+                    .map_err(fail)?;
+                Ok(Some(values.into_iter().map(Vec3::from).collect()))
+            };
+            if let Some(delta) = read(target.positions(), &MORPH_POSITION)? {
+                pose::morph(positions, &delta, weight);
+            }
+            if let (Some(delta), Some(normals)) = (
+                read(target.normals(), &MORPH_NORMAL)?,
+                normals.as_deref_mut(),
+            ) {
+                pose::morph(normals, &delta, weight);
+            }
+            if let (Some(delta), Some(tangents)) = (
+                read(target.tangents(), &MORPH_TANGENT)?,
+                tangents.as_deref_mut(),
+            ) {
+                pose::morph_tangents(tangents, &delta, weight);
+            }
+        }
+        Ok(())
     }
 
     fn materials(&self) -> Vec<Material> {
@@ -1108,6 +1340,53 @@ impl Importer<'_> {
         }
         out
     }
+}
+
+/// Skins vertices in place to world space (§3.7.3): each position by the weighted sum of its
+/// joints' matrices, each normal by the weighted sum of their inverse transposes, each
+/// tangent's xyz by the matrices' linear part. `influences` holds each JOINTS_n/WEIGHTS_n set
+/// as read (joint indices as floats). A vertex whose weights sum to nothing is placed by
+/// `world` instead; returns how many were.
+fn skin_vertices(
+    skinning: &Skinning,
+    influences: &[(Vec<Vec4>, Vec<Vec4>)],
+    world: Mat4,
+    positions: &mut [Vec3],
+    mut normals: Option<&mut [Vec3]>,
+    mut tangents: Option<&mut [Vec4]>,
+) -> Result<usize, String> {
+    let mut unweighted = 0;
+    let mut pairs = Vec::with_capacity(4 * influences.len());
+    for (v, position) in positions.iter_mut().enumerate() {
+        pairs.clear();
+        for (joints, weights) in influences {
+            if let (Some(j), Some(w)) = (joints.get(v), weights.get(v)) {
+                pairs.extend(j.to_array().into_iter().zip(w.to_array()));
+            }
+        }
+        let (matrix, normal_matrix) = match skinning.blend(&pairs) {
+            Ok(Some(blend)) => blend,
+            Ok(None) => {
+                unweighted += 1;
+                (world, Mat3::from_mat4(world).inverse().transpose())
+            }
+            Err(joint) => {
+                return Err(format!(
+                    "vertex {v} has weight on joint {joint}, but the skin has {} joints",
+                    skinning.joints.len()
+                ))
+            }
+        };
+        *position = matrix.transform_point3(*position);
+        if let Some(n) = normals.as_deref_mut().and_then(|n| n.get_mut(v)) {
+            *n = normal_matrix * *n;
+        }
+        if let Some(t) = tangents.as_deref_mut().and_then(|t| t.get_mut(v)) {
+            let xyz = (Mat3::from_mat4(matrix) * t.truncate()).normalize_or_zero();
+            *t = xyz.extend(t.w);
+        }
+    }
+    Ok(unweighted)
 }
 
 fn texture_ref(info: Option<gltf::texture::Info>) -> Option<TextureRef> {
@@ -1560,6 +1839,45 @@ fn place_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Option<
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Influences come from every JOINTS_n/WEIGHTS_n set: here set 1 carries the weight of
+    /// vertex 0, and vertex 1 has none at all and is placed by the node's transform.
+    #[test]
+    fn skinning_reads_every_influence_set_and_places_unweighted_vertices_by_the_node() {
+        let lift = Mat4::from_translation(Vec3::Y);
+        let skinning = Skinning::new(&[Mat4::IDENTITY, lift], &[Mat4::IDENTITY; 2]);
+        let set0 = (vec![Vec4::ZERO; 2], vec![Vec4::ZERO; 2]);
+        let set1 = (
+            vec![Vec4::new(1.0, 0.0, 0.0, 0.0), Vec4::ZERO],
+            vec![Vec4::new(1.0, 0.0, 0.0, 0.0), Vec4::ZERO],
+        );
+        let node = Mat4::from_translation(Vec3::new(0.0, 0.0, 5.0));
+        let mut positions = vec![Vec3::X, Vec3::X];
+        let mut normals = vec![Vec3::Z, Vec3::Z];
+        let unweighted = skin_vertices(
+            &skinning,
+            &[set0, set1],
+            node,
+            &mut positions,
+            Some(&mut normals),
+            None,
+        )
+        .unwrap();
+        assert_eq!(unweighted, 1);
+        assert_eq!(
+            positions,
+            vec![Vec3::new(1.0, 1.0, 0.0), Vec3::new(1.0, 0.0, 5.0)]
+        );
+        assert_eq!(normals, vec![Vec3::Z, Vec3::Z]);
+        // A weighted joint past the skin's two is refused, naming the vertex and the joint.
+        let bad = (vec![Vec4::splat(2.0)], vec![Vec4::new(1.0, 0.0, 0.0, 0.0)]);
+        let mut one = vec![Vec3::ZERO];
+        let message = skin_vertices(&skinning, &[bad], node, &mut one, None, None).unwrap_err();
+        assert!(
+            message.contains("vertex 0") && message.contains("joint 2"),
+            "{message}"
+        );
+    }
 
     #[test]
     fn data_uris_decode_and_are_size_checked() {

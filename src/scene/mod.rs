@@ -13,11 +13,13 @@ pub(crate) mod ktx2;
 mod meshopt;
 pub mod obj;
 mod paths;
+pub mod pose;
 pub mod tangents;
 
 pub use builder::{SoupBuilder, TriangleIn, VerticesIn};
 pub use error::{LoadError, LoadErrorKind};
 pub use paths::{resolve_relative, FileAccess};
+pub use pose::{AnimationInfo, PoseOptions};
 
 use glam::{Vec2, Vec3, Vec4};
 use serde::Serialize;
@@ -58,6 +60,8 @@ pub struct LoadOptions {
     /// The `KHR_materials_variants` variant to draw, by name (`--variant`); `None` draws each
     /// primitive's default material.
     pub variant: Option<String>,
+    /// The pose to draw (`--animation`, `--time`); the default is the file's static pose.
+    pub pose: PoseOptions,
 }
 
 /// The file formats meshtracer reads.
@@ -763,6 +767,10 @@ pub struct Scene {
     pub variant: Option<String>,
     /// Every glTF extension the file uses (`extensionsUsed`), with how it is honoured.
     pub extensions: Vec<extensions::ExtensionUse>,
+    /// The file's animations (glTF), in file order.
+    pub animations: Vec<AnimationInfo>,
+    /// The animation and time drawn ("animation 1 'Walk' at 0.5 s"); `None`: the static pose.
+    pub pose: Option<String>,
 }
 
 impl Scene {

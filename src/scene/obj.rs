@@ -34,6 +34,11 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
             "no variant '{name}': OBJ files have no material variants"
         ))));
     }
+    if options.pose.animates() {
+        return Err(err(LoadErrorKind::Animation(
+            "--animation/--time: OBJ files have no animations".into(),
+        )));
+    }
     if std::str::from_utf8(bytes).is_err() {
         // Latin-1 files exist, but tobj reads lines as UTF-8; say so instead of "read error".
         return Err(err(LoadErrorKind::Obj(
@@ -300,6 +305,8 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         variants: Vec::new(),
         variant: None,
         extensions: Vec::new(),
+        animations: Vec::new(),
+        pose: None,
     })
 }
 
