@@ -359,5 +359,63 @@ fn render(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, triangle_tests, bare_obvhs, traverse, build, render);
+/// Loading (parse, decode, flatten, tangents; textures are decoded later) of each encoded sample
+/// beside its plain sibling: Draco and meshopt should stay within 1.5x of plain (issue 14).
+/// Needs `MESHTRACER_SAMPLES`; skipped without it.
+fn load(c: &mut Criterion) {
+    let Some(dir) = std::env::var_os("MESHTRACER_SAMPLES") else {
+        eprintln!("load benchmark skipped: set MESHTRACER_SAMPLES");
+        return;
+    };
+    let dir = std::path::Path::new(&dir);
+    let mut group = c.benchmark_group("load");
+    group.sample_size(20);
+    for (model, variants) in [
+        (
+            "Duck",
+            &[
+                "glTF/Duck.gltf",
+                "glTF-Draco/Duck.gltf",
+                "glTF-Meshopt/Duck.glb",
+            ][..],
+        ),
+        (
+            "CesiumMilkTruck",
+            &[
+                "glTF/CesiumMilkTruck.gltf",
+                "glTF-Draco/CesiumMilkTruck.gltf",
+            ][..],
+        ),
+        (
+            "CesiumMan",
+            &["glTF/CesiumMan.gltf", "glTF-Draco/CesiumMan.gltf"][..],
+        ),
+        (
+            "DamagedHelmet",
+            &["glTF/DamagedHelmet.gltf", "glTF-Meshopt/DamagedHelmet.glb"][..],
+        ),
+    ] {
+        for variant in variants {
+            let path = dir.join(model).join(variant);
+            if Scene::load(&path).is_err() {
+                continue;
+            }
+            let folder = variant.split('/').next().unwrap_or(variant);
+            group.bench_function(BenchmarkId::new(model, folder), |b| {
+                b.iter(|| Scene::load(&path).expect("loads"))
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    triangle_tests,
+    bare_obvhs,
+    traverse,
+    build,
+    render,
+    load
+);
 criterion_main!(benches);

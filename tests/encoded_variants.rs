@@ -12,62 +12,85 @@ const MESH_MAX_FLIP: f64 = 0.02;
 /// Lossy texture encodings re-encode texels; the geometry is the same.
 const TEXTURE_MAX_FLIP: f64 = 0.05;
 
-/// (plain, encoded, largest mean FLIP allowed).
-const PAIRS: &[(&str, &str, f64)] = &[
+/// StainedGlassLamp's glTF-KTX-BasisU folder is a later revision of the model than
+/// glTF-JPG-PNG (transmission, volume, clearcoat and variants where the other has BLEND beads),
+/// so its coverage differs where the beads are (IoU 0.95 measured); the textures are compared
+/// on their own in [`ktx2_textures_look_like_their_png_and_jpeg_versions`].
+const REVISED_MODEL_MIN_IOU: f64 = 0.9;
+
+/// (plain, encoded, largest mean FLIP allowed, smallest coverage IoU allowed).
+const PAIRS: &[(&str, &str, f64, f64)] = &[
     (
         "Duck/glTF/Duck.gltf",
         "Duck/glTF-Quantized/Duck.gltf",
         MESH_MAX_FLIP,
+        MESH_MIN_IOU,
     ),
     (
         "AnimatedMorphCube/glTF/AnimatedMorphCube.gltf",
         "AnimatedMorphCube/glTF-Quantized/AnimatedMorphCube.gltf",
         MESH_MAX_FLIP,
+        MESH_MIN_IOU,
     ),
     (
         "Duck/glTF/Duck.gltf",
         "Duck/glTF-Meshopt/Duck.glb",
         MESH_MAX_FLIP,
+        MESH_MIN_IOU,
     ),
     (
         "DamagedHelmet/glTF/DamagedHelmet.gltf",
         "DamagedHelmet/glTF-Meshopt/DamagedHelmet.glb",
         MESH_MAX_FLIP,
+        MESH_MIN_IOU,
     ),
     (
         "Box/glTF/Box.gltf",
         "Box/glTF-Draco/Box.gltf",
         MESH_MAX_FLIP,
+        MESH_MIN_IOU,
     ),
     (
         "Duck/glTF/Duck.gltf",
         "Duck/glTF-Draco/Duck.gltf",
         MESH_MAX_FLIP,
+        MESH_MIN_IOU,
     ),
     (
         "CesiumMilkTruck/glTF/CesiumMilkTruck.gltf",
         "CesiumMilkTruck/glTF-Draco/CesiumMilkTruck.gltf",
         MESH_MAX_FLIP,
+        MESH_MIN_IOU,
     ),
     (
         "RiggedSimple/glTF/RiggedSimple.gltf",
         "RiggedSimple/glTF-Draco/RiggedSimple.gltf",
         MESH_MAX_FLIP,
+        MESH_MIN_IOU,
     ),
     (
         "CesiumMan/glTF/CesiumMan.gltf",
         "CesiumMan/glTF-Draco/CesiumMan.gltf",
         MESH_MAX_FLIP,
+        MESH_MIN_IOU,
     ),
     (
         "Duck/glTF/Duck.gltf",
         "Duck/glTF-WebP/Duck.glb",
         TEXTURE_MAX_FLIP,
+        MESH_MIN_IOU,
     ),
     (
         "BoxTextured/glTF/BoxTextured.gltf",
         "BoxTextured/glTF-WebP/BoxTextured.glb",
         TEXTURE_MAX_FLIP,
+        MESH_MIN_IOU,
+    ),
+    (
+        "StainedGlassLamp/glTF-JPG-PNG/StainedGlassLamp.gltf",
+        "StainedGlassLamp/glTF-KTX-BasisU/StainedGlassLamp.gltf",
+        TEXTURE_MAX_FLIP,
+        REVISED_MODEL_MIN_IOU,
     ),
 ];
 
@@ -79,7 +102,7 @@ fn encoded_variants_render_like_their_plain_sibling() {
     let dir = tempfile::tempdir().unwrap();
     let mut failures = Vec::new();
     let mut report = Vec::new();
-    for (i, (plain, encoded, max_flip)) in PAIRS.iter().enumerate() {
+    for (i, (plain, encoded, max_flip, min_iou)) in PAIRS.iter().enumerate() {
         let view = dir.path().join(format!("{i}-view.json"));
         let a = dir.path().join(format!("{i}-plain.png"));
         let b = dir.path().join(format!("{i}-encoded.png"));
@@ -117,9 +140,9 @@ fn encoded_variants_render_like_their_plain_sibling() {
         report.push(format!(
             "{encoded}: coverage IoU {iou:.4}, mean FLIP {flip:.4}"
         ));
-        if iou < MESH_MIN_IOU || flip > *max_flip {
+        if iou < *min_iou || flip > *max_flip {
             failures.push(format!(
-                "{encoded}: IoU {iou:.4} (min {MESH_MIN_IOU}), FLIP {flip:.4} (max {max_flip}); see {}",
+                "{encoded}: IoU {iou:.4} (min {min_iou}), FLIP {flip:.4} (max {max_flip}); see {}",
                 strip.display()
             ));
         }
