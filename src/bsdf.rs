@@ -82,7 +82,7 @@ impl Bsdf {
     pub fn new(material: SurfaceMaterial, normal: Vec3, to_eye: Vec3) -> Self {
         let alpha = (material.roughness * material.roughness).max(MIN_ALPHA);
         let n_dot_v = normal.dot(to_eye).clamp(0.0, 1.0);
-        let fresnel = luminance(material.fresnel(n_dot_v));
+        let fresnel = luminance(material.reflectance(n_dot_v, n_dot_v));
         let mut diffuse =
             luminance(material.base_color * (1.0 - material.metallic)) * (1.0 - fresnel);
         // A sheen is drawn with the cosine lobe: its albedo joins the diffuse one.
@@ -138,7 +138,7 @@ impl Bsdf {
             ior
         };
         let n_dot_v = self.normal.dot(to_eye).clamp(0.0, 1.0);
-        let fresnel = luminance(self.material.fresnel(n_dot_v));
+        let fresnel = luminance(self.material.reflectance(n_dot_v, n_dot_v));
         let transmit = factor * luminance(self.material.base_color) * (1.0 - fresnel);
         let diffuse = luminance(self.material.base_color * (1.0 - self.material.metallic))
             * (1.0 - fresnel)
@@ -292,7 +292,7 @@ impl Bsdf {
             (n, false)
         };
         let cos_i = m.dot(to_eye).clamp(0.0, 1.0);
-        let fresnel = luminance(self.material.fresnel(cos_i));
+        let fresnel = luminance(self.material.reflectance(cos_i, n.dot(to_eye)));
         let sin2_t = t.eta * t.eta * (1.0 - cos_i * cos_i);
         let direction = if t.eta == 1.0 {
             if rough {

@@ -11,7 +11,7 @@ use crate::accel::Hit;
 use crate::geometry::{Ray, SpawnPoint};
 use crate::prepare::Prepared;
 use crate::scene::{AlphaMode, Material, TextureRef};
-use crate::shading::{Clearcoat, Sheen, SurfaceMaterial};
+use crate::shading::{Clearcoat, Iridescence, Sheen, SurfaceMaterial};
 use crate::texture::transform_uv;
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::Cell;
@@ -297,6 +297,24 @@ impl Prepared {
                     weight: weight.clamp(0.0, 1.0),
                     roughness: coat_roughness.clamp(0.0, 1.0),
                     normal: coat_normal,
+                });
+            }
+        }
+        if let Some(layer) = &material.iridescence {
+            let mut factor = layer.factor;
+            if let Some(t) = sample(&layer.texture, false) {
+                factor *= t.x;
+            }
+            // Without a thickness texture the film is at its maximum thickness.
+            let thickness = match sample(&layer.thickness_texture, false) {
+                Some(t) => layer.thickness_min + (layer.thickness_max - layer.thickness_min) * t.y,
+                None => layer.thickness_max,
+            };
+            if factor > 0.0 {
+                shaded.iridescence = Some(Iridescence {
+                    factor: factor.clamp(0.0, 1.0),
+                    ior: layer.ior,
+                    thickness,
                 });
             }
         }

@@ -145,9 +145,9 @@ pub const EXTENSIONS: &[KnownExtension] = &[
     ),
     ext(
         "KHR_materials_iridescence",
-        Ignored,
+        Approximated,
         false,
-        "drawn with the core metallic-roughness material",
+        "thin-film Fresnel at the view angle (Belcour-Barla as the Sample Viewer evaluates it)",
     ),
     ext(
         "KHR_materials_anisotropy",

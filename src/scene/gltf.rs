@@ -24,9 +24,9 @@ use super::meshopt;
 use super::pose::{self, Pose, Skinning};
 use super::{
     AlphaMode, Bounds, Camera, ClearcoatLayer, FileAccess, Filter, Format, ImageSource, Instance,
-    Light, LightKind, LoadError, LoadErrorKind, LoadOptions, Material, Projection, Sampler, Scene,
-    SheenLayer, SoupBuilder, SpecularLayer, Texture, TextureRef, TextureTransform, UnusableImage,
-    Wrap,
+    IridescenceLayer, Light, LightKind, LoadError, LoadErrorKind, LoadOptions, Material,
+    Projection, Sampler, Scene, SheenLayer, SoupBuilder, SpecularLayer, Texture, TextureRef,
+    TextureTransform, UnusableImage, Wrap,
 };
 use base64::Engine;
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
@@ -1530,6 +1530,16 @@ fn material(m: &gltf::Material) -> Material {
                 normal_scale: e
                     .get("clearcoatNormalTexture")
                     .map_or(1.0, |t| json_f32(t.get("scale"), 1.0)),
+            }),
+        iridescence: m
+            .extension_value("KHR_materials_iridescence")
+            .map(|e| IridescenceLayer {
+                factor: json_f32(e.get("iridescenceFactor"), 0.0).clamp(0.0, 1.0),
+                texture: json_texture_ref(e.get("iridescenceTexture")),
+                ior: json_f32(e.get("iridescenceIor"), 1.3).max(1.0),
+                thickness_min: json_f32(e.get("iridescenceThicknessMinimum"), 100.0).max(0.0),
+                thickness_max: json_f32(e.get("iridescenceThicknessMaximum"), 400.0).max(0.0),
+                thickness_texture: json_texture_ref(e.get("iridescenceThicknessTexture")),
             }),
     }
 }

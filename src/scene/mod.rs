@@ -299,6 +299,27 @@ pub struct Material {
     pub sheen: Option<SheenLayer>,
     /// `KHR_materials_clearcoat` (absent or weight 0: no coat).
     pub clearcoat: Option<ClearcoatLayer>,
+    /// `KHR_materials_iridescence` (absent or factor 0: none).
+    pub iridescence: Option<IridescenceLayer>,
+}
+
+/// `KHR_materials_iridescence`: a thin film over the surface (soap bubbles, oil, anodised
+/// metal) whose interference tints the specular reflection by angle.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct IridescenceLayer {
+    /// `iridescenceFactor`: how much of the specular Fresnel the film replaces.
+    pub factor: f32,
+    /// `iridescenceTexture` (red channel), times the factor.
+    pub texture: Option<TextureRef>,
+    /// `iridescenceIor`: the film's index of refraction (1.3 by default).
+    pub ior: f32,
+    /// `iridescenceThicknessMinimum` in nanometres (100 by default).
+    pub thickness_min: f32,
+    /// `iridescenceThicknessMaximum` in nanometres (400 by default): the thickness without a
+    /// texture.
+    pub thickness_max: f32,
+    /// `iridescenceThicknessTexture` (green channel): mixes from the minimum to the maximum.
+    pub thickness_texture: Option<TextureRef>,
 }
 
 /// `KHR_materials_specular`: the strength and colour of a dielectric's specular reflection.
@@ -384,6 +405,9 @@ impl Material {
         if let Some(l) = &self.clearcoat {
             refs.extend([l.texture, l.roughness_texture, l.normal_texture]);
         }
+        if let Some(l) = &self.iridescence {
+            refs.extend([l.texture, l.thickness_texture]);
+        }
         refs.into_iter().flatten()
     }
 
@@ -408,6 +432,9 @@ impl Material {
                 &mut l.roughness_texture,
                 &mut l.normal_texture,
             ]);
+        }
+        if let Some(l) = &mut self.iridescence {
+            slots.extend([&mut l.texture, &mut l.thickness_texture]);
         }
         slots
     }
@@ -520,6 +547,7 @@ impl Default for Material {
             specular_layer: None,
             sheen: None,
             clearcoat: None,
+            iridescence: None,
         }
     }
 }
