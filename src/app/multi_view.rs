@@ -824,30 +824,41 @@ impl Extras {
         }
         if let Some(SheetOutput { file, sheet }) = self.sheet {
             let sheet = sheet.context("the contact sheet was never laid out (a bug)")?;
-            let bytes = sheet.to_png().map_err(|source| SaveError::Encode {
-                path: file.path().to_path_buf(),
-                error: source,
-            })?;
-            file.file()
-                .write_all(&bytes)
-                .map_err(|e| file.unwritable(e))?;
-            let path = file.path().to_path_buf();
-            file.commit()?;
-            if !quiet {
-                let l = sheet.layout();
-                eprintln!(
-                    "{}: {} views in {} columns, {}x{} pixels",
-                    path.display(),
-                    l.count,
-                    l.columns,
-                    l.width(),
-                    l.height()
-                );
-            }
-            written.push(path);
+            written.push(write_sheet(file, &sheet, "views", quiet)?);
         }
         Ok(written)
     }
+}
+
+/// Writes a finished contact sheet (`what` its cells are, for the summary line) and returns
+/// its path.
+pub(super) fn write_sheet(
+    file: PendingFile,
+    sheet: &ContactSheet,
+    what: &str,
+    quiet: bool,
+) -> Result<PathBuf> {
+    let bytes = sheet.to_png().map_err(|source| SaveError::Encode {
+        path: file.path().to_path_buf(),
+        error: source,
+    })?;
+    file.file()
+        .write_all(&bytes)
+        .map_err(|e| file.unwritable(e))?;
+    let path = file.path().to_path_buf();
+    file.commit()?;
+    if !quiet {
+        let l = sheet.layout();
+        eprintln!(
+            "{}: {} {what} in {} columns, {}x{} pixels",
+            path.display(),
+            l.count,
+            l.columns,
+            l.width(),
+            l.height()
+        );
+    }
+    Ok(path)
 }
 
 /// The contact-sheet layout the options ask for, refused over `--max-pixels`.
@@ -873,7 +884,7 @@ pub(super) fn sheet_layout(
 }
 
 /// Whether `path` ends in `.ext` (any case).
-fn has_extension(path: &Path, ext: &str) -> bool {
+pub(super) fn has_extension(path: &Path, ext: &str) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| e.eq_ignore_ascii_case(ext))
