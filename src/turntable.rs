@@ -3,7 +3,7 @@
 //! (memory holds one frame, whatever N).
 //!
 //! GIF stores 256 colours a frame and 1-bit transparency. Colours are chosen per frame by the
-//! `gif` crate's NeuQuant at [`GIF_SPEED`]; a pixel is transparent when less than half covered
+//! `gif` crate's NeuQuant at [`gif_speed`]; a pixel is transparent when less than half covered
 //! (alpha < 128) and otherwise opaque in its own colour. `--background` composites every frame
 //! over a colour instead (no transparency at all). Frames are disposed to the background, so a
 //! transparent pixel never shows the previous frame.
@@ -29,11 +29,23 @@ pub const MAX_FPS: f32 = 50.0;
 /// Shortest frame delay written, hundredths of a second (see [`MAX_FPS`]).
 const MIN_DELAY_CENTISECONDS: u16 = 2;
 
-/// NeuQuant's speed (1 = best and slowest, 30 = fastest), the `gif` crate's suggested balance.
-/// Measured on 36 frames of DamagedHelmet at 512x512 (release build, one core): 1.24 s at 10
-/// against 9.7 s at 1 and 2.2 s at 5; the covered pixels differ from the PNG frames by 1.01
-/// levels of 255 in the mean at 10 (1.56 in the worst frame) against 0.69 at 1: not worth 8x.
-pub const GIF_SPEED: i32 = 10;
+/// NeuQuant's speed for large frames (1 = best and slowest, 30 = fastest; it learns from every
+/// `speed`-th pixel), the `gif` crate's suggested balance. Measured on 36 frames of
+/// DamagedHelmet at 512x512 (release build, one core): 1.19 s at 10 against 7.9 s at 1 and
+/// 1.9 s at 5; the covered pixels differ from the PNG frames by 1.01 levels of 255 in the mean
+/// at 10 (1.56 in the worst frame) against 0.69 at 1: not worth 7x the time.
+pub const MAX_GIF_SPEED: i32 = 10;
+
+/// Pixels NeuQuant should learn from at least: a small frame gets a slower, finer speed.
+/// 4 frames of cornell-box at 64x48 (3072 pixels): worst frame 5.3 levels off at speed 10,
+/// 2.1 at speed 1, in well under a millisecond a frame either way.
+const MIN_NEUQUANT_SAMPLES: u64 = 25_000;
+
+/// The NeuQuant speed for frames of `pixels` pixels: [`MAX_GIF_SPEED`] from 250,000 pixels
+/// (e.g. 512x512) up, slower below so that it learns from at least [`MIN_NEUQUANT_SAMPLES`].
+pub fn gif_speed(pixels: u64) -> i32 {
+    (pixels / MIN_NEUQUANT_SAMPLES).clamp(1, MAX_GIF_SPEED as u64) as i32
+}
 
 /// Alpha from which a pixel is drawn opaque in the GIF; below it, transparent.
 const OPAQUE_FROM_ALPHA: u8 = 128;
@@ -96,6 +108,8 @@ impl Write for Tracked {
 /// the destination, renamed into place by [`GifWriter::finish`].
 pub struct GifWriter {
     pending: PendingFile,
+    /// The file, until the first frame says the speed.
+    writer: Option<BufWriter<Tracked>>,
     encoder: Option<GifEncoder<BufWriter<Tracked>>>,
     error: Arc<Mutex<Option<std::io::Error>>>,
     delay: image::Delay,
@@ -122,16 +136,10 @@ impl GifWriter {
             file,
             error: Arc::clone(&error),
         };
-        let mut encoder = GifEncoder::new_with_speed(BufWriter::new(tracked), GIF_SPEED);
-        encoder
-            .set_repeat(Repeat::Infinite)
-            .map_err(|source| SaveError::Encode {
-                path: path.to_path_buf(),
-                error: source,
-            })?;
         Ok(GifWriter {
             pending,
-            encoder: Some(encoder),
+            writer: Some(BufWriter::new(tracked)),
+            encoder: None,
             error,
             delay: image::Delay::from_numer_denom_ms(u32::from(delay_centiseconds) * 10, 1),
             size: None,
@@ -158,6 +166,14 @@ impl GifWriter {
             )));
         }
         one_bit_alpha(&mut frame);
+        if let Some(writer) = self.writer.take() {
+            let speed = gif_speed(u64::from(size.0) * u64::from(size.1));
+            let mut encoder = GifEncoder::new_with_speed(writer, speed);
+            if let Err(source) = encoder.set_repeat(Repeat::Infinite) {
+                return Err(self.failure(source));
+            }
+            self.encoder = Some(encoder);
+        }
         let Some(encoder) = self.encoder.as_mut() else {
             return Err(self.encode_error("frame added after the end".into()));
         };
@@ -237,6 +253,15 @@ fn one_bit_alpha(frame: &mut RgbaImage) {
 mod tests {
     use super::*;
     use image::AnimationDecoder;
+
+    #[test]
+    fn small_frames_quantise_finer() {
+        assert_eq!(gif_speed(512 * 512), 10);
+        assert_eq!(gif_speed(4096 * 4096), 10);
+        assert_eq!(gif_speed(256 * 256), 2);
+        assert_eq!(gif_speed(64 * 48), 1);
+        assert_eq!(gif_speed(0), 1);
+    }
 
     #[test]
     fn delays_follow_fps_or_a_four_second_turn() {
