@@ -606,6 +606,16 @@ fn bad_turntable_and_sheet_options_are_refused() {
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
     let result = run(
+        &["render", s(&model), "--turntable", "4", "-o", s(&gif), "-q"],
+        false,
+    );
+    assert!(
+        stderr(&result).contains("-o names the folder of the frames; write the GIF with"),
+        "{}",
+        stderr(&result)
+    );
+    assert!(!gif.exists());
+    let result = run(
         &["batch", s(&models), "-o", s(&out), "--turntable", "4", "-q"],
         false,
     );

@@ -250,6 +250,13 @@ pub(super) fn render_views(
         }
     }
     let dir = args.output.as_path();
+    if has_extension(dir, "gif") {
+        bail!(
+            "-o {}: with --views or --turntable, -o names the folder of the frames; write the GIF with --turntable N --gif {}",
+            dir.display(),
+            dir.display()
+        );
+    }
     if dir.is_file() || (!dir.exists() && OutputFormat::from_path(dir).is_ok()) {
         bail!(
             "-o {}: with --views, -o names the folder the views are written to, not an image",
