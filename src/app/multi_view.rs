@@ -274,10 +274,15 @@ pub(super) fn render_views(
         Some(n) => Some(layout.plan(n, dir, args.no_clobber, &others)?),
         None => None,
     };
-    // The GIF or the sheet may go into the -o folder, which the plan creates (or not yet,
-    // for `cameras`).
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("cannot create the folder {}", dir.display()))?;
+    // The GIF or the sheet may go into the -o folder, which the plan creates (not yet for
+    // `cameras`, whose count needs the model): made now for them, else left for the plan.
+    let into_dir = others
+        .iter()
+        .any(|(_, p)| p.parent().is_some_and(|f| f.starts_with(dir)));
+    if into_dir {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create the folder {}", dir.display()))?;
+    }
     let mut extras = Extras::reserve(args, known_count)?;
     let (threads, pool) = worker_pool(args.threads)?;
 
