@@ -396,9 +396,10 @@ fn contact_sheet_of_views_is_a_labelled_grid_of_thumbnails() {
     );
 }
 
-/// A batch of three jobs, one broken: the sheet has a cell per job in manifest order, the
+/// A batch of four jobs, one broken: the sheet has a cell per job in manifest order, the
 /// broken job's cell crossed out in red with a red label, the others the thumbnails of the
-/// images the jobs wrote (a job's square image centred in the batch's 4:3 box).
+/// images the jobs wrote (a job's square image centred in the batch's 4:3 box; a job with
+/// views, its first view).
 #[test]
 fn batch_contact_sheet_marks_the_failed_job() {
     let dir = tempfile::tempdir().unwrap();
@@ -414,7 +415,8 @@ fn batch_contact_sheet_marks_the_failed_job() {
         &manifest,
         "{\"id\": \"broken\", \"model\": \"broken.obj\"}\n\
          {\"id\": \"cornell\", \"model\": \"cornell-box.gltf\", \"height\": 64}\n\
-         {\"id\": \"shapes\", \"model\": \"shapes.obj\"}\n",
+         {\"id\": \"shapes\", \"model\": \"shapes.obj\"}\n\
+         {\"id\": \"orbit\", \"model\": \"shapes.obj\", \"views\": \"orbit:2\"}\n",
     )
     .unwrap();
     let (out, sheet_path) = (dir.path().join("out"), dir.path().join("sheet.png"));
@@ -428,7 +430,7 @@ fn batch_contact_sheet_marks_the_failed_job() {
     let args = small_run("batch", s(&manifest), s(&out), (&w, &h), "1", &extra);
     let result = run(&args, false);
     assert!(
-        stderr(&result).contains("1 of 3 jobs failed"),
+        stderr(&result).contains("1 of 4 jobs failed"),
         "{}",
         stderr(&result)
     );
@@ -465,16 +467,13 @@ fn batch_contact_sheet_marks_the_failed_job() {
         SHEET_BACKGROUND,
         "beside the square"
     );
-    // Cell 2, shapes: the full box.
-    let shapes_image = png(&out.join("shapes/image.png"));
-    let (x, y) = cell_origin(2, 2, cell);
-    assert_cell(
-        &sheet,
-        (x, y),
-        &expected_thumbnail(&shapes_image, cell),
-        "shapes",
-    );
-    for k in 1..3 {
+    // Cells 2 and 3 fill their boxes: shapes, and a job with views by its first view.
+    for (k, image) in [(2, "shapes/image.png"), (3, "orbit/000.png")] {
+        let view = png(&out.join(image));
+        let origin = cell_origin(k, 2, cell);
+        assert_cell(&sheet, origin, &expected_thumbnail(&view, cell), image);
+    }
+    for k in 1..4 {
         let (x, y) = cell_origin(k, 2, cell);
         let label = inked(&sheet, (x, y + cell.1), cell.0);
         assert!(
