@@ -75,13 +75,21 @@ impl SheetLayout {
         let thumb_height = ((u64::from(cell_width) * u64::from(h) + u64::from(w) / 2)
             / u64::from(w))
         .clamp(1, u64::from(MAX_CELL_WIDTH) * 4) as u32;
-        Ok(SheetLayout {
+        let layout = SheetLayout {
             count,
             columns,
             rows,
             cell_width,
             thumb_height,
-        })
+        };
+        if layout.width() > u64::from(u32::MAX) || layout.height() > u64::from(u32::MAX) {
+            return Err(format!(
+                "{count} cells in {columns} columns make a {}x{} sheet, more than an image can hold",
+                layout.width(),
+                layout.height()
+            ));
+        }
+        Ok(layout)
     }
 
     /// Sheet width: `columns` cells and `columns + 1` paddings.
@@ -340,6 +348,12 @@ mod tests {
             (3, Some(0), 64, "--sheet-columns 0"),
             (3, None, 0, "--sheet-cell-width 0"),
             (3, None, MAX_CELL_WIDTH + 1, "--sheet-cell-width"),
+            (
+                2_000_000,
+                Some(2_000_000),
+                4096,
+                "more than an image can hold",
+            ),
         ] {
             let e = SheetLayout::new(count, columns, width, (4, 3)).unwrap_err();
             assert!(e.contains(words), "{e}");
