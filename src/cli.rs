@@ -120,9 +120,9 @@ pub struct RenderArgs {
         conflicts_with_all = ["view", "camera", "look_from", "up", "time_limit", "stats"]
     )]
     pub views: Option<String>,
-    /// Render N views on a circle around the model for --gif: `--views orbit:N` starting at
-    /// the azimuth of the plain render's camera (so that frame 0 looks like `render MODEL`).
-    /// The frames are written into the -o folder as with --views.
+    /// Render N views on a circle around the model for --gif: `--views orbit:N` starting where
+    /// the plain render's camera stands (its azimuth and elevation; frame 0 is `render MODEL`
+    /// when the automatic camera frames it). The frames go into the -o folder as with --views.
     #[arg(
         long,
         value_name = "N",
@@ -139,15 +139,14 @@ pub struct RenderArgs {
     #[arg(long, value_name = "FPS", requires = "gif")]
     pub fps: Option<f32>,
     /// With --views orbit:N or --turntable: elevation of the circle above the target, in
-    /// degrees.
+    /// degrees [default: 20 for --views; for --turntable, the plain render's camera's].
     #[arg(
         long,
-        default_value_t = crate::setup::DEFAULT_ORBIT_ELEVATION_DEGREES,
         value_name = "DEG",
         allow_hyphen_values = true,
         requires = "many_views"
     )]
-    pub orbit_elevation: f32,
+    pub orbit_elevation: Option<f32>,
     /// With --views orbit:N or --turntable: azimuth of view 0 in degrees, counter-clockwise
     /// seen from above from +Z (the front) [default: 0 for --views; for --turntable, the plain
     /// render's camera's].

@@ -179,6 +179,16 @@ pub fn azimuth_degrees(from: Vec3, target: Vec3) -> f32 {
     offset.x.atan2(offset.z).to_degrees()
 }
 
+/// The elevation of `from` above the horizontal plane through `target`, in degrees as
+/// [`orbit_directions`] counts them: from -90 (straight below) to 90 (straight above); 0 when
+/// the two points coincide.
+pub fn elevation_degrees(from: Vec3, target: Vec3) -> f32 {
+    match (from - target).try_normalize() {
+        Some(direction) => direction.y.clamp(-1.0, 1.0).asin().to_degrees(),
+        None => 0.0,
+    }
+}
+
 /// `n` unit directions spread evenly over the sphere: the Fibonacci lattice, equal-area bands
 /// in y (from top to bottom) turned by the golden angle from one point to the next, so that
 /// every point covers about 4π/n of the sphere.
@@ -567,17 +577,19 @@ mod tests {
         assert!(cameras[1].position.x > f.target.x);
     }
 
-    /// An orbit may start at any azimuth; the azimuth of a point is what the orbit that starts
-    /// there was given.
+    /// An orbit may start at any azimuth; the azimuth and elevation of a point are what the
+    /// orbit that starts there was given.
     #[test]
     fn orbits_start_at_the_given_azimuth() {
         let f = framing();
-        for start in [0.0f32, 28.8, 90.0, -135.0, 180.0] {
-            let directions = orbit_directions(4, 20.0, start);
+        for (start, elevation) in [(0.0f32, 20.0), (28.8, 21.5), (90.0, -45.0), (-135.0, 89.0)] {
+            let directions = orbit_directions(4, elevation, start);
             let first = f.camera_from(directions[0]).position;
             let measured = azimuth_degrees(first, f.target);
             let diff = (measured - start + 180.0).rem_euclid(360.0) - 180.0;
             assert!(diff.abs() < 1e-3, "start {start}: {measured}");
+            let up = elevation_degrees(first, f.target);
+            assert!((up - elevation).abs() < 1e-3, "elevation {elevation}: {up}");
             // Still counter-clockwise seen from above: a quarter turn on.
             let second = azimuth_degrees(f.camera_from(directions[1]).position, f.target);
             let step = (second - measured).rem_euclid(360.0);
@@ -591,6 +603,12 @@ mod tests {
             0.0,
             "above"
         );
+        // Its elevation: asin(0.45 / |(0.55, 0.45, 1)|) = 21.52 degrees.
+        let auto = elevation_degrees(Vec3::new(0.55, 0.45, 1.0), Vec3::ZERO);
+        assert!((auto - 21.519177).abs() < 1e-3, "{auto}");
+        let above = elevation_degrees(Vec3::new(0.0, 5.0, 0.0), Vec3::new(0.0, 1.0, 0.0));
+        assert_eq!(above, 90.0);
+        assert_eq!(elevation_degrees(Vec3::ONE, Vec3::ONE), 0.0, "same point");
     }
 
     /// Fibonacci points are unit vectors, cover the sphere without clumping (every point's

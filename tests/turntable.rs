@@ -25,6 +25,11 @@ const CELL_BACKGROUND: [u8; 3] = [96, 96, 96];
 /// frames of cornell-box at 64x48 and 4 spp (0.51 in the mean), 1.56 in the worst 512x512
 /// frame of DamagedHelmet.
 const GIF_MEAN_TOLERANCE: f64 = 3.0;
+/// Mean difference (levels) allowed between a turntable's frame 0 and the plain render from
+/// the same point: the camera is rebuilt from its azimuth and elevation, so its position
+/// differs in the last bits of a float, which may move a sample across an edge. Measured: the
+/// same bytes at this size; 0.15 levels RMS (PSNR 64.8 dB) at 512x384 and 4 spp.
+const PLAIN_VIEW_TOLERANCE: f64 = 0.5;
 /// Largest difference allowed between a sheet's cell and the thumbnail the test makes of the
 /// view's PNG: the same composite and Lanczos-3 resize, so at most a rounding step.
 const CELL_MAX_TOLERANCE: u8 = 1;
@@ -233,10 +238,17 @@ fn fps_and_background_reach_the_gif() {
     }
 }
 
-/// `--turntable N` is `--views orbit:N` started at the plain render's azimuth: with the start
-/// given as 0, the same files byte for byte; by default, view 0 stands at the azimuth of the
-/// plain render's camera (the automatic camera for shapes.obj), and looks much more like
-/// the plain render than view 1 does.
+/// The camera position of a view file.
+fn position(view_file: &Path) -> [f64; 3] {
+    let p = &read_json(view_file)["camera"]["position"];
+    [0, 1, 2].map(|k| p[k].as_f64().unwrap())
+}
+
+/// `--turntable N` is `--views orbit:N` started where the plain render's camera stands: with
+/// the start given as 0 degrees azimuth and 20 elevation, the same files byte for byte; by
+/// default, view 0 stands where the plain render's camera does (the automatic camera for
+/// shapes.obj, at the same distance) and its image is the plain render's within
+/// PLAIN_VIEW_TOLERANCE.
 #[test]
 fn a_turntable_is_an_orbit_from_the_plain_view() {
     let dir = tempfile::tempdir().unwrap();
@@ -245,13 +257,14 @@ fn a_turntable_is_an_orbit_from_the_plain_view() {
         dir.path().join("orbit"),
         dir.path().join("tt0"),
     );
-    render(&tt0, &["--turntable", "3", "--orbit-azimuth", "0"]);
+    let start = ["--orbit-azimuth", "0", "--orbit-elevation", "20"];
+    render(&tt0, &[&["--turntable", "3"][..], &start].concat());
     render(&orbit, &["--views", "orbit:3"]);
     for k in 0..3 {
         let name = format!("{k:03}.png");
         assert!(
             std::fs::read(tt0.join(&name)).unwrap() == std::fs::read(orbit.join(&name)).unwrap(),
-            "{name}: --turntable 3 --orbit-azimuth 0 differs from --views orbit:3"
+            "{name}: --turntable 3 {start:?} differs from --views orbit:3"
         );
     }
     render(&tt, &["--turntable", "3"]);
@@ -262,22 +275,36 @@ fn a_turntable_is_an_orbit_from_the_plain_view() {
     let expected = azimuth(&plain_view, centre);
     // The automatic camera looks from (0.55, 0.45, 1): atan(0.55) = 28.81 degrees.
     assert!((expected - 28.8108).abs() < 1e-3, "{expected}");
-    let first = azimuth(&tt.join("000.view.json"), centre);
+    let (from, to) = (position(&plain_view), position(&tt.join("000.view.json")));
+    let gap = (0..3)
+        .map(|k| (from[k] - to[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let distance = (0..3)
+        .map(|k| (from[k] - centre[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
     assert!(
-        (first - expected).abs() < 1e-3,
-        "frame 0 at {first}, plain at {expected}"
+        gap < 1e-5 * distance,
+        "frame 0 at {to:?}, plain at {from:?}"
     );
+    let first = azimuth(&tt.join("000.view.json"), centre);
     let second = azimuth(&tt.join("001.view.json"), centre);
     assert!(
         ((second - first).rem_euclid(360.0) - 120.0).abs() < 1e-3,
         "{second}"
     );
     let plain = png(&plain);
-    let (near, _) = opaque_mean_difference(&plain, &png(&tt.join("000.png")));
-    let (far, _) = opaque_mean_difference(&plain, &png(&tt.join("001.png")));
+    let frame = png(&tt.join("000.png"));
+    let (near, _) = opaque_mean_difference(&plain, &frame);
+    let differing = plain
+        .pixels()
+        .zip(frame.pixels())
+        .filter(|(p, q)| p != q)
+        .count();
     assert!(
-        near * 3.0 < far,
-        "frame 0 {near:.2} vs frame 1 {far:.2} levels from the plain render"
+        near < PLAIN_VIEW_TOLERANCE && differing * 100 < plain.pixels().len(),
+        "frame 0 is {near:.3} levels off the plain render in the mean, {differing} pixels differ"
     );
 }
 

@@ -20,13 +20,15 @@ use crate::output::{OutputFormat, PendingFile, PendingOutput, SaveError};
 use crate::prepare::Prepared;
 use crate::render::{render, RenderSettings, RenderStats};
 use crate::scene::{Camera, Light, Projection, Scene};
-use crate::setup::{default_rig, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_YFOV_DEGREES};
+use crate::setup::{
+    default_rig, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_ORBIT_ELEVATION_DEGREES, DEFAULT_YFOV_DEGREES,
+};
 use crate::sheet::{ContactSheet, SheetLayout};
 use crate::turntable::{check_fps, frame_delay_centiseconds, GifWriter};
 use crate::view::{SegmentId, ViewEnvironment, ViewFile};
 use crate::views::{
-    azimuth_degrees, fibonacci_directions, orbit_directions, random_directions, read_views_file,
-    ExplicitView, Framing, NamePattern, ViewSpec,
+    azimuth_degrees, elevation_degrees, fibonacci_directions, orbit_directions, random_directions,
+    read_views_file, ExplicitView, Framing, NamePattern, ViewSpec,
 };
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
@@ -230,11 +232,10 @@ pub(super) fn render_views(
         ViewSpec::File(path) => read_views_file(path)?,
         _ => Vec::new(),
     };
-    if !(-90.0..=90.0).contains(&args.orbit_elevation) {
-        bail!(
-            "--orbit-elevation {}: must be between -90 and 90 degrees",
-            args.orbit_elevation
-        );
+    if let Some(e) = args.orbit_elevation {
+        if !(-90.0..=90.0).contains(&e) {
+            bail!("--orbit-elevation {e}: must be between -90 and 90 degrees");
+        }
     }
     if let Some(r) = args.orbit_radius {
         if !(r > 0.0 && r.is_finite()) {
@@ -461,20 +462,23 @@ fn view_cameras(
     };
     let cameras: Vec<Camera> = match spec {
         ViewSpec::Orbit(n) => {
-            let azimuth = match (args.orbit_azimuth, args.turntable) {
-                (Some(degrees), _) => degrees,
-                // A turntable starts where the plain render stands: the file's first camera,
-                // else the automatic camera.
-                (None, Some(_)) => {
-                    let plain = match scene.cameras.first() {
-                        Some(camera) => camera.clone(),
-                        None => auto_camera(&scene.bounds, aspect),
-                    };
-                    azimuth_degrees(plain.position, framing.target)
-                }
-                (None, None) => 0.0,
+            // A turntable starts where the plain render stands (the file's first camera, else
+            // the automatic camera): its direction from the target; a plain orbit in front.
+            let (azimuth, elevation) = if args.turntable.is_some() {
+                let plain = match scene.cameras.first() {
+                    Some(camera) => camera.clone(),
+                    None => auto_camera(&scene.bounds, aspect),
+                };
+                (
+                    azimuth_degrees(plain.position, framing.target),
+                    elevation_degrees(plain.position, framing.target),
+                )
+            } else {
+                (0.0, DEFAULT_ORBIT_ELEVATION_DEGREES)
             };
-            framing.cameras(&orbit_directions(*n, args.orbit_elevation, azimuth))
+            let azimuth = args.orbit_azimuth.unwrap_or(azimuth);
+            let elevation = args.orbit_elevation.unwrap_or(elevation);
+            framing.cameras(&orbit_directions(*n, elevation, azimuth))
         }
         ViewSpec::Sphere(n) => framing.cameras(&fibonacci_directions(*n)),
         ViewSpec::Random(n) => framing.cameras(&random_directions(*n, args.seed)),
