@@ -565,6 +565,15 @@ fn bad_turntable_and_sheet_options_are_refused() {
             "only orbits",
         ),
         (
+            vec![
+                "--views",
+                "orbit:3",
+                "--contact-sheet",
+                "/nonexistent-folder/sheet.png",
+            ],
+            "/nonexistent-folder/sheet.png: cannot write here: no folder /nonexistent-folder",
+        ),
+        (
             vec!["--contact-sheet", &sheet],
             "--contact-sheet lays out many views",
         ),
@@ -641,6 +650,19 @@ fn bad_turntable_and_sheet_options_are_refused() {
         stderr(&result)
     );
     assert!(!gif.exists());
+    let result = run(
+        &[
+            "batch",
+            s(&models),
+            "-o",
+            s(&out),
+            "--contact-sheet",
+            &jpg,
+            "-q",
+        ],
+        false,
+    );
+    assert!(stderr(&result).contains("sheet.jpg: the file name must end in .png"));
     let result = run(
         &["batch", s(&models), "-o", s(&out), "--turntable", "4", "-q"],
         false,
