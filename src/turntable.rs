@@ -159,10 +159,11 @@ impl GifWriter {
                 size.0, size.1
             )));
         }
-        if *self.size.get_or_insert(size) != size {
+        let first = *self.size.get_or_insert(size);
+        if first != size {
             return Err(self.encode_error(format!(
-                "frame {} is {}x{}, the first was {:?}",
-                self.frames, size.0, size.1, self.size
+                "frame {} is {}x{}, the first was {}x{}",
+                self.frames, size.0, size.1, first.0, first.1
             )));
         }
         one_bit_alpha(&mut frame);
