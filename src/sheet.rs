@@ -16,7 +16,7 @@ pub const PADDING: u32 = 4;
 /// Height of the label strip under each thumbnail: a double-size 8x8 glyph and 2 px above and
 /// below it.
 pub const LABEL_HEIGHT: u32 = 20;
-/// Cell width when none is given, pixels: 4 columns fit a 1080p screen.
+/// Cell width when none is given, pixels: a 36-view turntable's 6x6 sheet is 1564 pixels wide.
 pub const DEFAULT_CELL_WIDTH: u32 = 256;
 /// Widest cell accepted: a full-size 4K render.
 pub const MAX_CELL_WIDTH: u32 = 4096;
