@@ -24,7 +24,7 @@ fn extension(path: &Path) -> String {
 fn unknown(path: &Path, allowed: &str) -> SaveError {
     SaveError::Unwritable {
         path: path.to_path_buf(),
-        source: std::io::Error::other(format!("unknown extension for this output (use {allowed})")),
+        error: std::io::Error::other(format!("unknown extension for this output (use {allowed})")),
     }
 }
 

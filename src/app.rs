@@ -536,6 +536,13 @@ fn render_model(
         // Many views after one load and one BVH build: its own flow, in app/multi_view.rs.
         return multi_view::render_views(args, spec, env_file, on_view);
     }
+    if let Some(frames) = args.turntable {
+        // A turntable is an orbit (starting where the plain render stands).
+        return multi_view::render_views(args, &format!("orbit:{frames}"), env_file, on_view);
+    }
+    if args.contact_sheet.is_some() {
+        bail!("--contact-sheet lays out many views: add --views SPEC or --turntable N (or give it to batch, for a cell per job)");
+    }
     let output = PendingOutput::reserve(&args.output, args.no_clobber)?;
     let (threads, pool) = worker_pool(args.threads)?;
 

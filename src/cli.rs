@@ -89,11 +89,12 @@ pub struct InfoArgs {
 
 /// `meshtracer render`.
 #[derive(Debug, Args, Clone)]
+#[command(group(clap::ArgGroup::new("many_views").args(["views", "turntable"])))]
 pub struct RenderArgs {
     /// The model: .gltf, .glb or .obj.
     pub model: PathBuf,
-    /// Output image: .png (8-bit sRGB with alpha), .exr or .hdr (linear float); with --views,
-    /// the folder the views are written to.
+    /// Output image: .png (8-bit sRGB with alpha), .exr or .hdr (linear float); with --views
+    /// or --turntable, the folder the views are written to.
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
     /// Image width in pixels [default: 1024].
@@ -142,24 +143,73 @@ pub struct RenderArgs {
         conflicts_with_all = ["view", "camera", "look_from", "up", "time_limit", "stats"]
     )]
     pub views: Option<String>,
-    /// With --views orbit:N: elevation of the circle above the target, in degrees.
+    /// Render N views on a circle around the model for --gif: `--views orbit:N` starting where
+    /// the plain render's camera stands (its azimuth and elevation; frame 0 is `render MODEL`
+    /// when the automatic camera frames it). The frames go into the -o folder as with --views.
     #[arg(
         long,
-        default_value_t = crate::setup::DEFAULT_ORBIT_ELEVATION_DEGREES,
+        value_name = "N",
+        value_parser = clap::value_parser!(u32).range(1..=i64::from(crate::turntable::MAX_TURNTABLE_FRAMES)),
+        conflicts_with_all = ["views", "view", "camera", "look_from", "up", "time_limit", "stats"]
+    )]
+    pub turntable: Option<u32>,
+    /// With --turntable: also write the frames as an animated GIF that loops forever (256
+    /// colours a frame; transparent where less than half covered, unless --background).
+    #[arg(long, value_name = "FILE.gif", requires = "turntable")]
+    pub gif: Option<PathBuf>,
+    /// With --gif: frames per second, at most 50 (GIF delays are whole hundredths of a
+    /// second) [default: a full turn in 4 s, e.g. 9 fps for 36 frames].
+    #[arg(long, value_name = "FPS", requires = "gif")]
+    pub fps: Option<f32>,
+    /// With --views orbit:N or --turntable: elevation of the circle above the target, in
+    /// degrees [default: 20 for --views; for --turntable, the plain render's camera's].
+    #[arg(
+        long,
         value_name = "DEG",
         allow_hyphen_values = true,
-        requires = "views"
+        requires = "many_views"
     )]
-    pub orbit_elevation: f32,
-    /// With --views orbit:N, sphere:N or random:N: distance of the views from the target
-    /// [default: the automatic camera's, which frames the whole model].
-    #[arg(long, value_name = "X", requires = "views", allow_hyphen_values = true)]
+    pub orbit_elevation: Option<f32>,
+    /// With --views orbit:N or --turntable: azimuth of view 0 in degrees, counter-clockwise
+    /// seen from above from +Z (the front) [default: 0 for --views; for --turntable, the plain
+    /// render's camera's].
+    #[arg(
+        long,
+        value_name = "DEG",
+        allow_hyphen_values = true,
+        requires = "many_views"
+    )]
+    pub orbit_azimuth: Option<f32>,
+    /// With --views orbit:N, sphere:N, random:N or --turntable: distance of the views from the
+    /// target [default: the automatic camera's, which frames the whole model].
+    #[arg(
+        long,
+        value_name = "X",
+        requires = "many_views",
+        allow_hyphen_values = true
+    )]
     pub orbit_radius: Option<f32>,
+    /// With --views or --turntable (or in batch, one cell per job): write a labelled grid of
+    /// the views as a PNG, each cell a thumbnail with its view number (or job id) under it.
+    #[arg(long, value_name = "FILE.png")]
+    pub contact_sheet: Option<PathBuf>,
+    /// With --contact-sheet: cells per row [default: about the square root of the count].
+    #[arg(long, value_name = "N", requires = "contact_sheet")]
+    pub sheet_columns: Option<u32>,
+    /// With --contact-sheet: width of a cell's thumbnail in pixels; its height follows the
+    /// images' aspect.
+    #[arg(
+        long,
+        value_name = "PX",
+        default_value_t = crate::sheet::DEFAULT_CELL_WIDTH,
+        requires = "contact_sheet"
+    )]
+    pub sheet_cell_width: u32,
     /// With --views: each view's image, relative to the -o folder; {view} is the view number,
     /// {view:03} the number padded to 3 digits [default: {view:03}.png, wider past 1000
     /// views]. With --views, --depth-out, --normal-out, --mask-out, --segmentation-out and
     /// --view-out take such patterns too (--view-out default: {view:03}.view.json).
-    #[arg(long, value_name = "PATTERN", requires = "views")]
+    #[arg(long, value_name = "PATTERN", requires = "many_views")]
     pub view_name: Option<String>,
     /// Render only tile I of N (counted from 0): the image cut into N bands of whole rows.
     /// The outputs (image and AOVs) hold the tile alone, with a sidecar OUT.tile.json saying
@@ -168,7 +218,7 @@ pub struct RenderArgs {
         long,
         value_name = "I/N",
         value_parser = parse_tile,
-        conflicts_with_all = ["views", "time_limit", "crop"]
+        conflicts_with_all = ["views", "turntable", "time_limit", "crop"]
     )]
     pub tile: Option<crate::tiles::TileIndex>,
     /// Render only the rectangle of W x H pixels whose top-left pixel is X,Y (from the
@@ -177,7 +227,7 @@ pub struct RenderArgs {
         long,
         value_name = "X,Y,W,H",
         value_parser = parse_crop,
-        conflicts_with_all = ["views", "time_limit"]
+        conflicts_with_all = ["views", "turntable", "time_limit"]
     )]
     pub crop: Option<crate::render::Region>,
     /// Show the finished image in the terminal as Unicode half blocks (24-bit colour), sized

@@ -10,7 +10,7 @@
 //! - Coverage IoU: pixels covered in both over pixels covered in either, where covered means
 //!   alpha above zero, or a colour different from `background` for images without alpha.
 
-use crate::plot::{draw_text, fill_rect};
+use crate::plot::{draw_label, fill_rect};
 use image::{Rgb, RgbImage, RgbaImage};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -98,7 +98,9 @@ pub fn read(path: &Path) -> Result<RgbaImage, CompareError> {
     Ok(img.to_rgba8())
 }
 
-fn composite(img: &RgbaImage, background: [u8; 3]) -> RgbImage {
+/// An image with straight alpha composited over an opaque `background`, in 8-bit sRGB as the
+/// PNG holds it (the blend a viewer shows).
+pub fn composite(img: &RgbaImage, background: [u8; 3]) -> RgbImage {
     let mut out = RgbImage::new(img.width(), img.height());
     for (o, p) in out.pixels_mut().zip(img.pixels()) {
         let a = u32::from(p.0[3]);
@@ -221,38 +223,17 @@ pub fn side_by_side(
             band as i32,
             Rgb([200, 200, 200]),
         );
-        // Each label stays inside its panel: half size if it does not fit, and a long file
-        // name keeps its end (where "-old.png" and "-new.png" differ).
-        let room = w.saturating_sub(12) as usize / 8;
-        let (text, scale) = if label.chars().count() * 2 <= room {
-            (label.to_string(), 2)
-        } else {
-            (fit_label(label, room), 1)
-        };
-        let y = if scale == 2 { 6 } else { 10 };
-        draw_text(
+        // Each label stays inside its panel (a long file name keeps its end, where "-old.png"
+        // and "-new.png" differ).
+        draw_label(
             &mut out,
-            k as i32 * w as i32 + 6,
-            y,
-            &text,
-            scale,
+            (k as i32 * w as i32, 0),
+            (w, band),
+            label,
             Rgb([20, 20, 20]),
         );
     }
     out
-}
-
-/// `label` in at most `max_chars` characters: whole if it fits, else "..." and its end.
-fn fit_label(label: &str, max_chars: usize) -> String {
-    let chars: Vec<char> = label.chars().collect();
-    if chars.len() <= max_chars {
-        return label.to_string();
-    }
-    if max_chars <= 3 {
-        return ".".repeat(max_chars);
-    }
-    let tail: String = chars[chars.len() - (max_chars - 3)..].iter().collect();
-    format!("...{tail}")
 }
 
 #[cfg(test)]
@@ -272,9 +253,6 @@ mod tests {
 
     #[test]
     fn long_labels_stay_inside_their_panels() {
-        assert_eq!(fit_label("short.png", 20), "short.png");
-        assert_eq!(fit_label("LightsPunctualLamp-old.png", 12), "...p-old.png");
-        assert_eq!(fit_label("abcdef", 2), "..");
         let a = disc(120, 40, 10.0, [200, 100, 50]);
         let heat = RgbImage::new(120, 40);
         let long = "a-very-long-file-name-of-a-reference-render.png";

@@ -13,7 +13,8 @@
 //! Many views of one prepared scene (`render --views`): [`views`] turns a spec into cameras
 //! and names their files, [`dataset`] writes the `transforms.json` that NeRF tools read.
 //! Many models (`batch`): [`batch`] reads manifests, assigns jobs to shards and defines the
-//! per-job record of `results.jsonl`.
+//! per-job record of `results.jsonl`. [`turntable`] streams an orbit's views into an
+//! animated GIF; [`sheet`] lays views or jobs out as a labelled contact sheet.
 //!
 //! Every default (image size, field of view, ambient, the light rig) is in [`setup`]. Importers
 //! ([`scene`]) never call the tracer; the tracer never sees a glTF or OBJ type; only [`cli`] and
@@ -64,8 +65,10 @@ pub mod sampling;
 pub mod scene;
 pub mod setup;
 pub mod shading;
+pub mod sheet;
 pub mod texture;
 pub mod tiles;
+pub mod turntable;
 pub mod view;
 pub mod views;
 

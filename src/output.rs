@@ -38,23 +38,24 @@ pub enum SaveError {
     #[error("{}: unknown output format (use .png, .exr or .hdr)", .0.display())]
     UnknownFormat(PathBuf),
     /// The destination folder cannot take a file.
-    #[error("{}: cannot write here: {source}", path.display())]
+    #[error("{}: cannot write here: {error}", path.display())]
     Unwritable {
         /// The output path.
         path: PathBuf,
-        /// The underlying error.
-        source: std::io::Error,
+        /// The underlying error: part of the message, not a source, so that a printed chain
+        /// (`{:#}`) says it once.
+        error: std::io::Error,
     },
     /// The file exists and clobbering was refused.
     #[error("{}: already exists (--no-clobber)", .0.display())]
     Exists(PathBuf),
     /// Encoding failed.
-    #[error("{}: encoding failed: {source}", path.display())]
+    #[error("{}: encoding failed: {error}", path.display())]
     Encode {
         /// The output path.
         path: PathBuf,
         /// The encoder's error.
-        source: image::ImageError,
+        error: image::ImageError,
     },
 }
 
@@ -102,36 +103,47 @@ fn to_u8(c: f32) -> u8 {
 /// folder up front, so an unwritable destination fails before any work, and the finished image
 /// is renamed over the destination in one step.
 pub struct PendingOutput {
-    path: PathBuf,
     format: OutputFormat,
+    file: PendingFile,
+}
+
+/// Any output file reserved before the work that fills it (an image, a GIF, a contact sheet):
+/// a temporary file in the destination folder, renamed over the destination by
+/// [`PendingFile::commit`]. Dropped without a commit, it leaves nothing behind.
+pub struct PendingFile {
+    path: PathBuf,
     file: tempfile::NamedTempFile,
     no_clobber: bool,
 }
 
-impl PendingOutput {
-    /// Checks the extension and reserves a temporary file beside `path`.
-    pub fn reserve(path: &Path, no_clobber: bool) -> Result<PendingOutput, SaveError> {
-        let format = OutputFormat::from_path(path)?;
+impl PendingFile {
+    /// Reserves a temporary file beside `path`: fails now if the folder cannot take a file,
+    /// `path` is a folder, or it exists under `no_clobber`.
+    pub fn reserve(path: &Path, no_clobber: bool) -> Result<PendingFile, SaveError> {
         if no_clobber && path.exists() {
             return Err(SaveError::Exists(path.to_path_buf()));
         }
         if path.is_dir() {
             return Err(SaveError::Unwritable {
                 path: path.to_path_buf(),
-                source: std::io::Error::other("is a directory"),
+                error: std::io::Error::other("is a directory"),
             });
         }
         let dir = match path.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        let file = temporary_beside(&dir).map_err(|source| SaveError::Unwritable {
+        let file = temporary_beside(&dir).map_err(|e| SaveError::Unwritable {
             path: path.to_path_buf(),
-            source,
+            // tempfile's message names its temporary file, which the user never asked for.
+            error: if dir.is_dir() {
+                std::io::Error::new(e.kind(), e.kind().to_string())
+            } else {
+                std::io::Error::new(e.kind(), format!("no folder {}", dir.display()))
+            },
         })?;
-        Ok(PendingOutput {
+        Ok(PendingFile {
             path: path.to_path_buf(),
-            format,
             file,
             no_clobber,
         })
@@ -142,20 +154,62 @@ impl PendingOutput {
         &self.path
     }
 
+    /// The temporary file, to write the content into.
+    pub fn file(&self) -> &std::fs::File {
+        self.file.as_file()
+    }
+
+    /// An error about this output's destination.
+    pub fn unwritable(&self, source: std::io::Error) -> SaveError {
+        SaveError::Unwritable {
+            path: self.path.clone(),
+            error: source,
+        }
+    }
+
+    /// Flushes the temporary file to disk and renames it over the destination.
+    pub fn commit(self) -> Result<(), SaveError> {
+        self.file().sync_all().map_err(|e| self.unwritable(e))?;
+        let result = if self.no_clobber {
+            self.file.persist_noclobber(&self.path)
+        } else {
+            self.file.persist(&self.path)
+        };
+        result.map_err(|e| SaveError::Unwritable {
+            path: self.path,
+            error: e.error,
+        })?;
+        Ok(())
+    }
+}
+
+impl PendingOutput {
+    /// Checks the extension and reserves a temporary file beside `path`.
+    pub fn reserve(path: &Path, no_clobber: bool) -> Result<PendingOutput, SaveError> {
+        let format = OutputFormat::from_path(path)?;
+        let file = PendingFile::reserve(path, no_clobber)?;
+        Ok(PendingOutput { format, file })
+    }
+
+    /// The destination path.
+    pub fn path(&self) -> &Path {
+        self.file.path()
+    }
+
     /// Encodes `image`, flushes it to disk and renames it over the destination. `background`
     /// fills uncovered pixels (PNG and HDR) instead of leaving them transparent.
     pub fn commit(self, image: &Image, background: Option<Vec3>) -> Result<(), SaveError> {
-        let path = self.path.clone();
+        let path = self.path().to_path_buf();
         let io_err = |source: std::io::Error| SaveError::Unwritable {
             path: path.clone(),
-            source,
+            error: source,
         };
         let enc_err = |source: image::ImageError| SaveError::Encode {
             path: path.clone(),
-            source,
+            error: source,
         };
         {
-            let mut out = BufWriter::new(self.file.as_file());
+            let mut out = BufWriter::new(self.file.file());
             let (w, h) = (image.width, image.height);
             match self.format {
                 OutputFormat::Png => {
@@ -197,14 +251,7 @@ impl PendingOutput {
             }
             out.flush().map_err(io_err)?;
         }
-        self.file.as_file().sync_all().map_err(io_err)?;
-        let result = if self.no_clobber {
-            self.file.persist_noclobber(&self.path)
-        } else {
-            self.file.persist(&self.path)
-        };
-        result.map_err(|e| io_err(e.error))?;
-        Ok(())
+        self.file.commit()
     }
 }
 
@@ -225,19 +272,12 @@ fn temporary_beside(dir: &Path) -> std::io::Result<tempfile::NamedTempFile> {
 /// Writes `bytes` to `path` through a temporary file in the same folder and a rename, so the
 /// destination is either untouched or complete.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SaveError> {
-    let io_err = |source: std::io::Error| SaveError::Unwritable {
-        path: path.to_path_buf(),
-        source,
-    };
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let mut file = temporary_beside(&dir).map_err(io_err)?;
-    file.write_all(bytes).map_err(io_err)?;
-    file.as_file().sync_all().map_err(io_err)?;
-    file.persist(path).map_err(|e| io_err(e.error))?;
-    Ok(())
+    let pending = PendingFile::reserve(path, false)?;
+    pending
+        .file()
+        .write_all(bytes)
+        .map_err(|e| pending.unwritable(e))?;
+    pending.commit()
 }
 
 /// A premultiplied pixel over an optional opaque background.

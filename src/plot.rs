@@ -37,6 +37,44 @@ pub fn draw_text(img: &mut RgbImage, x: i32, y: i32, text: &str, scale: i32, col
     }
 }
 
+/// Space left of and right of a label in its strip, pixels.
+const LABEL_MARGIN: u32 = 6;
+
+/// Draws `label` inside the strip of `size` (width, height) pixels whose top-left corner is
+/// `origin`, vertically centred, [`LABEL_MARGIN`] from its left edge: at twice the font size
+/// when it fits (and the strip is tall enough), else at the font size, cut to "..." and its
+/// end when still too long (a file name differs at its end: "-old.png", "-new.png").
+pub fn draw_label(
+    img: &mut RgbImage,
+    origin: (i32, i32),
+    size: (u32, u32),
+    label: &str,
+    color: Rgb<u8>,
+) {
+    let (width, height) = size;
+    let room = width.saturating_sub(2 * LABEL_MARGIN) as usize / 8;
+    let (text, scale) = if label.chars().count() * 2 <= room && height >= 16 {
+        (label.to_string(), 2)
+    } else {
+        (fit_label(label, room), 1)
+    };
+    let y = origin.1 + (height as i32 - 8 * scale).max(0) / 2;
+    draw_text(img, origin.0 + LABEL_MARGIN as i32, y, &text, scale, color);
+}
+
+/// `label` in at most `max_chars` characters: whole if it fits, else "..." and its end.
+pub fn fit_label(label: &str, max_chars: usize) -> String {
+    let chars: Vec<char> = label.chars().collect();
+    if chars.len() <= max_chars {
+        return label.to_string();
+    }
+    if max_chars <= 3 {
+        return ".".repeat(max_chars);
+    }
+    let tail: String = chars[chars.len() - (max_chars - 3)..].iter().collect();
+    format!("...{tail}")
+}
+
 /// Fills a rectangle, clipped to the image.
 pub fn fill_rect(img: &mut RgbImage, x: i32, y: i32, w: i32, h: i32, color: Rgb<u8>) {
     for yy in y.max(0)..(y + h).min(img.height() as i32) {
@@ -47,7 +85,7 @@ pub fn fill_rect(img: &mut RgbImage, x: i32, y: i32, w: i32, h: i32, color: Rgb<
 }
 
 /// A line of the given thickness, by stepping along its longer axis.
-fn line(
+pub fn line(
     img: &mut RgbImage,
     (x0, y0): (f32, f32),
     (x1, y1): (f32, f32),
@@ -186,4 +224,51 @@ fn bounds(values: impl Iterator<Item = f64>) -> (f64, f64) {
     }
     let (lo, hi) = (lo.floor(), hi.ceil());
     (lo, if hi > lo { hi } else { lo + 1.0 })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn long_labels_keep_their_end() {
+        assert_eq!(fit_label("short.png", 20), "short.png");
+        assert_eq!(fit_label("LightsPunctualLamp-old.png", 12), "...p-old.png");
+        assert_eq!(fit_label("abcdef", 2), "..");
+    }
+
+    /// A label is drawn inside its strip, centred vertically, at double size when it fits.
+    #[test]
+    fn labels_stay_inside_their_strip() {
+        let white = Rgb([255, 255, 255]);
+        let ink = Rgb([0, 0, 0]);
+        for (label, strip_width, scale) in [("ab", 64u32, 2), ("a-long-label", 64, 1)] {
+            let mut img = RgbImage::from_pixel(100, 40, white);
+            draw_label(&mut img, (10, 5), (strip_width, 20), label, ink);
+            let inked: Vec<(u32, u32)> = img
+                .enumerate_pixels()
+                .filter(|(_, _, p)| **p == ink)
+                .map(|(x, y, _)| (x, y))
+                .collect();
+            assert!(!inked.is_empty(), "{label}: drawn");
+            for &(x, y) in &inked {
+                assert!(
+                    (10 + LABEL_MARGIN..10 + strip_width - LABEL_MARGIN).contains(&x),
+                    "{label}: x {x}"
+                );
+                assert!((5..25).contains(&y), "{label}: y {y}");
+            }
+            let (top, bottom) = (
+                inked.iter().map(|p| p.1).min().unwrap(),
+                inked.iter().map(|p| p.1).max().unwrap(),
+            );
+            // Glyphs use rows 0..7 of their 8 (scaled); centred means 2 px of strip above
+            // the glyph box at scale 2 (20 - 16) / 2, 6 at scale 1.
+            let box_top = 5 + (20 - 8 * scale) / 2;
+            assert!(
+                top >= box_top && bottom < box_top + 8 * scale,
+                "{label}: rows {top}..{bottom}"
+            );
+        }
+    }
 }

@@ -149,12 +149,14 @@ impl Framing {
 }
 
 /// `n` unit directions on the circle at `elevation_degrees` above the horizontal plane: the
-/// first toward +Z, then counter-clockwise seen from above (about +Y) in equal steps.
-pub fn orbit_directions(n: usize, elevation_degrees: f32) -> Vec<Vec3> {
+/// first at `azimuth_degrees` (0 toward +Z, 90 toward +X), then counter-clockwise seen from
+/// above (about +Y) in equal steps.
+pub fn orbit_directions(n: usize, elevation_degrees: f32, azimuth_degrees: f32) -> Vec<Vec3> {
     let elevation = elevation_degrees.to_radians();
+    let start = azimuth_degrees.to_radians();
     (0..n)
         .map(|k| {
-            let azimuth = std::f32::consts::TAU * k as f32 / n as f32;
+            let azimuth = start + std::f32::consts::TAU * k as f32 / n as f32;
             Vec3::new(
                 elevation.cos() * azimuth.sin(),
                 elevation.sin(),
@@ -162,6 +164,29 @@ pub fn orbit_directions(n: usize, elevation_degrees: f32) -> Vec<Vec3> {
             )
         })
         .collect()
+}
+
+/// The azimuth of `from` seen from `target`, in degrees as [`orbit_directions`] counts them:
+/// 0 toward +Z, 90 toward +X, in (-180, 180]. A point straight above or below the target
+/// (no horizontal offset) has azimuth 0.
+pub fn azimuth_degrees(from: Vec3, target: Vec3) -> f32 {
+    let offset = from - target;
+    let horizontal = offset.x.hypot(offset.z);
+    // NaN (a non-finite position) counts as no offset too.
+    if horizontal.is_nan() || horizontal <= offset.length() * 1e-6 {
+        return 0.0;
+    }
+    offset.x.atan2(offset.z).to_degrees()
+}
+
+/// The elevation of `from` above the horizontal plane through `target`, in degrees as
+/// [`orbit_directions`] counts them: from -90 (straight below) to 90 (straight above); 0 when
+/// the two points coincide.
+pub fn elevation_degrees(from: Vec3, target: Vec3) -> f32 {
+    match (from - target).try_normalize() {
+        Some(direction) => direction.y.clamp(-1.0, 1.0).asin().to_degrees(),
+        None => 0.0,
+    }
 }
 
 /// `n` unit directions spread evenly over the sphere: the Fibonacci lattice, equal-area bands
@@ -524,7 +549,7 @@ mod tests {
     fn orbit_points_lie_on_the_circle_and_look_at_the_centre() {
         let f = framing();
         let n = 12;
-        let cameras = f.cameras(&orbit_directions(n, 30.0));
+        let cameras = f.cameras(&orbit_directions(n, 30.0, 0.0));
         assert_eq!(cameras.len(), n);
         let height = f.distance * 30f32.to_radians().sin();
         for (k, c) in cameras.iter().enumerate() {
@@ -550,6 +575,40 @@ mod tests {
             cameras[0].position.z > f.target.z && (cameras[0].position.x - f.target.x).abs() < 1e-5
         );
         assert!(cameras[1].position.x > f.target.x);
+    }
+
+    /// An orbit may start at any azimuth; the azimuth and elevation of a point are what the
+    /// orbit that starts there was given.
+    #[test]
+    fn orbits_start_at_the_given_azimuth() {
+        let f = framing();
+        for (start, elevation) in [(0.0f32, 20.0), (28.8, 21.5), (90.0, -45.0), (-135.0, 89.0)] {
+            let directions = orbit_directions(4, elevation, start);
+            let first = f.camera_from(directions[0]).position;
+            let measured = azimuth_degrees(first, f.target);
+            let diff = (measured - start + 180.0).rem_euclid(360.0) - 180.0;
+            assert!(diff.abs() < 1e-3, "start {start}: {measured}");
+            let up = elevation_degrees(first, f.target);
+            assert!((up - elevation).abs() < 1e-3, "elevation {elevation}: {up}");
+            // Still counter-clockwise seen from above: a quarter turn on.
+            let second = azimuth_degrees(f.camera_from(directions[1]).position, f.target);
+            let step = (second - measured).rem_euclid(360.0);
+            assert!((step - 90.0).abs() < 1e-3, "start {start}: step {step}");
+        }
+        // The automatic camera's direction (0.55, 0.45, 1): atan(0.55) = 28.81 degrees.
+        let auto = azimuth_degrees(Vec3::new(0.55, 0.45, 1.0), Vec3::ZERO);
+        assert!((auto - 28.810794).abs() < 1e-4, "{auto}");
+        assert_eq!(
+            azimuth_degrees(Vec3::new(0.0, 5.0, 0.0), Vec3::ZERO),
+            0.0,
+            "above"
+        );
+        // Its elevation: asin(0.45 / |(0.55, 0.45, 1)|) = 21.52 degrees.
+        let auto = elevation_degrees(Vec3::new(0.55, 0.45, 1.0), Vec3::ZERO);
+        assert!((auto - 21.519177).abs() < 1e-3, "{auto}");
+        let above = elevation_degrees(Vec3::new(0.0, 5.0, 0.0), Vec3::new(0.0, 1.0, 0.0));
+        assert_eq!(above, 90.0);
+        assert_eq!(elevation_degrees(Vec3::ONE, Vec3::ONE), 0.0, "same point");
     }
 
     /// Fibonacci points are unit vectors, cover the sphere without clumping (every point's

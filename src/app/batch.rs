@@ -10,13 +10,20 @@
 //! this run's records, sorted by id, and written the same way once every job has run. A
 //! killed run therefore leaves whole files only, never a torn line: the job.json of every
 //! job it finished, which `--resume` reads, and the results file of an earlier run if any.
+//!
+//! `--contact-sheet FILE` lays this run's jobs out in a grid, in manifest order: each cell the
+//! first image a job wrote (read back from its file, a skipped job's too), a failed job a
+//! crossed-out cell, labelled with the job id.
 
-use super::{interrupt_flag, render_model, Interrupted, RenderReport};
+use super::multi_view::{has_extension, sheet_layout, write_sheet};
+use super::{image_size, interrupt_flag, render_model, Interrupted, RenderReport};
 use crate::batch::{
     check_output_name, output_key, read_manifest, read_results, results_jsonl, sha256_file, Entry,
     Job, JobRecord, OutputRecord, Shard, Status, Timings, JOB_FILE, RESULTS_FILE,
 };
 use crate::cli::{BatchArgs, BatchMergeArgs, RenderArgs};
+use crate::output::PendingFile;
+use crate::sheet::ContactSheet;
 use anyhow::{anyhow, bail, Context, Result};
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -37,6 +44,19 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
     // Refused before any work: names on the command line apply to every job.
     for (option, name) in default_output_names(args)? {
         check_output_name(&name, option).map_err(anyhow::Error::msg)?;
+    }
+    if let Some(n) = defaults.turntable {
+        bail!(
+            "--turntable {n}: a turntable is made by render; in a batch give the jobs \"views\": \"orbit:{n}\" (or --views orbit:{n})"
+        );
+    }
+    if let Some(path) = &defaults.contact_sheet {
+        if !has_extension(path, "png") {
+            bail!(
+                "--contact-sheet {}: the file name must end in .png",
+                path.display()
+            );
+        }
     }
     let shard = match args.shard {
         Some(shard) => shard,
@@ -60,6 +80,10 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create the output folder {}", dir.display()))?;
     let mine: Vec<&Entry> = entries.iter().filter(|e| shard.holds(&e.key)).collect();
+    let mut sheet = match &defaults.contact_sheet {
+        Some(path) if !mine.is_empty() => Some(JobSheet::new(defaults, path, mine.len())?),
+        _ => None,
+    };
 
     let progress = Progress::new(defaults.quiet, mine.len());
     let cancel = interrupt_flag();
@@ -73,6 +97,9 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
         match outcome {
             Outcome::Done(record, note) => {
                 progress.job_done(k, &record, note.as_deref());
+                if let Some(sheet) = &mut sheet {
+                    sheet.add(k, &record, dir, defaults);
+                }
                 records.push(*record);
             }
             Outcome::Interrupted => {
@@ -89,6 +116,9 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
     progress.finish();
     let results = dir.join(shard.results_file());
     crate::output::write_atomic(&results, results_jsonl(&records).as_bytes())?;
+    if let Some(JobSheet { file, sheet }) = sheet {
+        write_sheet(file, &sheet, "jobs", defaults.quiet)?;
+    }
     let count = |status| records.iter().filter(|r| r.status == status).count();
     let failed = count(Status::Failed);
     if !defaults.quiet {
@@ -397,6 +427,10 @@ fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArg
     let mut args = batch.render.clone();
     args.model = job.model.clone();
     args.quiet = true;
+    // The batch's sheet is not the job's (and its options leave the fingerprint alone).
+    args.contact_sheet = None;
+    args.sheet_columns = None;
+    args.sheet_cell_width = crate::sheet::DEFAULT_CELL_WIDTH;
     if job.width.is_some() {
         args.width = job.width;
     }
@@ -498,6 +532,49 @@ fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArg
         args.stats = inside(stats);
     }
     Ok(args)
+}
+
+/// The contact sheet of a batch: a cell per job of this run, in manifest order.
+struct JobSheet {
+    file: PendingFile,
+    sheet: ContactSheet,
+}
+
+impl JobSheet {
+    /// Reserves `path` and lays out `count` cells, boxes of the command line's image size
+    /// (a job of another aspect is fitted inside its box).
+    fn new(defaults: &RenderArgs, path: &Path, count: usize) -> Result<JobSheet> {
+        let layout = sheet_layout(defaults, count, image_size(defaults, None))?;
+        Ok(JobSheet {
+            file: PendingFile::reserve(path, defaults.no_clobber)?,
+            sheet: ContactSheet::new(layout),
+        })
+    }
+
+    /// Puts job `k`'s first image in its cell, or crosses the cell out when the job failed
+    /// or its image cannot be read back.
+    fn add(&mut self, k: usize, record: &JobRecord, dir: &Path, defaults: &RenderArgs) {
+        let id = record.id.as_deref().unwrap_or("(no id)");
+        if record.status == Status::Failed {
+            self.sheet.place_failed(k, id);
+            return;
+        }
+        // Outputs are listed in the order written: the image first, but for the panorama
+        // (--env-out) that a job with views writes before its views.
+        let panorama = defaults
+            .env_out
+            .as_ref()
+            .map(|name| slash_path(&Path::new(id).join(name)));
+        let image = record
+            .outputs
+            .iter()
+            .find(|o| Some(&o.path) != panorama.as_ref())
+            .and_then(|o| crate::compare::read(&dir.join(&o.path)).ok());
+        match image {
+            Some(image) => self.sheet.place(k, &image, id),
+            None => self.sheet.place_failed(k, id),
+        }
+    }
 }
 
 /// Progress on standard error: a bar of jobs with an ETA and a bar of the current job's

@@ -1,7 +1,10 @@
 //! `render MODEL --views SPEC -o DIR`: many views of one model after one load and one BVH
 //! build. The spec becomes cameras ([`crate::views`]); every view is rendered from the
 //! prepared scene with the same settings and writes its image, the AOVs asked for and its view
-//! file; the folder gets one `transforms.json` ([`crate::dataset`]).
+//! file; the folder gets one `transforms.json` ([`crate::dataset`]). `--turntable N` is an
+//! orbit that starts at the plain render's azimuth; `--gif` streams its frames into an
+//! animated GIF ([`crate::turntable`]) and `--contact-sheet` lays any views out in a grid
+//! ([`crate::sheet`]), both from the images in memory as the views finish.
 //!
 //! Kept apart from the single-view flow in `app.rs`, which hands over after checking the
 //! options they share.
@@ -13,19 +16,24 @@ use crate::cli::RenderArgs;
 use crate::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
 use crate::environment::Environment;
 use crate::integrator::IntegratorKind;
-use crate::output::{OutputFormat, PendingOutput};
+use crate::output::{OutputFormat, PendingFile, PendingOutput, SaveError};
 use crate::prepare::Prepared;
 use crate::render::{render, RenderSettings, RenderStats};
 use crate::scene::{Camera, Light, Projection, Scene};
-use crate::setup::{default_rig, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_YFOV_DEGREES};
+use crate::setup::{
+    default_rig, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_ORBIT_ELEVATION_DEGREES, DEFAULT_YFOV_DEGREES,
+};
+use crate::sheet::{ContactSheet, SheetLayout};
+use crate::turntable::{check_fps, frame_delay_centiseconds, GifWriter};
 use crate::view::{SegmentId, ViewEnvironment, ViewFile};
 use crate::views::{
-    fibonacci_directions, orbit_directions, random_directions, read_views_file, ExplicitView,
-    Framing, NamePattern, ViewSpec,
+    azimuth_degrees, elevation_degrees, fibonacci_directions, orbit_directions, random_directions,
+    read_views_file, ExplicitView, Framing, NamePattern, ViewSpec,
 };
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use std::collections::{BTreeSet, HashMap};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
@@ -87,7 +95,16 @@ impl Layout {
     /// The file names of `count` views in `dir`, checked before any rendering: every pattern
     /// numbers the views (when there are several), no two outputs share a name, nothing is
     /// overwritten under `--no-clobber`; the folders are created.
-    fn plan(&self, count: usize, dir: &Path, no_clobber: bool) -> Result<Vec<ViewNames>> {
+    ///
+    /// `others` are the outputs named on their own (`--gif`, `--contact-sheet`), which no view
+    /// file may overwrite.
+    fn plan(
+        &self,
+        count: usize,
+        dir: &Path,
+        no_clobber: bool,
+        others: &[(&'static str, PathBuf)],
+    ) -> Result<Vec<ViewNames>> {
         let image = self
             .image
             .clone()
@@ -119,7 +136,10 @@ impl Layout {
                 }
             }
         }
-        let mut taken: HashMap<PathBuf, &str> = HashMap::new();
+        let mut taken: HashMap<PathBuf, &str> = others
+            .iter()
+            .map(|(option, path)| (path.clone(), *option))
+            .collect();
         claim(
             &mut taken,
             dir,
@@ -151,6 +171,9 @@ impl Layout {
             .chain(
                 taken
                     .keys()
+                    // The others are written where named, into folders that exist, as a
+                    // single render's -o is.
+                    .filter(|p| !others.iter().any(|(_, other)| other == *p))
                     .filter_map(|p| p.parent().map(Path::to_path_buf)),
             )
             .collect();
@@ -209,18 +232,32 @@ pub(super) fn render_views(
         ViewSpec::File(path) => read_views_file(path)?,
         _ => Vec::new(),
     };
-    if !(-90.0..=90.0).contains(&args.orbit_elevation) {
-        bail!(
-            "--orbit-elevation {}: must be between -90 and 90 degrees",
-            args.orbit_elevation
-        );
+    if let Some(e) = args.orbit_elevation {
+        if !(-90.0..=90.0).contains(&e) {
+            bail!("--orbit-elevation {e}: must be between -90 and 90 degrees");
+        }
     }
     if let Some(r) = args.orbit_radius {
         if !(r > 0.0 && r.is_finite()) {
             bail!("--orbit-radius {r}: must be a positive distance");
         }
     }
+    if let Some(a) = args.orbit_azimuth {
+        if !a.is_finite() {
+            bail!("--orbit-azimuth {a}: must be a finite number of degrees");
+        }
+        if !matches!(spec, ViewSpec::Orbit(_)) {
+            bail!("--orbit-azimuth: only orbits (--views orbit:N, --turntable N) have a starting azimuth");
+        }
+    }
     let dir = args.output.as_path();
+    if has_extension(dir, "gif") {
+        bail!(
+            "-o {}: with --views or --turntable, -o names the folder of the frames; write the GIF with --turntable N --gif {}",
+            dir.display(),
+            dir.display()
+        );
+    }
     if dir.is_file() || (!dir.exists() && OutputFormat::from_path(dir).is_ok()) {
         bail!(
             "-o {}: with --views, -o names the folder the views are written to, not an image",
@@ -232,10 +269,22 @@ pub(super) fn render_views(
         ViewSpec::File(_) => Some(explicit.len()),
         _ => spec.count(),
     };
+    Extras::check(args, known_count)?;
+    let others = Extras::paths(args);
     let mut planned = match known_count {
-        Some(n) => Some(layout.plan(n, dir, args.no_clobber)?),
+        Some(n) => Some(layout.plan(n, dir, args.no_clobber, &others)?),
         None => None,
     };
+    // The GIF or the sheet may go into the -o folder, which the plan creates (not yet for
+    // `cameras`, whose count needs the model): made now for them, else left for the plan.
+    let into_dir = others
+        .iter()
+        .any(|(_, p)| p.parent().is_some_and(|f| f.starts_with(dir)));
+    if into_dir {
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("cannot create the folder {}", dir.display()))?;
+    }
+    let mut extras = Extras::reserve(args, known_count)?;
     let (threads, pool) = worker_pool(args.threads)?;
 
     let load_start = Instant::now();
@@ -255,8 +304,9 @@ pub(super) fn render_views(
     let cameras = view_cameras(args, &spec, &explicit, &scene, width, height)?;
     let names = match planned.take() {
         Some(names) => names,
-        None => layout.plan(cameras.len(), dir, args.no_clobber)?,
+        None => layout.plan(cameras.len(), dir, args.no_clobber, &others)?,
     };
+    extras.lay_out(args, cameras.len(), (width, height))?;
 
     // Lights stay put in the world from view to view, as multi-view reconstruction expects of
     // its photographs: the file's, or the default rig placed for the automatic camera.
@@ -316,7 +366,8 @@ pub(super) fn render_views(
         let mut totals = RenderStats::default();
         on_view(0, cameras.len());
         for (k, (camera, names)) in cameras.iter().zip(&names).enumerate() {
-            let (frame, stats) = run.render(k, camera, names)?;
+            let (frame, stats, image) = run.render(k, camera, names)?;
+            extras.add(k, camera, &image, args.background)?;
             on_view(k + 1, cameras.len());
             frames.push(frame);
             totals.primary_rays += stats.primary_rays;
@@ -355,6 +406,7 @@ pub(super) fn render_views(
         frames,
     };
     dataset.write(&dir.join(TRANSFORMS_FILE))?;
+    let extra_outputs = extras.finish(args.quiet)?;
     if !args.quiet {
         summary.print(args, run_start.elapsed());
     }
@@ -373,6 +425,7 @@ pub(super) fn render_views(
         outputs.extend(files.into_iter().flatten().map(|name| dir.join(name)));
     }
     outputs.push(dir.join(TRANSFORMS_FILE));
+    outputs.extend(extra_outputs);
     Ok(RenderReport {
         triangles: summary.triangles,
         load: summary.load_time,
@@ -404,7 +457,25 @@ fn view_cameras(
         scene_radius,
     };
     let cameras: Vec<Camera> = match spec {
-        ViewSpec::Orbit(n) => framing.cameras(&orbit_directions(*n, args.orbit_elevation)),
+        ViewSpec::Orbit(n) => {
+            // A turntable starts where the plain render stands (the file's first camera, else
+            // the automatic camera): its direction from the target; a plain orbit in front.
+            let (azimuth, elevation) = if args.turntable.is_some() {
+                let plain = match scene.cameras.first() {
+                    Some(camera) => camera.clone(),
+                    None => auto_camera(&scene.bounds, aspect),
+                };
+                (
+                    azimuth_degrees(plain.position, framing.target),
+                    elevation_degrees(plain.position, framing.target),
+                )
+            } else {
+                (0.0, DEFAULT_ORBIT_ELEVATION_DEGREES)
+            };
+            let azimuth = args.orbit_azimuth.unwrap_or(azimuth);
+            let elevation = args.orbit_elevation.unwrap_or(elevation);
+            framing.cameras(&orbit_directions(*n, elevation, azimuth))
+        }
         ViewSpec::Sphere(n) => framing.cameras(&fibonacci_directions(*n)),
         ViewSpec::Random(n) => framing.cameras(&random_directions(*n, args.seed)),
         ViewSpec::Cameras => {
@@ -459,8 +530,13 @@ struct ViewRun<'a> {
 
 impl ViewRun<'_> {
     /// Renders view `k` and writes its files: image, AOVs, view file. Returns its frame of
-    /// transforms.json and what the render did.
-    fn render(&self, k: usize, camera: &Camera, names: &ViewNames) -> Result<(Frame, RenderStats)> {
+    /// transforms.json, what the render did and the image.
+    fn render(
+        &self,
+        k: usize,
+        camera: &Camera,
+        names: &ViewNames,
+    ) -> Result<(Frame, RenderStats, crate::output::Image)> {
         let (args, dir, (width, height)) = (self.args, self.dir, (self.width, self.height));
         let path_tracing = args.integrator == IntegratorKind::Path;
         let mut record = ViewFile::new(
@@ -553,7 +629,7 @@ impl ViewRun<'_> {
             depth_file_path: names.depth.clone(),
             mask_path: names.mask.clone(),
         };
-        Ok((frame, stats))
+        Ok((frame, stats, image))
     }
 }
 
@@ -633,4 +709,195 @@ fn write_panorama(path: &Path, env: &Environment) -> Result<()> {
         .with_context(|| format!("{}: cannot encode the panorama", path.display()))?;
     crate::output::write_atomic(path, &bytes)?;
     Ok(())
+}
+
+/// The outputs of a run beyond each view's files: the turntable's GIF and the contact sheet,
+/// both reserved before any work (an unwritable path fails first) and filled view by view.
+struct Extras {
+    gif: Option<GifWriter>,
+    sheet: Option<SheetOutput>,
+}
+
+/// A contact sheet being filled, and where it goes.
+struct SheetOutput {
+    file: PendingFile,
+    /// Known once the number of views and their size are.
+    sheet: Option<ContactSheet>,
+}
+
+impl Extras {
+    /// Checks the options of the GIF and the sheet; `count` is the number of views when known
+    /// before loading (all but `cameras`).
+    fn check(args: &RenderArgs, count: Option<usize>) -> Result<()> {
+        if let Some(path) = &args.gif {
+            if !has_extension(path, "gif") {
+                bail!("--gif {}: the file name must end in .gif", path.display());
+            }
+            if let Some(fps) = args.fps {
+                check_fps(fps).map_err(anyhow::Error::msg)?;
+            }
+        }
+        if let Some(path) = &args.contact_sheet {
+            if !has_extension(path, "png") {
+                bail!(
+                    "--contact-sheet {}: the file name must end in .png",
+                    path.display()
+                );
+            }
+            // The layout's own checks (columns, cell width) come before the model loads.
+            if let Some(n) = count {
+                SheetLayout::new(n, args.sheet_columns, args.sheet_cell_width, (1, 1))
+                    .map_err(|e| anyhow::anyhow!("--contact-sheet: {e}"))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The paths of the GIF and the sheet, with their options.
+    fn paths(args: &RenderArgs) -> Vec<(&'static str, PathBuf)> {
+        let gif = args.gif.iter().map(|p| ("--gif", p.clone()));
+        let sheet = args
+            .contact_sheet
+            .iter()
+            .map(|p| ("--contact-sheet", p.clone()));
+        gif.chain(sheet).collect()
+    }
+
+    /// Reserves the files (checked by [`Extras::check`]).
+    fn reserve(args: &RenderArgs, count: Option<usize>) -> Result<Extras> {
+        let gif = match &args.gif {
+            Some(path) => {
+                let delay = frame_delay_centiseconds(count.unwrap_or(1), args.fps);
+                Some(GifWriter::create(path, args.no_clobber, delay)?)
+            }
+            None => None,
+        };
+        let sheet = match &args.contact_sheet {
+            Some(path) => Some(SheetOutput {
+                file: PendingFile::reserve(path, args.no_clobber)?,
+                sheet: None,
+            }),
+            None => None,
+        };
+        Ok(Extras { gif, sheet })
+    }
+
+    /// Lays the sheet out for `count` views of `size` (width, height), refusing a sheet over
+    /// `--max-pixels` before any view is rendered.
+    fn lay_out(&mut self, args: &RenderArgs, count: usize, size: (u32, u32)) -> Result<()> {
+        if let Some(out) = &mut self.sheet {
+            out.sheet = Some(ContactSheet::new(sheet_layout(args, count, size)?));
+        }
+        Ok(())
+    }
+
+    /// Adds view `k` to the GIF and the sheet.
+    fn add(
+        &mut self,
+        k: usize,
+        camera: &Camera,
+        image: &crate::output::Image,
+        background: Option<Vec3>,
+    ) -> Result<()> {
+        if self.gif.is_none() && self.sheet.is_none() {
+            return Ok(());
+        }
+        let rgba =
+            image::RgbaImage::from_raw(image.width, image.height, image.to_srgb8(background))
+                .context("an image of the wrong size (a bug)")?;
+        if let Some(sheet) = self.sheet.as_mut().and_then(|s| s.sheet.as_mut()) {
+            let label = match &camera.name {
+                Some(name) => format!("{k} {name}"),
+                None => k.to_string(),
+            };
+            sheet.place(k, &rgba, &label);
+        }
+        if let Some(gif) = &mut self.gif {
+            gif.add(rgba)?;
+        }
+        Ok(())
+    }
+
+    /// Writes the GIF and the sheet; returns their paths in the order written.
+    fn finish(self, quiet: bool) -> Result<Vec<PathBuf>> {
+        let mut written = Vec::new();
+        if let Some(gif) = self.gif {
+            let (path, frames, time) = (gif.path().to_path_buf(), gif.frames(), gif.encode_time());
+            gif.finish()?;
+            if !quiet {
+                eprintln!(
+                    "{}: {frames} frames, encoded in {:.2} s ({:.1} ms a frame)",
+                    path.display(),
+                    time.as_secs_f64(),
+                    time.as_secs_f64() * 1e3 / frames.max(1) as f64
+                );
+            }
+            written.push(path);
+        }
+        if let Some(SheetOutput { file, sheet }) = self.sheet {
+            let sheet = sheet.context("the contact sheet was never laid out (a bug)")?;
+            written.push(write_sheet(file, &sheet, "views", quiet)?);
+        }
+        Ok(written)
+    }
+}
+
+/// Writes a finished contact sheet (`what` its cells are, for the summary line) and returns
+/// its path.
+pub(super) fn write_sheet(
+    file: PendingFile,
+    sheet: &ContactSheet,
+    what: &str,
+    quiet: bool,
+) -> Result<PathBuf> {
+    let bytes = sheet.to_png().map_err(|source| SaveError::Encode {
+        path: file.path().to_path_buf(),
+        error: source,
+    })?;
+    file.file()
+        .write_all(&bytes)
+        .map_err(|e| file.unwritable(e))?;
+    let path = file.path().to_path_buf();
+    file.commit()?;
+    if !quiet {
+        let l = sheet.layout();
+        eprintln!(
+            "{}: {} {what} in {} columns, {}x{} pixels",
+            path.display(),
+            l.count,
+            l.columns,
+            l.width(),
+            l.height()
+        );
+    }
+    Ok(path)
+}
+
+/// The contact-sheet layout the options ask for, refused over `--max-pixels`.
+pub(super) fn sheet_layout(
+    args: &RenderArgs,
+    count: usize,
+    image_size: (u32, u32),
+) -> Result<SheetLayout> {
+    let layout = SheetLayout::new(count, args.sheet_columns, args.sheet_cell_width, image_size)
+        .map_err(|e| anyhow::anyhow!("--contact-sheet: {e}"))?;
+    if layout.pixels() > args.max_pixels {
+        bail!(
+            "--contact-sheet: {count} cells of {}x{} in {} columns make a {}x{} sheet, over the limit of {} pixels (choose a smaller --sheet-cell-width, or raise --max-pixels)",
+            layout.cell_width,
+            layout.thumb_height,
+            layout.columns,
+            layout.width(),
+            layout.height(),
+            args.max_pixels
+        );
+    }
+    Ok(layout)
+}
+
+/// Whether `path` ends in `.ext` (any case).
+pub(super) fn has_extension(path: &Path, ext: &str) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case(ext))
 }

@@ -24,6 +24,23 @@ pub fn run(args: &[&str], expect_success: bool) -> Output {
     out
 }
 
+/// The arguments of `meshtracer COMMAND INPUT -o OUT` at `width` x `height` and `spp`
+/// samples per pixel, quietly, followed by `extra`: the small, fast run most tests want.
+pub fn small_run<'a>(
+    command: &'a str,
+    input: &'a str,
+    out: &'a str,
+    (width, height): (&'a str, &'a str),
+    spp: &'a str,
+    extra: &[&'a str],
+) -> Vec<&'a str> {
+    let mut args = vec![
+        command, input, "-o", out, "--width", width, "--height", height, "--spp", spp, "-q",
+    ];
+    args.extend_from_slice(extra);
+    args
+}
+
 /// Standard error as text.
 pub fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
