@@ -244,10 +244,10 @@ mod tests {
         assert!(ExtensionUse::new("KHR_lights_punctual", false)
             .warning()
             .is_none());
-        let w = ExtensionUse::new("KHR_materials_sheen", false)
+        let w = ExtensionUse::new("KHR_materials_anisotropy", false)
             .warning()
             .unwrap();
-        assert!(w.contains("KHR_materials_sheen is ignored"), "{w}");
+        assert!(w.contains("KHR_materials_anisotropy is ignored"), "{w}");
         assert_eq!(
             ExtensionUse::new("EXT_made_up", true).status,
             ExtensionStatus::Ignored
