@@ -70,11 +70,12 @@ impl Phases {
 pub use crate::measure::peak_memory_bytes;
 
 /// Decodes the textures `render` (one view or many) draws, within `--max-texture-memory`,
-/// printing the decoder's warnings unless `--quiet`.
+/// printing the decoder's warnings unless `--quiet`. Returns the textures and every warning
+/// of the load and the decoding, for a caller that records them (batch).
 pub(crate) fn load_textures(
     args: &RenderArgs,
     scene: &crate::scene::Scene,
-) -> Result<crate::texture::TextureSet> {
+) -> Result<(crate::texture::TextureSet, Vec<String>)> {
     let mut warnings = Vec::new();
     let textures = crate::texture::TextureSet::load(
         scene,
@@ -87,7 +88,9 @@ pub(crate) fn load_textures(
             eprintln!("warning: {}: {w}", args.model.display());
         }
     }
-    Ok(textures)
+    let mut all = scene.warnings.clone();
+    all.extend(warnings);
+    Ok((textures, all))
 }
 
 /// How `render` (one view or many) loads its model: the shared load options, `--strict` and
@@ -434,6 +437,8 @@ pub(crate) struct RenderReport {
     pub render: Duration,
     /// Every file written, in the order written.
     pub outputs: Vec<std::path::PathBuf>,
+    /// The warnings of the load and the texture decoding (printed unless `--quiet`).
+    pub warnings: Vec<String>,
 }
 
 /// The process's Ctrl-C flag, shared by every render of the process (a batch runs many):
@@ -638,7 +643,7 @@ fn render_model(
         environment_visible: args.env_visible,
     };
     let texture_start = Instant::now();
-    let textures = load_textures(args, &scene)?;
+    let (textures, warnings) = load_textures(args, &scene)?;
     phases.mark("textures", texture_start);
     let texture_time = texture_start.elapsed();
 
@@ -823,6 +828,7 @@ fn render_model(
         bvh: accel.build_time(),
         render: stats.time,
         outputs: outputs.into_iter().flatten().cloned().collect(),
+        warnings,
     })
 }
 

@@ -669,6 +669,10 @@ pub struct JobRecord {
     pub seconds: Timings,
     /// Every file written, in the order written.
     pub outputs: Vec<OutputRecord>,
+    /// What the load and the texture decoding warned about (a texture drawn without, an
+    /// extension approximated), as `render` prints them; absent in records of older runs.
+    #[serde(default)]
+    pub warnings: Vec<String>,
     /// SHA-256 of what the job was asked to do (meshtracer's version, the options, the model
     /// file's hash); `--resume` redoes a job whose fingerprint changed.
     pub fingerprint: Option<String>,
@@ -688,6 +692,7 @@ impl JobRecord {
                 ..Timings::default()
             },
             outputs: Vec::new(),
+            warnings: Vec::new(),
             fingerprint: None,
         }
     }
@@ -980,6 +985,7 @@ not json
             triangles: None,
             seconds: Timings::default(),
             outputs: Vec::new(),
+            warnings: Vec::new(),
             fingerprint: None,
         };
         let a = vec![

@@ -279,6 +279,43 @@ fn a_folder_batch_records_every_model_and_isolates_the_broken_one() {
     }
 }
 
+/// A model whose texture file is missing renders without it (a job that succeeds), and its
+/// record says why the picture lacks the texture: the warnings `render` prints, naming the
+/// image and its file, are in results.jsonl. A model without problems records none.
+#[test]
+fn a_job_records_the_warnings_of_its_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let models = dir.path().join("models");
+    std::fs::create_dir_all(&models).unwrap();
+    let (json, bin) = common::quads_gltf(
+        &[(common::square(1.0, 0.0), 0)],
+        serde_json::json!({
+            "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+            "textures": [{"source": 0}],
+            "images": [{"uri": "missing.png"}]
+        }),
+    );
+    common::write_gltf(&models, "untextured.gltf", json, &bin);
+    std::fs::copy(
+        root().join("assets/cornell-box.gltf"),
+        models.join("cornell-box.gltf"),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    batch(&models, &out, &[], &[], true);
+    let jobs = by_id(&records(&out.join("results.jsonl")));
+    let untextured = &jobs["untextured"];
+    assert_eq!(untextured["status"], "ok", "{untextured}");
+    let warnings = untextured["warnings"].as_array().unwrap();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("missing.png")),
+        "{untextured}"
+    );
+    assert_eq!(jobs["cornell-box"]["warnings"], serde_json::json!([]));
+}
+
 /// A JSONL manifest with a malformed line, ids and output names that leave the output folder
 /// (`../escape`, absolute) and a misspelt option: those jobs fail with a message, the others
 /// render (one with views), and nothing is written outside the output folder.

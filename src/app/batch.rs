@@ -366,6 +366,7 @@ fn finished(entry: &Entry, dir: &Path, report: &RenderReport) -> Result<JobRecor
             total: 0.0,
         },
         outputs,
+        warnings: report.warnings.clone(),
         fingerprint: None,
     })
 }

@@ -329,7 +329,7 @@ pub(super) fn render_views(
     }
     .map(Arc::new);
     super::check_lighting(args, &lights, environment.as_deref())?;
-    let textures = super::load_textures(args, &scene)?;
+    let (textures, warnings) = super::load_textures(args, &scene)?;
     if let (Some(path), Some(env)) = (&args.env_out, &environment) {
         write_panorama(path, env)?;
     }
@@ -432,6 +432,7 @@ pub(super) fn render_views(
         bvh: summary.bvh_time,
         render: summary.totals.time,
         outputs,
+        warnings,
     })
 }
 
