@@ -399,28 +399,41 @@ fn glass_scene(
     quads: &[([[f32; 3]; 4], usize)],
     mut materials: Vec<serde_json::Value>,
     roughness: f32,
+    images: serde_json::Value,
 ) -> PathBuf {
     let travel = glam::Vec3::new(0.5, 0.0, -1.0).normalize();
     let light = glam::Quat::from_rotation_arc(glam::Vec3::NEG_Z, travel);
+    // With images, the first is the glass's transmission texture (nearest, not repeated).
+    let mut transmission = json!({"transmissionFactor": 1.0});
+    let mut extra = json!({});
+    if images.as_array().is_some_and(|a| !a.is_empty()) {
+        transmission["transmissionTexture"] = json!({"index": 0});
+        extra = json!({
+            "images": images,
+            "samplers": [{"magFilter": 9728, "minFilter": 9728, "wrapS": 33071, "wrapT": 33071}],
+            "textures": [{"source": 0, "sampler": 0}]
+        });
+    }
     materials.push(
         json!({"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
             "metallicFactor": 0.0, "roughnessFactor": roughness},
          "doubleSided": true,
-         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}}}),
+         "extensions": {"KHR_materials_transmission": transmission}}),
     );
-    let (json, bin) = common::quads_gltf(
-        quads,
-        json!({
-            "materials": materials,
-            "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_transmission"],
-            "cameras": [{"type": "orthographic", "orthographic": {"xmag": 3.0, "ymag": 2.0, "znear": 0.1, "zfar": 20.0}}],
-            "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 3.0}]}},
-            "nodes": [
-                {"camera": 0, "translation": [0.0, 0.0, 5.0]},
-                {"rotation": light.to_array(), "extensions": {"KHR_lights_punctual": {"light": 0}}}
-            ]
-        }),
-    );
+    let mut top = json!({
+        "materials": materials,
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_transmission"],
+        "cameras": [{"type": "orthographic", "orthographic": {"xmag": 3.0, "ymag": 2.0, "znear": 0.1, "zfar": 20.0}}],
+        "extensions": {"KHR_lights_punctual": {"lights": [{"type": "directional", "intensity": 3.0}]}},
+        "nodes": [
+            {"camera": 0, "translation": [0.0, 0.0, 5.0]},
+            {"rotation": light.to_array(), "extensions": {"KHR_lights_punctual": {"light": 0}}}
+        ]
+    });
+    for (k, v) in extra.as_object().unwrap() {
+        top[k] = v.clone();
+    }
+    let (json, bin) = common::quads_gltf(quads, top);
     write_gltf(dir, &format!("glass-{roughness}.gltf"), json, &bin)
 }
 
@@ -435,11 +448,22 @@ fn clear_glass_shows_what_is_behind_it() {
     let red = json!({"pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.05, 0.05, 1.0],
         "metallicFactor": 0.0, "roughnessFactor": 1.0}});
     let quads = [(strip(-3.0, 3.0, 0.0), 0), (strip(-2.0, 0.0, 1.0), 1)];
-    let model = glass_scene(dir.path(), &quads, vec![red], 0.0);
-    for integrator in ["direct", "path"] {
-        let out = dir.path().join(format!("{integrator}.exr"));
+    let plain = glass_scene(dir.path(), &quads, vec![red.clone()], 0.0, json!([]));
+    // The same pane with a transmission texture: its left half (u < 0.5, x < -1) opaque.
+    let half = image::RgbaImage::from_fn(2, 1, |x, _| image::Rgba([255 * x as u8, 0, 0, 255]));
+    let textured_dir = dir.path().join("textured");
+    std::fs::create_dir_all(&textured_dir).unwrap();
+    let images = json!([{"uri": common::png_data_uri(&half)}]);
+    let textured = glass_scene(&textured_dir, &quads, vec![red], 0.0, images);
+    for (model, integrator) in [
+        (&plain, "direct"),
+        (&plain, "path"),
+        (&textured, "direct"),
+        (&textured, "path"),
+    ] {
+        let out = model.with_extension(format!("{integrator}.exr"));
         render(
-            &model,
+            model,
             &out,
             &[
                 "--quiet",
@@ -470,7 +494,22 @@ fn clear_glass_shows_what_is_behind_it() {
             }
             sum / n
         };
-        let (behind, open) = (mean(-1.2, -0.3), mean(1.5, 2.5));
+        let open = mean(1.5, 2.5);
+        if model == &textured {
+            // KHR_materials_transmission's texture: opaque where red is 0, clear where 1.
+            let (opaque, clear) = (mean(-1.8, -1.2), mean(-0.8, -0.2));
+            assert!(
+                opaque.y > 0.5 * opaque.x,
+                "{integrator}: the opaque half shows the floor: {opaque}"
+            );
+            let ratio = clear.x / open.x;
+            assert!(
+                (0.85..=1.0).contains(&ratio) && clear.y < 0.2 * clear.x,
+                "{integrator}: the clear half {clear} vs the open floor {open}"
+            );
+            continue;
+        }
+        let behind = mean(-1.2, -0.3);
         let ratio = behind.x / open.x;
         assert!(
             (0.85..=1.0).contains(&ratio),
@@ -504,7 +543,13 @@ fn frosted_glass_blurs_what_is_behind_it() {
             "metallicFactor": 0.0, "roughnessFactor": 1.0}})
     };
     let contrast = |roughness: f32| {
-        let model = glass_scene(dir.path(), &quads, vec![grey(0.9), grey(0.02)], roughness);
+        let model = glass_scene(
+            dir.path(),
+            &quads,
+            vec![grey(0.9), grey(0.02)],
+            roughness,
+            json!([]),
+        );
         let out = dir.path().join(format!("frosted-{roughness}.exr"));
         let args = "--quiet --width 240 --height 160 --spp 16 --integrator path --bounces 2";
         render(&model, &out, &args.split(' ').collect::<Vec<_>>());

@@ -57,7 +57,7 @@ impl Integrator for Direct {
             // as see-through: the surface shades with weight 1 - transmission and the rest of
             // the camera ray goes on straight, tinted by the base colour (no refraction, no
             // Fresnel); its shadows let thin sheets through tinted (see shadow_transmittance).
-            let transmission = surface.source.transmission * (1.0 - surface.material.metallic);
+            let transmission = surface.transmission * (1.0 - surface.material.metallic);
             if transmission > 0.0 {
                 alpha *= 1.0 - transmission;
             }

@@ -136,7 +136,7 @@ impl Integrator for PathTracer {
             let material = surface.source;
             let bsdf = Bsdf::new(surface.material, surface.normal, to_eye).with_transmission(
                 to_eye,
-                material.transmission,
+                surface.transmission,
                 material.ior,
                 material.thin_walled,
                 hit.front,

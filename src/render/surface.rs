@@ -39,6 +39,8 @@ pub struct Surface<'m> {
     pub occlusion: f32,
     /// Coverage (1 for OPAQUE materials).
     pub alpha: f32,
+    /// `KHR_materials_transmission` at the point: factor × texture red.
+    pub transmission: f32,
     /// The material hit.
     pub source: &'m Material,
 }
@@ -318,6 +320,10 @@ impl Prepared {
                 });
             }
         }
+        let mut transmission = material.transmission;
+        if let Some(t) = sample(&material.transmission_texture, false) {
+            transmission *= t.x;
+        }
         Surface {
             spawn,
             lift,
@@ -332,6 +338,7 @@ impl Prepared {
             } else {
                 base.w.clamp(0.0, 1.0)
             },
+            transmission: transmission.clamp(0.0, 1.0),
             source: material,
         }
     }

@@ -123,7 +123,7 @@ pub const EXTENSIONS: &[KnownExtension] = &[
         "KHR_materials_transmission",
         Approximated,
         false,
-        "factor only (no texture); smooth or rough (GGX) refraction (path); see-through (direct)",
+        "smooth or rough (GGX) refraction (path), see-through (direct); shadows use the factor",
     ),
     ext(
         "KHR_materials_volume",

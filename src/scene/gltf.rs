@@ -1488,11 +1488,14 @@ fn material(m: &gltf::Material) -> Material {
         alpha_cutoff: m.alpha_cutoff().unwrap_or(0.5),
         double_sided: m.double_sided(),
         specular: None,
-        // KHR_materials_transmission, _ior, _volume (their defaults when absent). Factors
-        // only: the transmission and thickness textures are not read.
+        // KHR_materials_transmission, _ior, _volume (their defaults when absent). The
+        // thickness texture is not read (only whether the volume has a thickness matters).
         transmission: m
             .transmission()
             .map_or(0.0, |t| t.transmission_factor().clamp(0.0, 1.0)),
+        transmission_texture: m
+            .transmission()
+            .and_then(|t| texture_ref(t.transmission_texture())),
         ior: m
             .ior()
             .filter(|i| i.is_finite() && *i >= 1.0)

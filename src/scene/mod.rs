@@ -279,6 +279,8 @@ pub struct Material {
     /// `KHR_materials_transmission` factor: the share of the dielectric base that transmits
     /// light instead of scattering it diffusely (0 = opaque; OBJ `illum` 4, 6, 7: 1).
     pub transmission: f32,
+    /// `KHR_materials_transmission`'s `transmissionTexture` (red channel), times the factor.
+    pub transmission_texture: Option<TextureRef>,
     /// Index of refraction (`KHR_materials_ior`, OBJ `Ni`; 1.5 when absent).
     pub ior: f32,
     /// True without `KHR_materials_volume` (or with thickness 0): the surface is an
@@ -396,6 +398,7 @@ impl Material {
             self.occlusion_texture,
             self.emissive_texture,
         ];
+        refs.push(self.transmission_texture);
         if let Some(l) = &self.specular_layer {
             refs.extend([l.texture, l.color_texture]);
         }
@@ -420,6 +423,7 @@ impl Material {
             &mut self.occlusion_texture,
             &mut self.emissive_texture,
         ];
+        slots.push(&mut self.transmission_texture);
         if let Some(l) = &mut self.specular_layer {
             slots.extend([&mut l.texture, &mut l.color_texture]);
         }
@@ -539,6 +543,7 @@ impl Default for Material {
             double_sided: false,
             specular: None,
             transmission: 0.0,
+            transmission_texture: None,
             ior: 1.5,
             thin_walled: true,
             attenuation_color: Vec3::ONE,
