@@ -17,6 +17,21 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
+/// `println!` for the commands' results on standard output. A reader that stops early
+/// (`meshtracer compare A B | head -3`) closes the pipe: the command then ends quietly with
+/// success, as other command-line tools do, instead of panicking on the failed write.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = writeln!(std::io::stdout(), $($arg)*) {
+            if e.kind() == std::io::ErrorKind::BrokenPipe {
+                std::process::exit(0);
+            }
+            return Err(anyhow::Error::from(e).context("cannot write to standard output"));
+        }
+    }};
+}
+
 mod batch;
 mod multi_view;
 mod tiles;
@@ -247,49 +262,49 @@ fn info(args: &InfoArgs) -> Result<()> {
     let load_time = start.elapsed();
     let json = info_json(&scene);
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&json)?);
+        out!("{}", serde_json::to_string_pretty(&json)?);
         return Ok(());
     }
     let b = &scene.bounds;
-    println!("file        {}", scene.source.display());
-    println!("format      {}", json["format"].as_str().unwrap_or("?"));
+    out!("file        {}", scene.source.display());
+    out!("format      {}", json["format"].as_str().unwrap_or("?"));
     if scene.file_triangles == scene.soup.len() {
-        println!("triangles   {}", scene.soup.len());
+        out!("triangles   {}", scene.soup.len());
     } else {
-        println!(
+        out!(
             "triangles   {} ({} traced, {} degenerate or non-finite dropped)",
             scene.file_triangles,
             scene.soup.len(),
             scene.file_triangles - scene.soup.len()
         );
     }
-    println!(
+    out!(
         "meshes      {} ({} instances, {} triangle primitives flattened)",
         scene.mesh_count,
         scene.instances.len(),
         scene.primitive_count
     );
-    println!("materials   {}", scene.materials.len());
-    println!(
+    out!("materials   {}", scene.materials.len());
+    out!(
         "textures    {} ({} images)",
         scene.textures.len(),
         scene.images.len()
     );
     if !scene.variants.is_empty() {
         let names: Vec<String> = scene.variants.iter().map(|v| format!("'{v}'")).collect();
-        println!(
+        out!(
             "variants    {} (--variant NAME): {}",
             scene.variants.len(),
             names.join(", ")
         );
     }
     if !scene.animations.is_empty() {
-        println!(
+        out!(
             "animations  {} (--animation NAME|INDEX, --time SECONDS)",
             scene.animations.len()
         );
         for a in &scene.animations {
-            println!(
+            out!(
                 "  [{}] {:.3} s, {} channels{}",
                 a.index,
                 a.duration,
@@ -301,9 +316,9 @@ fn info(args: &InfoArgs) -> Result<()> {
         }
     }
     if let Some(pose) = &scene.pose {
-        println!("pose        {pose}");
+        out!("pose        {pose}");
     }
-    println!("cameras     {}", scene.cameras.len());
+    out!("cameras     {}", scene.cameras.len());
     for (i, c) in scene.cameras.iter().enumerate() {
         let projection = match c.projection {
             Projection::Perspective {
@@ -318,7 +333,7 @@ fn info(args: &InfoArgs) -> Result<()> {
                 format!("orthographic xmag {xmag} ymag {ymag}")
             }
         };
-        println!(
+        out!(
             "  [{i}] {projection} at {:.3?} looking {:.3?}{}",
             c.position.to_array(),
             c.forward.to_array(),
@@ -327,7 +342,7 @@ fn info(args: &InfoArgs) -> Result<()> {
                 .map_or(String::new(), |n| format!(" '{n}'"))
         );
     }
-    println!("lights      {}", scene.lights.len());
+    out!("lights      {}", scene.lights.len());
     for (i, l) in scene.lights.iter().enumerate() {
         let (kind, unit) = match l.kind {
             LightKind::Point => ("point".to_string(), "cd"),
@@ -344,21 +359,21 @@ fn info(args: &InfoArgs) -> Result<()> {
             LightKind::Directional => format!("direction {:.3?}", l.direction.to_array()),
             _ => format!("at {:.3?}", l.position.to_array()),
         };
-        println!(
+        out!(
             "  [{i}] {kind} colour {:.3?} intensity {} {unit} {place}",
             l.color.to_array(),
             l.intensity
         );
     }
-    println!(
+    out!(
         "bounds      min {:.4?} max {:.4?}",
         b.min.to_array(),
         b.max.to_array()
     );
     for w in &scene.warnings {
-        println!("warning     {w}");
+        out!("warning     {w}");
     }
-    println!(
+    out!(
         "loaded in   {:.1} ms ({:.1} MB of triangle data)",
         load_time.as_secs_f64() * 1e3,
         scene.soup.heap_bytes() as f64 / 1e6
@@ -967,7 +982,7 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
         rows.push(row);
     }
     let table = markdown_table(&rows);
-    println!("{table}");
+    out!("{table}");
     let partial = (rows.len() < jobs.len()).then(|| {
         format!(
             "stopped early: {} of {} measurements",
@@ -985,7 +1000,7 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
         cpu_name(),
         partial.as_ref().map_or(String::new(), |p| format!("; {p}"))
     );
-    println!("{settings}");
+    out!("{settings}");
     if let Some(path) = &args.report {
         let report = format!("# meshtracer bench\n\n{settings}\n\n{table}");
         crate::output::write_atomic(path, report.as_bytes())?;
@@ -1068,21 +1083,21 @@ fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
         crate::output::write_atomic(path, &png)?;
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&metrics)?);
+        out!("{}", serde_json::to_string_pretty(&metrics)?);
     } else {
-        println!(
+        out!(
             "{} vs {} ({}x{})",
             args.a.display(),
             args.b.display(),
             metrics.width,
             metrics.height
         );
-        println!("PSNR          {:.2} dB", metrics.psnr);
-        println!("SSIM          {:.4}", metrics.ssim);
-        println!("FLIP (mean)   {:.4}", metrics.flip);
-        println!("RMSE          {:.4}", metrics.rmse);
-        println!("max abs error {:.4}", metrics.max_abs);
-        println!("coverage IoU  {:.4}", metrics.coverage_iou);
+        out!("PSNR          {:.2} dB", metrics.psnr);
+        out!("SSIM          {:.4}", metrics.ssim);
+        out!("FLIP (mean)   {:.4}", metrics.flip);
+        out!("RMSE          {:.4}", metrics.rmse);
+        out!("max abs error {:.4}", metrics.max_abs);
+        out!("coverage IoU  {:.4}", metrics.coverage_iou);
     }
     let value = |m: &str| match m {
         "psnr" => metrics.psnr,

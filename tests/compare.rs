@@ -132,3 +132,28 @@ fn a_render_compared_with_itself_across_accelerators_is_perfect() {
         true,
     );
 }
+
+/// A reader that stops early (`meshtracer info MODEL | head -1`) closes the pipe before the
+/// command has written: the command ends quietly with success, as other tools do, instead of
+/// panicking on the failed write (it did: "failed printing to stdout: Broken pipe").
+#[test]
+fn a_closed_pipe_ends_a_command_quietly() {
+    let model = common::root().join("assets/cornell-box.gltf");
+    for args in [
+        vec!["info", common::s(&model)],
+        vec!["info", common::s(&model), "--json"],
+    ] {
+        let mut child = common::bin()
+            .args(&args)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Close the reading end at once: the command's first write meets a closed pipe.
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{args:?}: {}: {stderr}", out.status);
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+    }
+}
