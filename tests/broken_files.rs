@@ -596,6 +596,29 @@ fn cases() -> Vec<Case> {
             },
             |k| matches!(k, K::Image { problem, .. } if problem.contains("100000x100000")),
         ),
+        edited(
+            "KTX2 image declaring 60000x60000 pixels",
+            |j, _| {
+                let mut ktx2 = vec![0xAB, b'K', b'T', b'X', b' ', b'2', b'0', 0xBB, b'\r', b'\n'];
+                ktx2.extend([0x1A, b'\n', 0, 0, 0, 0, 0, 0, 0, 0]);
+                ktx2.extend(60_000u32.to_le_bytes());
+                ktx2.extend(60_000u32.to_le_bytes());
+                ktx2.extend([0; 64]);
+                let data = base64::engine::general_purpose::STANDARD.encode(ktx2);
+                with_image(j, &format!("data:image/ktx2;base64,{data}"));
+            },
+            |k| matches!(k, K::Image { problem, .. } if problem.contains("60000x60000")),
+        ),
+        edited(
+            "clearcoat texture index past the textures",
+            |j, _| {
+                let png = base64::engine::general_purpose::STANDARD.encode(png_1x1());
+                with_image(j, &format!("data:image/png;base64,{png}"));
+                j["materials"][0]["extensions"] = json!({"KHR_materials_clearcoat": {
+                    "clearcoatFactor": 1.0, "clearcoatTexture": {"index": 7}}});
+            },
+            |k| matches!(k, K::BadReference { index: 7, .. }),
+        ),
         // Found by fuzzing: the gltf crate unwrapped these.
         edited(
             "image with a bufferView but no mimeType",
@@ -831,6 +854,7 @@ const TEXTURE_CASES: &[&str] = &[
     "missing image file",
     "image that is not an image",
     "image declaring 100000x100000 pixels",
+    "KTX2 image declaring 60000x60000 pixels",
     "OBJ with a missing texture",
 ];
 
