@@ -9,10 +9,10 @@
 //! its passes spread over threads:
 //!
 //! 1. **Costs.** The paper's dynamic program runs bottom-up; the two subtrees of a node are
-//!    independent, so near the root they are costed in parallel (`rayon::join`). Each node's
-//!    seven decisions are stored as a cost (f32) and a choice packed in a byte, written with
-//!    relaxed atomics (plain moves on x86-64 and AArch64); `join` orders a child's writes
-//!    before its parent reads them. The costs are freed once the pass is done.
+//!    independent, so near the root they are costed in parallel (`rayon::join`). A subtree's
+//!    seven costs go up the recursion as its return value; each node's seven choices are
+//!    packed a byte each and written with relaxed atomics (plain moves on x86-64 and AArch64)
+//!    for the later passes.
 //! 2. **Layout.** obvhs writes depth first: a node's internal children side by side, then each
 //!    child's subtree in turn, and likewise for primitive indices. So every subtree owns one
 //!    contiguous range of nodes and one of primitives. A pass counts the nodes under each
@@ -21,8 +21,7 @@
 //!
 //! Measured on 1M random boxes (PLOC, medium preset), 2 threads: obvhs 820 ms, this 465 ms;
 //! on one thread, about 5% slower than obvhs (the counting pass is extra work). The decision
-//! tables take 35 bytes a binary node instead of 56, and the 28 of costs are freed before
-//! the wide nodes are allocated.
+//! tables take 7 bytes a binary node instead of obvhs's 56.
 
 use glam::Vec3A;
 use obvhs::bvh2::Bvh2;
@@ -75,6 +74,7 @@ impl Decision {
         kind | self.left.min(7) << 2 | self.right.min(7) << 5
     }
 
+    #[cfg(test)]
     fn from_parts(cost: f32, choice: u8) -> Self {
         let (kind, left, right) = unpack_choice(choice);
         Self {
@@ -100,8 +100,6 @@ fn unpack_choice(choice: u8) -> (Kind, u8, u8) {
 struct Converter<'a> {
     bvh2: &'a Bvh2,
     max_prims_per_leaf: u32,
-    /// Seven [`Decision`] costs per binary node (f32 bits), needed by the cost pass only.
-    costs: Vec<AtomicU32>,
     /// Seven packed [`Decision::choice`]s per binary node: all the later passes read, at a
     /// byte a decision, so that they stay in cache.
     choices: Vec<AtomicU8>,
@@ -127,16 +125,14 @@ pub(super) fn convert(bvh2: &Bvh2, max_prims_per_leaf: u32) -> Option<CwBvh> {
         return None;
     }
     let n = bvh2.nodes.len();
-    let mut converter = Converter {
+    let converter = Converter {
         bvh2,
         max_prims_per_leaf: max_prims_per_leaf.clamp(1, 3),
-        costs: (0..n * 7).map(|_| AtomicU32::new(0)).collect(),
         choices: (0..n * 7).map(|_| AtomicU8::new(0)).collect(),
         prims: (0..n).map(|_| AtomicU32::new(0)).collect(),
         nodes_below: (0..n).map(|_| AtomicU32::new(0)).collect(),
     };
     converter.cost(0, 0);
-    converter.costs = Vec::new();
     let below = converter.count_nodes(0);
     let prim_total = converter.prims[0].load(Relaxed) as usize;
     let mut nodes = vec![CwBvhNode::default(); 1 + below as usize];
@@ -153,28 +149,19 @@ pub(super) fn convert(bvh2: &Bvh2, max_prims_per_leaf: u32) -> Option<CwBvh> {
 }
 
 impl Converter<'_> {
-    fn decision(&self, node: usize, slots: usize) -> Decision {
-        let i = node * 7 + slots;
-        Decision::from_parts(
-            f32::from_bits(self.costs[i].load(Relaxed)),
-            self.choices[i].load(Relaxed),
-        )
+    fn set_choice(&self, node: usize, slots: usize, d: Decision) {
+        self.choices[node * 7 + slots].store(d.choice(), Relaxed);
     }
 
-    fn set_decision(&self, node: usize, slots: usize, d: Decision) {
-        let i = node * 7 + slots;
-        self.costs[i].store(d.cost.to_bits(), Relaxed);
-        self.choices[i].store(d.choice(), Relaxed);
-    }
-
-    /// The kind and shares of a decision, once the costs are gone.
+    /// The kind and shares of a decision.
     fn choice(&self, node: usize, slots: usize) -> (Kind, u8, u8) {
         unpack_choice(self.choices[node * 7 + slots].load(Relaxed))
     }
 
-    /// Fills the cost table for the subtree at `index`, `depth` levels below the root, and
-    /// returns its primitive count.
-    fn cost(&self, index: usize, depth: u32) -> u32 {
+    /// Fills the choice table for the subtree at `index`, `depth` levels below the root, and
+    /// returns its seven costs (for one to seven wide slots) and its primitive count. The
+    /// costs go up the recursion instead of into a table: a parent reads each child's once.
+    fn cost(&self, index: usize, depth: u32) -> ([f32; 7], u32) {
         let node = &self.bvh2.nodes[index];
         let half_area = node.aabb().half_area();
         if node.is_leaf() {
@@ -185,20 +172,20 @@ impl Converter<'_> {
                 right: 0,
             };
             for i in 0..7 {
-                self.set_decision(index, i, leaf);
+                self.set_choice(index, i, leaf);
             }
             self.prims[index].store(node.prim_count, Relaxed);
-            return node.prim_count;
+            return ([leaf.cost; 7], node.prim_count);
         }
         let (a, b) = (node.first_index as usize, node.first_index as usize + 1);
         // The subtree sizes are not known yet (this pass counts them), so the halves are
         // forked at the top levels only, where they are big.
-        let count = if depth < FORK_DEPTH {
-            let (x, y) = rayon::join(|| self.cost(a, depth + 1), || self.cost(b, depth + 1));
-            x + y
+        let ((ca, na), (cb, nb)) = if depth < FORK_DEPTH {
+            rayon::join(|| self.cost(a, depth + 1), || self.cost(b, depth + 1))
         } else {
-            self.cost(a, depth + 1) + self.cost(b, depth + 1)
+            (self.cost(a, depth + 1), self.cost(b, depth + 1))
         };
+        let count = na + nb;
         self.prims[index].store(count, Relaxed);
 
         // One slot (i = 1 in the paper): a leaf, or an internal node whose eight slots are
@@ -211,7 +198,7 @@ impl Converter<'_> {
         let mut distribute = f32::INFINITY;
         let (mut left, mut right) = (u8::MAX, u8::MAX);
         for k in 0..7 {
-            let c = self.decision(a, k).cost + self.decision(b, 6 - k).cost;
+            let c = ca[k] + cb[6 - k];
             if c < distribute {
                 distribute = c;
                 left = k as u8;
@@ -230,14 +217,16 @@ impl Converter<'_> {
             left,
             right,
         };
-        self.set_decision(index, 0, previous);
+        let mut costs = [0.0; 7];
+        costs[0] = cost;
+        self.set_choice(index, 0, previous);
 
         // i + 1 slots (i = 2..7 in the paper): as with i slots, or distributed over both.
         for i in 1..7 {
             let mut best = previous.cost;
             let (mut left, mut right) = (u8::MAX, u8::MAX);
             for k in 0..i {
-                let c = self.decision(a, k).cost + self.decision(b, i - k - 1).cost;
+                let c = ca[k] + cb[i - k - 1];
                 if c < best {
                     best = c;
                     left = k as u8;
@@ -254,10 +243,11 @@ impl Converter<'_> {
             } else {
                 previous
             };
-            self.set_decision(index, i, d);
+            self.set_choice(index, i, d);
+            costs[i] = d.cost;
             previous = d;
         }
-        count
+        (costs, count)
     }
 
     /// The wide children of binary node `index` taking `slots + 1` wide slots (obvhs
@@ -309,11 +299,13 @@ impl Converter<'_> {
         let mut children = [INVALID; BRANCHING];
         let mut count = 0;
         self.children(index, 0, &mut children, &mut count);
-        let internal: Vec<u32> = children[..count]
-            .iter()
-            .copied()
-            .filter(|&c| self.is_internal(c))
-            .collect();
+        let mut internal = [INVALID; BRANCHING];
+        let mut internal_count = 0;
+        for &c in children[..count].iter().filter(|&&c| self.is_internal(c)) {
+            internal[internal_count] = c;
+            internal_count += 1;
+        }
+        let internal = &internal[..internal_count];
         let big = self.prims[index].load(Relaxed) >= PARALLEL_GRAIN;
         let below: u32 = if big {
             internal
@@ -453,30 +445,30 @@ impl Converter<'_> {
         let (_, mut rest_prims) = prims.split_at_mut(prim_count);
         let mut node_at = below_base + internal_count as u32;
         let mut prim_at = prims_base + prim_count as u32;
-        let mut jobs = Vec::with_capacity(internal_count);
-        for (slot, &child) in slots.iter_mut().zip(&internal[..internal_count]) {
+        let mut internal = slots.iter_mut().zip(&internal[..internal_count]);
+        let jobs = std::iter::from_fn(move || {
+            let (slot, &child) = internal.next()?;
             let nodes = self.nodes_below[child as usize].load(Relaxed) as usize;
             let count = self.prims[child as usize].load(Relaxed) as usize;
             let (mine, more) = std::mem::take(&mut rest_nodes).split_at_mut(nodes);
             let (my_prims, more_prims) = std::mem::take(&mut rest_prims).split_at_mut(count);
-            jobs.push((child, slot, mine, node_at, my_prims, prim_at));
+            let job = (child as usize, slot, mine, node_at, my_prims, prim_at);
             node_at += nodes as u32;
             prim_at += count as u32;
             rest_nodes = more;
             rest_prims = more_prims;
-        }
-        let run = |(child, slot, mine, base, my_prims, pbase): (
-            u32,
-            &mut CwBvhNode,
-            &mut [CwBvhNode],
-            u32,
-            &mut [u32],
-            u32,
-        )| { self.encode(child as usize, slot, mine, base, my_prims, pbase) };
+            Some(job)
+        });
         if self.prims[index].load(Relaxed) >= PARALLEL_GRAIN {
-            jobs.into_par_iter().for_each(run);
+            rayon::scope(|scope| {
+                for (child, slot, mine, base, my_prims, pbase) in jobs {
+                    scope.spawn(move |_| self.encode(child, slot, mine, base, my_prims, pbase));
+                }
+            });
         } else {
-            jobs.into_iter().for_each(run);
+            for (child, slot, mine, base, my_prims, pbase) in jobs {
+                self.encode(child, slot, mine, base, my_prims, pbase);
+            }
         }
     }
 }
