@@ -92,6 +92,11 @@ pub struct Hit {
     pub front: bool,
 }
 
+/// [`Accel`] flag: the triangle is single-sided (invisible from behind).
+const SINGLE_SIDED: u8 = 1;
+/// [`Accel`] flag: the triangle needs the caller's alpha test (MASK and BLEND materials).
+const ALPHA_TESTED: u8 = 2;
+
 /// Ray queries over a triangle soup.
 pub struct Accel {
     kind: AccelKind,
@@ -99,10 +104,8 @@ pub struct Accel {
     triangles: Vec<PreparedTriangle>,
     /// Soup index of each entry of `triangles`.
     ids: Vec<u32>,
-    /// Whether each entry of `triangles` is single-sided (invisible from behind).
-    single_sided: Vec<bool>,
-    /// Whether each entry needs the caller's alpha test (MASK and BLEND materials).
-    alpha_tested: Vec<bool>,
+    /// Per entry of `triangles`: [`SINGLE_SIDED`] and [`ALPHA_TESTED`] bits.
+    flags: Vec<u8>,
     bvh: Option<obvhs::cwbvh::CwBvh>,
     /// How long each step of the build took.
     steps: Steps,
@@ -120,45 +123,50 @@ impl Accel {
         preset: BvhPreset,
     ) -> Accel {
         let mut steps = Steps::new();
-        let bvh = match kind {
+        let mut bvh = match kind {
             AccelKind::Linear => None,
             AccelKind::Bvh => Some(bvh::build(soup, preset.params(), &mut steps)),
         };
         // Triangles are stored in traversal order (BVH leaf order: with spatial splits a
         // triangle may appear in several leaves), so traversal reads them sequentially without
-        // an indirection, and they are prepared straight into that order.
-        let ids: Vec<u32> = match &bvh {
-            Some(bvh) => bvh.primitive_indices.clone(),
+        // an indirection, and they are prepared straight into that order. Traversal reports
+        // leaf slots, so the BVH's own copy of the soup indices moves here.
+        let ids: Vec<u32> = match &mut bvh {
+            Some(bvh) => std::mem::take(&mut bvh.primitive_indices),
             None => (0..soup.len() as u32).collect(),
         };
-        let triangles: Vec<PreparedTriangle> = ids
-            .par_iter()
+        // Each material's flags once; then one parallel pass over the triangles.
+        let material_flags: Vec<u8> = materials
+            .iter()
+            .map(|m| {
+                // glTF 2.0 §3.9.6: `doubleSided: false` surfaces are invisible from behind.
+                let mut f = if m.double_sided { 0 } else { SINGLE_SIDED };
+                if m.alpha_mode != crate::scene::AlphaMode::Opaque || m.see_through() {
+                    f |= ALPHA_TESTED;
+                }
+                f
+            })
+            .collect();
+        let (mut triangles, mut flags) = (Vec::new(), Vec::new());
+        ids.par_iter()
             .map(|&i| {
                 let [a, b, c] = soup.triangle(i as usize);
-                PreparedTriangle::new(a, b, c).unwrap_or(PreparedTriangle::NEVER)
+                let prepared = PreparedTriangle::new(a, b, c).unwrap_or(PreparedTriangle::NEVER);
+                let flags = soup
+                    .material
+                    .get(i as usize)
+                    .and_then(|&m| material_flags.get(m as usize))
+                    .copied()
+                    .unwrap_or(0);
+                (prepared, flags)
             })
-            .collect();
-        let material = |i: u32| materials.get(soup.material[i as usize] as usize);
-        // glTF 2.0 §3.9.6: `doubleSided: false` surfaces are invisible from behind.
-        let single_sided = ids
-            .iter()
-            .map(|&i| material(i).is_some_and(|m| !m.double_sided))
-            .collect();
-        let alpha_tested = ids
-            .iter()
-            .map(|&i| {
-                material(i).is_some_and(|m| {
-                    m.alpha_mode != crate::scene::AlphaMode::Opaque || m.see_through()
-                })
-            })
-            .collect();
+            .unzip_into_vecs(&mut triangles, &mut flags);
         steps.mark("triangle test data");
         Accel {
             kind,
             triangles,
             ids,
-            single_sided,
-            alpha_tested,
+            flags,
             bvh,
             steps,
             preset: if preset == BvhPreset::Auto {
@@ -195,16 +203,16 @@ impl Accel {
     }
 
     /// Heap bytes: the triangles' test data in traversal order, their soup indices and flags,
-    /// and the BVH's nodes and primitive indices.
+    /// and the BVH's nodes.
     pub fn heap_bytes(&self) -> usize {
         use std::mem::size_of_val;
         size_of_val(self.triangles.as_slice())
             + size_of_val(self.ids.as_slice())
-            + size_of_val(self.single_sided.as_slice())
-            + size_of_val(self.alpha_tested.as_slice())
-            + self.bvh.as_ref().map_or(0, |b| {
-                size_of_val(b.nodes.as_slice()) + size_of_val(b.primitive_indices.as_slice())
-            })
+            + size_of_val(self.flags.as_slice())
+            + self
+                .bvh
+                .as_ref()
+                .map_or(0, |b| size_of_val(b.nodes.as_slice()))
     }
 
     /// True when it holds nothing.
@@ -263,13 +271,15 @@ impl Accel {
             return t;
         }
         if cull
-            && self.single_sided[slot]
+            && self.flags[slot] & SINGLE_SIDED != 0
             && glam::Vec3A::from(tri.normal()).dot(ray.direction) > 0.0
         {
             return f32::INFINITY;
         }
         if let Some(accept) = accept {
-            if self.alpha_tested[slot] && !accept(self.ids[slot], tri.hit_at(ray, t).barycentric) {
+            if self.flags[slot] & ALPHA_TESTED != 0
+                && !accept(self.ids[slot], tri.hit_at(ray, t).barycentric)
+            {
                 return f32::INFINITY;
             }
         }
