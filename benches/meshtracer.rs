@@ -58,9 +58,17 @@ fn build(c: &mut Criterion) {
     group
         .sample_size(10)
         .measurement_time(Duration::from_secs(5));
+    /// Scene, preset, triangles, soup bytes, acceleration structure bytes.
+    type Memory = (String, BvhPreset, usize, usize, usize);
+    let mut memory: Vec<Memory> = Vec::new();
     for (name, scene) in scenes(&[1_000, 10_000, 100_000, 1_000_000]) {
         group.throughput(Throughput::Elements(scene.soup.len() as u64));
-        for preset in [BvhPreset::Fastest, BvhPreset::Medium, BvhPreset::Slow] {
+        for preset in [
+            BvhPreset::Fastest,
+            BvhPreset::VeryFast,
+            BvhPreset::Medium,
+            BvhPreset::Slow,
+        ] {
             if preset == BvhPreset::Slow && scene.soup.len() > 200_000 {
                 continue;
             }
@@ -68,6 +76,14 @@ fn build(c: &mut Criterion) {
                 BenchmarkId::new(format!("{preset:?}"), &name),
                 &scene,
                 |b, scene| {
+                    // Criterion calls this for warm-up and for every sample: record the
+                    // memory once, from a build outside the timed loop.
+                    if !memory.iter().any(|m: &Memory| m.0 == name && m.1 == preset) {
+                        let accel =
+                            Accel::build(&scene.soup, &scene.materials, AccelKind::Bvh, preset);
+                        let (soup, bvh) = (scene.soup.heap_bytes(), accel.heap_bytes());
+                        memory.push((name.clone(), preset, scene.soup.len(), soup, bvh));
+                    }
                     b.iter(|| {
                         let accel =
                             Accel::build(&scene.soup, &scene.materials, AccelKind::Bvh, preset);
@@ -79,6 +95,20 @@ fn build(c: &mut Criterion) {
         }
     }
     group.finish();
+    // The memory report: what a render keeps besides the images (empty when filtered out).
+    if memory.is_empty() {
+        return;
+    }
+    println!("\nmemory: scene, preset, soup MB, BVH and triangle test data MB, bytes a triangle");
+    for (name, preset, triangles, soup, accel) in memory {
+        println!(
+            "  {name:<20} {:<9} {:>8.1} {:>8.1} {:>6.0}",
+            format!("{preset:?}"),
+            soup as f64 / 1e6,
+            accel as f64 / 1e6,
+            (soup + accel) as f64 / triangles.max(1) as f64
+        );
+    }
 }
 
 fn traverse(c: &mut Criterion) {
