@@ -327,26 +327,39 @@ impl Converter<'_> {
     fn order_children(&self, index: usize, children: &mut [u32; BRANCHING], count: usize) {
         let p = self.bvh2.nodes[index].aabb().center();
         let mut cost = [[f32::MAX; BRANCHING]; BRANCHING];
-        for (s, row) in (0..BRANCHING).map(|s| (s, direction(s))) {
-            for c in 0..count {
-                let v = self.bvh2.nodes[children[c] as usize].aabb().center() - p;
-                cost[c][s] = row.dot(v);
+        for c in 0..count {
+            let v = self.bvh2.nodes[children[c] as usize].aabb().center() - p;
+            for (s, cost) in cost[c].iter_mut().enumerate() {
+                *cost = direction(s).dot(v);
             }
         }
-        let mut assignment = [usize::MAX; BRANCHING];
+        // obvhs repeatedly takes the cheapest (child, slot) pair left, the first in (child,
+        // slot) order among equals, from a full scan each time. The same pairs come from each
+        // child's cheapest free slot, kept up to date: filling a slot only changes the
+        // children whose cheapest it was.
         let mut filled = [false; BRANCHING];
+        let cheapest = |costs: &[f32; BRANCHING], filled: &[bool; BRANCHING]| {
+            let (mut best, mut slot) = (f32::MAX, usize::MAX);
+            for s in 0..BRANCHING {
+                if !filled[s] && costs[s] < best {
+                    best = costs[s];
+                    slot = s;
+                }
+            }
+            (best, slot)
+        };
+        let mut best = [(f32::MAX, usize::MAX); BRANCHING];
+        for c in 0..count {
+            best[c] = cheapest(&cost[c], &filled);
+        }
+        let mut assignment = [usize::MAX; BRANCHING];
         loop {
             let mut min_cost = f32::MAX;
             let (mut min_slot, mut min_child) = (usize::MAX, usize::MAX);
             for c in 0..count {
-                if assignment[c] == usize::MAX {
-                    for s in 0..BRANCHING {
-                        if !filled[s] && cost[c][s] < min_cost {
-                            min_cost = cost[c][s];
-                            min_slot = s;
-                            min_child = c;
-                        }
-                    }
+                if assignment[c] == usize::MAX && best[c].1 != usize::MAX && best[c].0 < min_cost {
+                    (min_cost, min_slot) = best[c];
+                    min_child = c;
                 }
             }
             if min_slot == usize::MAX {
@@ -354,6 +367,11 @@ impl Converter<'_> {
             }
             filled[min_slot] = true;
             assignment[min_child] = min_slot;
+            for c in 0..count {
+                if assignment[c] == usize::MAX && best[c].1 == min_slot {
+                    best[c] = cheapest(&cost[c], &filled);
+                }
+            }
         }
         let original = std::mem::replace(children, [INVALID; BRANCHING]);
         for c in 0..count {
