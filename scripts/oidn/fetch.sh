@@ -66,8 +66,7 @@ else
         # checks the hash itself too (--require-hashes is implied by the --hash option).
         echo "pyoidn==$VERSION --hash=sha256:$SHA256" >"$work/requirements.txt"
         pip download --no-deps --only-binary=:all: --platform manylinux2014_x86_64 \
-            --python-version 3 --implementation py --dest "$work" \
-            --requirement "$work/requirements.txt" >&2 ||
+            --dest "$work" --requirement "$work/requirements.txt" >&2 ||
             die "pip download pyoidn==$VERSION failed"
         wheel=$work/$WHEEL
         [ -f "$wheel" ] || die "pip did not write $WHEEL"
