@@ -306,8 +306,15 @@ mod tests {
             .all(|a| a.min_element() >= 0.0 && a.max_element() <= 1.0));
         // Averages of unit vectors: never longer than 1 (plus rounding).
         assert!(g.normal.iter().all(|n| n.length() <= 1.0 + 1e-5));
-        // The camera stands inside the box: every pixel sees a wall.
-        assert!(g.albedo.iter().all(|a| a.max_element() > 0.0));
+        // The box fills most of the frame; around it nothing is hit and, without a visible
+        // environment, both guides are zero.
+        let covered = g.normal.iter().filter(|n| **n != Vec3::ZERO).count();
+        assert!(covered > 1200 / 2, "{covered} of 1200 pixels see the box");
+        assert!(g
+            .albedo
+            .iter()
+            .zip(&g.normal)
+            .all(|(a, n)| *n != Vec3::ZERO || *a == Vec3::ZERO));
     }
 
     #[test]
