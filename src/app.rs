@@ -496,6 +496,15 @@ fn render_model(
     if !args.exposure.is_finite() {
         bail!("--exposure must be a finite number");
     }
+    if args.denoise {
+        if !crate::denoise::AVAILABLE {
+            bail!(crate::denoise::NOT_BUILT);
+        }
+        // The command line refuses these combinations; a batch job's manifest can still ask.
+        if args.views.is_some() || args.turntable.is_some() {
+            bail!("--denoise denoises a single image: not with --views or --turntable (yet)");
+        }
+    }
     if let Some(yfov) = args.yfov {
         if !(yfov > 0.0 && yfov < 180.0) {
             bail!("--yfov {yfov}: must be between 0 and 180 degrees");
@@ -663,7 +672,7 @@ fn render_model(
     let texture_time = texture_start.elapsed();
 
     let cancel = interrupt_flag();
-    let (prepared, (image, stats, aovs)) = pool.install(|| -> Result<_> {
+    let (prepared, (image, stats, aovs), denoised) = pool.install(|| -> Result<_> {
         let bvh_start = Instant::now();
         let rays = crate::setup::expected_rays(
             u64::from(width) * u64::from(height),
@@ -690,7 +699,23 @@ fn render_model(
         });
         bar.finish_and_clear();
         phases.mark("render", render_start);
-        Ok((prepared, result?))
+        let (mut image, stats, aovs) = result?;
+        let denoised = if args.denoise {
+            // On the linear HDR film, before the output encodes it (sRGB PNG, EXR, HDR).
+            let guide_start = Instant::now();
+            let guides = crate::denoise::guides(&prepared, &settings, region);
+            phases.mark("denoise guides", guide_start);
+            let denoise_start = Instant::now();
+            let report = crate::denoise::denoise(&mut image, &guides)?;
+            phases.mark("denoise", denoise_start);
+            if cancel.load(Ordering::SeqCst) {
+                return Err(crate::render::Cancelled.into());
+            }
+            Some((report, guides.samples_per_pixel, guide_start.elapsed()))
+        } else {
+            None
+        };
+        Ok((prepared, (image, stats, aovs), denoised))
     })?;
     let write_start = Instant::now();
     let (scene, accel, textures) = (&prepared.scene, &prepared.accel, &prepared.textures);
@@ -770,7 +795,30 @@ fn render_model(
                             .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())),
                     });
         }
-        view.write(path)?;
+        match &denoised {
+            // Recorded beside the schema's fields (readers ignore keys they do not know).
+            Some((report, guide_samples, _)) => {
+                let mut json = serde_json::to_value(&view)?;
+                if let Some(object) = json.as_object_mut() {
+                    object.insert(
+                        "denoise".into(),
+                        serde_json::json!({
+                            "denoiser": "Intel Open Image Denoise",
+                            "version": report.library_version,
+                            "filter": "RT",
+                            "hdr": true,
+                            "guides": ["albedo", "normal"],
+                            "guide_samples_per_pixel": guide_samples,
+                            "clean_aux": true,
+                        }),
+                    );
+                }
+                let mut text = serde_json::to_string_pretty(&json)?;
+                text.push('\n');
+                crate::output::write_atomic(path, text.as_bytes())?;
+            }
+            None => view.write(path)?,
+        }
     }
     tiles::write_sidecar(args, region, &settings, scene)?;
     phases.mark("write", write_start);
@@ -787,6 +835,7 @@ fn render_model(
             "peak_memory_bytes": peak_memory_bytes(),
             "rays": stats.rays(),
             "mrays_per_second": stats.mrays_per_second(),
+            "denoised": denoised.is_some(),
         });
         crate::output::write_atomic(path, serde_json::to_string_pretty(&json)?.as_bytes())?;
     }
@@ -799,8 +848,16 @@ fn render_model(
             ),
             AccelKind::Linear => "linear scan (no BVH)".to_string(),
         };
+        let denoise_note = match &denoised {
+            Some((report, _, total)) => format!(
+                ", denoised by Open Image Denoise {} in {:.3} s (guides and filter)",
+                report.library_version,
+                total.as_secs_f64()
+            ),
+            None => String::new(),
+        };
         eprintln!(
-            "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {} spp rendered in {:.3} s ({:.0} samples/s{}), peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {threads} threads -> {}",
+            "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {} spp rendered in {:.3} s ({:.0} samples/s{}){denoise_note}, peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {threads} threads -> {}",
             args.model.display(),
             scene.soup.len(),
             load_time.as_secs_f64() * 1e3,

@@ -7,6 +7,7 @@
 //! prepare      Prepared::new(scene, &options)             prepare.rs: BVH (accel/), textures
 //! integrate    render(&prepared, &settings, ...)          render/ (pixel loop, surface), integrator/
 //! film         Image (linear RGBA f32) + Aovs             output.rs, render/
+//! denoise      denoise::guides, denoise::denoise          denoise.rs (feature `denoise`)
 //! outputs      PendingOutput::commit, aov::write_*        output.rs, aov.rs, view.rs
 //! ```
 //!
@@ -51,6 +52,7 @@ pub mod camera;
 pub mod cli;
 pub mod compare;
 pub mod dataset;
+pub mod denoise;
 pub mod environment;
 pub mod geometry;
 pub mod integrator;
