@@ -1,5 +1,6 @@
 //! Criterion benchmarks: BVH build, traversal (BVH vs. linear scan, three ray coherences), the
-//! triangle tests alone, bare obvhs traversal against our query path, and an end-to-end render.
+//! triangle tests alone, bare obvhs traversal against our query path, an end-to-end render, and
+//! the path tracer's rays per second beside the BVH's own on diffuse rays.
 //!
 //! Every benchmark builds outside the timed region, warms up (criterion's warm-up), and checks
 //! its answer while timing: the hit count or checksum of each timed run must equal the one
@@ -378,14 +379,94 @@ fn render(c: &mut Criterion) {
     group
         .sample_size(10)
         .throughput(Throughput::Elements(256 * 192));
-    group.bench_function("cornell-box 256x192 1spp, 1 thread", |b| {
+    time_render(
+        &mut group,
+        "cornell-box 256x192 1spp, 1 thread",
+        &pool,
+        &scene,
+        &settings,
+        &reference,
+    );
+    group.finish();
+}
+
+/// Times renders of `settings` on `pool`, each checked to equal `reference`.
+fn time_render(
+    group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    name: &str,
+    pool: &rayon::ThreadPool,
+    scene: &meshtracer::prepare::Prepared,
+    settings: &meshtracer::render::RenderSettings,
+    reference: &meshtracer::output::Image,
+) {
+    let cancel = std::sync::atomic::AtomicBool::new(false);
+    group.bench_function(name, |b| {
         b.iter(|| {
             let (image, _, _) = pool
-                .install(|| render(&scene, &settings, &cancel, &|_, _| {}))
+                .install(|| meshtracer::render::render(scene, settings, &cancel, &|_, _| {}))
                 .expect("renders");
-            assert!(image == reference);
+            assert!(&image == reference);
         })
     });
+}
+
+/// The path tracer's rays per second (camera, shadow and bounce rays, shading included) on
+/// DamagedHelmet (five 2048² textures) under the built-in studio, one thread: compare it with
+/// `traverse/bvh-Diffuse/DamagedHelmet`, the BVH alone on incoherent rays. The README's light
+/// transport table states the ratio (at least 60%). Needs `MESHTRACER_SAMPLES`.
+fn path_tracer(c: &mut Criterion) {
+    use meshtracer::camera::{auto_camera, View};
+    use meshtracer::render::{render, RenderSettings};
+    let Some(dir) = std::env::var_os("MESHTRACER_SAMPLES") else {
+        eprintln!("path tracer benchmark skipped: set MESHTRACER_SAMPLES");
+        return;
+    };
+    let path = std::path::Path::new(&dir).join("DamagedHelmet/glTF/DamagedHelmet.gltf");
+    let Ok(scene) = Scene::load(&path) else {
+        eprintln!(
+            "path tracer benchmark skipped: {} does not load",
+            path.display()
+        );
+        return;
+    };
+    let pool = one_thread();
+    let scene = pool.install(|| {
+        meshtracer::prepare::Prepared::new(scene, &Default::default(), &mut Vec::new())
+            .expect("textures decode")
+    });
+    let camera = auto_camera(&scene.scene.bounds, 4.0 / 3.0);
+    let settings = RenderSettings {
+        view: View::from_camera(&camera, 160, 120),
+        spp: 4,
+        seed: 0,
+        lights: Vec::new(),
+        ambient: Vec3::ZERO,
+        exposure: 0.0,
+        shading: meshtracer::shading::ShadingModel::Pbr,
+        aovs: false,
+        integrator: meshtracer::integrator::IntegratorKind::Path,
+        bounces: 8,
+        environment: Some(std::sync::Arc::new(
+            meshtracer::environment::Environment::studio(),
+        )),
+        environment_visible: false,
+    };
+    let cancel = std::sync::atomic::AtomicBool::new(false);
+    let (reference, stats, _) = pool
+        .install(|| render(&scene, &settings, &cancel, &|_, _| {}))
+        .expect("renders");
+    let mut group = c.benchmark_group("path");
+    group
+        .sample_size(10)
+        .throughput(Throughput::Elements(stats.rays()));
+    time_render(
+        &mut group,
+        "DamagedHelmet 160x120 4spp studio, rays, 1 thread",
+        &pool,
+        &scene,
+        &settings,
+        &reference,
+    );
     group.finish();
 }
 
@@ -446,6 +527,7 @@ criterion_group!(
     traverse,
     build,
     render,
+    path_tracer,
     load
 );
 criterion_main!(benches);

@@ -147,18 +147,7 @@ impl MipImage {
         let l = &self.levels[level];
         let x = wrap(x, l.width, sampler.wrap_s);
         let y = wrap(y, l.height, sampler.wrap_t);
-        let t = l.texels[(y * l.width + x) as usize];
-        if srgb {
-            let table = srgb_table();
-            Vec4::new(
-                table[t[0] as usize],
-                table[t[1] as usize],
-                table[t[2] as usize],
-                f32::from(t[3]) / 255.0,
-            )
-        } else {
-            Vec4::from_array(t.map(|c| f32::from(c) / 255.0))
-        }
+        decode_texel(l.texels[(y * l.width + x) as usize], srgb)
     }
 
     fn sample_level(
@@ -180,10 +169,21 @@ impl MipImage {
         let (x0, y0) = (x.floor(), y.floor());
         let (fx, fy) = (x - x0, y - y0);
         let (x0, y0) = (x0 as i64, y0 as i64);
-        let a = self.texel(level, x0, y0, sampler, srgb);
-        let b = self.texel(level, x0 + 1, y0, sampler, srgb);
-        let c = self.texel(level, x0, y0 + 1, sampler, srgb);
-        let d = self.texel(level, x0 + 1, y0 + 1, sampler, srgb);
+        // Each column and row wrapped once, the two rows' offsets computed once.
+        let (xa, xb) = (
+            wrap(x0, l.width, sampler.wrap_s),
+            wrap(x0 + 1, l.width, sampler.wrap_s),
+        );
+        let (ya, yb) = (
+            wrap(y0, l.height, sampler.wrap_t),
+            wrap(y0 + 1, l.height, sampler.wrap_t),
+        );
+        let (row_a, row_b) = ((ya * l.width) as usize, (yb * l.width) as usize);
+        let at = |row: usize, x: u32| decode_texel(l.texels[row + x as usize], srgb);
+        let a = at(row_a, xa);
+        let b = at(row_a, xb);
+        let c = at(row_b, xa);
+        let d = at(row_b, xb);
         a.lerp(b, fx).lerp(c.lerp(d, fx), fy)
     }
 
@@ -215,6 +215,28 @@ impl MipImage {
     }
 }
 
+/// A stored texel as floats in [0, 1]; `srgb` decodes the colour channels to linear (alpha
+/// stays linear).
+fn decode_texel(t: [u8; 4], srgb: bool) -> Vec4 {
+    if srgb {
+        let table = srgb_table();
+        Vec4::new(
+            table[t[0] as usize],
+            table[t[1] as usize],
+            table[t[2] as usize],
+            f32::from(t[3]) / 255.0,
+        )
+    } else {
+        // One vector division: the same correctly rounded quotients as four scalar ones.
+        Vec4::new(
+            f32::from(t[0]),
+            f32::from(t[1]),
+            f32::from(t[2]),
+            f32::from(t[3]),
+        ) / 255.0
+    }
+}
+
 /// Moves a periodic coordinate into [-2, 2) without changing which texel it selects.
 fn reduce(c: f32, mode: Wrap) -> f32 {
     match mode {
@@ -229,9 +251,16 @@ fn wrap(i: i64, size: u32, mode: Wrap) -> u32 {
     let n = i64::from(size);
     let r = match mode {
         Wrap::ClampToEdge => i.clamp(0, n - 1),
+        // Power-of-two sides (nearly every texture): the mask is rem_euclid without a division
+        // (two's complement keeps it right for negative i).
+        Wrap::Repeat if size.is_power_of_two() => i & (n - 1),
         Wrap::Repeat => i.rem_euclid(n),
         Wrap::MirroredRepeat => {
-            let period = i.rem_euclid(2 * n);
+            let period = if size.is_power_of_two() {
+                i & (2 * n - 1)
+            } else {
+                i.rem_euclid(2 * n)
+            };
             if period < n {
                 period
             } else {
@@ -542,6 +571,32 @@ mod tests {
         assert_eq!(red(&img, -0.1, 0.1, &nearest(Wrap::MirroredRepeat)), 0);
         assert_eq!(red(&img, -0.1, 0.1, &nearest(Wrap::Repeat)), 30);
         assert_eq!(red(&img, -0.1, -0.4, &nearest(Wrap::ClampToEdge)), 0);
+    }
+
+    /// The power-of-two shortcut gives what the general rule gives, negative indices included.
+    #[test]
+    fn power_of_two_wrap_equals_the_general_rule() {
+        for size in [1u32, 2, 4, 64, 2048] {
+            let n = i64::from(size);
+            for i in -3 * n - 5..3 * n + 5 {
+                assert_eq!(
+                    wrap(i, size, Wrap::Repeat),
+                    i.rem_euclid(n) as u32,
+                    "{i} {size}"
+                );
+                let period = i.rem_euclid(2 * n);
+                let mirrored = if period < n {
+                    period
+                } else {
+                    2 * n - 1 - period
+                };
+                assert_eq!(
+                    wrap(i, size, Wrap::MirroredRepeat),
+                    mirrored as u32,
+                    "{i} {size}"
+                );
+            }
+        }
     }
 
     #[test]

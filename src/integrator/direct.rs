@@ -8,7 +8,7 @@ use super::{CameraRay, Integrator, RayCounts};
 use crate::geometry::Ray;
 use crate::light::incident;
 use crate::prepare::Prepared;
-use crate::render::surface::Surface;
+use crate::render::surface::{Occlusion, Surface};
 use crate::sampling::Rng;
 use crate::scene::{AlphaMode, Light};
 use crate::shading::{shade, ShadingModel};
@@ -46,7 +46,7 @@ impl Integrator for Direct {
             let Some(hit) = scene.intersect_camera(&ray) else {
                 break;
             };
-            let surface = scene.surface(&ray, &hit, camera.footprint(hit.t));
+            let surface = scene.surface(&ray, &hit, camera.footprint(hit.t), Occlusion::Sample);
             let shaded = self.shade(scene, &ray, &surface, &mut counts.shadow);
             let mut alpha = if surface.source.alpha_mode == AlphaMode::Blend {
                 surface.alpha

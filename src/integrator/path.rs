@@ -25,6 +25,7 @@ use crate::environment::Environment;
 use crate::geometry::SpawnPoint;
 use crate::light::incident;
 use crate::prepare::Prepared;
+use crate::render::surface::Occlusion;
 use crate::render::MAX_BLEND_LAYERS;
 use crate::sampling::{power_heuristic, Rng};
 use crate::scene::{AlphaMode, Light};
@@ -96,7 +97,8 @@ impl Integrator for PathTracer {
                 // KHR_materials_volume: T = exp(-σ·d) along the segment inside the volume.
                 throughput *= (-sigma * hit.t).exp();
             }
-            let surface = scene.surface(&ray, &hit, cone.0 + cone.1 * hit.t);
+            // Occlusion textures darken only the direct renderer's ambient term.
+            let surface = scene.surface(&ray, &hit, cone.0 + cone.1 * hit.t, Occlusion::Skip);
             if surface.source.alpha_mode == AlphaMode::Blend
                 && rng.next_f32() >= surface.alpha
                 && pass_throughs < MAX_BLEND_LAYERS

@@ -10,7 +10,7 @@
 use crate::accel::Hit;
 use crate::geometry::{Ray, SpawnPoint};
 use crate::prepare::Prepared;
-use crate::scene::{AlphaMode, Material, TextureRef};
+use crate::scene::{AlphaMode, Material, TextureRef, TextureTransform};
 use crate::shading::{Clearcoat, Iridescence, Sheen, SurfaceMaterial};
 use crate::texture::transform_uv;
 use glam::{Vec2, Vec3, Vec4};
@@ -35,7 +35,8 @@ pub struct Surface<'m> {
     pub material: SurfaceMaterial,
     /// Emitted radiance (emissive factor × texture × strength).
     pub emissive: Vec3,
-    /// Ambient occlusion from the occlusion texture (1 = none).
+    /// Ambient occlusion from the occlusion texture (1 = none, and 1 when evaluated with
+    /// [`Occlusion::Skip`]).
     pub occlusion: f32,
     /// Coverage (1 for OPAQUE materials).
     pub alpha: f32,
@@ -43,6 +44,16 @@ pub struct Surface<'m> {
     pub transmission: f32,
     /// The material hit.
     pub source: &'m Material,
+}
+
+/// Whether [`Prepared::surface`] samples the occlusion texture.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Occlusion {
+    /// Sample it: the direct renderer darkens its ambient term with it.
+    Sample,
+    /// Leave it out (`occlusion` = 1): the path tracer finds occlusion by tracing, and one
+    /// texture lookup of five on DamagedHelmet, most of them cache misses at 2048², is saved.
+    Skip,
 }
 
 impl Surface<'_> {
@@ -138,6 +149,11 @@ impl Prepared {
     /// Samples a texture at a hit with a mip level from the ray cone (Akenine-Möller et al.,
     /// "Texture Level of Detail Strategies for Real-Time Ray Tracing", 2019):
     /// lod = ½·log2(texels · uv area / world area) + log2(cone width / |n·d|).
+    ///
+    /// `last` remembers the coordinates and level of the previous texture sampled at this hit:
+    /// textures that read the same coordinate set with the same transform and have the same
+    /// size (DamagedHelmet's five) reuse them, the same numbers computed once.
+    #[allow(clippy::too_many_arguments)]
     fn sample(
         &self,
         r: &TextureRef,
@@ -146,8 +162,32 @@ impl Prepared {
         cone: f32,
         cos: f32,
         srgb: bool,
+        last: &Cell<Option<TexelFootprint>>,
     ) -> Option<Vec4> {
         let (image, sampler) = self.textures.lookup(&self.scene, r)?;
+        let size = image.size();
+        let footprint = match last.get() {
+            Some(f) if f.serves(r, size) => f,
+            _ => {
+                let f = self.footprint(r, size, tri, b, cone, cos);
+                last.set(Some(f));
+                f
+            }
+        };
+        Some(image.sample(footprint.uv, footprint.lod, sampler, srgb))
+    }
+
+    /// Where texture reference `r` of an image of `size` texels is read at barycentrics `b` of
+    /// triangle `tri`, and at which mip level (see [`Prepared::sample`]).
+    fn footprint(
+        &self,
+        r: &TextureRef,
+        size: (u32, u32),
+        tri: usize,
+        b: Vec3,
+        cone: f32,
+        cos: f32,
+    ) -> TexelFootprint {
         let [pa, pb, pc] = self.scene.soup.triangle(tri);
         let lod = match self.scene.soup.corner_uvs(r.tex_coord, tri) {
             Some(corners) => {
@@ -156,19 +196,25 @@ impl Prepared {
                 let [ua, ub, uc] = corners.map(|uv| transform_uv(r, uv));
                 let world = (pb - pa).cross(pc - pa).length();
                 let uv_area = (ub - ua).perp_dot(uc - ua).abs();
-                let (w, h) = image.size();
+                let (w, h) = size;
                 let density = (w as f32 * h as f32 * uv_area / world.max(f32::MIN_POSITIVE)).sqrt();
                 (density * cone / cos.abs().max(1e-3)).log2()
             }
             None => 0.0,
         };
-        let uv = transform_uv(r, self.uv(tri, r.tex_coord, b));
-        Some(image.sample(uv, lod, sampler, srgb))
+        TexelFootprint {
+            tex_coord: r.tex_coord,
+            transform: r.transform,
+            size,
+            uv: transform_uv(r, self.uv(tri, r.tex_coord, b)),
+            lod,
+        }
     }
 
     /// The surface point `hit` found along `ray`: material inputs with textures sampled at a
-    /// mip level from the ray cone's width `cone` at the hit.
-    pub fn surface(&self, ray: &Ray, hit: &Hit, cone: f32) -> Surface<'_> {
+    /// mip level from the ray cone's width `cone` at the hit; the occlusion texture only if
+    /// `occlusion` asks for it.
+    pub fn surface(&self, ray: &Ray, hit: &Hit, cone: f32, occlusion: Occlusion) -> Surface<'_> {
         let soup = &self.scene.soup;
         let tri = hit.triangle as usize;
         let b = hit.barycentric;
@@ -207,9 +253,10 @@ impl Prepared {
         if let Some([ca, cb, cc]) = soup.corner_colors(tri) {
             base *= ca * b.x + cb * b.y + cc * b.z;
         }
+        let last = Cell::new(None);
         let sample = |r: &Option<TextureRef>, srgb: bool| {
             r.as_ref()
-                .and_then(|r| self.sample(r, tri, b, cone, cos, srgb))
+                .and_then(|r| self.sample(r, tri, b, cone, cos, srgb, &last))
         };
         if let Some(t) = sample(&material.base_color_texture, true) {
             base *= t;
@@ -224,10 +271,13 @@ impl Prepared {
         if let Some(t) = sample(&material.emissive_texture, true) {
             emissive *= t.truncate();
         }
-        let occlusion = match sample(&material.occlusion_texture, false) {
-            // glTF 2.0 §3.9.3: occluded = 1 + strength · (sample - 1), from the R channel.
-            Some(t) => 1.0 + material.occlusion_strength * (t.x - 1.0),
-            None => 1.0,
+        let occlusion = match occlusion {
+            Occlusion::Sample => match sample(&material.occlusion_texture, false) {
+                // glTF 2.0 §3.9.3: occluded = 1 + strength · (sample - 1), from the R channel.
+                Some(t) => 1.0 + material.occlusion_strength * (t.x - 1.0),
+                None => 1.0,
+            },
+            Occlusion::Skip => 1.0,
         };
         if let (Some(r), Some(t)) = (
             &material.normal_texture,
@@ -439,6 +489,38 @@ impl Prepared {
         } else {
             transmittance.get()
         }
+    }
+}
+
+/// Where one texture is read at a hit: its coordinates and mip level of detail, with what
+/// they depend on besides the hit (coordinate set, transform, image size).
+#[derive(Clone, Copy, Debug)]
+struct TexelFootprint {
+    tex_coord: u32,
+    transform: Option<TextureTransform>,
+    size: (u32, u32),
+    uv: Vec2,
+    lod: f32,
+}
+
+impl TexelFootprint {
+    /// Whether texture reference `r` of an image of `size` texels is read here too: the same
+    /// coordinate set, the same transform bit for bit, the same size.
+    fn serves(&self, r: &TextureRef, size: (u32, u32)) -> bool {
+        let bits = |t: &Option<TextureTransform>| {
+            t.map(|t| {
+                [
+                    t.offset[0].to_bits(),
+                    t.offset[1].to_bits(),
+                    t.rotation.to_bits(),
+                    t.scale[0].to_bits(),
+                    t.scale[1].to_bits(),
+                ]
+            })
+        };
+        self.tex_coord == r.tex_coord
+            && self.size == size
+            && bits(&self.transform) == bits(&r.transform)
     }
 }
 
