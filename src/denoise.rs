@@ -25,6 +25,7 @@ use crate::geometry::Ray;
 use crate::integrator::IntegratorKind;
 use crate::output::Image;
 use crate::prepare::Prepared;
+use crate::render::surface::Occlusion;
 use crate::render::{Region, RenderSettings, MAX_BLEND_LAYERS};
 use crate::scene::AlphaMode;
 use glam::Vec3;
@@ -129,7 +130,8 @@ fn first_surfaces(
             break;
         };
         travelled += hit.t;
-        let surface = scene.surface(&ray, &hit, spread.0 + spread.1 * travelled);
+        // The guides are albedo and normals: occlusion plays no part.
+        let surface = scene.surface(&ray, &hit, spread.0 + spread.1 * travelled, Occlusion::Skip);
         let alpha = if surface.source.alpha_mode == AlphaMode::Blend {
             surface.alpha.clamp(0.0, 1.0)
         } else {
