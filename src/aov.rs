@@ -76,14 +76,8 @@ where
 }
 
 fn exr_rgba(width: u32, height: u32, rgba: Vec<f32>) -> Vec<u8> {
-    let mut bytes = Vec::new();
-    if let Some(img) = image::Rgba32FImage::from_raw(width, height, rgba) {
-        let _ = img.write_to(
-            &mut std::io::Cursor::new(&mut bytes),
-            image::ImageFormat::OpenExr,
-        );
-    }
-    bytes
+    // Encoding an in-memory buffer of the right size into a Vec cannot fail.
+    crate::output::exr_rgba(width, height, &rgba).unwrap_or_default()
 }
 
 /// Writes camera-space depth.

@@ -229,14 +229,14 @@ impl PendingOutput {
                         .iter()
                         .flat_map(|p| composite(*p, background).to_array())
                         .collect();
-                    image::ImageEncoder::write_image(
-                        image::codecs::openexr::OpenExrEncoder::new(&mut out),
-                        bytemuck_f32(&floats),
-                        w,
-                        h,
-                        image::ExtendedColorType::Rgba32F,
-                    )
-                    .map_err(enc_err)?;
+                    let bytes = exr_rgba(w, h, &floats).map_err(|e| SaveError::Encode {
+                        path: path.clone(),
+                        error: image::ImageError::Encoding(image::error::EncodingError::new(
+                            image::ImageFormat::OpenExr.into(),
+                            e,
+                        )),
+                    })?;
+                    out.write_all(&bytes).map_err(io_err)?;
                 }
                 OutputFormat::Hdr => {
                     let rgb: Vec<image::Rgb<f32>> = image
@@ -288,11 +288,39 @@ fn composite(p: Vec4, background: Option<Vec3>) -> Vec4 {
     }
 }
 
-/// Views f32s as bytes, native endian, as the image encoders expect.
-fn bytemuck_f32(v: &[f32]) -> &[u8] {
-    // SAFETY: f32 has no padding and any byte pattern of it is a valid u8 sequence; the slice
-    // covers exactly the same memory with alignment 1.
-    unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<u8>(), std::mem::size_of_val(v)) }
+/// An RGBA float image (`rgba`: 4 floats a pixel, rows top to bottom) as OpenEXR bytes: 32-bit
+/// float channels, RLE-compressed scan lines, as the image crate writes them, but with the
+/// scan-line blocks in increasing order. exr's parallel compressor otherwise writes blocks in
+/// the order they finish (`LineOrder::Unspecified`), so the same image gave different bytes
+/// from run to run, and hashes and byte-for-byte comparisons of outputs failed at random.
+pub(crate) fn exr_rgba(
+    width: u32,
+    height: u32,
+    rgba: &[f32],
+) -> Result<Vec<u8>, exr::error::Error> {
+    use exr::prelude::{
+        Blocks, Compression, Encoding, Image, LineOrder, SpecificChannels, Vec2, WritableImage,
+    };
+    let w = width as usize;
+    if rgba.len() != w * height as usize * 4 {
+        return Err(exr::error::Error::Invalid(
+            "pixel count differs from the size".into(),
+        ));
+    }
+    let encoding = Encoding {
+        compression: Compression::RLE,
+        blocks: Blocks::ScanLines,
+        line_order: LineOrder::Increasing,
+    };
+    let channels = SpecificChannels::rgba(|Vec2(x, y): Vec2<usize>| {
+        let i = (y * w + x) * 4;
+        (rgba[i], rgba[i + 1], rgba[i + 2], rgba[i + 3])
+    });
+    let mut bytes = Vec::new();
+    Image::from_encoded_channels((w, height as usize), encoding, channels)
+        .write()
+        .to_buffered(std::io::Cursor::new(&mut bytes))?;
+    Ok(bytes)
 }
 
 impl Image {
@@ -334,6 +362,26 @@ impl Image {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An EXR is the same bytes every time (many scan-line blocks, compressed in parallel) and
+    /// reads back to exactly the floats written; a wrong pixel count is an error.
+    #[test]
+    fn exr_bytes_are_deterministic_and_exact() {
+        let (w, h) = (37u32, 301u32);
+        let rgba: Vec<f32> = (0..w * h * 4)
+            .map(|i| (i as f32 * 0.37).sin() * 1e3 + if i % 7 == 0 { 0.0 } else { 1.0 })
+            .collect();
+        let first = exr_rgba(w, h, &rgba).unwrap();
+        for _ in 0..5 {
+            assert_eq!(exr_rgba(w, h, &rgba).unwrap(), first);
+        }
+        let back = image::load_from_memory_with_format(&first, image::ImageFormat::OpenExr)
+            .unwrap()
+            .into_rgba32f();
+        assert_eq!((back.width(), back.height()), (w, h));
+        assert_eq!(back.as_raw(), &rgba);
+        assert!(exr_rgba(w, h + 1, &rgba).is_err());
+    }
 
     #[cfg(unix)]
     #[test]

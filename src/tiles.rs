@@ -469,17 +469,23 @@ impl Raster {
             message,
         };
         match self {
-            Raster::Image(i) => {
-                let format = match extension(path).as_str() {
-                    "png" => image::ImageFormat::Png,
-                    "exr" => image::ImageFormat::OpenExr,
-                    other => return Err(bad(format!("cannot write an image as .{other}"))),
-                };
-                let mut bytes = Vec::new();
-                i.write_to(&mut std::io::Cursor::new(&mut bytes), format)
+            Raster::Image(i) => match extension(path).as_str() {
+                "png" => {
+                    let mut bytes = Vec::new();
+                    i.write_to(
+                        &mut std::io::Cursor::new(&mut bytes),
+                        image::ImageFormat::Png,
+                    )
                     .map_err(|e| bad(format!("encoding failed: {e}")))?;
-                Ok(bytes)
-            }
+                    Ok(bytes)
+                }
+                "exr" => {
+                    let rgba = i.to_rgba32f();
+                    crate::output::exr_rgba(rgba.width(), rgba.height(), rgba.as_raw())
+                        .map_err(|e| bad(format!("encoding failed: {e}")))
+                }
+                other => Err(bad(format!("cannot write an image as .{other}"))),
+            },
             Raster::Npy { descr, shape, data } => Ok(crate::aov::npy(descr, shape, data)),
         }
     }
