@@ -51,6 +51,7 @@ pub mod bsdf;
 pub mod camera;
 pub mod cli;
 pub mod compare;
+mod cpu;
 pub mod dataset;
 pub mod denoise;
 pub mod environment;

@@ -151,6 +151,7 @@ impl MipImage {
         self.levels.iter().map(|l| l.texels.len() * 4).sum()
     }
 
+    #[inline(always)]
     fn texel(&self, level: usize, x: i64, y: i64, sampler: &Sampler, srgb: bool) -> Vec4 {
         let l = &self.levels[level];
         let x = wrap(x, l.width, sampler.wrap_s);
@@ -158,6 +159,7 @@ impl MipImage {
         decode_texel(l.texels[(y * l.width + x) as usize], srgb)
     }
 
+    #[inline(always)]
     fn sample_level(
         &self,
         level: usize,
@@ -198,6 +200,22 @@ impl MipImage {
     /// Samples at `uv` with mip level of detail `lod` (0 = full size; fractional values blend
     /// levels). `srgb` decodes colour channels to linear.
     pub fn sample(&self, uv: Vec2, lod: f32, sampler: &Sampler, srgb: bool) -> Vec4 {
+        #[cfg(target_arch = "x86_64")]
+        if crate::cpu::has_v3() {
+            // SAFETY: the CPU has every feature `filtered_v3` is compiled for.
+            return unsafe { self.filtered_v3(uv, lod, sampler, srgb) };
+        }
+        self.filtered(uv, lod, sampler, srgb)
+    }
+
+    crate::cpu::v3! {
+        /// [`MipImage::filtered`] for x86-64-v3 CPUs ([`crate::cpu`]).
+        fn filtered_v3(&self, uv: Vec2, lod: f32, sampler: &Sampler, srgb: bool) -> Vec4 = filtered
+    }
+
+    /// The body of [`MipImage::sample`], compiled for each CPU level.
+    #[inline(always)]
+    fn filtered(&self, uv: Vec2, lod: f32, sampler: &Sampler, srgb: bool) -> Vec4 {
         // Coordinates far outside [0, 1] lose precision in f32; wrap them close to it first
         // where the mode is periodic (the result is the same texel).
         let uv = Vec2::new(reduce(uv.x, sampler.wrap_s), reduce(uv.y, sampler.wrap_t));
@@ -225,6 +243,7 @@ impl MipImage {
 
 /// A stored texel as floats in [0, 1]; `srgb` decodes the colour channels to linear (alpha
 /// stays linear).
+#[inline(always)]
 fn decode_texel(t: [u8; 4], srgb: bool) -> Vec4 {
     if srgb {
         let table = srgb_table();
@@ -246,6 +265,7 @@ fn decode_texel(t: [u8; 4], srgb: bool) -> Vec4 {
 }
 
 /// Moves a periodic coordinate into [-2, 2) without changing which texel it selects.
+#[inline(always)]
 fn reduce(c: f32, mode: Wrap) -> f32 {
     match mode {
         Wrap::Repeat => c - c.floor(),
@@ -255,6 +275,7 @@ fn reduce(c: f32, mode: Wrap) -> f32 {
 }
 
 /// A texel index wrapped into [0, size) by the glTF wrap mode.
+#[inline(always)]
 fn wrap(i: i64, size: u32, mode: Wrap) -> u32 {
     let n = i64::from(size);
     let r = match mode {

@@ -103,6 +103,7 @@ fn box_tmax(tmax: f32) -> f32 {
     (tmax + BOX_RAY_SHIFT).next_up()
 }
 
+#[inline(always)]
 pub(super) fn closest(
     accel: &Accel,
     bvh: &obvhs::cwbvh::CwBvh,
@@ -136,6 +137,7 @@ pub(super) fn closest(
     best
 }
 
+#[inline(always)]
 pub(super) fn occluded(
     accel: &Accel,
     bvh: &obvhs::cwbvh::CwBvh,

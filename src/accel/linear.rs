@@ -3,6 +3,7 @@
 use super::{Accel, Accept, Closest};
 use crate::geometry::Ray;
 
+#[inline(always)]
 pub(super) fn closest(accel: &Accel, ray: &Ray, accept: Option<&Accept>) -> Option<Closest> {
     let mut best = None;
     for slot in 0..accel.triangles.len() {
@@ -14,6 +15,7 @@ pub(super) fn closest(accel: &Accel, ray: &Ray, accept: Option<&Accept>) -> Opti
     best
 }
 
+#[inline(always)]
 pub(super) fn occluded(accel: &Accel, ray: &Ray, accept: Option<&Accept>) -> bool {
     (0..accel.triangles.len()).any(|slot| accel.test(slot, ray, false, accept) < f32::INFINITY)
 }

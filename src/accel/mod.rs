@@ -229,6 +229,22 @@ impl Accel {
     /// [`Accel::intersect`] where a candidate hit on a MASK or BLEND triangle counts only if
     /// `accept(triangle, barycentric)` says so (alpha testing). Opaque triangles never call it.
     pub fn intersect_filtered(&self, ray: &Ray, accept: Option<&Accept>) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if crate::cpu::has_v3() {
+            // SAFETY: the CPU has every feature `closest_hit_v3` is compiled for.
+            return unsafe { self.closest_hit_v3(ray, accept) };
+        }
+        self.closest_hit(ray, accept)
+    }
+
+    crate::cpu::v3! {
+        /// [`Accel::closest_hit`] for x86-64-v3 CPUs ([`crate::cpu`]).
+        fn closest_hit_v3(&self, ray: &Ray, accept: Option<&Accept>) -> Option<Hit> = closest_hit
+    }
+
+    /// The body of [`Accel::intersect_filtered`], compiled for each CPU level.
+    #[inline(always)]
+    fn closest_hit(&self, ray: &Ray, accept: Option<&Accept>) -> Option<Hit> {
         let closest = match &self.bvh {
             Some(bvh) => bvh::closest(self, bvh, ray, accept),
             None => linear::closest(self, ray, accept),
@@ -254,6 +270,22 @@ impl Accel {
     /// [`Accel::occluded`] where a MASK or BLEND triangle blocks only if `accept` says so.
     /// `accept` may be called for several candidates, in any order, before one blocks.
     pub fn occluded_filtered(&self, ray: &Ray, accept: Option<&Accept>) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if crate::cpu::has_v3() {
+            // SAFETY: the CPU has every feature `any_hit_v3` is compiled for.
+            return unsafe { self.any_hit_v3(ray, accept) };
+        }
+        self.any_hit(ray, accept)
+    }
+
+    crate::cpu::v3! {
+        /// [`Accel::any_hit`] for x86-64-v3 CPUs ([`crate::cpu`]).
+        fn any_hit_v3(&self, ray: &Ray, accept: Option<&Accept>) -> bool = any_hit
+    }
+
+    /// The body of [`Accel::occluded_filtered`], compiled for each CPU level.
+    #[inline(always)]
+    fn any_hit(&self, ray: &Ray, accept: Option<&Accept>) -> bool {
         match &self.bvh {
             Some(bvh) => bvh::occluded(self, bvh, ray, accept),
             None => linear::occluded(self, ray, accept),
