@@ -73,6 +73,64 @@ fn ctrl_c_during_a_render_keeps_the_previous_output() {
     assert_eq!(names.len(), 1, "no temporary file left: {names:?}");
 }
 
+/// Ctrl-C during a multi-view render: every view reported done is on disk whole (image, depth,
+/// view file; a writer thread writes a view while the next renders, and it finishes before the
+/// exit), nothing else is left (no partial image, no temporary file, no transforms.json), and
+/// the exit is 130 with a message saying how many views were written.
+#[test]
+fn ctrl_c_during_views_keeps_the_finished_views_whole() {
+    use std::io::{BufRead, Read};
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("views");
+    let model = common::root().join("assets/cornell-box.gltf");
+    let depth = out.join("{view:03}.depth.exr");
+    let mut child = common::bin()
+        .args(["render", s(&model), "--views", "orbit:500", "-o", s(&out)])
+        .args(["--width", "160", "--height", "120", "--spp", "16"])
+        .args(["--depth-out", s(&depth)])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stderr = std::io::BufReader::new(child.stderr.take().unwrap());
+    let mut err = String::new();
+    while !err.contains("[3/") {
+        assert!(
+            stderr.read_line(&mut err).unwrap() > 0,
+            "render ended early: {err}"
+        );
+    }
+    interrupt(&child);
+    stderr.read_to_string(&mut err).unwrap();
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{err}");
+    let reported = err.matches("rendered in").count();
+    assert!(
+        err.contains(&format!("{reported} of 500 views written")),
+        "{err}"
+    );
+    let mut names: Vec<String> = common::file_names(&out)
+        .into_iter()
+        .map(|n| n.to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    let mut expected: Vec<String> = (0..reported)
+        .flat_map(|k| {
+            [
+                format!("{k:03}.png"),
+                format!("{k:03}.depth.exr"),
+                format!("{k:03}.view.json"),
+            ]
+        })
+        .collect();
+    expected.sort();
+    assert_eq!(names, expected, "{err}");
+    for k in 0..reported {
+        let (w, h, _) = common::read_rgba(&out.join(format!("{k:03}.png")));
+        assert_eq!((w, h), (160, 120));
+        image::open(out.join(format!("{k:03}.depth.exr"))).unwrap();
+    }
+}
+
 /// Starts `meshtracer bench` with `args`, waits until its second measurement has begun (waiting
 /// only for the first one's report raced the loop's stop check: CI once saw "1 of 3"), sends
 /// it `interrupts` SIGINTs (200 ms apart) and returns its exit code, stdout and stderr.
