@@ -441,7 +441,9 @@ fn glass_scene(
 /// vertical and seen straight down: the floor shows through the glass in its own colour, dimmed
 /// only by the glass's Fresnel reflection (4% at ior 1.5) where the light and the view cross
 /// it, in both integrators (the direct one approximates glass as see-through). Before
-/// transmission was read, the glass was an opaque white sheet.
+/// transmission was read, the glass was an opaque white sheet. With a transmission texture
+/// opaque on half the pane, that half hides the floor and casts a shadow, which shows through
+/// the clear half (before shadow rays read the texture, it let the light through).
 #[test]
 fn clear_glass_shows_what_is_behind_it() {
     let dir = tempfile::tempdir().unwrap();
@@ -496,8 +498,12 @@ fn clear_glass_shows_what_is_behind_it() {
         };
         let open = mean(1.5, 2.5);
         if model == &textured {
-            // KHR_materials_transmission's texture: opaque where red is 0, clear where 1.
-            let (opaque, clear) = (mean(-1.8, -1.2), mean(-0.8, -0.2));
+            // KHR_materials_transmission's texture: opaque where red is 0, clear where 1. The
+            // light, 0.5 m to the left of vertical per metre up, reaches the floor under x in
+            // [-0.5, 0] through clear texels, and under [-1, -0.5] through opaque ones: there
+            // the camera sees, through clear glass, the opaque half's shadow.
+            let (opaque, clear) = (mean(-1.8, -1.2), mean(-0.4, -0.1));
+            let shadowed = mean(-0.9, -0.6);
             assert!(
                 opaque.y > 0.5 * opaque.x,
                 "{integrator}: the opaque half shows the floor: {opaque}"
@@ -506,6 +512,10 @@ fn clear_glass_shows_what_is_behind_it() {
             assert!(
                 (0.85..=1.0).contains(&ratio) && clear.y < 0.2 * clear.x,
                 "{integrator}: the clear half {clear} vs the open floor {open}"
+            );
+            assert!(
+                shadowed.x < 0.1 * open.x,
+                "{integrator}: the opaque texels cast no shadow: {shadowed} vs {open}"
             );
             continue;
         }

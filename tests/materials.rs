@@ -1,6 +1,7 @@
 //! Materials through the real binary: alpha MASK lets light through where the texture is
-//! transparent, a normal map shades like the geometry it imitates, UVs are oriented as glTF
-//! says, and the textured sample models render with their textures.
+//! transparent, glass shadows follow the transmission texture, a normal map shades like the
+//! geometry it imitates, UVs are oriented as glTF says, and the textured sample models render
+//! with their textures.
 
 mod common;
 
@@ -80,6 +81,96 @@ fn alpha_mask_lets_light_and_eye_rays_through_transparent_texels() {
         "the eye sees through: {}",
         at(-0.25, 0.0)
     );
+}
+
+/// Share of the open ground's radiance a shadow may differ from the model's prediction by: the
+/// model is exact, this covers f32 rounding in the shading of the two regions compared.
+const SHADOW_RATIO_TOLERANCE: f32 = 0.005;
+
+/// A thin glass pane (`KHR_materials_transmission`, factor 0.8, no volume) as the occluder of
+/// the shadow scene, its transmission texture opaque on the left half (red 0, the other channels
+/// 1, which must not count) and clear on the right (red 1, the others 0). Shadow rays through a
+/// thin sheet are attenuated by the luminance of what it lets straight through at the point:
+/// factor × texture red × (1 - metallic) × (1 - F0) × base colour. So the opaque half's shadow
+/// is black, and the clear half's is lit at 0.8 × 0.96 × luminance(0.9, 0.5, 0.2) = 0.4327 of
+/// the open ground, in both integrators (the path tracer with `--bounces 0`: the same direct
+/// light through the same shadow rays). Before the texture was read there, both halves let
+/// 0.4327 through.
+#[test]
+fn shadows_through_glass_follow_its_transmission_texture() {
+    let dir = tempfile::tempdir().unwrap();
+    let texture = image::RgbaImage::from_fn(2, 1, |x, _| {
+        if x == 0 {
+            image::Rgba([0, 255, 255, 255])
+        } else {
+            image::Rgba([255, 0, 0, 255])
+        }
+    });
+    let (factor, tint, f0) = (0.8f32, glam::Vec3::new(0.9, 0.5, 0.2), 0.04f32);
+    let luminance = tint.dot(glam::Vec3::new(0.2126, 0.7152, 0.0722));
+    let predicted = factor * (1.0 - f0) * luminance;
+    let extra = json!({
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_transmission"],
+        "materials": [
+            {"pbrMetallicRoughness": {"metallicFactor": 0.0}},
+            {"pbrMetallicRoughness": {"baseColorFactor": [tint.x, tint.y, tint.z, 1.0],
+                "metallicFactor": 0.0, "roughnessFactor": 0.0},
+             "doubleSided": true,
+             "extensions": {"KHR_materials_transmission": {
+                "transmissionFactor": factor, "transmissionTexture": {"index": 0}}}}
+        ],
+        "images": [{"uri": png_data_uri(&texture)}],
+        "samplers": [{"magFilter": 9728, "minFilter": 9728, "wrapS": 33071, "wrapT": 33071}],
+        "textures": [{"source": 0, "sampler": 0}]
+    });
+    let (gltf, bin) = shadow_scene(1.0, 1, extra);
+    let model = write_gltf(dir.path(), "pane.gltf", gltf, &bin);
+    let n = 120usize;
+    for integrator in ["direct", "path"] {
+        let pixels = render(
+            dir.path(),
+            &model,
+            &format!("pane-{integrator}.exr"),
+            &[
+                "--width",
+                "120",
+                "--height",
+                "120",
+                "--integrator",
+                integrator,
+                "--bounces",
+                "0",
+            ],
+        );
+        // Mean red over the ground x in [x0, x1], y in [y0, y1] (the view shows [-3, 3]²).
+        let mean = |(x0, x1): (f32, f32), (y0, y1): (f32, f32)| {
+            let (mut sum, mut count) = (0.0, 0.0);
+            for (k, p) in pixels.iter().enumerate() {
+                let x = -3.0 + ((k % n) as f32 + 0.5) * 6.0 / n as f32;
+                let y = 3.0 - ((k / n) as f32 + 0.5) * 6.0 / n as f32;
+                if x > x0 && x < x1 && y > y0 && y < y1 {
+                    sum += p[0];
+                    count += 1.0;
+                }
+            }
+            sum / count
+        };
+        let open = mean((2.2, 2.8), (-0.45, 0.45));
+        assert!(open > 0.2, "{integrator}: open ground is lit: {open}");
+        // The pane's left half (u < 0.5) shades x in [0.5, 1.0], its right half [1.0, 1.5].
+        // Each region stays off the shadow of the pane's diagonal (x - 1 = y), where the two
+        // triangles' 1e-4 watertight overlap lets a shadow ray cross the sheet twice.
+        let opaque = mean((0.6, 0.9), (0.1, 0.45));
+        assert!(
+            opaque < 1e-6,
+            "{integrator}: the opaque texels cast a black shadow: {opaque}"
+        );
+        let ratio = mean((1.1, 1.4), (-0.45, -0.1)) / open;
+        assert!(
+            (ratio - predicted).abs() < SHADOW_RATIO_TOLERANCE,
+            "{integrator}: the clear texels let {ratio} through, the model says {predicted}"
+        );
+    }
 }
 
 /// A flat quad with a constant normal map tilting its normal 30° toward +X shades, at its

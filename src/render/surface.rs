@@ -5,7 +5,8 @@
 //! Alpha (glTF 2.0 §3.9.4): OPAQUE ignores alpha; MASK surfaces below `alphaCutoff` are absent
 //! for camera and shadow rays alike (tested inside traversal); BLEND surfaces are composited by
 //! the integrator and attenuate shadow rays by (1 - alpha) each: an approximation that ignores
-//! their colour and the order of layers.
+//! their colour and the order of layers. Thin transmissive sheets attenuate shadow rays by what
+//! they let straight through at the point crossed (see [`Prepared::shadow_transmittance`]).
 
 use crate::accel::Hit;
 use crate::geometry::{Ray, SpawnPoint};
@@ -90,13 +91,31 @@ impl Prepared {
     pub fn emission_at(&self, tri: usize, b: Vec3) -> Vec3 {
         let material = &self.scene.materials[self.scene.soup.material[tri] as usize];
         let mut emission = material.emissive * material.emissive_strength;
-        if let Some(r) = &material.emissive_texture {
-            if let Some((image, sampler)) = self.textures.lookup(&self.scene, r) {
-                let uv = transform_uv(r, self.uv(tri, r.tex_coord, b));
-                emission *= image.sample(uv, 0.0, sampler, true).truncate();
-            }
+        if let Some(t) = self.texel_at(&material.emissive_texture, tri, b, true) {
+            emission *= t.truncate();
         }
         emission
+    }
+
+    /// Texture `r` (if the material has it and its image loaded) at barycentrics `b` of soup
+    /// triangle `tri`, at full resolution: for queries without a ray cone (inside traversal, on
+    /// a light), where a mip level cannot be chosen.
+    fn texel_at(&self, r: &Option<TextureRef>, tri: usize, b: Vec3, srgb: bool) -> Option<Vec4> {
+        let r = r.as_ref()?;
+        let (image, sampler) = self.textures.lookup(&self.scene, r)?;
+        let uv = transform_uv(r, self.uv(tri, r.tex_coord, b));
+        Some(image.sample(uv, 0.0, sampler, srgb))
+    }
+
+    /// `KHR_materials_transmission` at barycentrics `b` of soup triangle `tri` made of
+    /// `material`: transmissionFactor × the transmission texture's red channel (linear), as
+    /// [`Prepared::surface`] reads it for camera rays but at full resolution (shadow rays
+    /// carry no ray cone). The factor alone, bit for bit, without a texture.
+    pub fn transmission_at(&self, material: &Material, tri: usize, b: Vec3) -> f32 {
+        match self.texel_at(&material.transmission_texture, tri, b, false) {
+            Some(t) => (material.transmission * t.x).clamp(0.0, 1.0),
+            None => material.transmission,
+        }
     }
 
     /// The closest surface a camera ray sees: MASK cut-outs are skipped, BLEND surfaces count.
@@ -121,11 +140,8 @@ impl Prepared {
         if let Some([a, b, c]) = soup.corner_colors(tri) {
             alpha *= a.w * barycentric.x + b.w * barycentric.y + c.w * barycentric.z;
         }
-        if let Some(r) = &material.base_color_texture {
-            if let Some((image, sampler)) = self.textures.lookup(&self.scene, r) {
-                let uv = transform_uv(r, self.uv(tri, r.tex_coord, barycentric));
-                alpha *= image.sample(uv, 0.0, sampler, false).w;
-            }
+        if let Some(t) = self.texel_at(&material.base_color_texture, tri, barycentric, false) {
+            alpha *= t.w;
         }
         alpha
     }
@@ -453,8 +469,12 @@ impl Prepared {
         }
     }
 
-    /// 1 for an unblocked shadow ray, 0 for a blocked one, the product of (1 - alpha) over
-    /// BLEND surfaces in between otherwise.
+    /// 1 for an unblocked shadow ray, 0 for a blocked one, otherwise the product over what it
+    /// passes: (1 - alpha) for each BLEND surface, and for each see-through sheet
+    /// ([`Material::see_through`]) the luminance of its straight transmittance at the point
+    /// crossed (transmission factor × texture there, so a sheet's opaque texels cast full
+    /// shadows). Both integrators' shadow rays (punctual lights, area and environment light
+    /// samples) ask this.
     pub fn shadow_transmittance(&self, shadow: &Ray) -> f32 {
         if !self.any_alpha() {
             return if self.accel.occluded(shadow) {
@@ -475,9 +495,12 @@ impl Prepared {
                     transmittance.get() < 1e-3
                 }
                 AlphaMode::Opaque if material.see_through() => {
-                    // Luminance of the straight-through share: a scalar attenuation (the tint
-                    // is lost in shadows; the camera sees it).
-                    let pass = crate::bsdf::luminance(material.straight_transmittance());
+                    // Luminance of the straight-through share at this point (transmission
+                    // factor × texture): a scalar attenuation (the tint is lost in shadows; the
+                    // camera sees it).
+                    let transmission = self.transmission_at(material, tri as usize, b);
+                    let pass =
+                        crate::bsdf::luminance(material.straight_transmittance(transmission));
                     transmittance.set(transmittance.get() * pass.clamp(0.0, 1.0));
                     transmittance.get() < 1e-3
                 }

@@ -378,13 +378,15 @@ impl Material {
     }
 
     /// The share of light a see-through sheet lets pass straight through (0 for any other
-    /// material): transmission × (1 - metallic) × (1 - F0) × base colour.
-    pub fn straight_transmittance(&self) -> Vec3 {
+    /// material): transmission × (1 - metallic) × (1 - F0) × base colour, with `transmission`
+    /// the value at the point (the factor times the transmission texture's red channel there,
+    /// as [`crate::prepare::Prepared::transmission_at`] reads it).
+    pub fn straight_transmittance(&self, transmission: f32) -> Vec3 {
         if !self.see_through() {
             return Vec3::ZERO;
         }
         let f0 = ((self.ior - 1.0) / (self.ior + 1.0)).powi(2);
-        self.base_color.truncate() * (self.transmission * (1.0 - self.metallic) * (1.0 - f0))
+        self.base_color.truncate() * (transmission * (1.0 - self.metallic) * (1.0 - f0))
     }
 
     /// Every texture the material references (base colour, metallic-roughness, normal,
