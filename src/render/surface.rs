@@ -5,8 +5,9 @@
 //! Alpha (glTF 2.0 §3.9.4): OPAQUE ignores alpha; MASK surfaces below `alphaCutoff` are absent
 //! for camera and shadow rays alike (tested inside traversal); BLEND surfaces are composited by
 //! the integrator and attenuate shadow rays by (1 - alpha) each: an approximation that ignores
-//! their colour and the order of layers. Thin transmissive sheets attenuate shadow rays by what
-//! they let straight through at the point crossed (see [`Prepared::shadow_transmittance`]).
+//! their colour and the order of layers. Thin transmissive sheets (OPAQUE, or MASK where
+//! present) attenuate shadow rays by what they let straight through at the point crossed (see
+//! [`Prepared::shadow_transmittance`]).
 
 use crate::accel::Hit;
 use crate::geometry::{Ray, SpawnPoint};
@@ -488,13 +489,15 @@ impl Prepared {
             // In range: Scene::check_references ran at load.
             let material = &self.scene.materials[self.scene.soup.material[tri as usize] as usize];
             match material.alpha_mode {
-                AlphaMode::Mask => self.alpha_at(tri, b) >= material.alpha_cutoff,
+                AlphaMode::Mask if self.alpha_at(tri, b) < material.alpha_cutoff => false,
                 AlphaMode::Blend => {
                     let alpha = self.alpha_at(tri, b).clamp(0.0, 1.0);
                     transmittance.set(transmittance.get() * (1.0 - alpha));
                     transmittance.get() < 1e-3
                 }
-                AlphaMode::Opaque if material.see_through() => {
+                // Where a MASK surface is there, it is what an OPAQUE one is (camera rays
+                // shade it so): a see-through sheet lets shadow rays through too.
+                AlphaMode::Opaque | AlphaMode::Mask if material.see_through() => {
                     // Luminance of the straight-through share at this point (transmission
                     // factor × texture): a scalar attenuation (the tint is lost in shadows; the
                     // camera sees it).
@@ -504,7 +507,7 @@ impl Prepared {
                     transmittance.set(transmittance.get() * pass.clamp(0.0, 1.0));
                     transmittance.get() < 1e-3
                 }
-                AlphaMode::Opaque => true,
+                AlphaMode::Opaque | AlphaMode::Mask => true,
             }
         };
         if self.accel.occluded_filtered(shadow, Some(&accept)) {
