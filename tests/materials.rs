@@ -88,99 +88,146 @@ fn alpha_mask_lets_light_and_eye_rays_through_transparent_texels() {
 /// (measured: 1e-6).
 const SHADOW_RATIO_TOLERANCE: f32 = 1e-4;
 
-/// A thin glass pane (`KHR_materials_transmission`, factor 0.8, no volume) as the occluder of
-/// the shadow scene, its transmission texture opaque on the left half (red 0, the other channels
-/// 1, which must not count) and clear on the right (red 1, the others 0). Shadow rays through a
-/// thin sheet are attenuated by the luminance of what it lets straight through at the point:
-/// factor × texture red × (1 - metallic) × (1 - F0) × base colour. So the opaque half's shadow
-/// is black, and the clear half's is lit at 0.8 × 0.96 × luminance(0.9, 0.5, 0.2) = 0.4327 of
-/// the open ground, in both integrators (the path tracer with `--bounces 0`: the same direct
-/// light through the same shadow rays). Before the texture was read there, both halves let
-/// 0.4327 through. The same pane as a MASK material (alpha 1 over the cutoff: present
-/// everywhere) casts the same shadows; before, a MASK sheet's shadow was black throughout.
-#[test]
-fn shadows_through_glass_follow_its_transmission_texture() {
-    let dir = tempfile::tempdir().unwrap();
-    let texture = image::RgbaImage::from_fn(2, 1, |x, _| {
-        if x == 0 {
-            image::Rgba([0, 255, 255, 255])
-        } else {
-            image::Rgba([255, 0, 0, 255])
-        }
-    });
-    let (factor, tint, f0) = (0.8f32, glam::Vec3::new(0.9, 0.5, 0.2), 0.04f32);
-    let luminance = tint.dot(glam::Vec3::new(0.2126, 0.7152, 0.0722));
-    let predicted = factor * (1.0 - f0) * luminance;
+/// What a see-through sheet of base colour (0.9, 0.5, 0.2), transmission 0.8 and ior 1.5 lets
+/// a shadow ray through: the luminance of factor × (1 - metallic) × (1 - F0) × base colour =
+/// 0.8 × 0.96 × luminance(0.9, 0.5, 0.2) = 0.4327.
+fn sheet_transmittance() -> f32 {
+    let tint = glam::Vec3::new(0.9, 0.5, 0.2);
+    0.8 * (1.0 - 0.04) * tint.dot(glam::Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// A 2 x 1 texture: `left` for u < 0.5, `right` for the rest (RGBA8).
+fn two_texels(left: [u8; 4], right: [u8; 4]) -> image::RgbaImage {
+    image::RgbaImage::from_fn(2, 1, |x, _| image::Rgba(if x == 0 { left } else { right }))
+}
+
+/// The shadow scene with a pane of base colour (0.9, 0.5, 0.2), metallic 0 and
+/// `KHR_materials_transmission` 0.8 as the occluder, in `alpha_mode`, plus `extensions` (which
+/// may use texture 0: `texture`, nearest and clamped), rendered by each integrator (the path
+/// tracer with `--bounces 0`: the same direct light through the same shadow rays). The shadow
+/// of the pane's left half (u < 0.5) must be black and that of its right half lit at
+/// [`sheet_transmittance`] of the open ground; `halves` names them for the messages.
+fn assert_pane_shadows(
+    dir: &Path,
+    alpha_mode: &str,
+    extensions: serde_json::Value,
+    texture: &image::RgbaImage,
+    halves: [&str; 2],
+) {
+    let mut pane = json!({"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.5, 0.2, 1.0],
+            "metallicFactor": 0.0, "roughnessFactor": 0.0},
+         "alphaMode": alpha_mode, "doubleSided": true,
+         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.8}}});
+    for (k, v) in extensions.as_object().unwrap() {
+        pane["extensions"][k] = v.clone();
+    }
+    let mut used = vec!["KHR_lights_punctual".to_string()];
+    used.extend(pane["extensions"].as_object().unwrap().keys().cloned());
     let extra = json!({
-        "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_transmission"],
-        "materials": [
-            {"pbrMetallicRoughness": {"metallicFactor": 0.0}},
-            {"pbrMetallicRoughness": {"baseColorFactor": [tint.x, tint.y, tint.z, 1.0],
-                "metallicFactor": 0.0, "roughnessFactor": 0.0},
-             "doubleSided": true,
-             "extensions": {"KHR_materials_transmission": {
-                "transmissionFactor": factor, "transmissionTexture": {"index": 0}}}}
-        ],
-        "images": [{"uri": png_data_uri(&texture)}],
+        "extensionsUsed": used,
+        "materials": [{"pbrMetallicRoughness": {"metallicFactor": 0.0}}, pane],
+        "images": [{"uri": png_data_uri(texture)}],
         "samplers": [{"magFilter": 9728, "minFilter": 9728, "wrapS": 33071, "wrapT": 33071}],
         "textures": [{"source": 0, "sampler": 0}]
     });
-    let n = 120usize;
-    for (mode, integrator) in [
-        ("OPAQUE", "direct"),
-        ("OPAQUE", "path"),
-        ("MASK", "direct"),
-        ("MASK", "path"),
-    ] {
-        let mut extra = extra.clone();
-        extra["materials"][1]["alphaMode"] = json!(mode);
-        let (gltf, bin) = shadow_scene(1.0, 1, extra);
-        let model = write_gltf(dir.path(), &format!("pane-{mode}.gltf"), gltf, &bin);
-        let case = format!("{mode} {integrator}");
-        let pixels = render(
-            dir.path(),
-            &model,
-            &format!("pane-{mode}-{integrator}.exr"),
-            &[
-                "--width",
-                "120",
-                "--height",
-                "120",
-                "--integrator",
-                integrator,
-                "--bounces",
-                "0",
-            ],
-        );
-        // Mean red over the ground x in [x0, x1], y in [y0, y1] (the view shows [-3, 3]²).
-        let mean = |(x0, x1): (f32, f32), (y0, y1): (f32, f32)| {
-            let (mut sum, mut count) = (0.0, 0.0);
-            for (k, p) in pixels.iter().enumerate() {
-                let x = -3.0 + ((k % n) as f32 + 0.5) * 6.0 / n as f32;
-                let y = 3.0 - ((k / n) as f32 + 0.5) * 6.0 / n as f32;
-                if x > x0 && x < x1 && y > y0 && y < y1 {
-                    sum += p[0];
-                    count += 1.0;
-                }
-            }
-            sum / count
-        };
-        let open = mean((2.2, 2.8), (-0.45, 0.45));
-        assert!(open > 0.2, "{case}: open ground is lit: {open}");
-        // The pane's left half (u < 0.5) shades x in [0.5, 1.0], its right half [1.0, 1.5].
-        // Each region stays off the shadow of the pane's diagonal (x - 1 = y), where the two
-        // triangles' 1e-4 watertight overlap lets a shadow ray cross the sheet twice.
-        let opaque = mean((0.6, 0.9), (0.1, 0.45));
+    let (gltf, bin) = shadow_scene(1.0, 1, extra);
+    let name = format!("pane-{alpha_mode}-{}", halves[0].replace(' ', "-"));
+    let model = write_gltf(dir, &format!("{name}.gltf"), gltf, &bin);
+    for integrator in ["direct", "path"] {
+        let case = format!("{alpha_mode} pane, {integrator}");
+        let name = format!("{name}-{integrator}");
+        let (left, right) = pane_shadow_ratios(dir, &model, &name, integrator);
         assert!(
-            opaque < 1e-6,
-            "{case}: the opaque texels cast a black shadow: {opaque}"
+            left < 1e-6,
+            "{case}: the {} cast a black shadow: {left}",
+            halves[0]
         );
-        let ratio = mean((1.1, 1.4), (-0.45, -0.1)) / open;
+        let predicted = sheet_transmittance();
         assert!(
-            (ratio - predicted).abs() < SHADOW_RATIO_TOLERANCE,
-            "{case}: the clear texels let {ratio} through, the model says {predicted}"
+            (right - predicted).abs() < SHADOW_RATIO_TOLERANCE,
+            "{case}: the {} let {right} through, the model says {predicted}",
+            halves[1]
         );
     }
+}
+
+/// The ground's radiance in the shadow scene `model` rendered by `integrator`, in the shadow of
+/// the occluder's left half and of its right half, as shares of the open ground's. Each region
+/// stays off the shadow of the occluder's diagonal, where its two triangles' 1e-4 watertight
+/// overlap lets a shadow ray cross a see-through sheet twice.
+fn pane_shadow_ratios(dir: &Path, model: &Path, name: &str, integrator: &str) -> (f32, f32) {
+    let n = 120usize;
+    let pixels = render(
+        dir,
+        model,
+        &format!("{name}.exr"),
+        &[
+            "--width",
+            "120",
+            "--height",
+            "120",
+            "--integrator",
+            integrator,
+            "--bounces",
+            "0",
+        ],
+    );
+    // Mean red over the ground x in [x0, x1], y in [y0, y1] (the view shows [-3, 3]²).
+    let mean = |(x0, x1): (f32, f32), (y0, y1): (f32, f32)| {
+        let (mut sum, mut count) = (0.0, 0.0);
+        for (k, p) in pixels.iter().enumerate() {
+            let x = -3.0 + ((k % n) as f32 + 0.5) * 6.0 / n as f32;
+            let y = 3.0 - ((k / n) as f32 + 0.5) * 6.0 / n as f32;
+            if x > x0 && x < x1 && y > y0 && y < y1 {
+                sum += p[0];
+                count += 1.0;
+            }
+        }
+        sum / count
+    };
+    let open = mean((2.2, 2.8), (-0.45, 0.45));
+    assert!(open > 0.2, "{name}: open ground is lit: {open}");
+    // The pane's left half shades x in [0.5, 1.0] (its diagonal's shadow: x - 1 = y), its
+    // right half [1.0, 1.5].
+    let left = mean((0.6, 0.9), (0.1, 0.45)) / open;
+    let right = mean((1.1, 1.4), (-0.45, -0.1)) / open;
+    (left, right)
+}
+
+/// A thin glass pane whose transmission texture is opaque on the left half (red 0, the other
+/// channels 1, which must not count) and clear on the right (red 1, the others 0): shadow rays
+/// through a thin sheet are attenuated by what it lets straight through at the point, with
+/// transmission = factor × texture red. So the opaque half's shadow is black and the clear
+/// half's is lit at 0.4327 of the open ground ([`sheet_transmittance`]), in both integrators.
+/// Before the texture was read there, both halves let 0.4327 through. The same pane as a MASK
+/// material (alpha 1 over the cutoff: present everywhere) casts the same shadows; before, a
+/// MASK sheet's shadow was black throughout.
+#[test]
+fn shadows_through_glass_follow_its_transmission_texture() {
+    let dir = tempfile::tempdir().unwrap();
+    let texture = two_texels([0, 255, 255, 255], [255, 0, 0, 255]);
+    let textured = json!({"KHR_materials_transmission": {
+        "transmissionFactor": 0.8, "transmissionTexture": {"index": 0}}});
+    for mode in ["OPAQUE", "MASK"] {
+        let halves = ["opaque texels", "clear texels"];
+        assert_pane_shadows(dir.path(), mode, textured.clone(), &texture, halves);
+    }
+}
+
+/// The same pane as a `KHR_materials_volume` boundary (thicknessFactor 0.05) whose thickness
+/// texture is 0 on the right half (green 0, red 1, which must not count) and full on the left
+/// (green 1, red 0): where the thickness is 0 the surface is thin-walled and lets shadow rays
+/// through like the thin pane (0.4327 of the open ground); where it is a volume it bends light,
+/// which a straight shadow ray cannot follow, so it blocks them (black), in both integrators.
+/// Before the texture was read, the whole pane was a volume and both halves were black.
+#[test]
+fn shadows_through_a_volume_pass_where_its_thickness_texture_is_0() {
+    let dir = tempfile::tempdir().unwrap();
+    let texture = two_texels([0, 255, 0, 255], [255, 0, 0, 255]);
+    let volume = json!({"KHR_materials_volume": {
+        "thicknessFactor": 0.05, "thicknessTexture": {"index": 0}}});
+    let halves = ["volume half", "thin-walled half"];
+    assert_pane_shadows(dir.path(), "OPAQUE", volume, &texture, halves);
 }
 
 /// A flat quad with a constant normal map tilting its normal 30° toward +X shades, at its

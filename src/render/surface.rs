@@ -44,6 +44,9 @@ pub struct Surface<'m> {
     pub alpha: f32,
     /// `KHR_materials_transmission` at the point: factor × texture red.
     pub transmission: f32,
+    /// Whether the surface is a thin wall here, not a volume boundary: the material's
+    /// [`Material::thin_walled`], or `KHR_materials_volume`'s thickness texture reading 0.
+    pub thin_walled: bool,
     /// The material hit.
     pub source: &'m Material,
 }
@@ -117,6 +120,17 @@ impl Prepared {
             Some(t) => (material.transmission * t.x).clamp(0.0, 1.0),
             None => material.transmission,
         }
+    }
+
+    /// Whether soup triangle `tri` made of `material` is a thin wall at barycentrics `b`:
+    /// everywhere for a [`Material::thin_walled`] material, else where
+    /// `KHR_materials_volume`'s thickness (factor × texture green) is 0, read as
+    /// [`Prepared::surface`] reads it but at full resolution (shadow rays carry no ray cone).
+    pub fn thin_walled_at(&self, material: &Material, tri: usize, b: Vec3) -> bool {
+        material.thin_walled
+            || self
+                .texel_at(&material.thickness_texture, tri, b, false)
+                .is_some_and(|t| t.y <= 0.0)
     }
 
     /// The closest surface a camera ray sees: MASK cut-outs are skipped, BLEND surfaces count.
@@ -391,6 +405,9 @@ impl Prepared {
         if let Some(t) = sample(&material.transmission_texture, false) {
             transmission *= t.x;
         }
+        // KHR_materials_volume: a thickness of 0 (factor × texture green) is a thin wall.
+        let thin_walled = material.thin_walled
+            || sample(&material.thickness_texture, false).is_some_and(|t| t.y <= 0.0);
         Surface {
             spawn,
             lift,
@@ -406,6 +423,7 @@ impl Prepared {
                 base.w.clamp(0.0, 1.0)
             },
             transmission: transmission.clamp(0.0, 1.0),
+            thin_walled,
             source: material,
         }
     }
@@ -498,6 +516,11 @@ impl Prepared {
                 // Where a MASK surface is there, it is what an OPAQUE one is (camera rays
                 // shade it so): a see-through sheet lets shadow rays through too.
                 AlphaMode::Opaque | AlphaMode::Mask if material.see_through() => {
+                    // A volume boundary here (its thickness texture is not 0): it bends light,
+                    // so it blocks, as a volume without the texture does.
+                    if !self.thin_walled_at(material, tri as usize, b) {
+                        return true;
+                    }
                     // Luminance of the straight-through share at this point (transmission
                     // factor × texture): a scalar attenuation (the tint is lost in shadows; the
                     // camera sees it).

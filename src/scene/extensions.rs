@@ -129,7 +129,7 @@ pub const EXTENSIONS: &[KnownExtension] = &[
         "KHR_materials_volume",
         Approximated,
         false,
-        "thickness factor and Beer-Lambert attenuation (path); no thickness texture",
+        "thickness factor x texture is the thin-walled switch (0: thin); Beer-Lambert attenuation over traced path lengths (path); see-through (direct)",
     ),
     ext(
         "KHR_materials_clearcoat",
