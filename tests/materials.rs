@@ -101,26 +101,37 @@ fn two_texels(left: [u8; 4], right: [u8; 4]) -> image::RgbaImage {
     image::RgbaImage::from_fn(2, 1, |x, _| image::Rgba(if x == 0 { left } else { right }))
 }
 
+/// `patch` merged into `target`: objects member by member, anything else replaced.
+fn merge(target: &mut serde_json::Value, patch: &serde_json::Value) {
+    match (target.as_object_mut(), patch.as_object()) {
+        (Some(target), Some(patch)) => {
+            for (k, v) in patch {
+                merge(target.entry(k.clone()).or_insert(json!(null)), v);
+            }
+        }
+        _ => *target = patch.clone(),
+    }
+}
+
 /// The shadow scene with a pane of base colour (0.9, 0.5, 0.2), metallic 0 and
-/// `KHR_materials_transmission` 0.8 as the occluder, in `alpha_mode`, plus `extensions` (which
-/// may use texture 0: `texture`, nearest and clamped), rendered by each integrator (the path
-/// tracer with `--bounces 0`: the same direct light through the same shadow rays). The shadow
-/// of the pane's left half (u < 0.5) must be black and that of its right half lit at
-/// [`sheet_transmittance`] of the open ground; `halves` names them for the messages.
+/// `KHR_materials_transmission` 0.8 as the occluder, changed by `edit` (merged into its
+/// material, which may use texture 0: `texture`, nearest and clamped), rendered by each
+/// integrator (the path tracer with `--bounces 0`: the same direct light through the same
+/// shadow rays). The shadow of the pane's left half (u < 0.5) must be black and that of its
+/// right half lit at `expected` of the open ground; `halves` names them for the messages.
 fn assert_pane_shadows(
     dir: &Path,
-    alpha_mode: &str,
-    extensions: serde_json::Value,
+    edit: serde_json::Value,
     texture: &image::RgbaImage,
     halves: [&str; 2],
+    expected: f32,
 ) {
     let mut pane = json!({"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.5, 0.2, 1.0],
             "metallicFactor": 0.0, "roughnessFactor": 0.0},
-         "alphaMode": alpha_mode, "doubleSided": true,
+         "alphaMode": "OPAQUE", "doubleSided": true,
          "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.8}}});
-    for (k, v) in extensions.as_object().unwrap() {
-        pane["extensions"][k] = v.clone();
-    }
+    merge(&mut pane, &edit);
+    let alpha_mode = pane["alphaMode"].as_str().unwrap().to_string();
     let mut used = vec!["KHR_lights_punctual".to_string()];
     used.extend(pane["extensions"].as_object().unwrap().keys().cloned());
     let extra = json!({
@@ -142,10 +153,9 @@ fn assert_pane_shadows(
             "{case}: the {} cast a black shadow: {left}",
             halves[0]
         );
-        let predicted = sheet_transmittance();
         assert!(
-            (right - predicted).abs() < SHADOW_RATIO_TOLERANCE,
-            "{case}: the {} let {right} through, the model says {predicted}",
+            (right - expected).abs() < SHADOW_RATIO_TOLERANCE,
+            "{case}: the {} let {right} through, the model says {expected}",
             halves[1]
         );
     }
@@ -206,11 +216,11 @@ fn pane_shadow_ratios(dir: &Path, model: &Path, name: &str, integrator: &str) ->
 fn shadows_through_glass_follow_its_transmission_texture() {
     let dir = tempfile::tempdir().unwrap();
     let texture = two_texels([0, 255, 255, 255], [255, 0, 0, 255]);
-    let textured = json!({"KHR_materials_transmission": {
-        "transmissionFactor": 0.8, "transmissionTexture": {"index": 0}}});
     for mode in ["OPAQUE", "MASK"] {
+        let edit = json!({"alphaMode": mode, "extensions": {"KHR_materials_transmission": {
+            "transmissionTexture": {"index": 0}}}});
         let halves = ["opaque texels", "clear texels"];
-        assert_pane_shadows(dir.path(), mode, textured.clone(), &texture, halves);
+        assert_pane_shadows(dir.path(), edit, &texture, halves, sheet_transmittance());
     }
 }
 
@@ -224,10 +234,40 @@ fn shadows_through_glass_follow_its_transmission_texture() {
 fn shadows_through_a_volume_pass_where_its_thickness_texture_is_0() {
     let dir = tempfile::tempdir().unwrap();
     let texture = two_texels([0, 255, 0, 255], [255, 0, 0, 255]);
-    let volume = json!({"KHR_materials_volume": {
-        "thicknessFactor": 0.05, "thicknessTexture": {"index": 0}}});
+    let edit = json!({"extensions": {"KHR_materials_volume": {
+        "thicknessFactor": 0.05, "thicknessTexture": {"index": 0}}}});
     let halves = ["volume half", "thin-walled half"];
-    assert_pane_shadows(dir.path(), "OPAQUE", volume, &texture, halves);
+    assert_pane_shadows(dir.path(), edit, &texture, halves, sheet_transmittance());
+}
+
+/// Shadows through glass read its base colour and metallic textures as camera rays do. A pane
+/// of metallicFactor 1 (the glTF default, which StainedGlassLamp's and LightsPunctualLamp's
+/// glass keep) whose metallic-roughness texture is metal on the left (blue 1) and dielectric on
+/// the right (blue 0): the metal half blocks, the dielectric half lets 0.4327 through, as the
+/// pane of metallic 0 does. And a white pane whose base colour texture is black on the left and
+/// sRGB (242, 188, 124) on the right: black, and 0.8 × 0.96 × the luminance of that colour
+/// decoded to linear. Before, shadow rays took the factors alone: the first pane blocked
+/// everywhere (metal) and the second let 0.8 × 0.96 through everywhere.
+#[test]
+fn shadows_through_glass_follow_its_base_colour_and_metallic_textures() {
+    let dir = tempfile::tempdir().unwrap();
+    let metal = two_texels([0, 0, 255, 255], [0, 0, 0, 255]);
+    let edit = json!({"pbrMetallicRoughness": {"metallicFactor": 1.0,
+        "metallicRoughnessTexture": {"index": 0}}});
+    let halves = ["metal half", "dielectric half"];
+    assert_pane_shadows(dir.path(), edit, &metal, halves, sheet_transmittance());
+    let srgb = [242u8, 188, 124];
+    let linear = srgb.map(|c| {
+        let c = c as f32 / 255.0;
+        ((c + 0.055) / 1.055).powf(2.4)
+    });
+    let colour = two_texels([0, 0, 0, 255], [srgb[0], srgb[1], srgb[2], 255]);
+    let edit = json!({"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+        "baseColorTexture": {"index": 0}}});
+    let halves = ["black texels", "coloured texels"];
+    let expected =
+        0.8 * 0.96 * glam::Vec3::from(linear).dot(glam::Vec3::new(0.2126, 0.7152, 0.0722));
+    assert_pane_shadows(dir.path(), edit, &colour, halves, expected);
 }
 
 /// A flat quad with a constant normal map tilting its normal 30° toward +X shades, at its

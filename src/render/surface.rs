@@ -111,15 +111,30 @@ impl Prepared {
         Some(image.sample(uv, 0.0, sampler, srgb))
     }
 
-    /// `KHR_materials_transmission` at barycentrics `b` of soup triangle `tri` made of
-    /// `material`: transmissionFactor × the transmission texture's red channel (linear), as
-    /// [`Prepared::surface`] reads it for camera rays but at full resolution (shadow rays
-    /// carry no ray cone). The factor alone, bit for bit, without a texture.
-    pub fn transmission_at(&self, material: &Material, tri: usize, b: Vec3) -> f32 {
-        match self.texel_at(&material.transmission_texture, tri, b, false) {
+    /// What a see-through sheet made of `material` lets straight through at barycentrics `b`
+    /// of soup triangle `tri` ([`Material::straight_transmittance`]), with the inputs camera
+    /// rays read there ([`Prepared::surface`]): base colour factor × vertex colour × base
+    /// colour texture, transmissionFactor × transmission texture red, metallicFactor ×
+    /// metallic-roughness texture blue. Textures at full resolution (shadow rays carry no ray
+    /// cone); without textures and vertex colours, the factors bit for bit.
+    pub fn straight_transmittance_at(&self, material: &Material, tri: usize, b: Vec3) -> Vec3 {
+        let mut base = material.base_color;
+        if let Some([ca, cb, cc]) = self.scene.soup.corner_colors(tri) {
+            base *= ca * b.x + cb * b.y + cc * b.z;
+        }
+        if let Some(t) = self.texel_at(&material.base_color_texture, tri, b, true) {
+            base *= t;
+        }
+        let transmission = match self.texel_at(&material.transmission_texture, tri, b, false) {
             Some(t) => (material.transmission * t.x).clamp(0.0, 1.0),
             None => material.transmission,
-        }
+        };
+        let metallic = match self.texel_at(&material.metallic_roughness_texture, tri, b, false) {
+            // glTF 2.0 §3.9.2: metalness in B.
+            Some(t) => (material.metallic * t.z).clamp(0.0, 1.0),
+            None => material.metallic,
+        };
+        material.straight_transmittance(base.truncate(), transmission, metallic)
     }
 
     /// Whether soup triangle `tri` made of `material` is a thin wall at barycentrics `b`:
@@ -491,8 +506,8 @@ impl Prepared {
     /// 1 for an unblocked shadow ray, 0 for a blocked one, otherwise the product over what it
     /// passes: (1 - alpha) for each BLEND surface, and for each see-through sheet
     /// ([`Material::see_through`]) the luminance of its straight transmittance at the point
-    /// crossed (transmission factor × texture there, so a sheet's opaque texels cast full
-    /// shadows). Both integrators' shadow rays (punctual lights, area and environment light
+    /// crossed, with the textures read there as camera rays read them (so a sheet's opaque
+    /// texels cast full shadows). Both integrators' shadow rays (punctual lights, area and environment light
     /// samples) ask this.
     pub fn shadow_transmittance(&self, shadow: &Ray) -> f32 {
         if !self.any_alpha() {
@@ -521,12 +536,10 @@ impl Prepared {
                     if !self.thin_walled_at(material, tri as usize, b) {
                         return true;
                     }
-                    // Luminance of the straight-through share at this point (transmission
-                    // factor × texture): a scalar attenuation (the tint is lost in shadows; the
-                    // camera sees it).
-                    let transmission = self.transmission_at(material, tri as usize, b);
-                    let pass =
-                        crate::bsdf::luminance(material.straight_transmittance(transmission));
+                    // Luminance of the straight-through share at this point (textures read):
+                    // a scalar attenuation (the tint is lost in shadows; the camera sees it).
+                    let through = self.straight_transmittance_at(material, tri as usize, b);
+                    let pass = crate::bsdf::luminance(through);
                     transmittance.set(transmittance.get() * pass.clamp(0.0, 1.0));
                     transmittance.get() < 1e-3
                 }

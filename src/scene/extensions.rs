@@ -123,7 +123,7 @@ pub const EXTENSIONS: &[KnownExtension] = &[
         "KHR_materials_transmission",
         Approximated,
         false,
-        "smooth or rough (GGX) refraction (path), see-through (direct); shadows through thin sheets use factor x texture",
+        "smooth or rough (GGX) refraction (path), see-through (direct); shadows through thin sheets read the textures",
     ),
     ext(
         "KHR_materials_volume",

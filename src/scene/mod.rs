@@ -380,22 +380,25 @@ impl Material {
     /// rays do too (tinted). A glass *volume* bends light, which a straight shadow ray cannot
     /// follow: it blocks them (as in Cycles). Which points of a material with a thickness
     /// texture are thin is decided per hit ([`crate::prepare::Prepared::thin_walled_at`]).
+    /// A metallic factor of 1 with a metallic-roughness texture may still be a dielectric in
+    /// places (StainedGlassLamp's and LightsPunctualLamp's glass: the default factor 1 times
+    /// the texture), as camera rays see it.
     pub fn see_through(&self) -> bool {
         self.transmission > 0.0
             && (self.thin_walled || self.thickness_texture.is_some())
-            && self.metallic < 1.0
+            && (self.metallic < 1.0 || self.metallic_roughness_texture.is_some())
     }
 
     /// The share of light a see-through sheet lets pass straight through (0 for any other
-    /// material): transmission × (1 - metallic) × (1 - F0) × base colour, with `transmission`
-    /// the value at the point (the factor times the transmission texture's red channel there,
-    /// as [`crate::prepare::Prepared::transmission_at`] reads it).
-    pub fn straight_transmittance(&self, transmission: f32) -> Vec3 {
+    /// material): transmission × (1 - metallic) × (1 - F0) × base colour, with the `base`
+    /// colour, `transmission` and `metallic` at the point (textures applied, as
+    /// [`crate::prepare::Prepared::straight_transmittance_at`] reads them).
+    pub fn straight_transmittance(&self, base: Vec3, transmission: f32, metallic: f32) -> Vec3 {
         if !self.see_through() {
             return Vec3::ZERO;
         }
         let f0 = ((self.ior - 1.0) / (self.ior + 1.0)).powi(2);
-        self.base_color.truncate() * (transmission * (1.0 - self.metallic) * (1.0 - f0))
+        base * (transmission * (1.0 - metallic) * (1.0 - f0))
     }
 
     /// Every texture the material references (base colour, metallic-roughness, normal,
