@@ -507,8 +507,8 @@ impl Prepared {
     /// passes: (1 - alpha) for each BLEND surface, and for each see-through sheet
     /// ([`Material::see_through`]) the luminance of its straight transmittance at the point
     /// crossed, with the textures read there as camera rays read them (so a sheet's opaque
-    /// texels cast full shadows). Both integrators' shadow rays (punctual lights, area and environment light
-    /// samples) ask this.
+    /// texels cast full shadows). Both integrators' shadow rays (punctual lights, area and
+    /// environment light samples) ask this.
     pub fn shadow_transmittance(&self, shadow: &Ray) -> f32 {
         if !self.any_alpha() {
             return if self.accel.occluded(shadow) {

@@ -123,13 +123,13 @@ pub const EXTENSIONS: &[KnownExtension] = &[
         "KHR_materials_transmission",
         Approximated,
         false,
-        "smooth or rough (GGX) refraction (path), see-through (direct); shadows through thin sheets read the textures",
+        "GGX refraction (path), see-through (direct); thin sheets pass textured shadows",
     ),
     ext(
         "KHR_materials_volume",
         Approximated,
         false,
-        "thickness factor x texture is the thin-walled switch (0: thin); Beer-Lambert attenuation over traced path lengths (path); see-through (direct)",
+        "thickness (factor x texture) 0 is thin-walled; Beer-Lambert over traced paths (path)",
     ),
     ext(
         "KHR_materials_clearcoat",
