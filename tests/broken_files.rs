@@ -619,6 +619,28 @@ fn cases() -> Vec<Case> {
             },
             |k| matches!(k, K::BadReference { index: 7, .. }),
         ),
+        edited(
+            "transmission texture index past the textures",
+            |j, _| {
+                let png = base64::engine::general_purpose::STANDARD.encode(png_1x1());
+                with_image(j, &format!("data:image/png;base64,{png}"));
+                j["extensionsUsed"] = json!(["KHR_materials_transmission"]);
+                j["materials"][0]["extensions"] = json!({"KHR_materials_transmission": {
+                    "transmissionFactor": 1.0, "transmissionTexture": {"index": 7}}});
+            },
+            |k| matches!(k, K::Gltf(m) if m.contains("transmissionTexture")),
+        ),
+        edited(
+            "volume thickness texture index past the textures",
+            |j, _| {
+                let png = base64::engine::general_purpose::STANDARD.encode(png_1x1());
+                with_image(j, &format!("data:image/png;base64,{png}"));
+                j["extensionsUsed"] = json!(["KHR_materials_volume"]);
+                j["materials"][0]["extensions"] = json!({"KHR_materials_volume": {
+                    "thicknessFactor": 0.5, "thicknessTexture": {"index": 7}}});
+            },
+            |k| matches!(k, K::Gltf(m) if m.contains("thicknessTexture")),
+        ),
         // Found by fuzzing: the gltf crate unwrapped these.
         edited(
             "image with a bufferView but no mimeType",

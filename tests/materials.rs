@@ -1,6 +1,7 @@
 //! Materials through the real binary: alpha MASK lets light through where the texture is
-//! transparent, a normal map shades like the geometry it imitates, UVs are oriented as glTF
-//! says, and the textured sample models render with their textures.
+//! transparent, glass shadows follow the transmission texture, a normal map shades like the
+//! geometry it imitates, UVs are oriented as glTF says, and the textured sample models render
+//! with their textures.
 
 mod common;
 
@@ -80,6 +81,193 @@ fn alpha_mask_lets_light_and_eye_rays_through_transparent_texels() {
         "the eye sees through: {}",
         at(-0.25, 0.0)
     );
+}
+
+/// Share of the open ground's radiance a shadow may differ from the model's prediction by: the
+/// model is exact, this covers f32 rounding in the shading of the two regions compared
+/// (measured: 1e-6).
+const SHADOW_RATIO_TOLERANCE: f32 = 1e-4;
+
+/// What a see-through sheet of base colour (0.9, 0.5, 0.2), transmission 0.8 and ior 1.5 lets
+/// a shadow ray through: the luminance of factor × (1 - metallic) × (1 - F0) × base colour =
+/// 0.8 × 0.96 × luminance(0.9, 0.5, 0.2) = 0.4327.
+fn sheet_transmittance() -> f32 {
+    let tint = glam::Vec3::new(0.9, 0.5, 0.2);
+    0.8 * (1.0 - 0.04) * tint.dot(glam::Vec3::new(0.2126, 0.7152, 0.0722))
+}
+
+/// A 2 x 1 texture: `left` for u < 0.5, `right` for the rest (RGBA8).
+fn two_texels(left: [u8; 4], right: [u8; 4]) -> image::RgbaImage {
+    image::RgbaImage::from_fn(2, 1, |x, _| image::Rgba(if x == 0 { left } else { right }))
+}
+
+/// `patch` merged into `target`: objects member by member, anything else replaced.
+fn merge(target: &mut serde_json::Value, patch: &serde_json::Value) {
+    match (target.as_object_mut(), patch.as_object()) {
+        (Some(target), Some(patch)) => {
+            for (k, v) in patch {
+                merge(target.entry(k.clone()).or_insert(json!(null)), v);
+            }
+        }
+        _ => *target = patch.clone(),
+    }
+}
+
+/// The shadow scene with a pane of base colour (0.9, 0.5, 0.2), metallic 0 and
+/// `KHR_materials_transmission` 0.8 as the occluder, changed by `edit` (merged into its
+/// material, which may use texture 0: `texture`, nearest and clamped), rendered by each
+/// integrator (the path tracer with `--bounces 0`: the same direct light through the same
+/// shadow rays). The shadow of the pane's left half (u < 0.5) must be black and that of its
+/// right half lit at `expected` of the open ground; `halves` names them for the messages.
+fn assert_pane_shadows(
+    dir: &Path,
+    edit: serde_json::Value,
+    texture: &image::RgbaImage,
+    halves: [&str; 2],
+    expected: f32,
+) {
+    let mut pane = json!({"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.5, 0.2, 1.0],
+            "metallicFactor": 0.0, "roughnessFactor": 0.0},
+         "alphaMode": "OPAQUE", "doubleSided": true,
+         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.8}}});
+    merge(&mut pane, &edit);
+    let alpha_mode = pane["alphaMode"].as_str().unwrap().to_string();
+    let mut used = vec!["KHR_lights_punctual".to_string()];
+    used.extend(pane["extensions"].as_object().unwrap().keys().cloned());
+    let extra = json!({
+        "extensionsUsed": used,
+        "materials": [{"pbrMetallicRoughness": {"metallicFactor": 0.0}}, pane],
+        "images": [{"uri": png_data_uri(texture)}],
+        "samplers": [{"magFilter": 9728, "minFilter": 9728, "wrapS": 33071, "wrapT": 33071}],
+        "textures": [{"source": 0, "sampler": 0}]
+    });
+    let (gltf, bin) = shadow_scene(1.0, 1, extra);
+    let name = format!("pane-{alpha_mode}-{}", halves[0].replace(' ', "-"));
+    let model = write_gltf(dir, &format!("{name}.gltf"), gltf, &bin);
+    for integrator in ["direct", "path"] {
+        let case = format!("{alpha_mode} pane, {integrator}");
+        let name = format!("{name}-{integrator}");
+        let (left, right) = pane_shadow_ratios(dir, &model, &name, integrator);
+        assert!(
+            left < 1e-6,
+            "{case}: the {} cast a black shadow: {left}",
+            halves[0]
+        );
+        assert!(
+            (right - expected).abs() < SHADOW_RATIO_TOLERANCE,
+            "{case}: the {} let {right} through, the model says {expected}",
+            halves[1]
+        );
+    }
+}
+
+/// The ground's radiance in the shadow scene `model` rendered by `integrator`, in the shadow of
+/// the occluder's left half and of its right half, as shares of the open ground's. Each region
+/// stays off the shadow of the occluder's diagonal, where its two triangles' 1e-4 watertight
+/// overlap lets a shadow ray cross a see-through sheet twice.
+fn pane_shadow_ratios(dir: &Path, model: &Path, name: &str, integrator: &str) -> (f32, f32) {
+    let n = 120usize;
+    let pixels = render(
+        dir,
+        model,
+        &format!("{name}.exr"),
+        &[
+            "--width",
+            "120",
+            "--height",
+            "120",
+            "--integrator",
+            integrator,
+            "--bounces",
+            "0",
+        ],
+    );
+    // Mean red over the ground x in [x0, x1], y in [y0, y1] (the view shows [-3, 3]²).
+    let mean = |(x0, x1): (f32, f32), (y0, y1): (f32, f32)| {
+        let (mut sum, mut count) = (0.0, 0.0);
+        for (k, p) in pixels.iter().enumerate() {
+            let x = -3.0 + ((k % n) as f32 + 0.5) * 6.0 / n as f32;
+            let y = 3.0 - ((k / n) as f32 + 0.5) * 6.0 / n as f32;
+            if x > x0 && x < x1 && y > y0 && y < y1 {
+                sum += p[0];
+                count += 1.0;
+            }
+        }
+        sum / count
+    };
+    let open = mean((2.2, 2.8), (-0.45, 0.45));
+    assert!(open > 0.2, "{name}: open ground is lit: {open}");
+    // The pane's left half shades x in [0.5, 1.0] (its diagonal's shadow: x - 1 = y), its
+    // right half [1.0, 1.5].
+    let left = mean((0.6, 0.9), (0.1, 0.45)) / open;
+    let right = mean((1.1, 1.4), (-0.45, -0.1)) / open;
+    (left, right)
+}
+
+/// A thin glass pane whose transmission texture is opaque on the left half (red 0, the other
+/// channels 1, which must not count) and clear on the right (red 1, the others 0): shadow rays
+/// through a thin sheet are attenuated by what it lets straight through at the point, with
+/// transmission = factor × texture red. So the opaque half's shadow is black and the clear
+/// half's is lit at 0.4327 of the open ground ([`sheet_transmittance`]), in both integrators.
+/// Before the texture was read there, both halves let 0.4327 through. The same pane as a MASK
+/// material (alpha 1 over the cutoff: present everywhere) casts the same shadows; before, a
+/// MASK sheet's shadow was black throughout.
+#[test]
+fn shadows_through_glass_follow_its_transmission_texture() {
+    let dir = tempfile::tempdir().unwrap();
+    let texture = two_texels([0, 255, 255, 255], [255, 0, 0, 255]);
+    for mode in ["OPAQUE", "MASK"] {
+        let edit = json!({"alphaMode": mode, "extensions": {"KHR_materials_transmission": {
+            "transmissionTexture": {"index": 0}}}});
+        let halves = ["opaque texels", "clear texels"];
+        assert_pane_shadows(dir.path(), edit, &texture, halves, sheet_transmittance());
+    }
+}
+
+/// The same pane as a `KHR_materials_volume` boundary (thicknessFactor 0.05) whose thickness
+/// texture is 0 on the right half (green 0, red 1, which must not count) and full on the left
+/// (green 1, red 0): where the thickness is 0 the surface is thin-walled and lets shadow rays
+/// through like the thin pane (0.4327 of the open ground); where it is a volume it bends light,
+/// which a straight shadow ray cannot follow, so it blocks them (black), in both integrators.
+/// Before the texture was read, the whole pane was a volume and both halves were black.
+#[test]
+fn shadows_through_a_volume_pass_where_its_thickness_texture_is_0() {
+    let dir = tempfile::tempdir().unwrap();
+    let texture = two_texels([0, 255, 0, 255], [255, 0, 0, 255]);
+    let edit = json!({"extensions": {"KHR_materials_volume": {
+        "thicknessFactor": 0.05, "thicknessTexture": {"index": 0}}}});
+    let halves = ["volume half", "thin-walled half"];
+    assert_pane_shadows(dir.path(), edit, &texture, halves, sheet_transmittance());
+}
+
+/// Shadows through glass read its base colour and metallic textures as camera rays do. A pane
+/// of metallicFactor 1 (the glTF default, which StainedGlassLamp's and LightsPunctualLamp's
+/// glass keep) whose metallic-roughness texture is metal on the left (blue 1) and dielectric on
+/// the right (blue 0): the metal half blocks, the dielectric half lets 0.4327 through, as the
+/// pane of metallic 0 does. And a white pane whose base colour texture is black on the left and
+/// sRGB (242, 188, 124) on the right: black, and 0.8 × 0.96 × the luminance of that colour
+/// decoded to linear. Before, shadow rays took the factors alone: the first pane blocked
+/// everywhere (metal) and the second let 0.8 × 0.96 through everywhere.
+#[test]
+fn shadows_through_glass_follow_its_base_colour_and_metallic_textures() {
+    let dir = tempfile::tempdir().unwrap();
+    let metal = two_texels([0, 0, 255, 255], [0, 0, 0, 255]);
+    let edit = json!({"pbrMetallicRoughness": {"metallicFactor": 1.0,
+        "metallicRoughnessTexture": {"index": 0}}});
+    let halves = ["metal half", "dielectric half"];
+    assert_pane_shadows(dir.path(), edit, &metal, halves, sheet_transmittance());
+    let srgb = [242u8, 188, 124];
+    let linear = srgb.map(|c| {
+        let c = c as f32 / 255.0;
+        ((c + 0.055) / 1.055).powf(2.4)
+    });
+    let colour = two_texels([0, 0, 0, 255], [srgb[0], srgb[1], srgb[2], 255]);
+    let edit = json!({"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+        "baseColorTexture": {"index": 0}}});
+    let halves = ["black texels", "coloured texels"];
+    let expected =
+        0.8 * 0.96 * glam::Vec3::from(linear).dot(glam::Vec3::new(0.2126, 0.7152, 0.0722));
+    assert_pane_shadows(dir.path(), edit, &colour, halves, expected);
 }
 
 /// A flat quad with a constant normal map tilting its normal 30° toward +X shades, at its

@@ -94,7 +94,8 @@ pub struct Hit {
 
 /// [`Accel`] flag: the triangle is single-sided (invisible from behind).
 const SINGLE_SIDED: u8 = 1;
-/// [`Accel`] flag: the triangle needs the caller's alpha test (MASK and BLEND materials).
+/// [`Accel`] flag: the triangle needs the caller's alpha test (MASK and BLEND materials, and
+/// see-through sheets, which shadow rays cross attenuated).
 const ALPHA_TESTED: u8 = 2;
 
 /// Ray queries over a triangle soup.

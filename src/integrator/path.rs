@@ -140,7 +140,7 @@ impl Integrator for PathTracer {
                 to_eye,
                 surface.transmission,
                 material.ior,
-                material.thin_walled,
+                surface.thin_walled,
                 hit.front,
             );
             // Punctual lights: every one, through a shadow ray.
@@ -224,7 +224,11 @@ impl Integrator for PathTracer {
                 && sample.direction.dot(surface.geometric) < 0.0
             {
                 // Into the volume (Beer-Lambert attenuation until the next surface), or out.
-                medium = hit.front.then(|| extinction(material)).flatten();
+                // Where the thickness texture makes the wall thin, the path crosses it without
+                // entering (and leaves, if it was inside).
+                medium = (hit.front && !surface.thin_walled)
+                    .then(|| extinction(material))
+                    .flatten();
             }
             cone = (cone.0 + cone.1 * hit.t, cone.1);
             ray = surface.spawn.ray(sample.direction, f32::INFINITY);

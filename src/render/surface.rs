@@ -5,7 +5,9 @@
 //! Alpha (glTF 2.0 §3.9.4): OPAQUE ignores alpha; MASK surfaces below `alphaCutoff` are absent
 //! for camera and shadow rays alike (tested inside traversal); BLEND surfaces are composited by
 //! the integrator and attenuate shadow rays by (1 - alpha) each: an approximation that ignores
-//! their colour and the order of layers.
+//! their colour and the order of layers. Thin transmissive sheets (OPAQUE, or MASK where
+//! present) attenuate shadow rays by what they let straight through at the point crossed (see
+//! [`Prepared::shadow_transmittance`]).
 
 use crate::accel::Hit;
 use crate::geometry::{Ray, SpawnPoint};
@@ -42,6 +44,9 @@ pub struct Surface<'m> {
     pub alpha: f32,
     /// `KHR_materials_transmission` at the point: factor × texture red.
     pub transmission: f32,
+    /// Whether the surface is a thin wall here, not a volume boundary: the material's
+    /// [`Material::thin_walled`], or `KHR_materials_volume`'s thickness texture reading 0.
+    pub thin_walled: bool,
     /// The material hit.
     pub source: &'m Material,
 }
@@ -90,13 +95,57 @@ impl Prepared {
     pub fn emission_at(&self, tri: usize, b: Vec3) -> Vec3 {
         let material = &self.scene.materials[self.scene.soup.material[tri] as usize];
         let mut emission = material.emissive * material.emissive_strength;
-        if let Some(r) = &material.emissive_texture {
-            if let Some((image, sampler)) = self.textures.lookup(&self.scene, r) {
-                let uv = transform_uv(r, self.uv(tri, r.tex_coord, b));
-                emission *= image.sample(uv, 0.0, sampler, true).truncate();
-            }
+        if let Some(t) = self.texel_at(&material.emissive_texture, tri, b, true) {
+            emission *= t.truncate();
         }
         emission
+    }
+
+    /// Texture `r` (if the material has it and its image loaded) at barycentrics `b` of soup
+    /// triangle `tri`, at full resolution: for queries without a ray cone (inside traversal, on
+    /// a light), where a mip level cannot be chosen.
+    fn texel_at(&self, r: &Option<TextureRef>, tri: usize, b: Vec3, srgb: bool) -> Option<Vec4> {
+        let r = r.as_ref()?;
+        let (image, sampler) = self.textures.lookup(&self.scene, r)?;
+        let uv = transform_uv(r, self.uv(tri, r.tex_coord, b));
+        Some(image.sample(uv, 0.0, sampler, srgb))
+    }
+
+    /// What a see-through sheet made of `material` lets straight through at barycentrics `b`
+    /// of soup triangle `tri` ([`Material::straight_transmittance`]), with the inputs camera
+    /// rays read there ([`Prepared::surface`]): base colour factor × vertex colour × base
+    /// colour texture, transmissionFactor × transmission texture red, metallicFactor ×
+    /// metallic-roughness texture blue. Textures at full resolution (shadow rays carry no ray
+    /// cone); without textures and vertex colours, the factors bit for bit.
+    pub fn straight_transmittance_at(&self, material: &Material, tri: usize, b: Vec3) -> Vec3 {
+        let mut base = material.base_color;
+        if let Some([ca, cb, cc]) = self.scene.soup.corner_colors(tri) {
+            base *= ca * b.x + cb * b.y + cc * b.z;
+        }
+        if let Some(t) = self.texel_at(&material.base_color_texture, tri, b, true) {
+            base *= t;
+        }
+        let transmission = match self.texel_at(&material.transmission_texture, tri, b, false) {
+            Some(t) => (material.transmission * t.x).clamp(0.0, 1.0),
+            None => material.transmission,
+        };
+        let metallic = match self.texel_at(&material.metallic_roughness_texture, tri, b, false) {
+            // glTF 2.0 §3.9.2: metalness in B.
+            Some(t) => (material.metallic * t.z).clamp(0.0, 1.0),
+            None => material.metallic,
+        };
+        material.straight_transmittance(base.truncate(), transmission, metallic)
+    }
+
+    /// Whether soup triangle `tri` made of `material` is a thin wall at barycentrics `b`:
+    /// everywhere for a [`Material::thin_walled`] material, else where
+    /// `KHR_materials_volume`'s thickness (factor × texture green) is 0, read as
+    /// [`Prepared::surface`] reads it but at full resolution (shadow rays carry no ray cone).
+    pub fn thin_walled_at(&self, material: &Material, tri: usize, b: Vec3) -> bool {
+        material.thin_walled
+            || self
+                .texel_at(&material.thickness_texture, tri, b, false)
+                .is_some_and(|t| t.y <= 0.0)
     }
 
     /// The closest surface a camera ray sees: MASK cut-outs are skipped, BLEND surfaces count.
@@ -121,11 +170,8 @@ impl Prepared {
         if let Some([a, b, c]) = soup.corner_colors(tri) {
             alpha *= a.w * barycentric.x + b.w * barycentric.y + c.w * barycentric.z;
         }
-        if let Some(r) = &material.base_color_texture {
-            if let Some((image, sampler)) = self.textures.lookup(&self.scene, r) {
-                let uv = transform_uv(r, self.uv(tri, r.tex_coord, barycentric));
-                alpha *= image.sample(uv, 0.0, sampler, false).w;
-            }
+        if let Some(t) = self.texel_at(&material.base_color_texture, tri, barycentric, false) {
+            alpha *= t.w;
         }
         alpha
     }
@@ -374,6 +420,9 @@ impl Prepared {
         if let Some(t) = sample(&material.transmission_texture, false) {
             transmission *= t.x;
         }
+        // KHR_materials_volume: a thickness of 0 (factor × texture green) is a thin wall.
+        let thin_walled = material.thin_walled
+            || sample(&material.thickness_texture, false).is_some_and(|t| t.y <= 0.0);
         Surface {
             spawn,
             lift,
@@ -389,6 +438,7 @@ impl Prepared {
                 base.w.clamp(0.0, 1.0)
             },
             transmission: transmission.clamp(0.0, 1.0),
+            thin_walled,
             source: material,
         }
     }
@@ -453,8 +503,12 @@ impl Prepared {
         }
     }
 
-    /// 1 for an unblocked shadow ray, 0 for a blocked one, the product of (1 - alpha) over
-    /// BLEND surfaces in between otherwise.
+    /// 1 for an unblocked shadow ray, 0 for a blocked one, otherwise the product over what it
+    /// passes: (1 - alpha) for each BLEND surface, and for each see-through sheet
+    /// ([`Material::see_through`]) the luminance of its straight transmittance at the point
+    /// crossed, with the textures read there as camera rays read them (so a sheet's opaque
+    /// texels cast full shadows). Both integrators' shadow rays (punctual lights, area and
+    /// environment light samples) ask this.
     pub fn shadow_transmittance(&self, shadow: &Ray) -> f32 {
         if !self.any_alpha() {
             return if self.accel.occluded(shadow) {
@@ -468,20 +522,28 @@ impl Prepared {
             // In range: Scene::check_references ran at load.
             let material = &self.scene.materials[self.scene.soup.material[tri as usize] as usize];
             match material.alpha_mode {
-                AlphaMode::Mask => self.alpha_at(tri, b) >= material.alpha_cutoff,
+                AlphaMode::Mask if self.alpha_at(tri, b) < material.alpha_cutoff => false,
                 AlphaMode::Blend => {
                     let alpha = self.alpha_at(tri, b).clamp(0.0, 1.0);
                     transmittance.set(transmittance.get() * (1.0 - alpha));
                     transmittance.get() < 1e-3
                 }
-                AlphaMode::Opaque if material.see_through() => {
-                    // Luminance of the straight-through share: a scalar attenuation (the tint
-                    // is lost in shadows; the camera sees it).
-                    let pass = crate::bsdf::luminance(material.straight_transmittance());
+                // Where a MASK surface is there, it is what an OPAQUE one is (camera rays
+                // shade it so): a see-through sheet lets shadow rays through too.
+                AlphaMode::Opaque | AlphaMode::Mask if material.see_through() => {
+                    // A volume boundary here (its thickness texture is not 0): it bends light,
+                    // so it blocks, as a volume without the texture does.
+                    if !self.thin_walled_at(material, tri as usize, b) {
+                        return true;
+                    }
+                    // Luminance of the straight-through share at this point (textures read):
+                    // a scalar attenuation (the tint is lost in shadows; the camera sees it).
+                    let through = self.straight_transmittance_at(material, tri as usize, b);
+                    let pass = crate::bsdf::luminance(through);
                     transmittance.set(transmittance.get() * pass.clamp(0.0, 1.0));
                     transmittance.get() < 1e-3
                 }
-                AlphaMode::Opaque => true,
+                AlphaMode::Opaque | AlphaMode::Mask => true,
             }
         };
         if self.accel.occluded_filtered(shadow, Some(&accept)) {

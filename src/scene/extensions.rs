@@ -123,13 +123,13 @@ pub const EXTENSIONS: &[KnownExtension] = &[
         "KHR_materials_transmission",
         Approximated,
         false,
-        "smooth or rough (GGX) refraction (path), see-through (direct); shadows use the factor",
+        "GGX refraction (path), see-through (direct); thin sheets pass textured shadows",
     ),
     ext(
         "KHR_materials_volume",
         Approximated,
         false,
-        "thickness factor and Beer-Lambert attenuation (path); no thickness texture",
+        "thickness (factor x texture) 0 is thin-walled; Beer-Lambert over traced paths (path)",
     ),
     ext(
         "KHR_materials_clearcoat",

@@ -1488,8 +1488,9 @@ fn material(m: &gltf::Material) -> Material {
         alpha_cutoff: m.alpha_cutoff().unwrap_or(0.5),
         double_sided: m.double_sided(),
         specular: None,
-        // KHR_materials_transmission, _ior, _volume (their defaults when absent). The
-        // thickness texture is not read (only whether the volume has a thickness matters).
+        // KHR_materials_transmission, _ior, _volume (their defaults when absent). Of the
+        // thickness only whether it is 0 matters (thin-walled): the path tracer measures path
+        // lengths in the geometry.
         transmission: m
             .transmission()
             .map_or(0.0, |t| t.transmission_factor().clamp(0.0, 1.0)),
@@ -1501,6 +1502,10 @@ fn material(m: &gltf::Material) -> Material {
             .filter(|i| i.is_finite() && *i >= 1.0)
             .unwrap_or(1.5),
         thin_walled: m.volume().is_none_or(|v| v.thickness_factor() <= 0.0),
+        thickness_texture: m
+            .volume()
+            .filter(|v| v.thickness_factor() > 0.0)
+            .and_then(|v| texture_ref(v.thickness_texture())),
         attenuation_color: m
             .volume()
             .map_or(Vec3::ONE, |v| Vec3::from(v.attenuation_color())),

@@ -283,10 +283,15 @@ pub struct Material {
     pub transmission_texture: Option<TextureRef>,
     /// Index of refraction (`KHR_materials_ior`, OBJ `Ni`; 1.5 when absent).
     pub ior: f32,
-    /// True without `KHR_materials_volume` (or with thickness 0): the surface is an
-    /// infinitely thin sheet, so light passes straight through it; false: the mesh bounds a
-    /// refracting volume.
+    /// True without `KHR_materials_volume` (or with `thicknessFactor` 0): the surface is an
+    /// infinitely thin sheet everywhere, so light passes straight through it; false: the mesh
+    /// bounds a refracting volume, except where [`Material::thickness_texture`] reads 0.
     pub thin_walled: bool,
+    /// `KHR_materials_volume`'s `thicknessTexture` (green channel, times `thicknessFactor`):
+    /// where it reads 0 the surface is thin-walled (the extension's switch). A path tracer
+    /// measures the path lengths in the geometry, so only that switch matters, not the
+    /// thickness itself. `None` when the factor is 0 (thin-walled everywhere anyway).
+    pub thickness_texture: Option<TextureRef>,
     /// `KHR_materials_volume` Beer-Lambert attenuation: colour light reaches after
     /// `attenuation_distance` inside the volume (white and infinite: none).
     pub attenuation_color: Vec3,
@@ -370,26 +375,35 @@ pub struct ClearcoatLayer {
 }
 
 impl Material {
-    /// A thin-walled transmissive sheet (`KHR_materials_transmission` without a volume): light
-    /// passes straight through it, so shadow rays do too (tinted). A glass *volume* bends light,
-    /// which a straight shadow ray cannot follow: it blocks them (as in Cycles).
+    /// A thin-walled transmissive sheet (`KHR_materials_transmission` without a volume), at
+    /// least where its thickness texture reads 0: light passes straight through it, so shadow
+    /// rays do too (tinted). A glass *volume* bends light, which a straight shadow ray cannot
+    /// follow: it blocks them (as in Cycles). Which points of a material with a thickness
+    /// texture are thin is decided per hit ([`crate::prepare::Prepared::thin_walled_at`]).
+    /// A metallic factor of 1 with a metallic-roughness texture may still be a dielectric in
+    /// places (StainedGlassLamp's and LightsPunctualLamp's glass: the default factor 1 times
+    /// the texture), as camera rays see it.
     pub fn see_through(&self) -> bool {
-        self.transmission > 0.0 && self.thin_walled && self.metallic < 1.0
+        self.transmission > 0.0
+            && (self.thin_walled || self.thickness_texture.is_some())
+            && (self.metallic < 1.0 || self.metallic_roughness_texture.is_some())
     }
 
     /// The share of light a see-through sheet lets pass straight through (0 for any other
-    /// material): transmission × (1 - metallic) × (1 - F0) × base colour.
-    pub fn straight_transmittance(&self) -> Vec3 {
+    /// material): transmission × (1 - metallic) × (1 - F0) × base colour, with the `base`
+    /// colour, `transmission` and `metallic` at the point (textures applied, as
+    /// [`crate::prepare::Prepared::straight_transmittance_at`] reads them).
+    pub fn straight_transmittance(&self, base: Vec3, transmission: f32, metallic: f32) -> Vec3 {
         if !self.see_through() {
             return Vec3::ZERO;
         }
         let f0 = ((self.ior - 1.0) / (self.ior + 1.0)).powi(2);
-        self.base_color.truncate() * (self.transmission * (1.0 - self.metallic) * (1.0 - f0))
+        base * (transmission * (1.0 - metallic) * (1.0 - f0))
     }
 
     /// Every texture the material references (base colour, metallic-roughness, normal,
-    /// occlusion, emissive, then the specular, sheen and clearcoat layers' ones), in that
-    /// order, skipping those it lacks.
+    /// occlusion, emissive, transmission, volume thickness, then the specular, sheen,
+    /// clearcoat and iridescence layers' ones), in that order, skipping those it lacks.
     pub fn texture_refs(&self) -> impl Iterator<Item = TextureRef> {
         let mut refs = vec![
             self.base_color_texture,
@@ -398,7 +412,7 @@ impl Material {
             self.occlusion_texture,
             self.emissive_texture,
         ];
-        refs.push(self.transmission_texture);
+        refs.extend([self.transmission_texture, self.thickness_texture]);
         if let Some(l) = &self.specular_layer {
             refs.extend([l.texture, l.color_texture]);
         }
@@ -423,7 +437,7 @@ impl Material {
             &mut self.occlusion_texture,
             &mut self.emissive_texture,
         ];
-        slots.push(&mut self.transmission_texture);
+        slots.extend([&mut self.transmission_texture, &mut self.thickness_texture]);
         if let Some(l) = &mut self.specular_layer {
             slots.extend([&mut l.texture, &mut l.color_texture]);
         }
@@ -546,6 +560,7 @@ impl Default for Material {
             transmission_texture: None,
             ior: 1.5,
             thin_walled: true,
+            thickness_texture: None,
             attenuation_color: Vec3::ONE,
             attenuation_distance: f32::INFINITY,
             unlit: false,
