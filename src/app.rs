@@ -884,22 +884,14 @@ fn render_model(
     }
     on_view(1, 1);
     // Every path given was written above (AOVs whenever one is asked for).
-    let outputs = [
-        Some(&args.output),
-        args.depth_out.as_ref(),
-        args.normal_out.as_ref(),
-        args.segmentation_out.as_ref(),
-        args.mask_out.as_ref(),
-        args.env_out.as_ref(),
-        args.view_out.as_ref(),
-        args.stats.as_ref(),
-    ];
+    let outputs = std::iter::once(Some(&args.output))
+        .chain(args.side_outputs().into_iter().map(|(_, path)| path));
     Ok(RenderReport {
         triangles: scene.soup.len(),
         load: load_time,
         bvh: accel.build_time(),
         render: stats.time,
-        outputs: outputs.into_iter().flatten().cloned().collect(),
+        outputs: outputs.flatten().cloned().collect(),
         warnings,
     })
 }

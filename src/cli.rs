@@ -370,6 +370,23 @@ pub struct RenderArgs {
     pub load: LoadArgs,
 }
 
+impl RenderArgs {
+    /// The files a render writes beside its image, each with the option that names it, in
+    /// the order a single-view render writes them: the AOVs, the panorama, the view file and
+    /// the statistics. The one list that render and batch both read.
+    pub fn side_outputs(&self) -> [(&'static str, Option<&PathBuf>); 7] {
+        [
+            ("--depth-out", self.depth_out.as_ref()),
+            ("--normal-out", self.normal_out.as_ref()),
+            ("--segmentation-out", self.segmentation_out.as_ref()),
+            ("--mask-out", self.mask_out.as_ref()),
+            ("--env-out", self.env_out.as_ref()),
+            ("--view-out", self.view_out.as_ref()),
+            ("--stats", self.stats.as_ref()),
+        ]
+    }
+}
+
 /// `meshtracer batch`: the render options are the defaults of every job, with the model
 /// argument naming the manifest and `-o` the output folder. Output options (`--depth-out`...)
 /// name files inside each job's folder.

@@ -174,17 +174,8 @@ fn failures(records: &[JobRecord], results: &Path) -> Result<()> {
 /// The output names the command line gives every job, with their options.
 fn default_output_names(args: &BatchArgs) -> Result<Vec<(&'static str, String)>> {
     let r = &args.render;
-    let paths = [
-        ("--depth-out", r.depth_out.as_ref()),
-        ("--normal-out", r.normal_out.as_ref()),
-        ("--mask-out", r.mask_out.as_ref()),
-        ("--segmentation-out", r.segmentation_out.as_ref()),
-        ("--view-out", r.view_out.as_ref()),
-        ("--env-out", r.env_out.as_ref()),
-        ("--stats", r.stats.as_ref()),
-    ];
     let mut names = Vec::new();
-    for (option, path) in paths {
+    for (option, path) in r.side_outputs() {
         if let Some(path) = path {
             names.push((option, utf8(path, option)?));
         }
@@ -293,15 +284,7 @@ fn run_job(args: &BatchArgs, dir: &Path, entry: &Entry, progress: &Progress) -> 
 /// The folders a job writes into (those a `{view}` pattern names excepted: render --views
 /// makes them).
 fn output_folders(args: &RenderArgs, job_dir: &Path) -> Vec<PathBuf> {
-    let names = [
-        args.depth_out.as_ref(),
-        args.normal_out.as_ref(),
-        args.mask_out.as_ref(),
-        args.segmentation_out.as_ref(),
-        args.view_out.as_ref(),
-        args.env_out.as_ref(),
-        args.stats.as_ref(),
-    ];
+    let names = args.side_outputs().map(|(_, path)| path);
     let image = match &args.views {
         // With views the names are relative to the job's folder, the image a --view-name.
         Some(_) => args.view_name.as_ref().map(PathBuf::from),
