@@ -795,30 +795,19 @@ fn render_model(
                             .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())),
                     });
         }
-        match &denoised {
-            // Recorded beside the schema's fields (readers ignore keys they do not know).
-            Some((report, guide_samples, _)) => {
-                let mut json = serde_json::to_value(&view)?;
-                if let Some(object) = json.as_object_mut() {
-                    object.insert(
-                        "denoise".into(),
-                        serde_json::json!({
-                            "denoiser": "Intel Open Image Denoise",
-                            "version": report.library_version,
-                            "filter": "RT",
-                            "hdr": true,
-                            "guides": ["albedo", "normal"],
-                            "guide_samples_per_pixel": guide_samples,
-                            "clean_aux": true,
-                        }),
-                    );
-                }
-                let mut text = serde_json::to_string_pretty(&json)?;
-                text.push('\n');
-                crate::output::write_atomic(path, text.as_bytes())?;
-            }
-            None => view.write(path)?,
-        }
+        view.denoise =
+            denoised
+                .as_ref()
+                .map(|(report, guide_samples, _)| crate::view::ViewDenoise {
+                    denoiser: "Intel Open Image Denoise".into(),
+                    version: report.library_version.clone(),
+                    filter: "RT".into(),
+                    hdr: true,
+                    guides: vec!["albedo".into(), "normal".into()],
+                    guide_samples_per_pixel: *guide_samples,
+                    clean_aux: true,
+                });
+        view.write(path)?;
     }
     tiles::write_sidecar(args, region, &settings, scene)?;
     phases.mark("write", write_start);

@@ -111,6 +111,29 @@ pub struct ViewFile {
     /// Path tracer: the environment that lit the scene.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub environment: Option<ViewEnvironment>,
+    /// `--denoise`: how the image was denoised (a record: rendering the view again does not
+    /// denoise unless asked).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub denoise: Option<ViewDenoise>,
+}
+
+/// How a view's image was denoised (`--denoise`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ViewDenoise {
+    /// The library: "Intel Open Image Denoise".
+    pub denoiser: String,
+    /// Its version, as the library reports it ("2.5.1").
+    pub version: String,
+    /// The filter: "RT" (ray-traced images).
+    pub filter: String,
+    /// Whether the filter ran on the linear HDR film (always, before any encoding).
+    pub hdr: bool,
+    /// The guide images given to the filter, in order.
+    pub guides: Vec<String>,
+    /// Rays a pixel traced for the guides (a jittered grid of first hits).
+    pub guide_samples_per_pixel: u32,
+    /// Whether the guides are noise-free, so the filter trusts them (`cleanAux`).
+    pub clean_aux: bool,
 }
 
 /// Most bounces a view file may ask for (as `--bounces`).
@@ -218,6 +241,7 @@ impl ViewFile {
             integrator: IntegratorKind::Direct,
             bounces: None,
             environment: None,
+            denoise: None,
         }
     }
 
@@ -414,4 +438,38 @@ fn to_light(l: &ViewLight) -> Result<Light, String> {
         position: Vec3::from(l.position),
         direction,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Bounds;
+
+    /// A denoised view's record survives writing and reading; a view file without one (every
+    /// file written before `--denoise`) reads as not denoised.
+    #[test]
+    fn the_denoise_record_round_trips_and_is_optional() {
+        let bounds = Bounds {
+            min: Vec3::splat(-1.0),
+            max: Vec3::splat(1.0),
+        };
+        let camera = crate::camera::auto_camera(&bounds, 4.0 / 3.0);
+        let plain = ViewFile::new(&camera, 64, 48, &[], Vec3::splat(0.1), true);
+        let path = Path::new("view.json");
+        let read = ViewFile::from_json(&plain.to_json(), path).unwrap();
+        assert_eq!(read.denoise, None);
+        let mut denoised = plain.clone();
+        denoised.denoise = Some(ViewDenoise {
+            denoiser: "Intel Open Image Denoise".into(),
+            version: "2.5.1".into(),
+            filter: "RT".into(),
+            hdr: true,
+            guides: vec!["albedo".into(), "normal".into()],
+            guide_samples_per_pixel: 16,
+            clean_aux: true,
+        });
+        let text = denoised.to_json();
+        assert!(text.contains("\"guide_samples_per_pixel\": 16"), "{text}");
+        assert_eq!(ViewFile::from_json(&text, path).unwrap(), denoised);
+    }
 }
