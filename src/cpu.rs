@@ -3,10 +3,11 @@
 //! SSE4.1), and the second is taken when the CPU has those instructions.
 //!
 //! Why: the baseline has no `popcnt` (the wide BVH counts hit bits on every node visited) and
-//! no `roundss` (every texture tap floors its coordinates through a libm call). Building the
-//! whole binary with `-C target-cpu=x86-64-v3` made a DamagedHelmet render about a quarter
-//! faster, but such a binary dies with an illegal instruction on older CPUs and on virtual
-//! machines that hide AVX. Runtime dispatch keeps one binary for every x86-64 machine.
+//! no `roundss` (every texture tap floors its coordinates through a libm call). A whole binary
+//! built with `-C target-cpu=native` traced 10-35% more rays a second (README, "Benchmarks"),
+//! but such a binary dies with an illegal instruction on older CPUs and on virtual machines
+//! that hide AVX. Runtime dispatch keeps one binary for every x86-64 machine; the two copies
+//! here gave DamagedHelmet about 16% more rays a second on one thread.
 //!
 //! The results are identical bit for bit on either path: Rust never fuses a multiply and an
 //! add unless asked (`mul_add`, which is exact either way), and the rounding instructions give
