@@ -11,6 +11,7 @@
 //! NORMAL, and reads TEXCOORD integers as normalized whatever the `normalized` flag says, so
 //! attributes are read here, from bytes that `check_accessor` has already bounded.
 
+use super::gltf::Buffer;
 use gltf::accessor::{DataType, Dimensions};
 
 /// Why an accessor could not be read (a hostile file that passed the range checks cannot
@@ -86,7 +87,7 @@ fn components(dims: Dimensions) -> usize {
 /// buffer view start at zero (glTF 2.0 §3.6.2.3).
 pub(crate) fn read<const N: usize>(
     accessor: &gltf::Accessor,
-    buffers: &[Vec<u8>],
+    buffers: &[Buffer],
     normalized: bool,
 ) -> ReadResult<Vec<[f32; N]>> {
     let n = components(accessor.dimensions());

@@ -16,6 +16,7 @@
 //! points is refused before anything is allocated for them.
 
 use super::attributes;
+use super::gltf::Buffer;
 use super::LoadLimits;
 use draco_core::{DataType as DracoType, DecodeLimits, DecoderBuffer, Mesh, MeshDecoder};
 use gltf::accessor::{DataType, Dimensions};
@@ -79,7 +80,7 @@ pub(crate) fn decode(
     primitive: &gltf::Primitive,
     ext: &Value,
     document: &gltf::Document,
-    buffers: &[Vec<u8>],
+    buffers: &[Buffer],
     load_limits: &LoadLimits,
 ) -> Result<Decoded, String> {
     let (view_index, attributes) = parse(ext)?;

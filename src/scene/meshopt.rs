@@ -16,6 +16,7 @@
 //! Both extensions share one bitstream; version 1 of the vertex codec is KHR's, but a stream
 //! that says it is version 1 is decoded under either name (the decoder checks the stream).
 
+use super::gltf::Buffer;
 use super::LoadErrorKind;
 use meshoptimizer_rs::codec::{self, Mode};
 use meshoptimizer_rs::{Limits, Workspace};
@@ -147,7 +148,7 @@ fn decode(c: &Compressed, source: &[u8], limits: Limits) -> Result<Vec<u8>, Stri
 /// `max_bytes` bounds the decoder's allocations (the importer's file size limit).
 pub(crate) fn decode_views(
     document: &gltf::Document,
-    buffers: &mut [Vec<u8>],
+    buffers: &mut [Buffer],
     max_bytes: u64,
 ) -> Result<(), LoadErrorKind> {
     let limits = Limits {
@@ -194,7 +195,7 @@ pub(crate) fn decode_views(
                     c.offset,
                     c.offset.saturating_add(c.length),
                     c.buffer,
-                    buffers.get(c.buffer).map_or(0, Vec::len)
+                    buffers.get(c.buffer).map_or(0, |b| b.len())
                 ))
             })?;
         let decoded = decode(&c, source, limits).map_err(fail)?;
@@ -202,7 +203,8 @@ pub(crate) fn decode_views(
         let start = view.offset();
         let target = buffers
             .get_mut(target_buffer)
-            .and_then(|b| b.get_mut(start..start.checked_add(decoded.len())?))
+            // Usually the fallback buffer; a view of a GLB's own chunk copies that chunk once.
+            .and_then(|b| b.to_mut().get_mut(start..start.checked_add(decoded.len())?))
             .ok_or_else(|| {
                 fail(format!(
                     "its bytes {start}..{} are past the end of buffer {target_buffer}",

@@ -20,6 +20,7 @@
 //!   an animation's `weights` channel.
 
 use super::attributes;
+use super::gltf::Buffer;
 use glam::{Mat3, Mat4, Quat, Vec3, Vec4};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::animation::{Interpolation, Property};
@@ -223,7 +224,7 @@ fn expect_float(accessor: &gltf::Accessor, dims: Dimensions, what: &str) -> Resu
 /// Reads one channel's keyframes, checked (`buffers` after the importer's view checks).
 pub(crate) fn read_track(
     channel: &gltf::animation::Channel,
-    buffers: &[Vec<u8>],
+    buffers: &[Buffer],
     morph_targets: usize,
 ) -> Result<Track, String> {
     let sampler = channel.sampler();
@@ -415,7 +416,7 @@ pub(crate) fn check_channel_targets(root: &gltf::json::Root) -> Result<(), Strin
 /// stop the load only when chosen).
 pub(crate) fn list_animations(
     document: &gltf::Document,
-    buffers: &[Vec<u8>],
+    buffers: &[Buffer],
     warnings: &mut Vec<String>,
 ) -> Vec<AnimationInfo> {
     document
@@ -490,7 +491,7 @@ pub(crate) fn choose_animation(
 /// `options.time` (missing parts default to animation 0 and time 0).
 pub(crate) fn pose(
     document: &gltf::Document,
-    buffers: &[Vec<u8>],
+    buffers: &[Buffer],
     animations: &[AnimationInfo],
     options: &PoseOptions,
 ) -> Result<Pose, String> {
@@ -550,7 +551,7 @@ pub(crate) fn pose(
 /// Inverse bind matrices of a skin, one per joint (identity without the accessor, §3.7.3).
 pub(crate) fn inverse_bind_matrices(
     skin: &gltf::Skin,
-    buffers: &[Vec<u8>],
+    buffers: &[Buffer],
 ) -> Result<Vec<Mat4>, String> {
     let joints = skin.joints().count();
     let Some(accessor) = skin.inverse_bind_matrices() else {
