@@ -208,7 +208,6 @@ fn choose_variant(variants: &[String], name: &str) -> Result<(u32, String), Load
     }
 }
 
-/// The `gltf` crate subtracts the header size from the declared length without checking it.
 /// A glTF buffer's bytes: borrowed from a GLB's binary chunk, owned when read from a file or a
 /// `data:` URI or written by the meshopt decoder.
 pub(crate) type Buffer<'a> = Cow<'a, [u8]>;
@@ -230,6 +229,7 @@ fn parse(
     Ok((gltf::Document::from_json_without_validation(json), blob))
 }
 
+/// The `gltf` crate subtracts the header size from the declared length without checking it.
 fn check_glb_header(bytes: &[u8]) -> Result<(), LoadErrorKind> {
     if !bytes.starts_with(b"glTF") {
         return Ok(());
