@@ -74,9 +74,9 @@ fn ctrl_c_during_a_render_keeps_the_previous_output() {
 }
 
 /// Ctrl-C during a multi-view render: every view reported done is on disk whole (image, depth,
-/// view file; a writer thread writes a view while the next renders, and it finishes before the
-/// exit), nothing else is left (no partial image, no temporary file, no transforms.json), and
-/// the exit is 130 with a message saying how many views were written.
+/// view file), nothing else is left (no partial image of the interrupted view, no temporary
+/// file, no transforms.json), and the exit is 130 with a message saying how many views were
+/// written.
 #[test]
 fn ctrl_c_during_views_keeps_the_finished_views_whole() {
     use std::io::{BufRead, Read};

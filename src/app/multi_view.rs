@@ -362,54 +362,20 @@ pub(super) fn render_views(
             cancel: &cancel,
             count: cameras.len(),
         };
+        let mut frames = Vec::with_capacity(cameras.len());
+        let mut totals = RenderStats::default();
         on_view(0, cameras.len());
-        // A writer thread writes view k's files (and adds it to the GIF and the sheet) while
-        // view k + 1 renders: encoding the images is single-threaded, and done between views
-        // it left a core idle for about 25 ms a view. At most one rendered view waits for it.
-        let (frames, totals) = std::thread::scope(|scope| -> Result<_> {
-            let (send, receive) = std::sync::mpsc::sync_channel::<RenderedView>(1);
-            let (run, cameras, names, extras) = (&run, &cameras, &names, &mut extras);
-            let writer = scope.spawn(move || -> Result<(Vec<Frame>, RenderStats)> {
-                let mut frames = Vec::with_capacity(cameras.len());
-                let mut totals = RenderStats::default();
-                for view in receive {
-                    let k = view.k;
-                    let (frame, stats, image) = run.write(view, &names[k])?;
-                    extras.add(k, &cameras[k], &image, args.background)?;
-                    on_view(k + 1, cameras.len());
-                    frames.push(frame);
-                    totals.primary_rays += stats.primary_rays;
-                    totals.shadow_rays += stats.shadow_rays;
-                    totals.indirect_rays += stats.indirect_rays;
-                    totals.samples += stats.samples;
-                    totals.time += stats.time;
-                }
-                Ok((frames, totals))
-            });
-            let mut rendered = Ok(());
-            for (k, (camera, names)) in cameras.iter().zip(names).enumerate() {
-                match run.render(k, camera, names) {
-                    // A closed channel means the writer stopped on an error, reported below.
-                    Ok(view) => {
-                        if send.send(view).is_err() {
-                            break;
-                        }
-                    }
-                    Err(e) => {
-                        rendered = Err(e);
-                        break;
-                    }
-                }
-            }
-            // The views rendered so far are written before any error is reported (Ctrl-C
-            // keeps the finished views' files); a failed write is the first error to report.
-            drop(send);
-            let written = writer
-                .join()
-                .unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
-            rendered?;
-            Ok(written)
-        })?;
+        for (k, (camera, names)) in cameras.iter().zip(&names).enumerate() {
+            let (frame, stats, image) = run.render(k, camera, names)?;
+            extras.add(k, camera, &image, args.background)?;
+            on_view(k + 1, cameras.len());
+            frames.push(frame);
+            totals.primary_rays += stats.primary_rays;
+            totals.shadow_rays += stats.shadow_rays;
+            totals.indirect_rays += stats.indirect_rays;
+            totals.samples += stats.samples;
+            totals.time += stats.time;
+        }
         let summary = Summary {
             triangles: prepared.scene.soup.len(),
             accel: prepared.accel.kind(),
@@ -564,8 +530,14 @@ struct ViewRun<'a> {
 }
 
 impl ViewRun<'_> {
-    /// Renders view `k`; [`ViewRun::write`] writes its files.
-    fn render(&self, k: usize, camera: &Camera, names: &ViewNames) -> Result<RenderedView> {
+    /// Renders view `k` and writes its files: image, AOVs, view file. Returns its frame of
+    /// transforms.json, what the render did and the image.
+    fn render(
+        &self,
+        k: usize,
+        camera: &Camera,
+        names: &ViewNames,
+    ) -> Result<(Frame, RenderStats, crate::output::Image)> {
         let (args, dir, (width, height)) = (self.args, self.dir, (self.width, self.height));
         let path_tracing = args.integrator == IntegratorKind::Path;
         let mut record = ViewFile::new(
@@ -624,42 +596,6 @@ impl ViewRun<'_> {
                     dir.display()
                 ))
             })?;
-        let frame = Frame {
-            file_path: names.image.clone(),
-            transform_matrix: camera_to_world(&settings.view),
-            intrinsics,
-            depth_file_path: names.depth.clone(),
-            mask_path: names.mask.clone(),
-        };
-        Ok(RenderedView {
-            k,
-            output,
-            image,
-            aovs,
-            stats,
-            view_text: text,
-            frame,
-        })
-    }
-
-    /// Writes a rendered view's files: image, AOVs, view file (in that order). Returns its
-    /// frame of transforms.json, what the render did and the image.
-    fn write(
-        &self,
-        view: RenderedView,
-        names: &ViewNames,
-    ) -> Result<(Frame, RenderStats, crate::output::Image)> {
-        let (args, dir, (width, height)) = (self.args, self.dir, (self.width, self.height));
-        let RenderedView {
-            k,
-            output,
-            image,
-            aovs,
-            stats,
-            view_text,
-            frame,
-        } = view;
-        let image_path = output.path().to_path_buf();
         output.commit(&image, args.background)?;
         if let Some(a) = &aovs {
             if let Some(name) = &names.depth {
@@ -677,7 +613,7 @@ impl ViewRun<'_> {
             let coverage: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();
             crate::aov::write_mask(&dir.join(name), width, height, &coverage)?;
         }
-        crate::output::write_atomic(&dir.join(&names.view), view_text.as_bytes())?;
+        crate::output::write_atomic(&view_path, text.as_bytes())?;
         if !args.quiet {
             eprintln!(
                 "[{}/{}] {} rendered in {:.3} s",
@@ -687,20 +623,15 @@ impl ViewRun<'_> {
                 stats.time.as_secs_f64()
             );
         }
+        let frame = Frame {
+            file_path: names.image.clone(),
+            transform_matrix: camera_to_world(&settings.view),
+            intrinsics,
+            depth_file_path: names.depth.clone(),
+            mask_path: names.mask.clone(),
+        };
         Ok((frame, stats, image))
     }
-}
-
-/// A view rendered and not yet written: what [`ViewRun::write`] needs.
-struct RenderedView {
-    k: usize,
-    /// The image file, reserved before rendering.
-    output: PendingOutput,
-    image: crate::output::Image,
-    aovs: Option<crate::render::Aovs>,
-    stats: RenderStats,
-    view_text: String,
-    frame: Frame,
 }
 
 /// The segmentation ids of a scene's mesh instances, as view files list them.
