@@ -473,3 +473,64 @@ fn webp_textures_are_chosen_and_fall_back_to_the_core_source() {
         broken.warnings
     );
 }
+
+/// A uniform glass pane (transmission 0.8, no texture) casts a uniform shadow, its diagonal
+/// included: the pane's two triangles overlap by the triangle test's tolerance along their
+/// shared edge, and a shadow ray through that edge used to cross the sheet twice (0.4327² =
+/// 0.187 along the diagonal's shadow, the line x - 1 = y, which the pixel centres with
+/// column + row = 139 sample exactly). Every pixel of the shadow, the diagonal's too, must be
+/// lit at 0.4327 of the open ground, in both integrators.
+#[test]
+fn a_glass_pane_shadow_has_no_line_along_its_diagonal() {
+    let dir = tempfile::tempdir().unwrap();
+    let pane = json!({"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.5, 0.2, 1.0],
+            "metallicFactor": 0.0, "roughnessFactor": 0.0},
+         "doubleSided": true,
+         "extensions": {"KHR_materials_transmission": {"transmissionFactor": 0.8}}});
+    let extra = json!({
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_transmission"],
+        "materials": [{"pbrMetallicRoughness": {"metallicFactor": 0.0}}, pane],
+    });
+    let (gltf, bin) = shadow_scene(1.0, 1, extra);
+    let model = write_gltf(dir.path(), "pane.gltf", gltf, &bin);
+    let n = 120usize;
+    for integrator in ["direct", "path"] {
+        let pixels = render(
+            dir.path(),
+            &model,
+            &format!("pane-{integrator}.exr"),
+            &[
+                "--width",
+                "120",
+                "--height",
+                "120",
+                "--integrator",
+                integrator,
+                "--bounces",
+                "0",
+            ],
+        );
+        let at = |i: usize, j: usize| pixels[j * n + i][0];
+        let open = at(110, 60);
+        assert!(open > 0.2, "{integrator}: open ground is lit: {open}");
+        let mut diagonal = 0;
+        for j in 0..n {
+            for i in 0..n {
+                let x = -3.0 + (i as f32 + 0.5) * 0.05;
+                let y = 3.0 - (j as f32 + 0.5) * 0.05;
+                // Inside the shadow (x in [0.5, 1.5], |y| < 0.5), a pixel away from its rim.
+                if !(x > 0.55 && x < 1.45 && y.abs() < 0.45) {
+                    continue;
+                }
+                diagonal += usize::from(i + j == 139);
+                let ratio = at(i, j) / open;
+                assert!(
+                    (ratio - sheet_transmittance()).abs() < SHADOW_RATIO_TOLERANCE,
+                    "{integrator}: pixel ({i}, {j}) at ({x}, {y}) lets {ratio} through, the model says {}",
+                    sheet_transmittance()
+                );
+            }
+        }
+        assert!(diagonal >= 15, "{diagonal} pixels on the diagonal's shadow");
+    }
+}
