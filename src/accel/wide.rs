@@ -23,7 +23,7 @@
 //! on one thread, about 5% slower than obvhs (the counting pass is extra work). The decision
 //! tables take 7 bytes a binary node instead of obvhs's 56.
 
-use glam::Vec3A;
+use glam::{Vec3A, Vec4};
 use obvhs::bvh2::Bvh2;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::cwbvh::CwBvh;
@@ -324,53 +324,52 @@ impl Converter<'_> {
 
     /// Orders children so that traversal by ray octant visits them front to back (obvhs
     /// `order_children`: greedy assignment of children to the eight direction slots).
+    ///
+    /// obvhs repeatedly takes the cheapest (child, slot) pair left, cost below `f32::MAX`, the
+    /// first in (child, slot) order among equals, from a full scan with a branch per pair. The
+    /// outcome of those branches is data-dependent (about 75 mispredictions a wide node, a
+    /// quarter of the encoding's time), so this does the same scan without branches:
+    /// taken pairs' costs become infinite, each round takes the minimum over the 8x8 table
+    /// four lanes at a time, and the first pair equal to it (a bit mask's lowest set bit, in
+    /// row-major (child, slot) order) is the one obvhs takes.
     fn order_children(&self, index: usize, children: &mut [u32; BRANCHING], count: usize) {
         let p = self.bvh2.nodes[index].aabb().center();
-        let mut cost = [[f32::MAX; BRANCHING]; BRANCHING];
-        for c in 0..count {
+        // Lane s of the slot directions (obvhs `direction_lut`): -1 in x for s & 4, in y for
+        // s & 2, in z for s & 1. The cost is d·v = (dx·vx + dy·vy) + dz·vz, summed in glam's
+        // `dot` order, so each cost has the same bits as obvhs's.
+        const SY: Vec4 = Vec4::new(1.0, 1.0, -1.0, -1.0);
+        const SZ: Vec4 = Vec4::new(1.0, -1.0, 1.0, -1.0);
+        let mut cost = [[Vec4::INFINITY; 2]; BRANCHING];
+        for (c, row) in cost.iter_mut().enumerate().take(count) {
             let v = self.bvh2.nodes[children[c] as usize].aabb().center() - p;
-            for (s, cost) in cost[c].iter_mut().enumerate() {
-                *cost = direction(s).dot(v);
+            for (half, sx) in row.iter_mut().zip([1.0, -1.0]) {
+                let d = (Vec4::splat(sx * v.x) + SY * v.y) + SZ * v.z;
+                // obvhs only takes costs below f32::MAX (NaN never): the rest are never taken.
+                *half = Vec4::select(d.cmplt(Vec4::splat(f32::MAX)), d, Vec4::INFINITY);
             }
-        }
-        // obvhs repeatedly takes the cheapest (child, slot) pair left, the first in (child,
-        // slot) order among equals, from a full scan each time. The same pairs come from each
-        // child's cheapest free slot, kept up to date: filling a slot only changes the
-        // children whose cheapest it was.
-        let mut filled = [false; BRANCHING];
-        let cheapest = |costs: &[f32; BRANCHING], filled: &[bool; BRANCHING]| {
-            let (mut best, mut slot) = (f32::MAX, usize::MAX);
-            for s in 0..BRANCHING {
-                if !filled[s] && costs[s] < best {
-                    best = costs[s];
-                    slot = s;
-                }
-            }
-            (best, slot)
-        };
-        let mut best = [(f32::MAX, usize::MAX); BRANCHING];
-        for c in 0..count {
-            best[c] = cheapest(&cost[c], &filled);
         }
         let mut assignment = [usize::MAX; BRANCHING];
-        loop {
-            let mut min_cost = f32::MAX;
-            let (mut min_slot, mut min_child) = (usize::MAX, usize::MAX);
-            for c in 0..count {
-                if assignment[c] == usize::MAX && best[c].1 != usize::MAX && best[c].0 < min_cost {
-                    (min_cost, min_slot) = best[c];
-                    min_child = c;
-                }
-            }
-            if min_slot == usize::MAX {
+        for _ in 0..count {
+            let min = cost
+                .iter()
+                .fold(Vec4::INFINITY, |m, row| m.min(row[0]).min(row[1]))
+                .min_element();
+            if min == f32::INFINITY {
                 break;
             }
-            filled[min_slot] = true;
-            assignment[min_child] = min_slot;
-            for c in 0..count {
-                if assignment[c] == usize::MAX && best[c].1 == min_slot {
-                    best[c] = cheapest(&cost[c], &filled);
-                }
+            let mut equal = 0u64;
+            for (c, row) in cost.iter().enumerate() {
+                let lanes = row[0].cmpeq(Vec4::splat(min)).bitmask()
+                    | row[1].cmpeq(Vec4::splat(min)).bitmask() << 4;
+                equal |= u64::from(lanes) << (8 * c);
+            }
+            let first = equal.trailing_zeros() as usize;
+            let (child, slot) = (first / BRANCHING, first % BRANCHING);
+            assignment[child] = slot;
+            // The child is placed and the slot taken: neither is offered again.
+            cost[child] = [Vec4::INFINITY; 2];
+            for row in &mut cost {
+                row[slot / 4][slot % 4] = f32::INFINITY;
             }
         }
         let original = std::mem::replace(children, [INVALID; BRANCHING]);
@@ -407,14 +406,19 @@ impl Converter<'_> {
         prims_base: u32,
     ) {
         let aabb = self.bvh2.nodes[index].aabb();
-        let e = ((aabb.max - aabb.min).max(Vec3A::splat(1e-20)) * DENOM)
-            .log2()
-            .ceil()
-            .exp2();
-        let rcp_e = 1.0 / e;
+        // obvhs: e = 2^ceil(log2(extent / 255)), per axis. log2 stays the library's (its
+        // rounding decides the exponent next to powers of two); the ceiling and the power of two
+        // are exact integer steps, which the baseline x86-64 target would otherwise make libm
+        // calls (no `roundss` before SSE4.1).
+        let exponent = |extent: f32| ceil_i32((extent.max(1e-20) * DENOM).log2());
+        let size = aabb.max - aabb.min;
+        let k = [exponent(size.x), exponent(size.y), exponent(size.z)];
+        // Biased exponents: 2^k is normal for every k this can give (-74..=121).
+        let biased = k.map(|k| (k + 127) as u32);
+        let rcp_e = Vec3A::from(biased.map(|b| 1.0 / f32::from_bits(b << 23)));
         node.p = aabb.min.into();
-        // e is a power of two: only its exponent bits are set.
-        node.e = [e.x, e.y, e.z].map(|c| (c.to_bits() >> 23) as u8);
+        // e is a power of two: only its exponent bits are stored.
+        node.e = biased.map(|b| b as u8);
         node.imask = 0;
         node.child_base_idx = below_base;
         node.primitive_base_idx = prims_base;
@@ -428,18 +432,14 @@ impl Converter<'_> {
                 continue;
             }
             let child_aabb = self.bvh2.nodes[child as usize].aabb();
-            let lo = ((child_aabb.min - aabb.min) * rcp_e)
-                .floor()
-                .clamp(Vec3A::ZERO, Vec3A::splat(255.0));
-            let hi = ((child_aabb.max - aabb.min) * rcp_e)
-                .ceil()
-                .clamp(Vec3A::ZERO, Vec3A::splat(255.0));
-            node.child_min_x[i] = lo.x as u8;
-            node.child_min_y[i] = lo.y as u8;
-            node.child_min_z[i] = lo.z as u8;
-            node.child_max_x[i] = hi.x as u8;
-            node.child_max_y[i] = hi.y as u8;
-            node.child_max_z[i] = hi.z as u8;
+            let lo = (child_aabb.min - aabb.min) * rcp_e;
+            let hi = (child_aabb.max - aabb.min) * rcp_e;
+            node.child_min_x[i] = floor_u8(lo.x);
+            node.child_min_y[i] = floor_u8(lo.y);
+            node.child_min_z[i] = floor_u8(lo.z);
+            node.child_max_x[i] = ceil_u8(hi.x);
+            node.child_max_y[i] = ceil_u8(hi.y);
+            node.child_max_z[i] = ceil_u8(hi.z);
             if self.is_internal(child) {
                 node.imask |= 1 << i;
                 node.child_meta[i] = (24 + i as u8) | 0b0010_0000;
@@ -491,10 +491,27 @@ impl Converter<'_> {
     }
 }
 
-/// The octant direction of slot `s` (obvhs `direction_lut`).
-fn direction(s: usize) -> Vec3A {
-    let sign = |bit: usize| if s & bit != 0 { -1.0 } else { 1.0 };
-    Vec3A::new(sign(0b100), sign(0b010), sign(0b001))
+/// `x.floor().clamp(0.0, 255.0) as u8`, without a libm call: for x in [0, 255] truncation is
+/// the floor, and clamping first changes nothing outside (NaN gives 0 either way).
+#[inline]
+fn floor_u8(x: f32) -> u8 {
+    x.clamp(0.0, 255.0) as u8
+}
+
+/// `x.ceil().clamp(0.0, 255.0) as u8`, without a libm call.
+#[inline]
+fn ceil_u8(x: f32) -> u8 {
+    let x = x.clamp(0.0, 255.0);
+    let t = x as u8;
+    t + u8::from((t as f32) < x)
+}
+
+/// `x.ceil() as i32` for |x| < 2^31, without a libm call: truncation rounds toward zero, which
+/// is the ceiling for negative x and one short of it for positive x with a fraction.
+#[inline]
+fn ceil_i32(x: f32) -> i32 {
+    let t = x as i32;
+    t + i32::from((t as f32) < x)
 }
 
 #[cfg(test)]
@@ -516,9 +533,28 @@ mod tests {
             .collect()
     }
 
+    /// Equal cubes on a regular grid: child centres sit at equal distances in several
+    /// directions, so slot costs tie exactly and the tie rule decides.
+    fn grid(side: usize) -> Vec<Aabb> {
+        let mut out = Vec::new();
+        for x in 0..side {
+            for y in 0..side {
+                for z in 0..side {
+                    let c = Vec3A::new(x as f32, y as f32, z as f32);
+                    out.push(Aabb::new(c - 0.25, c + 0.25));
+                }
+            }
+        }
+        out
+    }
+
     fn bvh2(n: usize, reinsertion: f32) -> Bvh2 {
+        bvh2_over(boxes(n), reinsertion)
+    }
+
+    fn bvh2_over(boxes: Vec<Aabb>, reinsertion: f32) -> Bvh2 {
         let params = obvhs::BvhBuildParams::medium_build();
-        let boxes = boxes(n);
+        let n = boxes.len();
         let mut bvh2 = PlocBuilder::with_capacity(n).build(
             params.ploc_search_distance,
             &boxes,
@@ -532,15 +568,20 @@ mod tests {
 
     #[test]
     fn same_nodes_and_primitives_as_obvhs() {
-        for (n, reinsertion) in [
+        let random = [
             (1, 0.0),
             (2, 0.0),
             (3, 0.0),
             (5, 0.05),
             (100, 0.05),
             (20_000, 0.2),
-        ] {
-            let bvh2 = bvh2(n, reinsertion);
+        ]
+        .map(|(n, reinsertion)| (n, bvh2(n, reinsertion)));
+        let grids = [(4, 0.0), (22, 0.1)].map(|(side, reinsertion)| {
+            let boxes = grid(side);
+            (boxes.len(), bvh2_over(boxes, reinsertion))
+        });
+        for (n, bvh2) in random.into_iter().chain(grids) {
             for max_prims in 1..=3 {
                 let expected =
                     obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&bvh2, max_prims, true, false);
