@@ -98,6 +98,23 @@ const SINGLE_SIDED: u8 = 1;
 /// see-through sheets, which shadow rays cross attenuated).
 const ALPHA_TESTED: u8 = 2;
 
+/// `len` triangles' worth of storage, every one to be overwritten: `spare`'s allocation when
+/// it holds exactly that many bytes (the binary BVH's nodes, already paged in), else a new one.
+fn triangle_buffer(
+    mut spare: Vec<obvhs::bvh2::node::Bvh2Node>,
+    len: usize,
+) -> Vec<PreparedTriangle> {
+    let bytes = len * std::mem::size_of::<PreparedTriangle>();
+    if spare.capacity() * std::mem::size_of::<obvhs::bvh2::node::Bvh2Node>() == bytes {
+        // Whole nodes only: the stale contents are plain floats and integers.
+        spare.resize(spare.capacity(), bytemuck::Zeroable::zeroed());
+        if let Ok(recycled) = bytemuck::allocation::try_cast_vec(spare) {
+            return recycled;
+        }
+    }
+    vec![PreparedTriangle::NEVER; len]
+}
+
 /// Ray queries over a triangle soup.
 pub struct Accel {
     kind: AccelKind,
@@ -124,9 +141,12 @@ impl Accel {
         preset: BvhPreset,
     ) -> Accel {
         let mut steps = Steps::new();
-        let mut bvh = match kind {
-            AccelKind::Linear => None,
-            AccelKind::Bvh => Some(bvh::build(soup, preset.params(), &mut steps)),
+        let (mut bvh, spare) = match kind {
+            AccelKind::Linear => (None, Vec::new()),
+            AccelKind::Bvh => {
+                let (bvh, spare) = bvh::build(soup, preset.params(), &mut steps);
+                (Some(bvh), spare)
+            }
         };
         // Triangles are stored in traversal order (BVH leaf order: with spatial splits a
         // triangle may appear in several leaves), so traversal reads them sequentially without
@@ -148,20 +168,22 @@ impl Accel {
                 f
             })
             .collect();
-        let (mut triangles, mut flags) = (Vec::new(), Vec::new());
-        ids.par_iter()
-            .map(|&i| {
+        let mut triangles = triangle_buffer(spare, ids.len());
+        let mut flags = vec![0; ids.len()];
+        triangles
+            .par_iter_mut()
+            .zip(flags.par_iter_mut())
+            .zip(ids.par_iter())
+            .for_each(|((prepared, flags), &i)| {
                 let [a, b, c] = soup.triangle(i as usize);
-                let prepared = PreparedTriangle::new(a, b, c).unwrap_or(PreparedTriangle::NEVER);
-                let flags = soup
+                *prepared = PreparedTriangle::new(a, b, c).unwrap_or(PreparedTriangle::NEVER);
+                *flags = soup
                     .material
                     .get(i as usize)
                     .and_then(|&m| material_flags.get(m as usize))
                     .copied()
                     .unwrap_or(0);
-                (prepared, flags)
-            })
-            .unzip_into_vecs(&mut triangles, &mut flags);
+            });
         steps.mark("triangle test data");
         Accel {
             kind,

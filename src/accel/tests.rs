@@ -203,3 +203,19 @@ fn the_auto_preset_follows_the_rays_a_triangle() {
         "unresolved auto builds as medium"
     );
 }
+
+#[test]
+fn triangle_data_reuses_the_binary_trees_node_buffer() {
+    // The shape `bvh::build` hands back: 2n - 1 nodes in a buffer of 2n.
+    let n = 5;
+    let mut spare: Vec<obvhs::bvh2::node::Bvh2Node> = bytemuck::allocation::zeroed_vec(2 * n);
+    spare.truncate(2 * n - 1);
+    let at = spare.as_ptr() as usize;
+    let triangles = triangle_buffer(spare, n);
+    assert_eq!(triangles.len(), n);
+    assert_eq!(triangles.as_ptr() as usize, at, "same allocation");
+    // Any other size gets a buffer of its own, of the right length.
+    let fresh = triangle_buffer(bytemuck::allocation::zeroed_vec(7), n);
+    assert_eq!(fresh.len(), n);
+    assert_eq!(triangle_buffer(Vec::new(), 3).len(), 3);
+}

@@ -10,25 +10,25 @@
 //!
 //! 1. **Costs.** The paper's dynamic program runs bottom-up; the two subtrees of a node are
 //!    independent, so near the root they are costed in parallel (`rayon::join`). A subtree's
-//!    seven costs go up the recursion as its return value; each node's seven choices are
-//!    packed a byte each and written with relaxed atomics (plain moves on x86-64 and AArch64)
-//!    for the later passes.
+//!    seven costs and wide node counts go up the recursion as its return value; each node's
+//!    seven choices are packed a byte each into one word, written with a relaxed atomic (a
+//!    plain move on x86-64 and AArch64) for the encoding.
 //! 2. **Layout.** obvhs writes depth first: a node's internal children side by side, then each
 //!    child's subtree in turn, and likewise for primitive indices. So every subtree owns one
-//!    contiguous range of nodes and one of primitives. A pass counts the nodes under each
-//!    wide node; the encoding then hands each subtree its own slices (`split_at_mut`) and fills
-//!    them in parallel, without locks or unsafe code.
+//!    contiguous range of nodes and one of primitives. The cost pass has counted the nodes
+//!    under each wide node and the primitives under each node; the encoding hands each subtree
+//!    its own slices (`split_at_mut`) and fills them in parallel, without locks or unsafe code.
 //!
-//! Measured on 1M random boxes (PLOC, medium preset), 2 threads: obvhs 820 ms, this 465 ms;
-//! on one thread, about 5% slower than obvhs (the counting pass is extra work). The decision
-//! tables take 7 bytes a binary node instead of obvhs's 56.
+//! Measured on 1M random boxes (PLOC, medium preset), 2 threads: obvhs 820 ms, this 465 ms
+//! (before the branch-free child ordering, below). The decision table takes 8 bytes a binary
+//! node instead of obvhs's 56.
 
 use glam::{Vec3A, Vec4};
 use obvhs::bvh2::Bvh2;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::cwbvh::CwBvh;
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU32, AtomicU8, Ordering::Relaxed};
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering::Relaxed};
 
 /// Children of a wide node.
 const BRANCHING: usize = 8;
@@ -96,13 +96,23 @@ fn unpack_choice(choice: u8) -> (Kind, u8, u8) {
     (kind, (choice >> 2) & 7, choice >> 5)
 }
 
+/// What the cost pass passes up from a subtree, for one to seven wide slots given to it.
+struct Subtree {
+    /// The best cost.
+    costs: [f32; 7],
+    /// The wide nodes it then makes.
+    wide: [u32; 7],
+    /// Its primitives.
+    prims: u32,
+}
+
 /// The converter's shared state: the binary tree and the tables both passes fill.
 struct Converter<'a> {
     bvh2: &'a Bvh2,
     max_prims_per_leaf: u32,
-    /// Seven packed [`Decision::choice`]s per binary node: all the later passes read, at a
-    /// byte a decision, so that they stay in cache.
-    choices: Vec<AtomicU8>,
+    /// Seven packed [`Decision::choice`]s per binary node (slot count i in byte i): all the
+    /// encoding reads, at a byte a decision, so that it stays in cache.
+    choices: Vec<AtomicU64>,
     /// Primitives under each binary node.
     prims: Vec<AtomicU32>,
     /// Wide nodes under each binary node that becomes a wide node (its subtree, without it).
@@ -128,12 +138,12 @@ pub(super) fn convert(bvh2: &Bvh2, max_prims_per_leaf: u32) -> Option<CwBvh> {
     let converter = Converter {
         bvh2,
         max_prims_per_leaf: max_prims_per_leaf.clamp(1, 3),
-        choices: (0..n * 7).map(|_| AtomicU8::new(0)).collect(),
+        choices: (0..n).map(|_| AtomicU64::new(0)).collect(),
         prims: (0..n).map(|_| AtomicU32::new(0)).collect(),
         nodes_below: (0..n).map(|_| AtomicU32::new(0)).collect(),
     };
     converter.cost(0, 0);
-    let below = converter.count_nodes(0);
+    let below = converter.nodes_below[0].load(Relaxed);
     let prim_total = converter.prims[0].load(Relaxed) as usize;
     let mut nodes = vec![CwBvhNode::default(); 1 + below as usize];
     let mut primitive_indices = vec![0u32; prim_total];
@@ -149,19 +159,22 @@ pub(super) fn convert(bvh2: &Bvh2, max_prims_per_leaf: u32) -> Option<CwBvh> {
 }
 
 impl Converter<'_> {
-    fn set_choice(&self, node: usize, slots: usize, d: Decision) {
-        self.choices[node * 7 + slots].store(d.choice(), Relaxed);
+    /// Records a node's seven decisions, packed a byte each (slot count i in byte i).
+    fn set_choices(&self, node: usize, packed: u64) {
+        self.choices[node].store(packed, Relaxed);
     }
 
     /// The kind and shares of a decision.
     fn choice(&self, node: usize, slots: usize) -> (Kind, u8, u8) {
-        unpack_choice(self.choices[node * 7 + slots].load(Relaxed))
+        unpack_choice((self.choices[node].load(Relaxed) >> (8 * slots)) as u8)
     }
 
     /// Fills the choice table for the subtree at `index`, `depth` levels below the root, and
-    /// returns its seven costs (for one to seven wide slots) and its primitive count. The
-    /// costs go up the recursion instead of into a table: a parent reads each child's once.
-    fn cost(&self, index: usize, depth: u32) -> ([f32; 7], u32) {
+    /// returns its seven costs and wide node counts (for one to seven wide slots) and its
+    /// primitive count. These go up the recursion instead of into a table: a parent reads each
+    /// child's once. Records the primitives under `index` and the wide nodes below it should
+    /// it become a wide node.
+    fn cost(&self, index: usize, depth: u32) -> Subtree {
         let node = &self.bvh2.nodes[index];
         let half_area = node.aabb().half_area();
         if node.is_leaf() {
@@ -171,21 +184,30 @@ impl Converter<'_> {
                 left: 0,
                 right: 0,
             };
-            for i in 0..7 {
-                self.set_choice(index, i, leaf);
-            }
+            self.set_choices(index, u64::from(leaf.choice()) * 0x0001_0101_0101_0101);
             self.prims[index].store(node.prim_count, Relaxed);
-            return ([leaf.cost; 7], node.prim_count);
+            return Subtree {
+                costs: [leaf.cost; 7],
+                wide: [0; 7],
+                prims: node.prim_count,
+            };
         }
         let (a, b) = (node.first_index as usize, node.first_index as usize + 1);
         // The subtree sizes are not known yet (this pass counts them), so the halves are
         // forked at the top levels only, where they are big.
-        let ((ca, na), (cb, nb)) = if depth < FORK_DEPTH {
+        let (sa, sb) = if depth < FORK_DEPTH {
             rayon::join(|| self.cost(a, depth + 1), || self.cost(b, depth + 1))
         } else {
             (self.cost(a, depth + 1), self.cost(b, depth + 1))
         };
-        let count = na + nb;
+        let (ca, cb) = (&sa.costs, &sb.costs);
+        // Wide nodes the children contribute with `l + 1` and `r + 1` slots (none for the
+        // "no share" of a NaN cost, which makes no decision either).
+        let wide = |l: u8, r: u8| {
+            sa.wide.get(l as usize).copied().unwrap_or(0)
+                + sb.wide.get(r as usize).copied().unwrap_or(0)
+        };
+        let count = sa.prims + sb.prims;
         self.prims[index].store(count, Relaxed);
 
         // One slot (i = 1 in the paper): a leaf, or an internal node whose eight slots are
@@ -219,7 +241,13 @@ impl Converter<'_> {
         };
         let mut costs = [0.0; 7];
         costs[0] = cost;
-        self.set_choice(index, 0, previous);
+        let mut packed = u64::from(previous.choice());
+        // As a wide node, its eight slots go to the children as `left` and `right` say: the
+        // wide nodes below it are theirs (obvhs's layout pass counts the same).
+        let below = wide(left, right);
+        self.nodes_below[index].store(below, Relaxed);
+        let mut nodes = [0; 7];
+        nodes[0] = if kind == Kind::Internal { 1 + below } else { 0 };
 
         // i + 1 slots (i = 2..7 in the paper): as with i slots, or distributed over both.
         for i in 1..7 {
@@ -234,6 +262,7 @@ impl Converter<'_> {
                 }
             }
             let d = if left != u8::MAX {
+                nodes[i] = wide(left, right);
                 Decision {
                     cost: best,
                     kind: Kind::Distribute,
@@ -241,13 +270,19 @@ impl Converter<'_> {
                     right,
                 }
             } else {
+                nodes[i] = nodes[i - 1];
                 previous
             };
-            self.set_choice(index, i, d);
+            packed |= u64::from(d.choice()) << (8 * i);
             costs[i] = d.cost;
             previous = d;
         }
-        (costs, count)
+        self.set_choices(index, packed);
+        Subtree {
+            costs,
+            wide: nodes,
+            prims: count,
+        }
     }
 
     /// The wide children of binary node `index` taking `slots + 1` wide slots (obvhs
@@ -291,35 +326,6 @@ impl Converter<'_> {
 
     fn is_internal(&self, child: u32) -> bool {
         self.choice(child as usize, 0).0 == Kind::Internal
-    }
-
-    /// Counts (and records) the wide nodes below the wide node made from binary node `index`.
-    fn count_nodes(&self, index: usize) -> u32 {
-        // The count does not depend on the children's order: skip ordering them.
-        let mut children = [INVALID; BRANCHING];
-        let mut count = 0;
-        self.children(index, 0, &mut children, &mut count);
-        let mut internal = [INVALID; BRANCHING];
-        let mut internal_count = 0;
-        for &c in children[..count].iter().filter(|&&c| self.is_internal(c)) {
-            internal[internal_count] = c;
-            internal_count += 1;
-        }
-        let internal = &internal[..internal_count];
-        let big = self.prims[index].load(Relaxed) >= PARALLEL_GRAIN;
-        let below: u32 = if big {
-            internal
-                .par_iter()
-                .map(|&c| 1 + self.count_nodes(c as usize))
-                .sum()
-        } else {
-            internal
-                .iter()
-                .map(|&c| 1 + self.count_nodes(c as usize))
-                .sum()
-        };
-        self.nodes_below[index].store(below, Relaxed);
-        below
     }
 
     /// Orders children so that traversal by ray octant visits them front to back (obvhs

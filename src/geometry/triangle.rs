@@ -35,7 +35,7 @@ const LOWER_BOUNDS: Vec4 = Vec4::new(f32::MIN, -EDGE_EPSILON, -EDGE_EPSILON, -ED
 /// Lane order in every field: the supporting plane `(n, -n·a)` with n = (b - a) × (c - a), not
 /// normalised; then edge a->b scaled to give the barycentric coordinate of c; edge b->c, giving
 /// that of a; edge c->a, giving that of b.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 #[repr(C, align(16))]
 pub struct PreparedTriangle {
     /// The x coefficients of the four planes.
