@@ -6,6 +6,7 @@ use crate::geometry::{Ray, EDGE_EPSILON};
 use crate::measure::Steps;
 use crate::scene::TriangleSoup;
 use glam::{UVec2, Vec3A};
+use obvhs::aabb::Aabb;
 use rayon::prelude::*;
 use std::time::Duration;
 
@@ -21,12 +22,16 @@ use std::time::Duration;
 /// caller's triangle test data needs, which then costs no fresh page faults (16 thousand for
 /// a million triangles, a third of that step's time). Empty for the presets with spatial
 /// pre-splits.
+///
+/// With `pair`, neighbouring triangles are paired first ([`pair_neighbours`]) and the tree is
+/// built over the pairs.
 pub(super) fn build(
     soup: &TriangleSoup,
     params: obvhs::BvhBuildParams,
+    pair: bool,
     steps: &mut Steps,
 ) -> (obvhs::cwbvh::CwBvh, Vec<obvhs::bvh2::node::Bvh2Node>) {
-    use obvhs::{aabb::Aabb, bvh2::reinsertion::ReinsertionOptimizer, ploc::PlocBuilder};
+    use obvhs::{bvh2::reinsertion::ReinsertionOptimizer, ploc::PlocBuilder};
     // The triangle test accepts hits up to EDGE_EPSILON outside each edge (in barycentric
     // units): that region is the triangle scaled by 1 + 3·EDGE_EPSILON about its centroid. The
     // BVH is built over triangles scaled a little more, so its boxes contain every hit the test
@@ -60,28 +65,50 @@ pub(super) fn build(
         })
         .collect();
     steps.mark("bounds");
-    // obvhs's `build` over a tree of our own: the same zeroed 2n - 1 nodes, one more of
-    // capacity (see above).
-    // (Allocated zeroed, its pages are mapped as PLOC first writes them, as in obvhs.)
+    let max_prims = params.max_prims_per_leaf.clamp(1, 3);
+    let (leaf_boxes, pairs) = if pair && max_prims >= 2 {
+        let (pair_boxes, starts) = pair_neighbours(&boxes);
+        drop(boxes);
+        steps.mark("pairs");
+        (pair_boxes, Some(starts))
+    } else {
+        (boxes, None)
+    };
+    let m: usize = leaf_boxes.len();
+    // obvhs's `build` over a tree of our own: the same zeroed 2m - 1 nodes, in a buffer of 2n
+    // (see above; with pairs, m is about n / 2 and PLOC maps only the pages it writes).
     let mut nodes = bytemuck::allocation::zeroed_vec(2 * n);
-    nodes.truncate((2 * n).saturating_sub(1));
+    nodes.truncate((2 * m).saturating_sub(1));
     let mut bvh2 = obvhs::bvh2::Bvh2 {
         nodes,
         ..Default::default()
     };
-    PlocBuilder::with_capacity(n).build_with_bvh(
+    PlocBuilder::with_capacity(m).build_with_bvh(
         &mut bvh2,
         params.ploc_search_distance,
-        &boxes,
-        (0..n as u32).collect(),
+        &leaf_boxes,
+        (0..m as u32).collect(),
         params.sort_precision,
         params.search_depth_threshold,
     );
-    drop(boxes);
+    drop(leaf_boxes);
+    if let Some(starts) = pairs {
+        // PLOC's leaves name their pair; they now hold its triangles (in soup order).
+        bvh2.nodes
+            .par_iter_mut()
+            .filter(|node| node.is_leaf())
+            .for_each(|node| {
+                let c = node.first_index as usize;
+                if let (Some(&start), Some(&end)) = (starts.get(c), starts.get(c + 1)) {
+                    node.first_index = start;
+                    node.prim_count = end - start;
+                }
+            });
+        bvh2.primitive_indices = (0..n as u32).collect();
+    }
     steps.mark("ploc");
     ReinsertionOptimizer::default().run(&mut bvh2, params.reinsertion_batch_ratio, None);
     steps.mark("reinsertion");
-    let max_prims = params.max_prims_per_leaf.clamp(1, 3);
     let cwbvh = super::wide::convert(&bvh2, max_prims).unwrap_or_else(|| {
         obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&bvh2, max_prims, true, false)
     });
@@ -89,6 +116,69 @@ pub(super) fn build(
     drop(bvh2);
     steps.mark("wide bvh conversion");
     (cwbvh, spare)
+}
+
+/// Triangle count from which [`build`] may pair neighbouring triangles into two-triangle
+/// leaves before PLOC (see [`pair_neighbours`]). Below it the build is a few milliseconds
+/// and the full-resolution tree is worth its cost.
+pub(super) const PAIR_FROM: usize = 100_000;
+
+/// Pairs whose box would be larger than this share of the two boxes' half areas together
+/// stay apart: two triangles that share an edge make a box about as large as both of theirs
+/// (a long thin strip, less), two far apart one many times larger.
+const PAIR_MAX_AREA_RATIO: f32 = 1.0;
+
+/// Triangles the pairing walks as one run: a fixed size, so the pairs do not depend on the
+/// thread count (and neither does the tree).
+const PAIR_RUN: usize = 1 << 14;
+
+/// Triangles in pairs, for builds that trace few rays a triangle (where the build is most of
+/// the time to the first pixel). Each triangle is paired with the next in the soup unless the
+/// pair's box would be much larger than both of theirs ([`PAIR_MAX_AREA_RATIO`]): exporters
+/// write meshes in strips, grids and vertex-cache order, so the next triangle is nearly
+/// always a neighbour (the two halves of a quad, most often), and a soup in random order
+/// simply pairs little. PLOC and the wide conversion then work on about half the nodes; the
+/// leaves they make hold the pairs (and at most three triangles, as before).
+///
+/// One pass in soup order, no sort: a Morton-sorted pairing was tried first and its sort and
+/// scattered reads took 75 ms of a million triangles, as long as it saved.
+///
+/// Returns the clusters' boxes and where each cluster starts in soup order (one more entry
+/// than clusters, the last the triangle count).
+pub(super) fn pair_neighbours(boxes: &[Aabb]) -> (Vec<Aabb>, Vec<u32>) {
+    let runs: Vec<Vec<u32>> = boxes
+        .par_chunks(PAIR_RUN)
+        .enumerate()
+        .map(|(run, chunk)| {
+            let base = run * PAIR_RUN;
+            let mut starts = Vec::with_capacity(chunk.len() / 2 + 1);
+            let mut k = 0;
+            while k < chunk.len() {
+                starts.push((base + k) as u32);
+                let joins = chunk.get(k + 1).is_some_and(|next| {
+                    let a = &chunk[k];
+                    a.union(next).half_area()
+                        <= PAIR_MAX_AREA_RATIO * (a.half_area() + next.half_area())
+                });
+                k += if joins { 2 } else { 1 };
+            }
+            starts
+        })
+        .collect();
+    let mut starts = Vec::with_capacity(runs.iter().map(Vec::len).sum::<usize>() + 1);
+    for run in runs {
+        starts.extend(run);
+    }
+    starts.push(boxes.len() as u32);
+    let pair_boxes = starts
+        .par_windows(2)
+        .map(|w| {
+            boxes[w[0] as usize..w[1] as usize]
+                .iter()
+                .fold(Aabb::empty(), |acc, b| acc.union(b))
+        })
+        .collect();
+    (pair_boxes, starts)
 }
 
 /// How far (in ray parameter units) obvhs's box test is blind: its CWBVH node test clamps box

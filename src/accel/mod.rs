@@ -64,6 +64,13 @@ impl BvhPreset {
         }
     }
 
+    /// Whether the build pairs neighbouring triangles into leaves before PLOC: for the preset
+    /// `auto` chooses when few rays are traced a triangle, from [`bvh::PAIR_FROM`] triangles
+    /// (`fastest` keeps obvhs's one triangle a leaf). See `bvh::pair_neighbours`.
+    fn pairs(self, triangles: usize) -> bool {
+        self == BvhPreset::VeryFast && triangles >= bvh::PAIR_FROM
+    }
+
     /// The obvhs parameters for this preset (`Auto`, unresolved, builds as `Medium`).
     pub fn params(self) -> obvhs::BvhBuildParams {
         use obvhs::BvhBuildParams as P;
@@ -140,11 +147,22 @@ impl Accel {
         kind: AccelKind,
         preset: BvhPreset,
     ) -> Accel {
+        Accel::build_pairing(soup, materials, kind, preset, preset.pairs(soup.len()))
+    }
+
+    /// [`Accel::build`], told whether to pair triangles into leaves first.
+    fn build_pairing(
+        soup: &TriangleSoup,
+        materials: &[Material],
+        kind: AccelKind,
+        preset: BvhPreset,
+        pair: bool,
+    ) -> Accel {
         let mut steps = Steps::new();
         let (mut bvh, spare) = match kind {
             AccelKind::Linear => (None, Vec::new()),
             AccelKind::Bvh => {
-                let (bvh, spare) = bvh::build(soup, preset.params(), &mut steps);
+                let (bvh, spare) = bvh::build(soup, preset.params(), pair, &mut steps);
                 (Some(bvh), spare)
             }
         };

@@ -4,7 +4,7 @@ use super::*;
 use crate::sampling::Rng;
 use crate::scene::SoupBuilder;
 use crate::scene::TriangleIn;
-use glam::vec3;
+use glam::{vec3, Vec3A};
 
 /// A scene with structure and trouble: a tessellated sphere (shared edges everywhere), a
 /// ground quad, and random triangles of all sizes, some single-sided.
@@ -155,6 +155,104 @@ fn bvh_matches_linear_scan_for_closest_and_any_hit() {
             "the test rays must actually hit things ({hits})"
         );
     }
+}
+
+#[test]
+fn paired_leaves_find_what_the_linear_scan_finds() {
+    // Pairing starts at 100k triangles; forced here on the small scene.
+    let (soup, materials) = test_soup();
+    let linear = Accel::build(&soup, &materials, AccelKind::Linear, BvhPreset::Medium);
+    for preset in [BvhPreset::VeryFast, BvhPreset::Medium] {
+        let bvh = Accel::build_pairing(&soup, &materials, AccelKind::Bvh, preset, true);
+        assert!(
+            bvh.steps.list().iter().any(|s| s.name == "pairs"),
+            "the build paired"
+        );
+        let mut ids = bvh.ids.clone();
+        ids.sort_unstable();
+        assert!(
+            ids.iter().copied().eq(0..soup.len() as u32),
+            "every triangle once"
+        );
+        for (i, ray) in random_rays(20_000, 11).iter().enumerate() {
+            let a = linear.intersect(ray);
+            assert_eq!(
+                a.map(|h| (h.triangle, h.t)),
+                bvh.intersect(ray).map(|h| (h.triangle, h.t)),
+                "ray {i} {ray:?} preset {preset:?}"
+            );
+            assert_eq!(linear.occluded(ray), bvh.occluded(ray), "ray {i}");
+        }
+    }
+}
+
+#[test]
+fn pairs_join_neighbours_only() {
+    use obvhs::aabb::Aabb;
+    let unit = |x: f32| Aabb::new(Vec3A::new(x, 0.0, 0.0), Vec3A::new(x + 1.0, 1.0, 1.0));
+    // Touching unit boxes along x pair up in soup order; the one far away stays alone (a
+    // pair with it would be a box ten times their size), and so does the last.
+    let boxes = [
+        unit(0.0),
+        unit(1.0),
+        unit(40.0),
+        unit(2.0),
+        unit(3.0),
+        unit(4.0),
+    ];
+    let (pair_boxes, starts) = bvh::pair_neighbours(&boxes);
+    assert_eq!(starts, [0, 2, 3, 5, 6]);
+    assert_eq!(pair_boxes.len(), 4);
+    assert_eq!((pair_boxes[0].min.x, pair_boxes[0].max.x), (0.0, 2.0));
+    assert_eq!((pair_boxes[1].min.x, pair_boxes[1].max.x), (40.0, 41.0));
+    assert_eq!((pair_boxes[2].min.x, pair_boxes[2].max.x), (2.0, 4.0));
+    assert_eq!((pair_boxes[3].min.x, pair_boxes[3].max.x), (4.0, 5.0));
+}
+
+#[test]
+fn paired_builds_do_not_depend_on_the_thread_count() {
+    // A 150x150 grid of quads (45,000 triangles: three pairing runs), built on one thread
+    // and on two: the same leaf order and the same nodes.
+    let mut b = SoupBuilder::new(1_000_000);
+    for i in 0..150 {
+        for j in 0..150 {
+            let p = |di: i32, dj: i32| {
+                let (x, z) = ((i + di) as f32, (j + dj) as f32);
+                vec3(x, (x * 0.3).sin() * (z * 0.2).cos(), z)
+            };
+            for tri in [[p(0, 0), p(1, 0), p(1, 1)], [p(0, 0), p(1, 1), p(0, 1)]] {
+                b.push(
+                    &TriangleIn {
+                        positions: tri,
+                        ..Default::default()
+                    },
+                    0,
+                    0,
+                );
+            }
+        }
+    }
+    let (soup, _) = b.finish();
+    let materials = [Material::default()];
+    let build = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool");
+        pool.install(|| {
+            let accel =
+                Accel::build_pairing(&soup, &materials, AccelKind::Bvh, BvhPreset::VeryFast, true);
+            let nodes: Vec<u8> = accel
+                .bvh
+                .as_ref()
+                .map(|b| bytemuck::cast_slice(&b.nodes).to_vec())
+                .unwrap_or_default();
+            (accel.ids, nodes)
+        })
+    };
+    let one = build(1);
+    assert!(!one.1.is_empty());
+    assert!(one == build(2), "the same tree on one thread and on two");
 }
 
 #[test]

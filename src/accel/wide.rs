@@ -119,25 +119,27 @@ struct Converter<'a> {
     nodes_below: Vec<AtomicU32>,
 }
 
-/// Converts `bvh2` (one primitive per leaf, as PLOC builds it) to a CWBVH with at most
-/// `max_prims_per_leaf` (1..=3) primitives per leaf, children ordered for octant traversal.
-/// Returns `None` when a leaf holds more than one primitive (the caller then uses obvhs's own
-/// converter, which refuses such trees with a panic).
+/// Converts `bvh2` to a CWBVH with at most `max_prims_per_leaf` (1..=3) primitives per leaf,
+/// children ordered for octant traversal. A binary leaf holds one primitive (as PLOC builds
+/// it; the tree is then node for node obvhs's) or up to `max_prims_per_leaf` (the pairs of
+/// `bvh::pair_neighbours`). Returns `None` when a leaf holds none or more (the caller then
+/// uses obvhs's own converter).
 pub(super) fn convert(bvh2: &Bvh2, max_prims_per_leaf: u32) -> Option<CwBvh> {
     if bvh2.nodes.is_empty() {
         return Some(CwBvh::default());
     }
+    let max_prims_per_leaf = max_prims_per_leaf.clamp(1, 3);
     if bvh2
         .nodes
         .par_iter()
-        .any(|n| n.is_leaf() && n.prim_count != 1)
+        .any(|n| n.is_leaf() && (n.prim_count == 0 || n.prim_count > max_prims_per_leaf))
     {
         return None;
     }
     let n = bvh2.nodes.len();
     let converter = Converter {
         bvh2,
-        max_prims_per_leaf: max_prims_per_leaf.clamp(1, 3),
+        max_prims_per_leaf,
         choices: (0..n).map(|_| AtomicU64::new(0)).collect(),
         prims: (0..n).map(|_| AtomicU32::new(0)).collect(),
         nodes_below: (0..n).map(|_| AtomicU32::new(0)).collect(),
@@ -391,8 +393,10 @@ impl Converter<'_> {
     fn collect_primitives(&self, index: usize, out: &mut [u32], at: &mut usize) {
         let node = &self.bvh2.nodes[index];
         if node.is_leaf() {
-            out[*at] = self.bvh2.primitive_indices[node.first_index as usize];
-            *at += 1;
+            let first = node.first_index as usize;
+            let prims = &self.bvh2.primitive_indices[first..first + node.prim_count as usize];
+            out[*at..*at + prims.len()].copy_from_slice(prims);
+            *at += prims.len();
         } else {
             self.collect_primitives(node.first_index as usize, out, at);
             self.collect_primitives(node.first_index as usize + 1, out, at);
