@@ -1057,7 +1057,7 @@ impl Importer<'_> {
                 self.default_material
             }
         };
-        let corners = (0..triangle_count).map(|t| {
+        let corners = |t: usize| {
             let [a, b, c] = match mode {
                 Mode::Triangles => [3 * t, 3 * t + 1, 3 * t + 2],
                 Mode::TriangleStrip => [t, t + 1 + t % 2, t + 2 - t % 2],
@@ -1065,7 +1065,7 @@ impl Importer<'_> {
             };
             let corners = if flip { [a, c, b] } else { [a, b, c] };
             corners.map(|k| indices[k] as usize)
-        });
+        };
         let vertices_in = VerticesIn {
             positions: &vertices.positions,
             normals: vertices.normals.as_deref(),
@@ -1075,7 +1075,7 @@ impl Importer<'_> {
             tangents: vertices.tangents.as_deref(),
         };
         self.builder
-            .push_primitive(&vertices_in, corners, material, instance);
+            .push_primitive(&vertices_in, triangle_count, corners, material, instance);
         Ok(())
     }
 

@@ -262,7 +262,8 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         };
         builder.push_primitive(
             &vertices_in,
-            corners.chunks_exact(3).map(|c| [c[0], c[1], c[2]]),
+            corners.len() / 3,
+            |t| [corners[3 * t], corners[3 * t + 1], corners[3 * t + 2]],
             material,
             instance,
         );
