@@ -75,4 +75,15 @@ pub mod turntable;
 pub mod view;
 pub mod views;
 
+/// Runs `f` on a rayon pool of `threads` threads: for the tests that demand the same result at
+/// any thread count.
+#[cfg(test)]
+pub(crate) fn on_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("a thread pool")
+        .install(f)
+}
+
 pub use scene::{LoadError, LoadErrorKind, LoadOptions, Scene};

@@ -235,11 +235,7 @@ fn paired_builds_do_not_depend_on_the_thread_count() {
     let (soup, _) = b.finish();
     let materials = [Material::default()];
     let build = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .expect("thread pool");
-        pool.install(|| {
+        crate::on_threads(threads, || {
             let accel =
                 Accel::build_pairing(&soup, &materials, AccelKind::Bvh, BvhPreset::VeryFast, true);
             let nodes: Vec<u8> = accel

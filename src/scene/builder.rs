@@ -510,11 +510,7 @@ mod tests {
             ..Default::default()
         };
         let build = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .expect("thread pool");
-            pool.install(|| {
+            crate::on_threads(threads, || {
                 let mut b = SoupBuilder::new(1_000_000);
                 b.push_primitive(&vertices, triangles.len(), |t| triangles[t], 2, 0);
                 let counts = (b.degenerate, b.non_finite);
