@@ -580,6 +580,7 @@ fn render_model(
     let mut phases = Phases::default();
     let mut scene = load(&args.model, &load_options)?;
     phases.mark("parse and flatten", load_start);
+    phases.sub_steps(&scene.load_steps);
     let tangent_start = Instant::now();
     crate::scene::tangents::generate_missing(&mut scene);
     phases.mark("tangents", tangent_start);

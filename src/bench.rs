@@ -103,6 +103,7 @@ pub fn scene_from_soup(soup: TriangleSoup, name: &str) -> Scene {
         pose: None,
         bounds,
         warnings: Vec::new(),
+        load_steps: Vec::new(),
     }
 }
 

@@ -336,7 +336,8 @@ pub struct RenderArgs {
     pub segmentation_out: Option<PathBuf>,
     /// Write where the time and memory went as JSON: each phase (parse and flatten, tangents,
     /// textures, BVH build, prepare, render, write) with its wall time and the peak memory
-    /// after it.
+    /// after it, and the steps of the load (read, parse, flatten, materials and images) and
+    /// of the BVH build.
     #[arg(long, value_name = "FILE.json")]
     pub stats: Option<PathBuf>,
     /// Write the camera and lights actually used as JSON (the schema is in the README).

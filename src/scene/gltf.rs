@@ -48,6 +48,7 @@ const GLB_HEADER_BYTES: usize = 12;
 /// Loads a glTF or GLB file whose bytes are already read.
 pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<Scene, LoadError> {
     let err = |kind| LoadError::new(path, kind);
+    let mut steps = crate::measure::Steps::new();
     check_glb_header(bytes).map_err(err)?;
     let format = if bytes.starts_with(b"glTF") {
         Format::Glb
@@ -100,6 +101,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     let pose = pose::pose(&document, &buffers, &animations, &options.pose)
         .map_err(|p| err(LoadErrorKind::Animation(p)))?;
     let pose_description = pose.description.clone();
+    steps.mark("parse");
     let mut importer = Importer {
         document: &document,
         buffers: &buffers,
@@ -124,6 +126,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         draco: HashMap::new(),
     };
     importer.walk_default_scene().map_err(err)?;
+    steps.mark("flatten");
     let mut materials = importer.materials();
     let mut textures = textures(&document, &webp_fallbacks);
     let mut image_warnings = Vec::new();
@@ -188,6 +191,10 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         extensions,
         animations,
         pose: pose_description,
+        load_steps: {
+            steps.mark("materials and images");
+            steps.list().to_vec()
+        },
     })
 }
 

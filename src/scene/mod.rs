@@ -819,6 +819,8 @@ pub struct Scene {
     pub animations: Vec<AnimationInfo>,
     /// The animation and time drawn ("animation 1 'Walk' at 0.5 s"); `None`: the static pose.
     pub pose: Option<String>,
+    /// How long each step of the load took ("read", "parse", "flatten", ...), for `--stats`.
+    pub load_steps: Vec<crate::measure::Step>,
 }
 
 impl Scene {
@@ -842,8 +844,12 @@ impl Scene {
                 limit: options.limits.max_file_bytes,
             }));
         }
+        let mut steps = crate::measure::Steps::new();
         let bytes = std::fs::read(path).map_err(|e| err(LoadErrorKind::Io(e)))?;
-        Scene::from_bytes(path, &bytes, options)
+        steps.mark("read");
+        let mut scene = Scene::from_bytes(path, &bytes, options)?;
+        scene.load_steps.splice(0..0, steps.list().iter().cloned());
+        Ok(scene)
     }
 
     /// Checks that every index between the scene's lists is in range: triangle -> material,

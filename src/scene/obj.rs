@@ -38,6 +38,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
             "--animation/--time: OBJ files have no animations".into(),
         )));
     }
+    let mut steps = crate::measure::Steps::new();
     let Ok(text) = std::str::from_utf8(bytes) else {
         // Latin-1 files exist, but tobj reads lines as UTF-8; say so instead of "read error".
         return Err(err(LoadErrorKind::Obj(
@@ -87,6 +88,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         return Err(e);
     }
     let mtl_materials = materials.unwrap_or_default();
+    steps.mark("parse");
 
     let mut textures: Vec<Texture> = Vec::new();
     let mut images: Vec<ImageSource> = Vec::new();
@@ -155,6 +157,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
 
     let mut builder = SoupBuilder::new(options.limits.max_triangles);
     let mut instances = Vec::with_capacity(models.len());
+    steps.mark("materials and images");
     for (model_index, model) in models.iter().enumerate() {
         let mesh = &model.mesh;
         let positions: Vec<Vec3> = mesh
@@ -284,6 +287,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     }
     let file_triangles = builder.offered();
     let (soup, bounds) = builder.finish();
+    steps.mark("flatten");
     Ok(Scene {
         source: path.to_path_buf(),
         format: Format::Obj,
@@ -304,6 +308,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         extensions: Vec::new(),
         animations: Vec::new(),
         pose: None,
+        load_steps: steps.list().to_vec(),
     })
 }
 
