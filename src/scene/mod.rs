@@ -11,6 +11,7 @@ pub mod extensions;
 pub mod gltf;
 pub(crate) mod ktx2;
 mod meshopt;
+mod mikktspace;
 pub mod obj;
 mod paths;
 pub mod pose;

@@ -1,61 +1,65 @@
 //! Tangents for normal mapping where the file has none, with MikkTSpace (glTF 2.0 §3.7.2.1:
 //! "When tangents are not specified, client implementations SHOULD calculate tangents using
-//! default MikkTSpace algorithms"), through the `bevy_mikktspace` crate.
+//! default MikkTSpace algorithms"), with [`super::mikktspace`] (bit-identical to the
+//! `bevy_mikktspace` crate, which the tests compare it with, and about ten times faster).
 
+use super::mikktspace::{self, Corners};
 use super::{Scene, TriangleSoup};
 use glam::Vec4;
+use rayon::prelude::*;
 
-/// The triangles to process, as MikkTSpace geometry: faces are soup triangles.
-struct Faces<'a> {
-    soup: &'a TriangleSoup,
-    faces: &'a [usize],
-    uv_set: &'a [u32],
-    out: Vec<[Vec4; 3]>,
+/// The MikkTSpace input of triangles `faces` of `soup`, flattened per corner (corner
+/// `3 * k + v` is vertex `v` of `faces[k]`), texture coordinates from set `uv_set[k]`.
+pub(crate) struct CornerData {
+    pub positions: Vec<[f32; 3]>,
+    pub normals: Vec<[f32; 3]>,
+    pub uvs: Vec<[f32; 2]>,
 }
 
-impl Faces<'_> {
-    /// The soup vertex at corner `vert` of face `face`.
-    #[inline]
-    fn vertex(&self, face: usize, vert: usize) -> usize {
-        self.soup.indices[self.faces[face]][vert] as usize
+impl CornerData {
+    pub(crate) fn gather(soup: &TriangleSoup, faces: &[usize], uv_set: &[u32]) -> CornerData {
+        let vertex = |k: usize, v: usize| soup.indices[faces[k]][v] as usize;
+        let positions = (0..faces.len() * 3)
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|c| soup.positions[vertex(c / 3, c % 3)].to_array())
+            .collect();
+        let normals = (0..faces.len() * 3)
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|c| soup.normals[vertex(c / 3, c % 3)].to_array())
+            .collect();
+        let uvs = (0..faces.len() * 3)
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(|c| {
+                let k = c / 3;
+                let uvs = if uv_set.get(k) == Some(&1) {
+                    &soup.uv1
+                } else {
+                    &soup.uv0
+                };
+                let uv = uvs
+                    .get(vertex(k, c % 3))
+                    .copied()
+                    .unwrap_or(glam::Vec2::ZERO);
+                // MikkTSpace works with v up (OpenGL); glTF's v points down the image, and its
+                // normal maps' green channel points up the image.
+                [uv.x, 1.0 - uv.y]
+            })
+            .collect();
+        CornerData {
+            positions,
+            normals,
+            uvs,
+        }
     }
-}
 
-impl bevy_mikktspace::Geometry for Faces<'_> {
-    fn num_faces(&self) -> usize {
-        self.faces.len()
-    }
-    fn num_vertices_of_face(&self, _face: usize) -> usize {
-        3
-    }
-    fn position(&self, face: usize, vert: usize) -> [f32; 3] {
-        self.soup.positions[self.vertex(face, vert)].to_array()
-    }
-    fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
-        self.soup.normals[self.vertex(face, vert)].to_array()
-    }
-    fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
-        let uvs = if self.uv_set[face] == 1 {
-            &self.soup.uv1
-        } else {
-            &self.soup.uv0
-        };
-        let uv = uvs
-            .get(self.vertex(face, vert))
-            .copied()
-            .unwrap_or(glam::Vec2::ZERO);
-        // MikkTSpace works with v up (OpenGL); glTF's v points down the image, and its normal
-        // maps' green channel points up the image.
-        [uv.x, 1.0 - uv.y]
-    }
-    fn set_tangent(
-        &mut self,
-        tangent_space: Option<bevy_mikktspace::TangentSpace>,
-        face: usize,
-        vert: usize,
-    ) {
-        if let Some(ts) = tangent_space {
-            self.out[face][vert] = Vec4::from_array(ts.tangent_encoded());
+    pub(crate) fn corners(&self) -> Corners<'_> {
+        Corners {
+            positions: &self.positions,
+            normals: &self.normals,
+            uvs: &self.uvs,
         }
     }
 }
@@ -82,16 +86,7 @@ pub fn generate_missing(scene: &mut Scene) -> usize {
     if faces.is_empty() {
         return 0;
     }
-    let mut geometry = Faces {
-        soup,
-        faces: &faces,
-        uv_set: &uv_set,
-        out: vec![[Vec4::ZERO; 3]; faces.len()],
-    };
-    if bevy_mikktspace::generate_tangents(&mut geometry).is_err() {
-        return 0;
-    }
-    let out = geometry.out;
+    let out = mikktspace::generate(&CornerData::gather(soup, &faces, &uv_set).corners());
     let soup = &mut scene.soup;
     let vertices = soup.vertex_count();
     if soup.tangents.len() < vertices {
@@ -102,7 +97,10 @@ pub fn generate_missing(scene: &mut Scene) -> usize {
     // inside one vertex, say): there the corner gets a copy of the vertex of its own.
     let mut assigned = vec![false; vertices];
     for (face, &tri) in faces.iter().enumerate() {
-        for (corner, &tangent) in out[face].iter().enumerate() {
+        for corner in 0..3 {
+            // A corner MikkTSpace gives no tangent (a degenerate triangle without a good
+            // neighbour) keeps zero, which marks "none".
+            let tangent = out[3 * face + corner].map_or(Vec4::ZERO, Vec4::from_array);
             let v = soup.indices[tri][corner] as usize;
             if !assigned.get(v).copied().unwrap_or(true) {
                 assigned[v] = true;
