@@ -120,9 +120,6 @@ fn project(v: V3, n: V3) -> V3 {
 /// What MikkTSpace knows of one triangle before grouping.
 #[derive(Clone, Copy)]
 struct Triangle {
-    /// Neighbouring triangle (index into the good triangles) across edge `i` (corner `i` to
-    /// corner `i + 1`), `u32::MAX` for none.
-    neighbors: [u32; 3],
     /// The group of each corner, `u32::MAX` for none yet.
     group: [u32; 3],
     /// Normalized first-order tangent and bitangent, signed by the orientation.
@@ -156,20 +153,25 @@ pub fn generate(corners: &Corners) -> Vec<Option<[f32; 4]>> {
 
     // First-order tangents per triangle, then the good ones before the degenerate ones,
     // each in file order (the reference's stable sort by (degenerate, index)).
-    let infos: Vec<(bool, Triangle)> = (0..n_faces)
+    // The records are filtered in place, not copied: a second 800 KB buffer for
+    // DamagedHelmet (no degenerate triangle) was a few hundred page faults on a cold load.
+    let (degenerate, mut triangles): (Vec<bool>, Vec<Triangle>) = (0..n_faces)
         .into_par_iter()
         .with_min_len(1024)
         .map(|f| triangle_info(pos, uv, f))
-        .collect();
+        .unzip();
     let mut order: Vec<u32> = Vec::with_capacity(n_faces);
-    order.extend((0..n_faces as u32).filter(|&f| !infos[f as usize].0));
+    order.extend((0..n_faces as u32).filter(|&f| !degenerate[f as usize]));
     let n_good = order.len();
-    order.extend((0..n_faces as u32).filter(|&f| infos[f as usize].0));
-    let mut triangles: Vec<Triangle> = order[..n_good]
-        .iter()
-        .map(|&f| infos[f as usize].1)
-        .collect();
-    drop(infos);
+    if n_good < n_faces {
+        order.extend((0..n_faces as u32).filter(|&f| degenerate[f as usize]));
+        let mut k = 0;
+        triangles.retain(|_| {
+            k += 1;
+            !degenerate[k - 1]
+        });
+    }
+    drop(degenerate);
 
     // Corner ids in that order, then each replaced by its weld representative.
     let mut vertices: Vec<u32> = order
@@ -179,15 +181,19 @@ pub fn generate(corners: &Corners) -> Vec<Option<[f32; 4]>> {
     weld(pos, nrm, uv, &mut vertices);
     let good_vertices = &vertices[..n_good * 3];
 
-    build_neighbors(&mut triangles, good_vertices);
-    let groups = build_groups(&mut triangles, good_vertices);
+    let neighbors = build_neighbors(good_vertices);
+    let groups = build_groups(&mut triangles, &neighbors, good_vertices);
+    drop(neighbors);
 
-    // Evaluate every group in parallel; each writes its own corners.
-    let results: Vec<(u32, [f32; 4])> = groups
+    // Evaluate every group in parallel; each writes its own corners. Each chunk's list is
+    // sized up front (a group pushes at most one corner a member) and they are scattered in
+    // order: `flat_map_iter` grew and then concatenated its lists, copying ~900 KB.
+    let results: Vec<Vec<(u32, [f32; 4])>> = groups
         .groups
         .par_chunks(256)
-        .flat_map_iter(|chunk| {
-            let mut out = Vec::new();
+        .map(|chunk| {
+            let members = chunk.iter().map(|g| (g.end - g.start) as usize).sum();
+            let mut out = Vec::with_capacity(members);
             let mut scratch = GroupScratch::default();
             for group in chunk {
                 evaluate_group(
@@ -206,7 +212,7 @@ pub fn generate(corners: &Corners) -> Vec<Option<[f32; 4]>> {
         })
         .collect();
     let mut tangents = vec![None; n_faces * 3];
-    for (corner, tangent) in results {
+    for (corner, tangent) in results.into_iter().flatten() {
         tangents[corner as usize] = Some(tangent);
     }
 
@@ -231,7 +237,6 @@ pub fn generate(corners: &Corners) -> Vec<Option<[f32; 4]>> {
 /// Whether triangle `f` is degenerate (two equal positions), and its first-order tangents.
 fn triangle_info(pos: &[V3], uv: &[[f32; 2]], f: usize) -> (bool, Triangle) {
     let mut info = Triangle {
-        neighbors: [NONE; 3],
         group: [NONE; 3],
         s: [0.0; 3],
         t: [0.0; 3],
@@ -320,28 +325,32 @@ fn weld(pos: &[V3], nrm: &[V3], uv: &[[f32; 2]], vertices: &mut [u32]) {
     for g in 0..GROUPS {
         starts[g + 1] += starts[g];
     }
+    // The sort scatters 4-byte indices; the 40-byte records are then written once, in
+    // order and in parallel (filling a zeroed 1.9 MB buffer and then scattering into it
+    // touched every page twice, sequentially).
     let mut next = starts.clone();
-    let mut buffer = vec![
-        WeldVertex {
-            position: [0.0; 3],
-            normal: [0.0; 3],
-            uv: [0.0; 2],
-            index: 0,
-            rep: NONE,
-        };
-        vertices.len()
-    ];
-    for (k, (&v, &b)) in vertices.iter().zip(&buckets).enumerate() {
+    let mut sorted = vec![0u32; vertices.len()];
+    for (k, &b) in buckets.iter().enumerate() {
         let slot = &mut next[b as usize];
-        buffer[*slot] = WeldVertex {
-            position: pos[v as usize],
-            normal: nrm[v as usize],
-            uv: uv[v as usize],
-            index: k as u32,
-            rep: v,
-        };
+        sorted[*slot] = k as u32;
         *slot += 1;
     }
+    drop(buckets);
+    let mut buffer: Vec<WeldVertex> = sorted
+        .par_iter()
+        .with_min_len(4096)
+        .map(|&k| {
+            let v = vertices[k as usize] as usize;
+            WeldVertex {
+                position: pos[v],
+                normal: nrm[v],
+                uv: uv[v],
+                index: k,
+                rep: v as u32,
+            }
+        })
+        .collect();
+    drop(sorted);
     let mut chunks: Vec<&mut [WeldVertex]> = Vec::with_capacity(GROUPS);
     let mut rest = buffer.as_mut_slice();
     for g in 0..GROUPS {
@@ -437,7 +446,13 @@ struct Edge {
 /// Pairs the edges of the good triangles as the reference does: in the order of
 /// [`sort_edges`], each edge takes the first later edge with the same end points, the opposite
 /// direction and no neighbour yet, looking only while the end points stay the same.
-fn build_neighbors(triangles: &mut [Triangle], vertices: &[u32]) {
+///
+/// Returns, for each good triangle, the neighbouring triangle across edge `i` (corner `i` to
+/// corner `i + 1`), `u32::MAX` for none. A 12-byte record of its own, not a field of
+/// [`Triangle`]: the pairing reads it in edge order, all over the triangles, and a 52-byte
+/// stride put nearly every read on a cache line of its own.
+fn build_neighbors(vertices: &[u32]) -> Vec<[u32; 3]> {
+    let mut neighbors = vec![[NONE; 3]; vertices.len() / 3];
     let mut edges: Vec<Edge> = Vec::with_capacity(vertices.len());
     for (f, tri) in vertices.chunks_exact(3).enumerate() {
         for e in 0..3 {
@@ -450,14 +465,14 @@ fn build_neighbors(triangles: &mut [Triangle], vertices: &[u32]) {
             });
         }
     }
-    sort_edges(&mut edges);
+    let edges = sort_edges(edges);
     let directed = |e: &Edge| {
         let tri = &vertices[3 * e.f as usize..][..3];
         (tri[e.edge as usize], tri[(e.edge as usize + 1) % 3])
     };
     for index in 0..edges.len() {
         let a = edges[index];
-        if triangles[a.f as usize].neighbors[a.edge as usize] != NONE {
+        if neighbors[a.f as usize][a.edge as usize] != NONE {
             continue;
         }
         let (a0, a1) = directed(&a);
@@ -466,14 +481,15 @@ fn build_neighbors(triangles: &mut [Triangle], vertices: &[u32]) {
             .take_while(|b| (a.i0, a.i1) == (b.i0, b.i1))
             .find(|b| {
                 let (b1, b0) = directed(b);
-                (a0, a1) == (b0, b1) && triangles[b.f as usize].neighbors[b.edge as usize] == NONE
+                (a0, a1) == (b0, b1) && neighbors[b.f as usize][b.edge as usize] == NONE
             })
             .copied();
         if let Some(b) = found {
-            triangles[a.f as usize].neighbors[a.edge as usize] = b.f;
-            triangles[b.f as usize].neighbors[b.edge as usize] = a.f;
+            neighbors[a.f as usize][a.edge as usize] = b.f;
+            neighbors[b.f as usize][b.edge as usize] = a.f;
         }
     }
+    neighbors
 }
 
 /// Puts `edges` in the order the reference's `quick_sort_edges` (`quick_sort_legacy.rs`, which
@@ -485,13 +501,13 @@ fn build_neighbors(triangles: &mut [Triangle], vertices: &[u32]) {
 /// (ids are below the number of corners) and a small sort per bucket. The last run's order
 /// depends on every swap the quick sort makes on the ranges that hold it, so those are
 /// replayed: ranges without a largest-`i0` edge cannot move one and are skipped.
-fn sort_edges(edges: &mut [Edge]) {
+///
+/// The counting sort reads `edges` into a new buffer first, so the replay can then permute
+/// `edges` in place (a third 740 KB buffer for DamagedHelmet's 46,356 edges cost page faults).
+fn sort_edges(mut edges: Vec<Edge>) -> Vec<Edge> {
     let Some(max_i0) = edges.iter().map(|e| e.i0).max() else {
-        return;
+        return edges;
     };
-    let mut replay = edges.to_vec();
-    replay_quick_sort(&mut replay, max_i0, INTERNAL_RND_SORT_SEED);
-    let bad: Vec<Edge> = replay.into_iter().filter(|e| e.i0 == max_i0).collect();
 
     // Counting sort of the rest by i0.
     let n_keys = max_i0 as usize + 1;
@@ -518,15 +534,18 @@ fn sort_edges(edges: &mut [Edge]) {
             run.sort_unstable();
         }
     }
+    replay_quick_sort(&mut edges, max_i0, INTERNAL_RND_SORT_SEED);
     let tail = &mut sorted[good_len..];
-    tail.copy_from_slice(&bad);
+    for (slot, &e) in tail.iter_mut().zip(edges.iter().filter(|e| e.i0 == max_i0)) {
+        *slot = e;
+    }
     // The reference's off-by-one: every run of equal i1 but the last is sorted by f.
     let mut runs: Vec<&mut [Edge]> = tail.chunk_by_mut(|a, b| a.i1 == b.i1).collect();
     runs.pop();
     for run in runs {
         run.sort_unstable_by_key(|e| e.f);
     }
-    edges.copy_from_slice(&sorted);
+    sorted
 }
 
 /// The reference's `quick_sort_by_key_with_seed` on `i0`, recursing only into ranges that
@@ -595,8 +614,10 @@ struct GroupList {
 /// The reference's `build_4_rule_groups`: corners in order start a group unless taken or their
 /// triangle groups with anything; a depth-first walk (same order as the reference's
 /// recursion) across the two edges at the vertex adds the triangles of the same orientation.
-fn build_groups(triangles: &mut [Triangle], vertices: &[u32]) -> GroupList {
-    let mut groups = Vec::new();
+fn build_groups(triangles: &mut [Triangle], neighbors: &[[u32; 3]], vertices: &[u32]) -> GroupList {
+    // At most one group a corner: reserved, not grown (growing copied it ~14 times), and
+    // pages of the reservation that are never written are never faulted in.
+    let mut groups = Vec::with_capacity(vertices.len());
     let mut faces: Vec<u32> = Vec::with_capacity(vertices.len());
     let mut stack: Vec<u32> = Vec::new();
     for f in 0..triangles.len() {
@@ -614,8 +635,8 @@ fn build_groups(triangles: &mut [Triangle], vertices: &[u32]) -> GroupList {
             // Pushed in reverse so that the first neighbour is walked first.
             stack.clear();
             for k in [i, (i + 2) % 3] {
-                if info.neighbors[k] != NONE {
-                    stack.push(info.neighbors[k]);
+                if neighbors[f][k] != NONE {
+                    stack.push(neighbors[f][k]);
                 }
             }
             while let Some(t) = stack.pop() {
@@ -638,8 +659,8 @@ fn build_groups(triangles: &mut [Triangle], vertices: &[u32]) -> GroupList {
                 faces.push(t as u32);
                 info.group[j] = id;
                 for k in [j, (j + 2) % 3] {
-                    if info.neighbors[k] != NONE {
-                        stack.push(info.neighbors[k]);
+                    if neighbors[t][k] != NONE {
+                        stack.push(neighbors[t][k]);
                     }
                 }
             }
