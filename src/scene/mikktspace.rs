@@ -433,14 +433,19 @@ fn merge_verts(buffer: &mut [WeldVertex]) {
     merge_verts(greater);
 }
 
-/// An edge of a good triangle: its welded end points in ascending order, the triangle (index
-/// among the good ones) and which of its edges it is. Ordered by `(i0, i1, f)`, unique.
-#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-struct Edge {
-    i0: u32,
-    i1: u32,
-    f: u32,
-    edge: u8,
+/// Edge `k` of the good triangles is edge `k % 3` (corner `k % 3` to the next) of triangle
+/// `k / 3`; its welded end points.
+#[inline]
+fn edge_ends(vertices: &[u32], k: usize) -> (u32, u32) {
+    let f = k - k % 3;
+    (vertices[k], vertices[f + (k + 1) % 3])
+}
+
+/// An edge's end points in ascending order, `(i0, i1)`.
+#[inline]
+fn edge_key(vertices: &[u32], k: usize) -> (u32, u32) {
+    let (a, b) = edge_ends(vertices, k);
+    (a.min(b), a.max(b))
 }
 
 /// Pairs the edges of the good triangles as the reference does: in the order of
@@ -453,109 +458,109 @@ struct Edge {
 /// stride put nearly every read on a cache line of its own.
 fn build_neighbors(vertices: &[u32]) -> Vec<[u32; 3]> {
     let mut neighbors = vec![[NONE; 3]; vertices.len() / 3];
-    let mut edges: Vec<Edge> = Vec::with_capacity(vertices.len());
-    for (f, tri) in vertices.chunks_exact(3).enumerate() {
-        for e in 0..3 {
-            let (a, b) = (tri[e], tri[(e + 1) % 3]);
-            edges.push(Edge {
-                i0: a.min(b),
-                i1: a.max(b),
-                f: f as u32,
-                edge: e as u8,
-            });
-        }
-    }
-    let edges = sort_edges(edges);
-    let directed = |e: &Edge| {
-        let tri = &vertices[3 * e.f as usize..][..3];
-        (tri[e.edge as usize], tri[(e.edge as usize + 1) % 3])
-    };
-    for index in 0..edges.len() {
-        let a = edges[index];
-        if neighbors[a.f as usize][a.edge as usize] != NONE {
-            continue;
-        }
-        let (a0, a1) = directed(&a);
-        let found = edges[index + 1..]
-            .iter()
-            .take_while(|b| (a.i0, a.i1) == (b.i0, b.i1))
-            .find(|b| {
-                let (b1, b0) = directed(b);
-                (a0, a1) == (b0, b1) && neighbors[b.f as usize][b.edge as usize] == NONE
-            })
-            .copied();
-        if let Some(b) = found {
-            neighbors[a.f as usize][a.edge as usize] = b.f;
-            neighbors[b.f as usize][b.edge as usize] = a.f;
+    let (sorted, starts) = sort_edges(vertices);
+    let i1 = |x: u64| (x >> 32) as u32;
+    let id = |x: u64| x as u32 as usize;
+    let taken = |neighbors: &[[u32; 3]], k: usize| neighbors[k / 3][k % 3] != NONE;
+    // Runs of one i0 are contiguous; the pairing never looks past the end of its run.
+    for run in starts.windows(2) {
+        let run = &sorted[run[0] as usize..run[1] as usize];
+        for (index, &a) in run.iter().enumerate() {
+            let ka = id(a);
+            if taken(&neighbors, ka) {
+                continue;
+            }
+            let (a0, a1) = edge_ends(vertices, ka);
+            let found = run[index + 1..]
+                .iter()
+                .take_while(|&&b| i1(b) == i1(a))
+                .find(|&&b| {
+                    let (b1, b0) = edge_ends(vertices, id(b));
+                    (a0, a1) == (b0, b1) && !taken(&neighbors, id(b))
+                })
+                .copied();
+            if let Some(b) = found {
+                let kb = id(b);
+                neighbors[ka / 3][ka % 3] = (kb / 3) as u32;
+                neighbors[kb / 3][kb % 3] = (ka / 3) as u32;
+            }
         }
     }
     neighbors
 }
 
-/// Puts `edges` in the order the reference's `quick_sort_edges` (`quick_sort_legacy.rs`, which
-/// replicates an off-by-one of the C code) leaves them: sorted by `(i0, i1, f)`, except the
-/// run with the largest `i0`, which is in the order a seeded quick sort on `i0` alone leaves it,
-/// then sorted by `f` within each run of equal `i1` except the last run.
+/// Puts the edges in the order the reference's `quick_sort_edges` (`quick_sort_legacy.rs`,
+/// which replicates an off-by-one of the C code) leaves them: sorted by `(i0, i1, f)`, except
+/// the run with the largest `i0`, which is in the order a seeded quick sort on `i0` alone
+/// leaves it, then sorted by `f` within each run of equal `i1` except the last run.
+///
+/// Returns each edge as `i1 << 32 | k` (edge id `k = 3 f + e`, so ordering by `k` orders by
+/// `f`: keys are unique) in that order, and where each `i0`'s run starts (its last entry is
+/// the number of edges): `i0` is implicit, so an entry is 8 bytes, not a 16-byte struct, and
+/// no list of edges is built before sorting (the struct version built, sorted and copied
+/// three 740 KB buffers for DamagedHelmet's 46,356 edges, 1.0-1.3 ms cold, mostly page faults).
 ///
 /// The keys are unique, so the sorted part may come from any sort: a counting sort on `i0`
 /// (ids are below the number of corners) and a small sort per bucket. The last run's order
 /// depends on every swap the quick sort makes on the ranges that hold it, so those are
 /// replayed: ranges without a largest-`i0` edge cannot move one and are skipped.
-///
-/// The counting sort reads `edges` into a new buffer first, so the replay can then permute
-/// `edges` in place (a third 740 KB buffer for DamagedHelmet's 46,356 edges cost page faults).
-fn sort_edges(mut edges: Vec<Edge>) -> Vec<Edge> {
-    let Some(max_i0) = edges.iter().map(|e| e.i0).max() else {
-        return edges;
+fn sort_edges(vertices: &[u32]) -> (Vec<u64>, Vec<u32>) {
+    let n = vertices.len();
+    let Some(max_i0) = (0..n).map(|k| edge_key(vertices, k).0).max() else {
+        return (Vec::new(), vec![0]);
     };
-
-    // Counting sort of the rest by i0.
     let n_keys = max_i0 as usize + 1;
     let mut starts = vec![0u32; n_keys + 1];
-    for e in edges.iter() {
-        starts[e.i0 as usize + 1] += 1;
+    for k in 0..n {
+        starts[edge_key(vertices, k).0 as usize + 1] += 1;
     }
     for k in 0..n_keys {
         starts[k + 1] += starts[k];
     }
     let good_len = starts[max_i0 as usize] as usize;
-    let mut sorted = vec![edges[0]; edges.len()];
+    let mut sorted = vec![0u64; n];
     let mut next = starts.clone();
-    for &e in edges.iter() {
-        if e.i0 != max_i0 {
-            let slot = &mut next[e.i0 as usize];
-            sorted[*slot as usize] = e;
+    for k in 0..n {
+        let (i0, i1) = edge_key(vertices, k);
+        if i0 != max_i0 {
+            let slot = &mut next[i0 as usize];
+            sorted[*slot as usize] = (i1 as u64) << 32 | k as u64;
             *slot += 1;
         }
     }
-    for k in 0..max_i0 as usize {
-        let run = &mut sorted[starts[k] as usize..starts[k + 1] as usize];
+    drop(next);
+    for run in starts[..n_keys].windows(2) {
+        let run = &mut sorted[run[0] as usize..run[1] as usize];
         if run.len() > 1 {
             run.sort_unstable();
         }
     }
-    replay_quick_sort(&mut edges, max_i0, INTERNAL_RND_SORT_SEED);
+    let mut replay: Vec<(u32, u32)> = (0..n)
+        .map(|k| (edge_key(vertices, k).0, k as u32))
+        .collect();
+    replay_quick_sort(&mut replay, max_i0, INTERNAL_RND_SORT_SEED);
     let tail = &mut sorted[good_len..];
-    for (slot, &e) in tail.iter_mut().zip(edges.iter().filter(|e| e.i0 == max_i0)) {
-        *slot = e;
+    for (slot, &(_, k)) in tail.iter_mut().zip(replay.iter().filter(|e| e.0 == max_i0)) {
+        *slot = (edge_key(vertices, k as usize).1 as u64) << 32 | k as u64;
     }
+    drop(replay);
     // The reference's off-by-one: every run of equal i1 but the last is sorted by f.
-    let mut runs: Vec<&mut [Edge]> = tail.chunk_by_mut(|a, b| a.i1 == b.i1).collect();
+    let mut runs: Vec<&mut [u64]> = tail.chunk_by_mut(|a, b| a >> 32 == b >> 32).collect();
     runs.pop();
     for run in runs {
-        run.sort_unstable_by_key(|e| e.f);
+        run.sort_unstable();
     }
-    sorted
+    (sorted, starts)
 }
 
-/// The reference's `quick_sort_by_key_with_seed` on `i0`, recursing only into ranges that
-/// hold an edge with `i0 == max_i0`.
-fn replay_quick_sort(buffer: &mut [Edge], max_i0: u32, seed: u32) {
-    if !buffer.iter().any(|e| e.i0 == max_i0) {
+/// The reference's `quick_sort_by_key_with_seed` on `i0` (the first of each pair; the second
+/// is the edge's id), recursing only into ranges that hold an edge with `i0 == max_i0`.
+fn replay_quick_sort(buffer: &mut [(u32, u32)], max_i0: u32, seed: u32) {
+    if !buffer.iter().any(|e| e.0 == max_i0) {
         return;
     }
     if buffer.len() <= 2 {
-        buffer.sort_unstable_by_key(|e| e.i0);
+        buffer.sort_unstable_by_key(|e| e.0);
         return;
     }
     let seed = {
@@ -563,14 +568,14 @@ fn replay_quick_sort(buffer: &mut [Edge], max_i0: u32, seed: u32) {
         let t = seed.wrapping_shl(t) | seed.wrapping_shr(32_u32.wrapping_sub(t));
         seed.wrapping_add(t).wrapping_add(3)
     };
-    let pivot = buffer[seed.wrapping_rem(buffer.len() as u32) as usize].i0;
+    let pivot = buffer[seed.wrapping_rem(buffer.len() as u32) as usize].0;
     let (mut a, mut b) = (0usize, buffer.len() - 1);
     while a <= b {
         // Both scans stop at the pivot's value at the latest (it stays in the range).
-        while buffer[a].i0 < pivot {
+        while buffer[a].0 < pivot {
             a += 1;
         }
-        while buffer[b].i0 > pivot {
+        while buffer[b].0 > pivot {
             b -= 1;
         }
         if a <= b {
