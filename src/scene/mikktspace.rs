@@ -1,5 +1,7 @@
 //! MikkTSpace tangents for triangle lists, bit-identical to `bevy_mikktspace` 1.0.0 (itself
-//! byte-identical to Morten S. Mikkelsen's C reference on x86) and about ten times faster.
+//! byte-identical to Morten S. Mikkelsen's C reference on x86) and faster: DamagedHelmet's
+//! tangent phase in a real render (cold caches, fresh pages) went from 17.6-18.8 ms to about
+//! 7.6 ms (median, 2 threads); the algorithm alone, warm in a loop, from 16.9 to 6.1 ms.
 //!
 //! # Why our own
 //! `bevy_mikktspace` took 17-25 ms of DamagedHelmet's load (15,452 triangles, about 1.2 µs
