@@ -889,20 +889,14 @@ fn the_summary_reports_what_the_render_did() {
     assert!(json["phases"][0]["seconds"].as_f64().unwrap() >= 0.0);
     // The load's own steps, inside its phase.
     let load = &json["phases"][0];
-    let steps: Vec<&str> = load["steps"]
+    let (steps, seconds): (Vec<&str>, Vec<f64>) = load["steps"]
         .as_array()
         .unwrap()
         .iter()
-        .map(|s| s["step"].as_str().unwrap())
-        .collect();
+        .map(|s| (s["step"].as_str().unwrap(), s["seconds"].as_f64().unwrap()))
+        .unzip();
     assert_eq!(steps, ["read", "parse", "flatten", "materials and images"]);
-    let step_sum: f64 = load["steps"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|s| s["seconds"].as_f64().unwrap())
-        .sum();
-    assert!(step_sum <= load["seconds"].as_f64().unwrap());
+    assert!(seconds.iter().sum::<f64>() <= load["seconds"].as_f64().unwrap());
     assert!(json["total_seconds"].as_f64().unwrap() > 0.0);
     assert_eq!(json["triangles"], 2244);
 }
