@@ -1023,6 +1023,54 @@ fn aovs_are_consistent_with_each_other_and_the_view() {
     assert!((4895..=4905).contains(&max), "deepest point {max} mm");
 }
 
+/// The AOVs describe the pixel centre whatever the sample count: at 1 spp they reuse the
+/// camera sample's first hit (which goes through the centre), at 4 spp they trace the centre
+/// ray of their own. Both must give the same bytes, with either integrator. (The mask is the
+/// beauty's coverage, anti-aliased at 4 spp, so it is not one of them.)
+#[test]
+fn aovs_at_one_sample_equal_those_of_their_own_centre_ray() {
+    let dir = tempfile::tempdir().unwrap();
+    let outputs = ["depth.exr", "normal.exr", "seg.png"];
+    for integrator in ["direct", "path"] {
+        let mut files = Vec::new();
+        for spp in ["1", "4"] {
+            let p = |n: &str| dir.path().join(format!("{integrator}-{spp}-{n}"));
+            let names: Vec<PathBuf> = outputs.iter().map(|n| p(n)).collect();
+            render_to(
+                dir.path(),
+                &cornell(),
+                &format!("{integrator}-{spp}.png"),
+                &[
+                    "--width",
+                    "64",
+                    "--spp",
+                    spp,
+                    "--integrator",
+                    integrator,
+                    "--depth-out",
+                    s(&names[0]),
+                    "--normal-out",
+                    s(&names[1]),
+                    "--segmentation-out",
+                    s(&names[2]),
+                ],
+            );
+            files.push(
+                names
+                    .iter()
+                    .map(|n| std::fs::read(n).unwrap())
+                    .collect::<Vec<_>>(),
+            );
+        }
+        for (k, name) in outputs.iter().enumerate() {
+            assert!(
+                files[0][k] == files[1][k],
+                "{integrator}: {name} differs between 1 and 4 spp"
+            );
+        }
+    }
+}
+
 /// Issue 12's measure on the model that showed the acne: MetalRoughSpheresNoTextures at
 /// 1024x768, 1 spp, default view and lights, counting isolated dark pixels
 /// ([`common::speckles`]: more than 40/255 darker than their 3x3 median) per 10,000 covered

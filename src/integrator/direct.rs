@@ -5,6 +5,7 @@
 //! [`MAX_BLEND_LAYERS`]).
 
 use super::{CameraRay, Integrator, RayCounts};
+use crate::accel::Hit;
 use crate::geometry::Ray;
 use crate::light::incident;
 use crate::prepare::Prepared;
@@ -36,6 +37,7 @@ impl Integrator for Direct {
         camera: &CameraRay,
         _rng: &mut Rng,
         counts: &mut RayCounts,
+        first: &mut Option<Hit>,
     ) -> (Vec3, f32) {
         let mut color = Vec3::ZERO;
         let mut transmittance = 1.0f32;
@@ -46,6 +48,9 @@ impl Integrator for Direct {
             let Some(hit) = scene.intersect_camera(&ray) else {
                 break;
             };
+            if first.is_none() {
+                *first = Some(hit);
+            }
             let surface = scene.surface(&ray, &hit, camera.footprint(hit.t), Occlusion::Sample);
             let shaded = self.shade(scene, &ray, &surface, &mut counts.shadow);
             let mut alpha = if surface.source.alpha_mode == AlphaMode::Blend {

@@ -9,6 +9,7 @@ pub mod path;
 pub use direct::Direct;
 pub use path::PathTracer;
 
+use crate::accel::Hit;
 use crate::geometry::Ray;
 use crate::prepare::Prepared;
 use crate::sampling::Rng;
@@ -71,11 +72,15 @@ pub trait Integrator: Sync {
     /// Radiance (premultiplied by coverage, linear, photometric units as in [`crate::light`])
     /// and coverage (0 = nothing hit, 1 = opaque) along `camera`. `rng` is the pixel's own
     /// stream (deterministic for a seed, whatever thread runs it); `counts` tallies the rays.
+    /// `first` gets the first surface the camera ray meets (the one the AOVs record: at one
+    /// sample a pixel, through its centre, they need no ray of their own), left `None` when
+    /// the ray meets nothing.
     fn radiance(
         &self,
         scene: &Prepared,
         camera: &CameraRay,
         rng: &mut Rng,
         counts: &mut RayCounts,
+        first: &mut Option<Hit>,
     ) -> (Vec3, f32);
 }

@@ -20,6 +20,7 @@
 //! for any number of threads.
 
 use super::{CameraRay, Integrator, RayCounts};
+use crate::accel::Hit;
 use crate::bsdf::Bsdf;
 use crate::environment::Environment;
 use crate::geometry::SpawnPoint;
@@ -58,6 +59,7 @@ impl Integrator for PathTracer {
         camera: &CameraRay,
         rng: &mut Rng,
         counts: &mut RayCounts,
+        first: &mut Option<Hit>,
     ) -> (Vec3, f32) {
         let mut ray = camera.ray;
         let mut throughput = Vec3::ONE;
@@ -93,6 +95,9 @@ impl Integrator for PathTracer {
                 }
                 break;
             };
+            if first.is_none() {
+                *first = Some(hit);
+            }
             if let Some(sigma) = medium {
                 // KHR_materials_volume: T = exp(-σ·d) along the segment inside the volume.
                 throughput *= (-sigma * hit.t).exp();

@@ -8,6 +8,7 @@
 
 pub mod surface;
 
+use crate::accel::Hit;
 use crate::bsdf::luminance;
 use crate::camera::{Lens, View};
 use crate::environment::Environment;
@@ -353,6 +354,7 @@ impl<'a> PixelLoop<'a> {
                 let mut rng = Rng::for_pixel(self.settings.seed, x, y);
                 let mut sum = Vec4::ZERO;
                 let mut luminance_squares = 0.0f64;
+                let mut first = None;
                 for s in 0..spp {
                     let (dx, dy) = if spp == 1 {
                         (0.5, 0.5)
@@ -369,9 +371,13 @@ impl<'a> PixelLoop<'a> {
                         spread_base: self.spread.0,
                         spread_per_distance: self.spread.1,
                     };
-                    let (color, coverage) =
-                        self.integrator
-                            .radiance(self.scene, &camera, &mut rng, &mut tile.counts);
+                    let (color, coverage) = self.integrator.radiance(
+                        self.scene,
+                        &camera,
+                        &mut rng,
+                        &mut tile.counts,
+                        &mut first,
+                    );
                     sum += (color * self.scale).extend(coverage);
                     luminance_squares += f64::from(luminance(color * self.scale)).powi(2);
                 }
@@ -384,17 +390,23 @@ impl<'a> PixelLoop<'a> {
                     tile.noise_pixels += 1;
                 }
                 if self.settings.aovs {
-                    self.aov(&view.ray(x as f32 + 0.5, y as f32 + 0.5), &mut tile.aovs);
+                    let ray = view.ray(x as f32 + 0.5, y as f32 + 0.5);
+                    // One sample a pixel went through the centre: its first surface is the
+                    // AOVs'. Otherwise they trace the centre ray themselves.
+                    let hit = if spp == 1 {
+                        first
+                    } else {
+                        self.scene.intersect_camera(&ray)
+                    };
+                    self.aov(&ray, hit, &mut tile.aovs);
                 }
             }
         }
         tile
     }
 
-    /// Depth, normal and instance id of the first surface along a pixel-centre ray.
-    fn aov(&self, ray: &Ray, out: &mut Aovs) {
-        let accept = |tri: u32, b: Vec3| self.scene.accept_for_camera(tri, b);
-        let hit = self.scene.accel.intersect_filtered(ray, Some(&accept));
+    /// Depth, normal and instance id of `hit`, the first surface along pixel-centre `ray`.
+    fn aov(&self, ray: &Ray, hit: Option<Hit>, out: &mut Aovs) {
         match hit {
             Some(hit) => {
                 let soup = &self.scene.scene.soup;
