@@ -2,7 +2,8 @@
 //! broken model, a JSONL manifest with a malformed line and ids or names that try to leave the
 //! output folder, shards (by --shard and by the Slurm variables) whose union is the whole run
 //! byte for byte and whose assignment survives a shuffled manifest, --resume after damage,
-//! and the example Slurm and Kubernetes scripts run locally for every index.
+//! the example Slurm and Kubernetes scripts run locally for every index, and (with
+//! MESHTRACER_SAMPLES) a batch over every shared sample model plus a broken file.
 
 mod common;
 
@@ -385,6 +386,102 @@ fn a_jsonl_batch_refuses_bad_lines_and_escaping_names_and_writes_only_inside_dir
             .map(String::from)
             .into(),
         "only the good jobs have folders"
+    );
+}
+
+/// Issue 15's whole-collection run: a JSONL batch over every model file in the shared samples
+/// (MESHTRACER_SAMPLES: glTF, GLB and OBJ, the encoded, animated and variant ones included)
+/// plus a broken file records exactly one failed job, naming the file, and renders every
+/// other; three shards of it write the same files, and merged the same results.jsonl
+/// (timings aside).
+#[test]
+fn a_batch_over_every_sample_model_fails_only_the_broken_file_and_shards_equal_it() {
+    let Some(samples) = common::samples(
+        "a_batch_over_every_sample_model_fails_only_the_broken_file_and_shards_equal_it",
+    ) else {
+        return;
+    };
+    fn walk(dir: &Path, found: &mut Vec<PathBuf>) {
+        let mut entries: Vec<PathBuf> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        entries.sort();
+        for path in entries {
+            if path.is_dir() {
+                walk(&path, found);
+            } else if path
+                .extension()
+                .and_then(|e| e.to_str())
+                .is_some_and(|e| ["gltf", "glb", "obj"].contains(&e))
+            {
+                found.push(path);
+            }
+        }
+    }
+    let mut models = Vec::new();
+    walk(&samples, &mut models);
+    assert!(models.len() >= 50, "{} model files", models.len());
+    let dir = tempfile::tempdir().unwrap();
+    let broken = dir.path().join("broken.glb");
+    std::fs::write(&broken, b"glTF this is not").unwrap();
+    let line =
+        |id: &str, model: &Path| serde_json::json!({"id": id, "model": s(model)}).to_string();
+    let mut lines: Vec<String> = models
+        .iter()
+        .map(|m| {
+            let id = m.strip_prefix(&samples).unwrap().with_extension("");
+            line(&id.to_string_lossy().replace('\\', "/"), m)
+        })
+        .collect();
+    lines.push(line("broken", &broken));
+    let manifest = dir.path().join("all.jsonl");
+    std::fs::write(&manifest, lines.join("\n") + "\n").unwrap();
+
+    let whole = dir.path().join("whole");
+    let run = batch(&manifest, &whole, &[], &[], false);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains(&format!("1 of {} jobs failed", lines.len())),
+        "{stderr}"
+    );
+    let results = records(&whole.join("results.jsonl"));
+    assert_eq!(results.len(), lines.len());
+    for record in &results {
+        if record["id"] == "broken" {
+            assert_eq!(record["status"], "failed");
+            assert!(
+                record["error"].as_str().unwrap().contains("broken.glb"),
+                "{record}"
+            );
+        } else {
+            assert_eq!(record["status"], "ok", "{record}");
+            assert!(record["triangles"].as_u64().unwrap() > 0, "{record}");
+        }
+    }
+
+    let sharded = dir.path().join("sharded");
+    for i in 0..3 {
+        // The shard that holds the broken job exits non-zero; the others succeed.
+        let mut args = vec!["batch", s(&manifest), "-o", s(&sharded)];
+        args.extend_from_slice(&SMALL);
+        let shard = format!("{i}/3");
+        args.extend_from_slice(&["--shard", &shard]);
+        command(env!("CARGO_BIN_EXE_meshtracer"), &args, &[])
+            .output()
+            .expect("the shard runs");
+    }
+    merge(&sharded, false);
+    assert!(
+        outputs_tree(&sharded) == outputs_tree(&whole),
+        "three shards wrote other files than one run"
+    );
+    assert_eq!(
+        records(&sharded.join("results.jsonl"))
+            .iter()
+            .map(timeless)
+            .collect::<Vec<_>>(),
+        results.iter().map(timeless).collect::<Vec<_>>()
     );
 }
 
