@@ -723,8 +723,7 @@ fn render_model(
     let background = args.background;
     output.commit(&image, background)?;
     if let Some(mode) = args.preview {
-        let force = mode == crate::cli::PreviewMode::Blocks;
-        crate::preview::show(&image, background, force).context("--preview")?;
+        crate::preview::show(&image, background, mode).context("--preview")?;
     }
     if let Some(a) = &aovs {
         if let Some(p) = &args.depth_out {

@@ -236,9 +236,11 @@ pub struct RenderArgs {
         conflicts_with_all = ["views", "turntable", "time_limit"]
     )]
     pub crop: Option<crate::render::Region>,
-    /// Show the finished image in the terminal as Unicode half blocks (24-bit colour), sized
-    /// to the terminal. `--preview` (auto) prints only when standard output is a terminal;
-    /// `--preview=blocks` prints in any case (80x24 when the size cannot be asked).
+    /// Show the finished image in the terminal, sized to it: as sixel, iTerm2 or kitty
+    /// graphics when the terminal speaks one, else as Unicode half blocks (24-bit colour when
+    /// COLORTERM says so, 256 colours otherwise). `--preview` (auto) prints only when standard
+    /// output is a terminal; `--preview=blocks` prints half blocks in any case without asking
+    /// the terminal anything (80x24 when its size cannot be asked).
     #[arg(
         long,
         value_enum,
@@ -438,9 +440,9 @@ pub struct BatchMergeArgs {
 /// When `render --preview` prints.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 pub enum PreviewMode {
-    /// Only when standard output is a terminal.
+    /// Only when standard output is a terminal, in the best protocol it answers for.
     Auto,
-    /// Always, as half blocks.
+    /// Always, as half blocks, with no terminal queries.
     Blocks,
 }
 

@@ -1,6 +1,7 @@
 //! `render --preview`: inside a real terminal (a detached tmux session of 80x40 cells) the
-//! half blocks show the model's silhouette; piped, `--preview` prints nothing and
-//! `--preview=blocks` prints the blocks anyway.
+//! half blocks show the model's silhouette; in a pseudo-terminal whose other end answers like
+//! a sixel, kitty or iTerm2 terminal the picture arrives in that protocol at full resolution;
+//! piped, `--preview` prints nothing and `--preview=blocks` prints the blocks anyway.
 
 mod common;
 
@@ -64,8 +65,9 @@ fn preview_in_tmux_shows_the_silhouette() {
         socket: format!("meshtracer-preview-test-{}", std::process::id()),
     };
     let done = "meshtracer-preview-done";
+    // COLORTERM as a terminal with 24-bit colour sets it (tmux passes it on to the pane).
     let render = format!(
-        "'{}' render '{}' -o '{}' --width 96 --height 64 --spp 1 -q --preview",
+        "COLORTERM=truecolor '{}' render '{}' -o '{}' --width 96 --height 64 --spp 1 -q --preview",
         env!("CARGO_BIN_EXE_meshtracer"),
         s(&root().join("assets/shapes.obj")),
         s(&dir.path().join("out.png")),
@@ -139,8 +141,261 @@ fn piped_preview_prints_nothing_unless_blocks_are_asked_for() {
     ];
     let auto = run(&[&base[..], &["--preview"]].concat(), true);
     assert!(auto.stdout.is_empty(), "nothing on a pipe");
-    let blocks = run(&[&base[..], &["--preview=blocks"]].concat(), true);
-    let text = String::from_utf8(blocks.stdout).unwrap();
-    assert_eq!(text.lines().count(), 8, "32x16 pixels are 8 lines: {text}");
-    assert!(text.contains('▀') && text.contains("\x1b[38;2;"));
+    // 24-bit colour where COLORTERM says the terminal has it, the 256-colour palette otherwise.
+    for (colorterm, escape) in [(Some("truecolor"), "\x1b[38;2;"), (None, "\x1b[38;5;")] {
+        let mut command = common::bin();
+        command.args([&base[..], &["--preview=blocks"]].concat());
+        match colorterm {
+            Some(value) => command.env("COLORTERM", value),
+            None => command.env_remove("COLORTERM"),
+        };
+        let blocks = command.output().unwrap();
+        assert!(blocks.status.success());
+        let text = String::from_utf8(blocks.stdout).unwrap();
+        assert_eq!(text.lines().count(), 8, "32x16 pixels are 8 lines: {text}");
+        assert!(
+            (text.contains('▀') || text.contains('▄')) && text.contains(escape),
+            "COLORTERM={colorterm:?}: {text:?}"
+        );
+    }
+}
+
+/// What the fake terminal at the other end of the pseudo-terminal claims to speak.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Claims {
+    Sixel,
+    Kitty,
+    Iterm,
+    Nothing,
+}
+
+/// Runs `render --preview` (96x64) on a pseudo-terminal of 80x40 cells that is the child's
+/// controlling terminal, answering its queries as a terminal that speaks `claims` would:
+/// device attributes (`CSI c`: sixel is attribute 4), the kitty graphics query (`APC G ...
+/// a=q`: `OK` for the direct form, an error for the file form, as over SSH), device status
+/// (`CSI 5 n`). Returns everything the child wrote and the PNG it saved.
+fn fake_terminal(claims: Claims) -> (Vec<u8>, image::RgbaImage) {
+    use std::io::{Read, Write};
+    use std::os::fd::{FromRawFd, OwnedFd};
+    use std::os::unix::process::CommandExt;
+
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.png");
+    let (mut master, mut slave) = (0, 0);
+    let size = libc::winsize {
+        ws_row: 40,
+        ws_col: 80,
+        ws_xpixel: 800,
+        ws_ypixel: 800,
+    };
+    // SAFETY: openpty writes two new descriptors into the integers passed; each is then owned
+    // by exactly one OwnedFd.
+    let opened = unsafe {
+        libc::openpty(
+            &mut master,
+            &mut slave,
+            std::ptr::null_mut(),
+            std::ptr::null(),
+            &size,
+        )
+    };
+    assert_eq!(opened, 0, "openpty");
+    let (master, slave) = unsafe { (OwnedFd::from_raw_fd(master), OwnedFd::from_raw_fd(slave)) };
+    let mut command = common::bin();
+    command
+        .args([
+            "render",
+            s(&root().join("assets/shapes.obj")),
+            "-o",
+            s(&out),
+        ])
+        .args([
+            "--width",
+            "96",
+            "--height",
+            "64",
+            "--spp",
+            "1",
+            "-q",
+            "--preview",
+        ])
+        .env_remove("TERM_PROGRAM")
+        .env_remove("LC_TERMINAL")
+        .env_remove("KONSOLE_VERSION")
+        .env("TERM", "xterm-256color")
+        .stdin(slave.try_clone().unwrap())
+        .stdout(slave.try_clone().unwrap())
+        .stderr(std::process::Stdio::piped());
+    if claims == Claims::Iterm {
+        command.env("TERM_PROGRAM", "iTerm.app");
+    }
+    // SAFETY: only async-signal-safe calls between fork and exec: a new session, and the
+    // pseudo-terminal (already on descriptor 0) as its controlling terminal, as a terminal
+    // emulator does for its shell; `/dev/tty`, where the terminal's answers are read, is it.
+    unsafe {
+        command.pre_exec(|| {
+            if libc::setsid() < 0 || libc::ioctl(0, libc::TIOCSCTTY, 0) < 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    let mut child = command.spawn().expect("the binary runs");
+    // The parent's copies of the child's end (in `command` too): once closed, reading the
+    // master fails as soon as the child exits.
+    drop(command);
+    drop(slave);
+    let mut reader = std::fs::File::from(master.try_clone().unwrap());
+    let mut writer = std::fs::File::from(master);
+    let (sender, receiver) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut chunk = [0u8; 65536];
+        // Once the child has closed its end, reading the master fails (EIO): the end.
+        while let Ok(n @ 1..) = reader.read(&mut chunk) {
+            if sender.send(chunk[..n].to_vec()).is_err() {
+                break;
+            }
+        }
+    });
+    let (mut seen, mut answered) = (Vec::new(), 0);
+    let start = Instant::now();
+    loop {
+        match receiver.recv_timeout(Duration::from_millis(100)) {
+            Ok(chunk) => seen.extend_from_slice(&chunk),
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+        }
+        assert!(
+            start.elapsed() < TMUX_TIMEOUT,
+            "the preview did not finish; it wrote {:?}",
+            String::from_utf8_lossy(&seen)
+        );
+        // Answer every complete query not answered yet, in the order they were asked.
+        while let Some((at, query)) = next_query(&seen[answered..]) {
+            let answer: &[u8] = match query {
+                Query::DeviceAttributes if claims == Claims::Sixel => b"\x1b[?62;4;22c",
+                Query::DeviceAttributes => b"\x1b[?62;22c",
+                Query::KittyDirect if claims == Claims::Kitty => b"\x1b_Gi=31;OK\x1b\\",
+                Query::KittyDirect => b"",
+                Query::KittyFile => b"\x1b_Gi=31;EBADF:no such file here\x1b\\",
+                Query::Status => b"\x1b[0n",
+            };
+            writer.write_all(answer).unwrap();
+            answered += at;
+        }
+    }
+    let status = child.wait().unwrap();
+    let mut stderr = String::new();
+    child
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut stderr)
+        .unwrap();
+    assert!(status.success(), "{claims:?}: {stderr}");
+    (seen, image::open(&out).unwrap().to_rgba8())
+}
+
+/// A terminal query the child wrote.
+#[derive(Debug)]
+enum Query {
+    DeviceAttributes,
+    KittyDirect,
+    KittyFile,
+    Status,
+}
+
+/// The first complete query in `bytes` and the offset just past it.
+fn next_query(bytes: &[u8]) -> Option<(usize, Query)> {
+    let find = |needle: &[u8]| bytes.windows(needle.len()).position(|w| w == needle);
+    let candidates = [
+        find(b"\x1b[c").map(|at| (at, at + 3, Query::DeviceAttributes)),
+        find(b"\x1b[5n").map(|at| (at, at + 4, Query::Status)),
+        find(b"\x1b_Gi=31,").and_then(|at| {
+            let end = at + bytes[at..].windows(2).position(|w| w == b"\x1b\\")? + 2;
+            let query = &bytes[at..end];
+            let file = query.windows(4).any(|w| w == b",t=t");
+            Some((
+                at,
+                end,
+                if file {
+                    Query::KittyFile
+                } else {
+                    Query::KittyDirect
+                },
+            ))
+        }),
+    ];
+    candidates
+        .into_iter()
+        .flatten()
+        .min_by_key(|(at, _, _)| *at)
+        .map(|(_, end, query)| (end, query))
+}
+
+/// The base64 payload between `start` (its end) and the next `end` in `bytes`, decoded.
+fn payload(bytes: &[u8], start: &[u8], end: &[u8]) -> Vec<u8> {
+    use base64::Engine;
+    let at = bytes.windows(start.len()).position(|w| w == start).unwrap() + start.len();
+    let len = bytes[at..]
+        .windows(end.len())
+        .position(|w| w == end)
+        .unwrap();
+    base64::engine::general_purpose::STANDARD
+        .decode(&bytes[at..at + len])
+        .unwrap()
+}
+
+#[test]
+fn a_terminal_that_speaks_sixel_gets_sixels() {
+    let (seen, _) = fake_terminal(Claims::Sixel);
+    let text = String::from_utf8_lossy(&seen);
+    // DCS P1;P2;P3 q, raster attributes, colour registers, sixel data, ST.
+    let start = text.find("\x1bP").expect("a DCS sixel sequence");
+    let body = &text[start..];
+    assert!(
+        body[..16].contains('q') && body.contains("\x1b\\"),
+        "{body:.80}"
+    );
+    assert!(body.contains('#'), "colour registers");
+    assert!(!text.contains('▀') && !text.contains('▄'), "no half blocks");
+}
+
+#[test]
+fn a_kitty_terminal_gets_the_full_image_in_the_kitty_protocol() {
+    let (seen, png) = fake_terminal(Claims::Kitty);
+    // Direct transmission (a remote kitty: the file query was refused) of 32-bit RGBA at the
+    // render's own 96x64 pixels, in chunks; placed over 80x27 cells (the half-block fit).
+    let text = String::from_utf8_lossy(&seen);
+    assert!(
+        text.contains("\x1b_Gf=32,a=T,t=d,s=96,v=64,c=80,r=27,m=1;"),
+        "{text:.300}"
+    );
+    let mut raw = payload(&seen, b"m=1;", b"\x1b\\");
+    let mut rest = &seen[..];
+    let more = b"\x1b_Gm=";
+    while let Some(at) = rest.windows(more.len()).position(|w| w == more) {
+        rest = &rest[at + more.len()..];
+        raw.extend(payload(rest, b";", b"\x1b\\"));
+    }
+    assert_eq!(raw.len(), 96 * 64 * 4);
+    assert_eq!(raw, png.into_raw(), "the pixels sent are the PNG's");
+}
+
+#[test]
+fn an_iterm_terminal_gets_the_full_image_as_an_inline_png() {
+    let (seen, png) = fake_terminal(Claims::Iterm);
+    let text = String::from_utf8_lossy(&seen);
+    assert!(text.contains("\x1b]1337;File=inline=1;"), "{text:.300}");
+    let sent = payload(&seen, b"width=80;height=27:", b"\x07");
+    let shown = image::load_from_memory(&sent).unwrap().to_rgba8();
+    assert_eq!(shown, png, "the image sent is the render");
+}
+
+#[test]
+fn a_terminal_without_graphics_gets_half_blocks() {
+    let (seen, _) = fake_terminal(Claims::Nothing);
+    let text = String::from_utf8_lossy(&seen);
+    assert!(text.contains('▄') || text.contains('▀'), "{text:.300}");
+    assert!(!text.contains("\x1bP") && !text.contains("\x1b_Gf="));
 }
