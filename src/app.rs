@@ -946,6 +946,17 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
             bail!("{}: is a directory", path.display());
         }
     }
+    if let Some(path) = &args.plot {
+        let svg = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
+        if !svg {
+            bail!(
+                "--plot {}: the plot is written as SVG; name the file .svg",
+                path.display()
+            );
+        }
+    }
     if args.side == 0 || args.side > 8192 {
         bail!("--side {}: must be between 1 and 8192", args.side);
     }
@@ -978,7 +989,7 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
         });
     }
     let mut rows = Vec::new();
-    let mut generated_rows = Vec::new();
+    let (mut generated_rows, mut model_rows) = (Vec::new(), Vec::new());
     let jobs: Vec<(String, Option<usize>, Option<&std::path::PathBuf>)> = args
         .sizes
         .iter()
@@ -1016,6 +1027,8 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
         }
         if size.is_some() {
             generated_rows.push(row.clone());
+        } else {
+            model_rows.push(row.clone());
         }
         rows.push(row);
     }
@@ -1045,8 +1058,8 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
     }
     if let Some(path) = &args.plot {
         let title = format!("time per {:?} ray vs triangles", args.rays).to_lowercase();
-        let png = crate::plot::scaling_plot(&generated_rows, &title);
-        crate::output::write_atomic(path, &png)?;
+        let svg = crate::plot::scaling_plot(&generated_rows, &model_rows, &title)?;
+        crate::output::write_atomic(path, svg.as_bytes())?;
     }
     match partial {
         Some(p) => Err(Interrupted(format!("{p} reported")).into()),

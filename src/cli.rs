@@ -510,7 +510,8 @@ pub struct BenchArgs {
     /// Write the table and the settings as Markdown here.
     #[arg(long, value_name = "FILE")]
     pub report: Option<PathBuf>,
-    /// Draw time per ray against triangle count (log-log) to this PNG.
+    /// Draw time per ray against triangle count (log-log) to this SVG file: the generated
+    /// meshes as lines, the models as markers.
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
     /// No progress lines.

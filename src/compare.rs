@@ -10,7 +10,7 @@
 //! - Coverage IoU: pixels covered in both over pixels covered in either, where covered means
 //!   alpha above zero, or a colour different from `background` for images without alpha.
 
-use crate::plot::{draw_label, fill_rect};
+use crate::raster::{draw_label, fill_rect};
 use image::{Rgb, RgbImage, RgbaImage};
 use serde::Serialize;
 use std::path::{Path, PathBuf};

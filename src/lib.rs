@@ -63,6 +63,7 @@ pub mod output;
 pub mod plot;
 pub mod prepare;
 pub mod preview;
+pub mod raster;
 pub mod render;
 pub mod sampling;
 pub mod scene;

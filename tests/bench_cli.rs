@@ -1,0 +1,52 @@
+//! `meshtracer bench --plot`: the log-log plot is an SVG with both series; any other name is
+//! refused before a measurement starts, leaving no file.
+
+mod common;
+
+use common::{run, s, stderr};
+
+#[test]
+fn bench_plots_an_svg_and_refuses_other_plot_names_up_front() {
+    let dir = tempfile::tempdir().unwrap();
+    let plot = dir.path().join("scaling.svg");
+    let report = dir.path().join("report.md");
+    let base = [
+        "bench",
+        "--sizes",
+        "1000,10000",
+        "--side",
+        "32",
+        "--runs",
+        "1",
+        "-q",
+    ];
+    run(
+        &[&base[..], &["--plot", s(&plot), "--report", s(&report)]].concat(),
+        true,
+    );
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    for text in [
+        "time per primary ray vs triangles",
+        "BVH, O(log n)",
+        "linear scan, O(n)",
+    ] {
+        assert!(
+            svg.contains(&format!(">\n{text}\n</text>")),
+            "{text}: {svg:.400}"
+        );
+    }
+    // Two generated sizes: two filled points on each of the two lines.
+    assert_eq!(svg.matches("<circle").count(), 4);
+
+    let png = dir.path().join("scaling.png");
+    // Not quiet: the refusal comes before the first progress line would.
+    let refused = run(&[&base[..7], &["--plot", s(&png)]].concat(), false);
+    let err = stderr(&refused);
+    assert!(err.contains("scaling.png") && err.contains("SVG"), "{err}");
+    assert!(
+        !err.contains("building and tracing"),
+        "refused before measuring: {err}"
+    );
+    assert!(!png.exists());
+}
