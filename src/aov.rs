@@ -37,27 +37,6 @@ pub fn check(path: &Path, allowed: &[&str]) -> Result<(), SaveError> {
     }
 }
 
-/// A NumPy `.npy` file (format 1.0): magic, a padded header dict, little-endian data.
-pub(crate) fn npy(descr: &str, shape: &[usize], data: &[u8]) -> Vec<u8> {
-    let dims: Vec<String> = shape.iter().map(usize::to_string).collect();
-    let shape = if dims.len() == 1 {
-        format!("({},)", dims[0])
-    } else {
-        format!("({})", dims.join(", "))
-    };
-    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
-    // Magic (6) + version (2) + length (2) + header + '\n' is a multiple of 64.
-    while (10 + header.len() + 1) % 64 != 0 {
-        header.push(' ');
-    }
-    header.push('\n');
-    let mut out = b"\x93NUMPY\x01\x00".to_vec();
-    out.extend((header.len() as u16).to_le_bytes());
-    out.extend(header.as_bytes());
-    out.extend(data);
-    out
-}
-
 fn f32_bytes(v: impl Iterator<Item = f32>) -> Vec<u8> {
     v.flat_map(f32::to_le_bytes).collect()
 }
@@ -94,7 +73,7 @@ pub fn write_depth(
             height,
             depth.iter().flat_map(|&d| [d, d, d, 1.0]).collect(),
         ),
-        "npy" => npy(
+        "npy" => crate::npy::encode(
             "<f4",
             &[height as usize, width as usize],
             &f32_bytes(depth.iter().copied()),
@@ -128,7 +107,7 @@ pub fn write_normals(
             height,
             normals.iter().flat_map(|n| [n.x, n.y, n.z, 1.0]).collect(),
         ),
-        "npy" => npy(
+        "npy" => crate::npy::encode(
             "<f4",
             &[height as usize, width as usize, 3],
             &f32_bytes(normals.iter().flat_map(|n| n.to_array())),
@@ -158,7 +137,7 @@ pub fn write_normals(
 /// Writes coverage (the image's alpha).
 pub fn write_mask(path: &Path, width: u32, height: u32, coverage: &[f32]) -> Result<(), SaveError> {
     let bytes = match extension(path).as_str() {
-        "npy" => npy(
+        "npy" => crate::npy::encode(
             "<f4",
             &[height as usize, width as usize],
             &f32_bytes(coverage.iter().copied()),
@@ -186,7 +165,7 @@ pub fn write_segmentation(
     ids: &[u32],
 ) -> Result<(), SaveError> {
     let bytes = match extension(path).as_str() {
-        "npy" => npy(
+        "npy" => crate::npy::encode(
             "<u4",
             &[height as usize, width as usize],
             &ids.iter()
@@ -204,20 +183,4 @@ pub fn write_segmentation(
         _ => return Err(unknown(path, "npy, png")),
     };
     write_atomic(path, &bytes)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn npy_header_is_aligned_and_parsable() {
-        let bytes = npy("<f4", &[2, 3], &[0u8; 24]);
-        assert_eq!(&bytes[..8], b"\x93NUMPY\x01\x00");
-        let len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
-        assert_eq!((10 + len) % 64, 0);
-        let header = std::str::from_utf8(&bytes[10..10 + len]).unwrap();
-        assert!(header.contains("'shape': (2, 3)") && header.ends_with('\n'));
-        assert_eq!(bytes.len(), 10 + len + 24);
-    }
 }

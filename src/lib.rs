@@ -59,6 +59,7 @@ pub mod geometry;
 pub mod integrator;
 pub mod light;
 pub mod measure;
+pub mod npy;
 pub mod output;
 pub mod plot;
 pub mod prepare;
