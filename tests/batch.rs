@@ -1,9 +1,9 @@
 //! `meshtracer batch` and `batch-merge` through the real binary: a folder manifest with a
 //! broken model, a JSONL manifest with a malformed line and ids or names that try to leave the
 //! output folder, shards (by --shard and by the Slurm variables) whose union is the whole run
-//! byte for byte and whose assignment survives a shuffled manifest, --resume after damage,
-//! the example Slurm and Kubernetes scripts run locally for every index, and (with
-//! MESHTRACER_SAMPLES) a batch over every shared sample model plus a broken file.
+//! byte for byte and whose assignment survives a shuffled manifest, --resume after damage and
+//! after a real kill, the example Slurm and Kubernetes scripts run locally for every index,
+//! and (with MESHTRACER_SAMPLES) a batch over every shared sample model plus a broken file.
 
 mod common;
 
@@ -781,4 +781,96 @@ fn the_slurm_and_kubernetes_examples_cover_every_job() {
         };
         assert_eq!(strip(&merged), strip(&whole_results), "{}", out.display());
     }
+}
+
+/// A batch killed (SIGKILL: no chance to clean up) after a few jobs resumes with `--resume`:
+/// the jobs finished before the kill are skipped, every other one is rendered, and the
+/// outputs are byte for byte those of a run that was never interrupted.
+#[test]
+fn a_killed_batch_resumes_redoing_only_the_unfinished_jobs() {
+    let dir = tempfile::tempdir().unwrap();
+    let lines: Vec<String> = (0..32)
+        .map(|k| format!(r#"{{"id": "job-{k:02}", "model": "cornell-box.gltf", "seed": {k}}}"#))
+        .collect();
+    let manifest = jsonl_manifest(dir.path(), "jobs.jsonl", &lines);
+    // Heavier than SMALL, so that the kill lands with most jobs still to do (about 60 ms a
+    // job in a debug build on 2 cores).
+    let work = [
+        "--width",
+        "96",
+        "--height",
+        "72",
+        "--spp",
+        "8",
+        "--integrator",
+        "path",
+        "-q",
+    ];
+    let whole = dir.path().join("whole");
+    let args = |out: &Path| {
+        let mut args = vec!["batch", s(&manifest), "-o"];
+        args.push(out.to_str().unwrap());
+        args.extend_from_slice(&work);
+        args.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let run_args = args(&whole);
+    let run_args: Vec<&str> = run_args.iter().map(String::as_str).collect();
+    check(
+        command(env!("CARGO_BIN_EXE_meshtracer"), &run_args, &[]),
+        true,
+    );
+
+    let out = dir.path().join("killed");
+    let kill_args = args(&out);
+    let kill_args: Vec<&str> = kill_args.iter().map(String::as_str).collect();
+    let mut child = command(env!("CARGO_BIN_EXE_meshtracer"), &kill_args, &[])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let finished = |out: &Path| -> BTreeSet<String> {
+        (0..32)
+            .map(|k| format!("job-{k:02}"))
+            .filter(|id| out.join(id).join("job.json").is_file())
+            .collect()
+    };
+    let start = std::time::Instant::now();
+    while finished(&out).len() < 3 {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the batch ended before it could be killed"
+        );
+        assert!(
+            start.elapsed().as_secs() < 120,
+            "no job finished in 2 minutes"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let done = finished(&out);
+    assert!(done.len() < 32, "the kill came before the end");
+    assert!(
+        !out.join("results.jsonl").exists(),
+        "no results file from a killed run"
+    );
+
+    let mut resume_args = kill_args.clone();
+    resume_args.push("--resume");
+    check(
+        command(env!("CARGO_BIN_EXE_meshtracer"), &resume_args, &[]),
+        true,
+    );
+    let resumed = by_id(&records(&out.join("results.jsonl")));
+    assert_eq!(resumed.len(), 32);
+    for (id, record) in &resumed {
+        let expected = if done.contains(id) { "skipped" } else { "ok" };
+        assert_eq!(record["status"], expected, "{id}");
+        assert_hashes_match(&out, record);
+    }
+    assert_eq!(
+        outputs_tree(&out),
+        outputs_tree(&whole),
+        "the resumed run's files are the uninterrupted run's, with no temporary file left"
+    );
 }
