@@ -240,7 +240,8 @@ pub struct RenderArgs {
     /// graphics when the terminal speaks one, else as Unicode half blocks (24-bit colour when
     /// COLORTERM says so, 256 colours otherwise). `--preview` (auto) prints only when standard
     /// output is a terminal; `--preview=blocks` prints half blocks in any case without asking
-    /// the terminal anything (80x24 when its size cannot be asked).
+    /// the terminal anything (80x24 when its size cannot be asked). With --views, --turntable
+    /// or batch: the views or jobs once at the end, as a contact sheet.
     #[arg(
         long,
         value_enum,

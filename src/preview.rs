@@ -70,6 +70,13 @@ pub fn show(
     background: Option<Vec3>,
     mode: PreviewMode,
 ) -> anyhow::Result<Option<Protocol>> {
+    let rgba = RgbaImage::from_raw(image.width, image.height, image.to_srgb8(background))
+        .unwrap_or_default();
+    show_rgba(&rgba, mode)
+}
+
+/// [`show`] for an 8-bit sRGB image with straight alpha (a contact sheet of views).
+pub fn show_rgba(image: &RgbaImage, mode: PreviewMode) -> anyhow::Result<Option<Protocol>> {
     let terminal = std::io::stdout().is_terminal();
     if mode == PreviewMode::Auto && !terminal {
         return Ok(None);
@@ -80,12 +87,12 @@ pub fn show(
             (r as usize, c as usize)
         });
     let rows = rows.saturating_sub(SPARE_ROWS).max(1);
+    let Some((cell_width, pixel_height)) = fit(image.width(), image.height(), columns, rows) else {
+        return Ok(None);
+    };
     let protocol = match mode {
         PreviewMode::Auto => detect(),
         PreviewMode::Blocks => Protocol::Blocks,
-    };
-    let Some((cell_width, pixel_height)) = fit(image.width, image.height, columns, rows) else {
-        return Ok(None);
     };
     let cell_rows = pixel_height.div_ceil(2);
     let config = viuer::Config {
@@ -99,8 +106,8 @@ pub fn show(
         ..viuer::Config::default()
     };
     let picture = match protocol {
-        Protocol::Blocks => cells(image, background, cell_width, pixel_height),
-        _ => full(image, background),
+        Protocol::Blocks => cells(image, cell_width, pixel_height),
+        _ => image.clone(),
     };
     viuer::print(&DynamicImage::ImageRgba8(picture), &config)
         .map_err(|e| anyhow::anyhow!("cannot show the image in the terminal: {e}"))?;
@@ -125,21 +132,11 @@ pub fn fit(width: u32, height: u32, columns: usize, rows: usize) -> Option<(usiz
     ))
 }
 
-/// The whole image as 8-bit sRGB with alpha, for the graphics protocols.
-fn full(image: &Image, background: Option<Vec3>) -> RgbaImage {
-    RgbaImage::from_raw(image.width, image.height, image.to_srgb8(background)).unwrap_or_default()
-}
-
 /// The image box-filtered down to `out_width` x `out_height` half-block pixels, each opaque
 /// (its covered source pixels' alpha-weighted mean colour) or fully transparent.
-pub fn cells(
-    image: &Image,
-    background: Option<Vec3>,
-    out_width: usize,
-    out_height: usize,
-) -> RgbaImage {
-    let (width, height) = (image.width as usize, image.height as usize);
-    let srgb = image.to_srgb8(background);
+pub fn cells(image: &RgbaImage, out_width: usize, out_height: usize) -> RgbaImage {
+    let (width, height) = (image.width() as usize, image.height() as usize);
+    let srgb = image.as_raw();
     let mut out = RgbaImage::new(out_width as u32, out_height as u32);
     for (ox, oy, cell) in out.enumerate_pixels_mut() {
         let (ox, oy) = (ox as usize, oy as usize);
@@ -172,6 +169,10 @@ mod tests {
     use super::*;
     use glam::Vec4;
 
+    fn rgba(image: &Image) -> RgbaImage {
+        RgbaImage::from_raw(image.width, image.height, image.to_srgb8(None)).unwrap()
+    }
+
     #[test]
     fn a_covered_pixel_is_an_opaque_cell_and_the_rest_transparent() {
         // 4 x 4: the top-left 2 x 2 pixels opaque red, the rest transparent.
@@ -180,7 +181,8 @@ mod tests {
             image.pixels[y * 4 + x] = Vec4::new(1.0, 0.0, 0.0, 1.0);
         }
         assert_eq!(fit(4, 4, 80, 24), Some((4, 4)), "never enlarged");
-        let cells = cells(&image, None, 4, 4);
+        let image = rgba(&image);
+        let cells = cells(&image, 4, 4);
         for (x, y, p) in cells.enumerate_pixels() {
             let expected = if x < 2 && y < 2 {
                 [255, 0, 0, 255]
@@ -190,7 +192,7 @@ mod tests {
             assert_eq!(p.0, expected, "pixel ({x}, {y})");
         }
         // Halved: the top-left cell averages four red pixels, the rest four transparent ones.
-        let half = super::cells(&image, None, 2, 2);
+        let half = super::cells(&image, 2, 2);
         assert_eq!(half.get_pixel(0, 0).0, [255, 0, 0, 255]);
         assert_eq!(half.get_pixel(1, 1).0, [0; 4]);
     }
@@ -202,12 +204,12 @@ mod tests {
         let mut image = Image::new(2, 1);
         image.pixels[0] = Vec4::new(0.0, 1.0, 0.0, 1.0);
         assert_eq!(
-            cells(&image, None, 1, 1).get_pixel(0, 0).0,
+            cells(&rgba(&image), 1, 1).get_pixel(0, 0).0,
             [0, 255, 0, 255]
         );
         let mut image = Image::new(2, 2);
         image.pixels[0] = Vec4::new(0.0, 1.0, 0.0, 1.0);
-        assert_eq!(cells(&image, None, 1, 1).get_pixel(0, 0).0, [0; 4]);
+        assert_eq!(cells(&rgba(&image), 1, 1).get_pixel(0, 0).0, [0; 4]);
     }
 
     #[test]

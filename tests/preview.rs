@@ -399,3 +399,56 @@ fn a_terminal_without_graphics_gets_half_blocks() {
     assert!(text.contains('▄') || text.contains('▀'), "{text:.300}");
     assert!(!text.contains("\x1bP") && !text.contains("\x1b_Gf="));
 }
+
+/// `--views` and `batch` show their views or jobs once, together (a contact sheet in memory,
+/// written nowhere without `--contact-sheet`), not one picture per view or job.
+#[test]
+fn views_and_batches_preview_one_sheet_and_write_no_extra_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let views = dir.path().join("views");
+    let model = root().join("assets/shapes.obj");
+    let small = ["--width", "64", "--height", "48", "--spp", "1", "-q"];
+    let shown = run(
+        &[
+            &["render", s(&model), "--views", "orbit:4", "-o", s(&views)][..],
+            &small,
+            &["--preview=blocks"],
+        ]
+        .concat(),
+        true,
+    );
+    let folder = dir.path().join("models");
+    std::fs::create_dir(&folder).unwrap();
+    for name in ["shapes.obj", "shapes.mtl", "cornell-box.gltf"] {
+        std::fs::copy(root().join("assets").join(name), folder.join(name)).unwrap();
+    }
+    let jobs = dir.path().join("jobs");
+    let batch = run(
+        &[
+            &["batch", s(&folder), "-o", s(&jobs)][..],
+            &small,
+            &["--preview=blocks"],
+        ]
+        .concat(),
+        true,
+    );
+    for (what, out) in [("views", &shown), ("batch", &batch)] {
+        let text = String::from_utf8_lossy(&out.stdout);
+        let lines = text.lines().count();
+        // One picture fits the 80x24 fallback less 2 spare rows; one a view (24 lines of a
+        // 64x48 image each) or a job would be 96 or 48 lines.
+        assert!((1..=22).contains(&lines), "{what}: {lines} lines");
+        assert!(
+            text.contains('▀') || text.contains('▄'),
+            "{what}: half blocks"
+        );
+    }
+    let mut written: Vec<String> = std::fs::read_dir(&views)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| !n.ends_with(".view.json") && n != "transforms.json")
+        .collect();
+    written.sort();
+    assert_eq!(written, ["000.png", "001.png", "002.png", "003.png"]);
+    assert!(!jobs.join("contact-sheet.png").exists());
+}

@@ -80,9 +80,16 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create the output folder {}", dir.display()))?;
     let mine: Vec<&Entry> = entries.iter().filter(|e| shard.holds(&e.key)).collect();
+    // The sheet of jobs goes to --contact-sheet, and to the terminal for --preview (a batch
+    // shows its jobs together once, not each job as it finishes).
+    let wants_sheet = defaults.contact_sheet.is_some() || defaults.preview.is_some();
     let mut sheet = match &defaults.contact_sheet {
-        Some(path) if !mine.is_empty() => Some(JobSheet::new(defaults, path, mine.len())?),
-        _ => None,
+        _ if mine.is_empty() || !wants_sheet => None,
+        Some(path) => Some(JobSheet::new(defaults, Some(path), mine.len())?),
+        // A sheet only for the terminal is not worth failing the batch for.
+        None => JobSheet::new(defaults, None, mine.len())
+            .map_err(|e| eprintln!("warning: --preview: no preview of the jobs ({e:#})"))
+            .ok(),
     };
 
     let progress = Progress::new(defaults.quiet, mine.len());
@@ -117,7 +124,13 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
     let results = dir.join(shard.results_file());
     crate::output::write_atomic(&results, results_jsonl(&records).as_bytes())?;
     if let Some(JobSheet { file, sheet }) = sheet {
-        write_sheet(file, &sheet, "jobs", defaults.quiet)?;
+        if let Some(file) = file {
+            write_sheet(file, &sheet, "jobs", defaults.quiet)?;
+        }
+        if let Some(mode) = defaults.preview {
+            let rgba = image::DynamicImage::ImageRgb8(sheet.image().clone()).to_rgba8();
+            crate::preview::show_rgba(&rgba, mode).context("--preview")?;
+        }
     }
     let count = |status| records.iter().filter(|r| r.status == status).count();
     let failed = count(Status::Failed);
@@ -411,8 +424,10 @@ fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArg
     let mut args = batch.render.clone();
     args.model = job.model.clone();
     args.quiet = true;
-    // The batch's sheet is not the job's (and its options leave the fingerprint alone).
+    // The batch's sheet and preview are not the job's (and their options leave the
+    // fingerprint alone).
     args.contact_sheet = None;
+    args.preview = None;
     args.sheet_columns = None;
     args.sheet_cell_width = crate::sheet::DEFAULT_CELL_WIDTH;
     if job.width.is_some() {
@@ -520,17 +535,21 @@ fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArg
 
 /// The contact sheet of a batch: a cell per job of this run, in manifest order.
 struct JobSheet {
-    file: PendingFile,
+    /// `--contact-sheet`, if given (else the sheet is only for `--preview`).
+    file: Option<PendingFile>,
     sheet: ContactSheet,
 }
 
 impl JobSheet {
-    /// Reserves `path` and lays out `count` cells, boxes of the command line's image size
+    /// Reserves `path` (if any) and lays out `count` cells, boxes of the command line's image size
     /// (a job of another aspect is fitted inside its box).
-    fn new(defaults: &RenderArgs, path: &Path, count: usize) -> Result<JobSheet> {
+    fn new(defaults: &RenderArgs, path: Option<&Path>, count: usize) -> Result<JobSheet> {
         let layout = sheet_layout(defaults, count, image_size(defaults, None))?;
         Ok(JobSheet {
-            file: PendingFile::reserve(path, defaults.no_clobber)?,
+            file: match path {
+                Some(path) => Some(PendingFile::reserve(path, defaults.no_clobber)?),
+                None => None,
+            },
             sheet: ContactSheet::new(layout),
         })
     }

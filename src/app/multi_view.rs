@@ -406,7 +406,7 @@ pub(super) fn render_views(
         frames,
     };
     dataset.write(&dir.join(TRANSFORMS_FILE))?;
-    let extra_outputs = extras.finish(args.quiet)?;
+    let extra_outputs = extras.finish(args.quiet, args.preview)?;
     if !args.quiet {
         summary.print(args, run_start.elapsed());
     }
@@ -719,9 +719,10 @@ struct Extras {
     sheet: Option<SheetOutput>,
 }
 
-/// A contact sheet being filled, and where it goes.
+/// A contact sheet being filled, and where it goes: a file (`--contact-sheet`), the terminal
+/// (`--preview`: the views of a run are shown together, as one sheet), or both.
 struct SheetOutput {
-    file: PendingFile,
+    file: Option<PendingFile>,
     /// Known once the number of views and their size are.
     sheet: Option<ContactSheet>,
 }
@@ -773,13 +774,12 @@ impl Extras {
             }
             None => None,
         };
-        let sheet = match &args.contact_sheet {
-            Some(path) => Some(SheetOutput {
-                file: PendingFile::reserve(path, args.no_clobber)?,
-                sheet: None,
-            }),
+        let file = match &args.contact_sheet {
+            Some(path) => Some(PendingFile::reserve(path, args.no_clobber)?),
             None => None,
         };
+        let sheet =
+            (file.is_some() || args.preview.is_some()).then_some(SheetOutput { file, sheet: None });
         Ok(Extras { gif, sheet })
     }
 
@@ -787,7 +787,15 @@ impl Extras {
     /// `--max-pixels` before any view is rendered.
     fn lay_out(&mut self, args: &RenderArgs, count: usize, size: (u32, u32)) -> Result<()> {
         if let Some(out) = &mut self.sheet {
-            out.sheet = Some(ContactSheet::new(sheet_layout(args, count, size)?));
+            out.sheet = match sheet_layout(args, count, size) {
+                Ok(layout) => Some(ContactSheet::new(layout)),
+                // A sheet only for the terminal is not worth failing the run for.
+                Err(e) if out.file.is_none() => {
+                    eprintln!("warning: --preview: no preview of the views ({e:#})");
+                    None
+                }
+                Err(e) => return Err(e),
+            };
         }
         Ok(())
     }
@@ -819,8 +827,9 @@ impl Extras {
         Ok(())
     }
 
-    /// Writes the GIF and the sheet; returns their paths in the order written.
-    fn finish(self, quiet: bool) -> Result<Vec<PathBuf>> {
+    /// Writes the GIF and the sheet, and shows the sheet for `--preview`; returns the paths
+    /// in the order written.
+    fn finish(self, quiet: bool, preview: Option<crate::cli::PreviewMode>) -> Result<Vec<PathBuf>> {
         let mut written = Vec::new();
         if let Some(gif) = self.gif {
             let (path, frames, time) = (gif.path().to_path_buf(), gif.frames(), gif.encode_time());
@@ -836,8 +845,16 @@ impl Extras {
             written.push(path);
         }
         if let Some(SheetOutput { file, sheet }) = self.sheet {
-            let sheet = sheet.context("the contact sheet was never laid out (a bug)")?;
-            written.push(write_sheet(file, &sheet, "views", quiet)?);
+            if let Some(file) = file {
+                let sheet = sheet
+                    .as_ref()
+                    .context("the contact sheet was never laid out (a bug)")?;
+                written.push(write_sheet(file, sheet, "views", quiet)?);
+            }
+            if let (Some(mode), Some(sheet)) = (preview, &sheet) {
+                let rgba = image::DynamicImage::ImageRgb8(sheet.image().clone()).to_rgba8();
+                crate::preview::show_rgba(&rgba, mode).context("--preview")?;
+            }
         }
         Ok(written)
     }
