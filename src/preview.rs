@@ -75,7 +75,12 @@ pub fn show(
     show_rgba(&rgba, mode)
 }
 
-/// [`show`] for an 8-bit sRGB image with straight alpha (a contact sheet of views).
+/// [`show`] for an opaque 8-bit sRGB image (a contact sheet of views or jobs).
+pub fn show_rgb(image: &image::RgbImage, mode: PreviewMode) -> anyhow::Result<Option<Protocol>> {
+    show_rgba(&DynamicImage::ImageRgb8(image.clone()).to_rgba8(), mode)
+}
+
+/// [`show`] for an 8-bit sRGB image with straight alpha.
 pub fn show_rgba(image: &RgbaImage, mode: PreviewMode) -> anyhow::Result<Option<Protocol>> {
     let terminal = std::io::stdout().is_terminal();
     if mode == PreviewMode::Auto && !terminal {

@@ -128,8 +128,7 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
             write_sheet(file, &sheet, "jobs", defaults.quiet)?;
         }
         if let Some(mode) = defaults.preview {
-            let rgba = image::DynamicImage::ImageRgb8(sheet.image().clone()).to_rgba8();
-            crate::preview::show_rgba(&rgba, mode).context("--preview")?;
+            crate::preview::show_rgb(sheet.image(), mode).context("--preview")?;
         }
     }
     let count = |status| records.iter().filter(|r| r.status == status).count();

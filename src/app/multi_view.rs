@@ -852,8 +852,7 @@ impl Extras {
                 written.push(write_sheet(file, sheet, "views", quiet)?);
             }
             if let (Some(mode), Some(sheet)) = (preview, &sheet) {
-                let rgba = image::DynamicImage::ImageRgb8(sheet.image().clone()).to_rgba8();
-                crate::preview::show_rgba(&rgba, mode).context("--preview")?;
+                crate::preview::show_rgb(sheet.image(), mode).context("--preview")?;
             }
         }
         Ok(written)
