@@ -74,8 +74,8 @@ pub fn decode(bytes: &[u8]) -> Result<Array, String> {
     let header = start
         .checked_add(header_len)
         .and_then(|end| bytes.get(start..end))
-        .and_then(|h| std::str::from_utf8(h).ok())
         .ok_or("truncated .npy header")?;
+    let header = std::str::from_utf8(header).map_err(|_| "the .npy header is not text")?;
     let field = |name: &str, open: char, close: char| -> Option<&str> {
         let start = header.find(&format!("'{name}': {open}"))? + name.len() + 4 + open.len_utf8();
         let end = header[start..].find(close)? + start;
@@ -152,6 +152,9 @@ mod tests {
         assert!(decode(b"\x93NUMPY\x01\x00\xff\xff{")
             .unwrap_err()
             .contains("truncated"));
+        assert!(decode(b"\x93NUMPY\x01\x00\x02\x00\xff\xfe")
+            .unwrap_err()
+            .contains("not text"));
     }
 
     #[test]
