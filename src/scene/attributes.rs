@@ -139,12 +139,28 @@ pub(crate) fn read<const N: usize>(
         Some(view) => {
             let bytes = view_bytes(&view)?;
             let stride = view.stride().unwrap_or(element);
-            for i in 0..count {
-                let start = i
-                    .checked_mul(stride)
-                    .and_then(|s| s.checked_add(accessor.offset()))
-                    .ok_or_else(|| format!("element {i}'s offset overflows"))?;
-                out.push(element_at(bytes, start)?);
+            let data = bytes
+                .get(accessor.offset()..)
+                .ok_or_else(|| "the accessor starts past its view's end".to_string())?;
+            // One loop per component type, so that the type is matched once per accessor
+            // rather than once per component (this was most of a plain load's flatten).
+            match data_type {
+                DataType::F32 => elements(data, count, stride, &mut out, f32::from_le_bytes)?,
+                DataType::I8 => elements(data, count, stride, &mut out, |b: [u8; 1]| {
+                    dequantize_i8(i8::from_le_bytes(b), normalized)
+                })?,
+                DataType::U8 => elements(data, count, stride, &mut out, |b: [u8; 1]| {
+                    dequantize_u8(b[0], normalized)
+                })?,
+                DataType::I16 => elements(data, count, stride, &mut out, |b| {
+                    dequantize_i16(i16::from_le_bytes(b), normalized)
+                })?,
+                DataType::U16 => elements(data, count, stride, &mut out, |b| {
+                    dequantize_u16(u16::from_le_bytes(b), normalized)
+                })?,
+                DataType::U32 => elements(data, count, stride, &mut out, |b| {
+                    u32::from_le_bytes(b) as f32
+                })?,
             }
         }
         None => out.resize(count, [0.0; N]),
@@ -173,6 +189,35 @@ pub(crate) fn read<const N: usize>(
         }
     }
     Ok(out)
+}
+
+/// Appends `count` elements of `N` components of `S` bytes each, element `i` starting at byte
+/// `i * stride` of `data`, each component converted by `value`.
+fn elements<const N: usize, const S: usize>(
+    data: &[u8],
+    count: usize,
+    stride: usize,
+    out: &mut Vec<[f32; N]>,
+    value: impl Fn([u8; S]) -> f32,
+) -> ReadResult<()> {
+    for i in 0..count {
+        let start = i
+            .checked_mul(stride)
+            .ok_or_else(|| format!("element {i}'s offset overflows"))?;
+        let bytes = data
+            .get(start..)
+            .and_then(|b| b.get(..N * S))
+            .ok_or_else(|| format!("element {i} at byte {start} is past the view's end"))?;
+        let mut element = [0.0; N];
+        for (slot, component) in element.iter_mut().zip(bytes.chunks_exact(S)) {
+            let Ok(component) = <[u8; S]>::try_from(component) else {
+                return Err(format!("element {i} is cut short"));
+            };
+            *slot = value(component);
+        }
+        out.push(element);
+    }
+    Ok(())
 }
 
 #[cfg(test)]

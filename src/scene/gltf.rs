@@ -661,12 +661,7 @@ fn check_accessor(
     quantization: bool,
 ) -> Result<(), LoadErrorKind> {
     check_accessor_type(accessor, at, expect, quantization)?;
-    let fail = |problem: String| LoadErrorKind::Accessor {
-        at,
-        accessor: accessor.index(),
-        semantic: expect.semantic.to_string(),
-        problem,
-    };
+    let fail = accessor_error(at, accessor, expect);
     let element = accessor.size();
     match accessor.view() {
         Some(view) => check_range(&view, accessor.offset(), accessor.count(), element)
@@ -697,6 +692,20 @@ fn check_accessor(
     Ok(())
 }
 
+/// The error for a problem with `accessor`, read as `expect.semantic` of the primitive `at`.
+fn accessor_error<'a>(
+    at: PrimitiveAt,
+    accessor: &'a gltf::Accessor,
+    expect: &'a Expect,
+) -> impl Fn(String) -> LoadErrorKind + 'a {
+    move |problem| LoadErrorKind::Accessor {
+        at,
+        accessor: accessor.index(),
+        semantic: expect.semantic.to_string(),
+        problem,
+    }
+}
+
 /// Checks that an accessor's type is what the semantic allows and that it is not empty; for
 /// accessors whose data is decoded elsewhere (Draco), this is all that is checked of them.
 fn check_accessor_type(
@@ -705,12 +714,7 @@ fn check_accessor_type(
     expect: &Expect,
     quantization: bool,
 ) -> Result<(), LoadErrorKind> {
-    let fail = |problem: String| LoadErrorKind::Accessor {
-        at,
-        accessor: accessor.index(),
-        semantic: expect.semantic.to_string(),
-        problem,
-    };
+    let fail = accessor_error(at, accessor, expect);
     let normalized = expect.reads_normalized(accessor.normalized(), quantization);
     if !expect.dims.contains(&accessor.dimensions())
         || !expect.allows(accessor.data_type(), normalized, quantization)
@@ -1173,55 +1177,33 @@ impl Importer<'_> {
             }
         }
 
+        // Each attribute is read straight into the type the soup keeps (the vectors of
+        // [f32; N] become Vec3 and Vec2 in place); three-component colours get alpha 1.
         let read =
             |semantic: Semantic, expect: &Expect| -> Result<Option<Vec<Vec4>>, LoadErrorKind> {
-                let Some(accessor) = primitive.get(&semantic) else {
-                    return Ok(None);
-                };
-                let normalized = expect.reads_normalized(accessor.normalized(), self.quantization);
-                let fail = |problem: String| LoadErrorKind::Accessor {
-                    at,
-                    accessor: accessor.index(),
-                    semantic: expect.semantic.to_string(),
-                    problem,
-                };
-                let name = semantic.to_string();
-                let source = decoded(&semantic);
-                // Three-component colours get alpha 1; others fill unused lanes with 0.
-                let values: Vec<Vec4> = match accessor.dimensions() {
-                    Dimensions::Vec2 => match source {
-                        Some(d) => d.read::<2>(&name, normalized),
-                        None => attributes::read::<2>(&accessor, self.buffers, normalized),
-                    }
-                    .map_err(fail)?
-                    .into_iter()
-                    .map(|[x, y]| Vec4::new(x, y, 0.0, 0.0))
-                    .collect(),
-                    Dimensions::Vec3 => match source {
-                        Some(d) => d.read::<3>(&name, normalized),
-                        None => attributes::read::<3>(&accessor, self.buffers, normalized),
-                    }
-                    .map_err(fail)?
-                    .into_iter()
-                    .map(|[x, y, z]| Vec4::new(x, y, z, 1.0))
-                    .collect(),
-                    _ => match source {
-                        Some(d) => d.read::<4>(&name, normalized),
-                        None => attributes::read::<4>(&accessor, self.buffers, normalized),
-                    }
-                    .map_err(fail)?
-                    .into_iter()
-                    .map(Vec4::from)
-                    .collect(),
-                };
-                if values.len() != count {
-                    return Err(fail(format!("read {} of {count} elements", values.len())));
-                }
-                Ok(Some(values))
+                let three = primitive
+                    .get(&semantic)
+                    .is_some_and(|a| a.dimensions() == Dimensions::Vec3);
+                Ok(if three {
+                    self.read_attribute::<3>(primitive, at, draco, semantic, expect, count)?
+                        .map(|v| {
+                            v.into_iter()
+                                .map(|[x, y, z]| Vec4::new(x, y, z, 1.0))
+                                .collect()
+                        })
+                } else {
+                    self.read_attribute::<4>(primitive, at, draco, semantic, expect, count)?
+                        .map(|v| v.into_iter().map(Vec4::from).collect())
+                })
             };
-        let xyz = |v: Vec<Vec4>| v.into_iter().map(Vec4::truncate).collect::<Vec<Vec3>>();
-        let mut positions = xyz(read(Semantic::Positions, &POSITION)?.unwrap_or_default());
-        let mut normals = read(Semantic::Normals, &NORMAL)?.map(xyz);
+        let read3 =
+            |semantic: Semantic, expect: &Expect| -> Result<Option<Vec<Vec3>>, LoadErrorKind> {
+                Ok(self
+                    .read_attribute::<3>(primitive, at, draco, semantic, expect, count)?
+                    .map(|v| v.into_iter().map(Vec3::from).collect()))
+            };
+        let mut positions = read3(Semantic::Positions, &POSITION)?.unwrap_or_default();
+        let mut normals = read3(Semantic::Normals, &NORMAL)?;
         let mut tangents = read(Semantic::Tangents, &TANGENT)?;
         self.morph(
             primitive,
@@ -1282,9 +1264,20 @@ impl Importer<'_> {
                 *t = xyz.extend(t.w * mirror);
             }
         }
-        let uv = |v: Vec<Vec4>| v.into_iter().map(|t| t.truncate().truncate()).collect();
-        let uv0 = read(Semantic::TexCoords(0), &TEXCOORD)?.map(uv);
-        let uv1 = read(Semantic::TexCoords(1), &TEXCOORD)?.map(uv);
+        let uv = |set: u32| -> Result<Option<Vec<Vec2>>, LoadErrorKind> {
+            Ok(self
+                .read_attribute::<2>(
+                    primitive,
+                    at,
+                    draco,
+                    Semantic::TexCoords(set),
+                    &TEXCOORD,
+                    count,
+                )?
+                .map(|v| v.into_iter().map(Vec2::from).collect()))
+        };
+        let uv0 = uv(0)?;
+        let uv1 = uv(1)?;
         let colors = read(Semantic::Colors(0), &COLOR)?;
         Ok(WorldVertices {
             positions,
@@ -1300,6 +1293,35 @@ impl Importer<'_> {
 
     /// Adds each morph target's deltas, times its weight, to the primitive's positions,
     /// normals and tangents in place (§3.7.2.2); targets of weight 0 are not read.
+    /// Attribute `semantic` of `primitive` as `count` elements of `N` components (its
+    /// accessor already checked against `expect`), from the Draco stream where the extension
+    /// maps it; `None` when the primitive does not have it.
+    fn read_attribute<const N: usize>(
+        &self,
+        primitive: &gltf::Primitive,
+        at: PrimitiveAt,
+        draco: Option<&draco::Decoded>,
+        semantic: gltf::Semantic,
+        expect: &Expect,
+        count: usize,
+    ) -> Result<Option<Vec<[f32; N]>>, LoadErrorKind> {
+        let Some(accessor) = primitive.get(&semantic) else {
+            return Ok(None);
+        };
+        let normalized = expect.reads_normalized(accessor.normalized(), self.quantization);
+        let fail = accessor_error(at, &accessor, expect);
+        let name = semantic.to_string();
+        let values = match draco.filter(|d| d.has(&name)) {
+            Some(d) => d.read::<N>(&name, normalized),
+            None => attributes::read::<N>(&accessor, self.buffers, normalized),
+        }
+        .map_err(&fail)?;
+        if values.len() != count {
+            return Err(fail(format!("read {} of {count} elements", values.len())));
+        }
+        Ok(Some(values))
+    }
+
     fn morph(
         &self,
         primitive: &gltf::Primitive,
