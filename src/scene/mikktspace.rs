@@ -511,6 +511,37 @@ fn sort_edges(vertices: &[u32]) -> (Vec<u64>, Vec<u32>) {
     let Some(max_i0) = (0..n).map(|k| edge_key(vertices, k).0).max() else {
         return (Vec::new(), vec![0]);
     };
+    // The replay of the quick sort needs only the keys, so it runs beside the counting sort.
+    let (replay, (mut sorted, starts)) = rayon::join(
+        || {
+            let mut replay: Vec<(u32, u32)> = (0..n)
+                .map(|k| (edge_key(vertices, k).0, k as u32))
+                .collect();
+            replay_quick_sort(&mut replay, max_i0, INTERNAL_RND_SORT_SEED);
+            replay
+        },
+        || counting_sort_edges(vertices, max_i0),
+    );
+    let good_len = starts[max_i0 as usize] as usize;
+    let tail = &mut sorted[good_len..];
+    for (slot, &(_, k)) in tail.iter_mut().zip(replay.iter().filter(|e| e.0 == max_i0)) {
+        *slot = (edge_key(vertices, k as usize).1 as u64) << 32 | k as u64;
+    }
+    drop(replay);
+    // The reference's off-by-one: every run of equal i1 but the last is sorted by f.
+    let mut runs: Vec<&mut [u64]> = tail.chunk_by_mut(|a, b| a >> 32 == b >> 32).collect();
+    runs.pop();
+    for run in runs {
+        run.sort_unstable();
+    }
+    (sorted, starts)
+}
+
+/// The edges but those of the largest `i0`, sorted by `(i0, i1, k)` (a counting sort on
+/// `i0`, then each run by `i1 << 32 | k`), with the room for the largest `i0`'s run left at
+/// the end; and where each `i0`'s run starts.
+fn counting_sort_edges(vertices: &[u32], max_i0: u32) -> (Vec<u64>, Vec<u32>) {
+    let n = vertices.len();
     let n_keys = max_i0 as usize + 1;
     let mut starts = vec![0u32; n_keys + 1];
     for k in 0..n {
@@ -519,7 +550,6 @@ fn sort_edges(vertices: &[u32]) -> (Vec<u64>, Vec<u32>) {
     for k in 0..n_keys {
         starts[k + 1] += starts[k];
     }
-    let good_len = starts[max_i0 as usize] as usize;
     let mut sorted = vec![0u64; n];
     let mut next = starts.clone();
     for k in 0..n {
@@ -536,21 +566,6 @@ fn sort_edges(vertices: &[u32]) -> (Vec<u64>, Vec<u32>) {
         if run.len() > 1 {
             run.sort_unstable();
         }
-    }
-    let mut replay: Vec<(u32, u32)> = (0..n)
-        .map(|k| (edge_key(vertices, k).0, k as u32))
-        .collect();
-    replay_quick_sort(&mut replay, max_i0, INTERNAL_RND_SORT_SEED);
-    let tail = &mut sorted[good_len..];
-    for (slot, &(_, k)) in tail.iter_mut().zip(replay.iter().filter(|e| e.0 == max_i0)) {
-        *slot = (edge_key(vertices, k as usize).1 as u64) << 32 | k as u64;
-    }
-    drop(replay);
-    // The reference's off-by-one: every run of equal i1 but the last is sorted by f.
-    let mut runs: Vec<&mut [u64]> = tail.chunk_by_mut(|a, b| a >> 32 == b >> 32).collect();
-    runs.pop();
-    for run in runs {
-        run.sort_unstable();
     }
     (sorted, starts)
 }
