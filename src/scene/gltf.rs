@@ -25,8 +25,8 @@ use super::pose::{self, Pose, Skinning};
 use super::{
     AlphaMode, Bounds, Camera, ClearcoatLayer, FileAccess, Filter, Format, ImageSource, Instance,
     IridescenceLayer, Light, LightKind, LoadError, LoadErrorKind, LoadOptions, Material,
-    Projection, Sampler, Scene, SheenLayer, SoupBuilder, SpecularLayer, Texture, TextureRef,
-    TextureTransform, UnusableImage, Wrap,
+    Projection, Sampler, Scene, SharedBytes, SheenLayer, SoupBuilder, SpecularLayer, Texture,
+    TextureRef, TextureTransform, UnusableImage, Wrap,
 };
 use base64::Engine;
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
@@ -36,7 +36,6 @@ use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::Path;
 use std::rc::Rc;
-use std::sync::Arc;
 
 /// Most node visits a hierarchy may expand to. A node shared by two parents is instanced twice,
 /// so 30 levels of sharing would be 2^30 visits: refuse such files instead of hanging.
@@ -46,7 +45,13 @@ const MAX_NODE_VISITS: usize = 1_000_000;
 const GLB_HEADER_BYTES: usize = 12;
 
 /// Loads a glTF or GLB file whose bytes are already read.
-pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<Scene, LoadError> {
+/// `file`, when it holds `bytes`, lets images embedded in a GLB share it instead of copying.
+pub(crate) fn load(
+    path: &Path,
+    bytes: &[u8],
+    file: Option<&std::sync::Arc<Vec<u8>>>,
+    options: &LoadOptions,
+) -> Result<Scene, LoadError> {
     let err = |kind| LoadError::new(path, kind);
     let mut steps = crate::measure::Steps::new();
     check_glb_header(bytes).map_err(err)?;
@@ -133,6 +138,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     let (images, unusable) = images(
         &document,
         &buffers,
+        file,
         &access,
         options,
         &mut textures,
@@ -1721,6 +1727,7 @@ fn textures(document: &gltf::Document, webp_fallbacks: &[Option<usize>]) -> Vec<
 fn images(
     document: &gltf::Document,
     buffers: &[Buffer],
+    file: Option<&std::sync::Arc<Vec<u8>>>,
     access: &FileAccess,
     options: &LoadOptions,
     textures: &mut [Texture],
@@ -1754,7 +1761,8 @@ fn images(
                     origin: format!("bufferView {}", view.index()),
                     mime_type: Some(mime_type.to_string()),
                     path: None,
-                    bytes: Some(Arc::from(bytes)),
+                    // A GLB's own chunk is borrowed from the file: shared, not copied.
+                    bytes: Some(SharedBytes::within(file, bytes)),
                 }
             }
             gltf::image::Source::Uri { uri, mime_type } if uri.starts_with("data:") => {
@@ -1764,7 +1772,7 @@ fn images(
                     origin: format!("{}...", &uri[..uri.len().min(32)]),
                     mime_type: mime.or(mime_type.map(str::to_string)),
                     path: None,
-                    bytes: Some(Arc::from(bytes)),
+                    bytes: Some(SharedBytes::whole(bytes)),
                 }
             }
             gltf::image::Source::Uri { uri, mime_type } => ImageSource {
