@@ -10,17 +10,19 @@ use rayon::prelude::*;
 /// costs more than it saves.
 const PARALLEL_TRIANGLES: usize = 4096;
 
-/// What becomes of one triangle of a primitive.
-#[derive(Clone, Copy)]
+/// What becomes of one triangle of a primitive: one byte a triangle; its indices and flat
+/// normal are computed again when it is appended (a 40-byte record holding them, grown one
+/// push at a time, was most of the classification's time).
+#[derive(Clone, Copy, PartialEq, Eq)]
 enum Outcome {
     /// NaN or infinite coordinates: dropped.
     NonFinite,
     /// Zero area: dropped.
     Degenerate,
-    /// Kept on the primitive's shared vertices (soup indices).
-    Shared([u32; 3]),
+    /// Kept on the primitive's shared vertices.
+    Shared,
     /// Kept on three vertices of its own with its flat normal (a shared normal is unusable).
-    Own([usize; 3], Vec3),
+    Own,
 }
 
 /// Why [`classify`] refuses a triangle.
@@ -228,14 +230,14 @@ impl SoupBuilder {
                     outcomes.push(match classify(&positions) {
                         Err(Refusal::NonFinite) => Outcome::NonFinite,
                         Err(Refusal::Degenerate) => Outcome::Degenerate,
-                        Ok((cross, area2)) => {
+                        Ok(_) => {
                             for p in positions {
                                 bounds.grow(p);
                             }
                             if c.iter().all(|&i| usable_normal(shared_normals[i])) {
-                                Outcome::Shared(c.map(|i| (base + i) as u32))
+                                Outcome::Shared
                             } else {
-                                Outcome::Own(c, cross / area2.sqrt())
+                                Outcome::Own
                             }
                         }
                     });
@@ -243,22 +245,30 @@ impl SoupBuilder {
                 },
             )
             .collect();
+        let mut t = 0;
         for (outcomes, bounds) in classified {
             if bounds.min.cmple(bounds.max).all() {
                 self.bounds.grow(bounds.min);
                 self.bounds.grow(bounds.max);
             }
             for outcome in outcomes {
+                let c = corners(t);
+                t += 1;
                 match outcome {
                     Outcome::NonFinite => self.non_finite += 1,
                     Outcome::Degenerate => self.degenerate += 1,
-                    Outcome::Shared(indices) => {
-                        self.soup.indices.push(indices);
+                    Outcome::Shared => {
+                        self.soup.indices.push(c.map(|i| (base + i) as u32));
                         self.soup.material.push(material);
                         self.soup.instance.push(instance);
                     }
-                    Outcome::Own(c, flat) => {
-                        self.push_own_vertices(&vertices.triangle(c), [flat; 3], material, instance)
+                    Outcome::Own => {
+                        let tri = vertices.triangle(c);
+                        // Classified as kept above: the same positions give the same answer.
+                        if let Ok((cross, area2)) = classify(&tri.positions) {
+                            let flat = cross / area2.sqrt();
+                            self.push_own_vertices(&tri, [flat; 3], material, instance);
+                        }
                     }
                 }
             }
