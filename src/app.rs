@@ -230,6 +230,22 @@ fn load(path: &std::path::Path, options: &LoadOptions) -> Result<Scene> {
 }
 
 /// A rayon pool of `requested` threads, or one per core for 0.
+/// Starts the threads the load runs on (rayon's global pool; the render has a pool of its
+/// own), sized by `--threads`, now rather than at the load's first parallel step: they come
+/// up while the options are checked and the file is read and parsed, instead of inside the
+/// flatten (DamagedHelmet, 25 interleaved cold runs: parse and flatten 2.59 -> 2.46 ms, median).
+/// The load's sequential parts stay on the calling thread, whose malloc arena is warm (on
+/// the render's pool they ran slower). A second call, or a pool some caller already made
+/// global, keeps the pool there is.
+fn start_load_threads(requested: usize) {
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if requested > 0 {
+        builder = builder.num_threads(requested);
+    }
+    // Err only when a global pool exists already: then that one is used, as before.
+    let _ = builder.build_global();
+}
+
 fn worker_pool(requested: usize) -> Result<(usize, rayon::ThreadPool)> {
     let threads = if requested == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
@@ -480,6 +496,7 @@ fn render_model(
     on_view: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<RenderReport> {
     let run_start = Instant::now();
+    start_load_threads(args.threads);
     // Everything that can be refused is refused before any work: options, output, then model.
     if args.spp == 0 || args.spp > args.max_spp {
         bail!(
