@@ -31,8 +31,8 @@ fn main() -> ExitCode {
 /// `MMAP_THRESHOLD` now come from the heap, which keeps up to `TRIM_THRESHOLD` of freed memory
 /// for the next allocation. DamagedHelmet's parse + flatten + tangents (15,452 triangles,
 /// median of 21 cold runs each, interleaved, 2 cores): 14.9 -> 12.4 ms on a busy host, and
-/// 10.0 -> 7.8 ms on a quiet one. Larger blocks keep their own mappings, so big models do not
-/// hold on to freed memory: MetalRoughSpheresNoTextures' peak resident memory went from 168
+/// 9.4-10.0 -> 7.8 ms on a quiet one. Larger blocks keep their own mappings, so big models do
+/// not hold on to freed memory: MetalRoughSpheresNoTextures' peak resident memory went from 168
 /// to 163 MB (32 MiB as the threshold made it 186 MB).
 ///
 /// Only the binary sets this: a library has no business changing its host's allocator.
