@@ -8,6 +8,32 @@ mkdir -p fuzz/corpus/gltf_json fuzz/corpus/glb fuzz/corpus/obj
 if [ -d "$samples" ]; then
   find "$samples" -name '*.gltf' -size -200k -exec cp {} fuzz/corpus/gltf_json/ \;
   find "$samples" -name '*.glb' -size -200k -exec cp {} fuzz/corpus/glb/ \;
+  # The encoded variants (Draco, meshopt, quantized, WebP, KTX2) under their own names, so
+  # that each decoder has seeds that reach it.
+  # A .gltf's buffers and images are inlined as data: URIs (the fuzzers load from a folder
+  # that does not exist, so external files would stop them before any decoder).
+  find "$samples" -path '*glTF-*' \( -name '*.gltf' -o -name '*.glb' \) -size -200k | while read -r f; do
+    variant=$(basename "$(dirname "$f")"); model=$(basename "$(dirname "$(dirname "$f")")")
+    case "$f" in
+      *.glb) cp "$f" "fuzz/corpus/glb/$model-$variant.glb" ;;
+      *) python3 - "$f" "fuzz/corpus/gltf_json/$model-$variant.gltf" <<'PY' ;;
+import base64, json, os, sys
+src, dst = sys.argv[1], sys.argv[2]
+doc = json.load(open(src))
+total = 0
+for item in doc.get("buffers", []) + doc.get("images", []):
+    uri = item.get("uri")
+    if uri and not uri.startswith("data:"):
+        path = os.path.join(os.path.dirname(src), uri)
+        data = open(path, "rb").read()
+        total += len(data)
+        mime = item.get("mimeType", "application/octet-stream")
+        item["uri"] = f"data:{mime};base64," + base64.b64encode(data).decode()
+if total <= 1 << 20:
+    json.dump(doc, open(dst, "w"))
+PY
+    esac
+  done
   find "$samples" -name '*.obj' -size -200k -exec cp {} fuzz/corpus/obj/ \;
 fi
 cp assets/*.gltf fuzz/corpus/gltf_json/

@@ -16,6 +16,8 @@ pub fn load(name: &str, data: &[u8]) {
         },
         allow_external_files: false,
         strict: false,
+        // Static pose, default variant: the options a plain load uses.
+        ..Default::default()
     };
     let path = Path::new("/nonexistent-meshtracer-fuzz").join(name);
     if let Ok(scene) = Scene::from_bytes(&path, data, &options) {
@@ -27,5 +29,10 @@ pub fn load(name: &str, data: &[u8]) {
         for &m in &scene.soup.material {
             assert!((m as usize) < scene.materials.len());
         }
+        // The image decoders (PNG, JPEG, WebP, KTX2/Basis Universal) run in the texture
+        // phase, not in the load: decode what the drawn materials use, within a small budget.
+        // An image that fails is a warning (or the error of --strict), never a panic.
+        let mut warnings = Vec::new();
+        let _ = meshtracer::texture::TextureSet::load(&scene, 64 << 20, false, &mut warnings);
     }
 }
