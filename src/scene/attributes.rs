@@ -251,6 +251,39 @@ mod tests {
         assert_eq!(dequantize_u16(16383, false), 16383.0);
     }
 
+    /// Elements at a stride larger than they are, each component type's conversion, and a view
+    /// that ends inside an element.
+    #[test]
+    fn elements_follow_the_stride_and_refuse_a_short_view() {
+        // Two elements of two f32 each, 12 bytes apart (4 bytes of padding after each).
+        let mut bytes = Vec::new();
+        for v in [[1.5f32, -2.0], [3.0, 0.25]] {
+            bytes.extend(v[0].to_le_bytes());
+            bytes.extend(v[1].to_le_bytes());
+            bytes.extend([0xAA; 4]);
+        }
+        let mut out: Vec<[f32; 2]> = Vec::new();
+        elements(&bytes, 2, 12, &mut out, f32::from_le_bytes).expect("fits");
+        assert_eq!(out, [[1.5, -2.0], [3.0, 0.25]]);
+        // Normalized unsigned shorts, three a 6-byte element.
+        let shorts: Vec<u8> = [0u16, 65535, 13107]
+            .iter()
+            .flat_map(|c| c.to_le_bytes())
+            .collect();
+        let mut out: Vec<[f32; 3]> = Vec::new();
+        elements(&shorts, 1, 6, &mut out, |b| {
+            dequantize_u16(u16::from_le_bytes(b), true)
+        })
+        .expect("fits");
+        assert_eq!(out, [[0.0, 1.0, 0.2]]);
+        // The second element would end past the data: an error, and nothing half-read.
+        let mut out: Vec<[f32; 2]> = Vec::new();
+        let err = elements(&bytes[..19], 2, 12, &mut out, f32::from_le_bytes)
+            .expect_err("the view ends inside element 1");
+        assert!(err.contains("element 1"), "{err}");
+        assert_eq!(out.len(), 1);
+    }
+
     #[test]
     fn components_decode_little_endian_and_refuse_short_input() {
         assert_eq!(

@@ -1010,6 +1010,32 @@ impl Scene {
 mod tests {
     use super::*;
 
+    /// A part of the file is shared, not copied; anything else is copied; either way the bytes
+    /// are the same.
+    #[test]
+    fn shared_bytes_share_a_part_of_the_file_and_copy_the_rest() {
+        let file = std::sync::Arc::new((0u8..=255).collect::<Vec<u8>>());
+        let part = &file[10..20];
+        let shared = SharedBytes::within(Some(&file), part);
+        assert_eq!(&shared[..], part);
+        assert_eq!(
+            shared.as_ptr(),
+            part.as_ptr(),
+            "a range of the file, not a copy"
+        );
+        assert_eq!(std::sync::Arc::strong_count(&file), 2);
+        // Empty parts, and the file's last byte.
+        assert_eq!(&SharedBytes::within(Some(&file), &file[256..])[..], b"");
+        assert_eq!(&SharedBytes::within(Some(&file), &file[255..])[..], [255]);
+        // Bytes from elsewhere (a decoded buffer, a data: URI) are copied.
+        let other = vec![7u8; 5];
+        let copied = SharedBytes::within(Some(&file), &other);
+        assert_eq!(&copied[..], &other[..]);
+        assert_ne!(copied.as_ptr(), other.as_ptr());
+        assert_eq!(&SharedBytes::within(None, part)[..], part);
+        assert_eq!(format!("{copied:?}"), "SharedBytes(5 bytes)");
+    }
+
     /// Every cross-reference the renderer indexes by is checked: a triangle's material, a
     /// material's texture and a texture's image, each one past the end is refused by name.
     #[test]
