@@ -229,7 +229,6 @@ fn load(path: &std::path::Path, options: &LoadOptions) -> Result<Scene> {
     }
 }
 
-/// A rayon pool of `requested` threads, or one per core for 0.
 /// Starts the threads the load runs on (rayon's global pool; the render has a pool of its
 /// own), sized by `--threads`, now rather than at the load's first parallel step: they come
 /// up while the options are checked and the file is read and parsed, instead of inside the
@@ -246,6 +245,7 @@ fn start_load_threads(requested: usize) {
     let _ = builder.build_global();
 }
 
+/// A rayon pool of `requested` threads, or one per core for 0.
 fn worker_pool(requested: usize) -> Result<(usize, rayon::ThreadPool)> {
     let threads = if requested == 0 {
         std::thread::available_parallelism().map_or(1, |n| n.get())
