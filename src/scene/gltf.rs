@@ -1735,6 +1735,18 @@ fn images(
 ) -> Result<(Vec<ImageSource>, Vec<UnusableImage>), LoadError> {
     let mut out = Vec::with_capacity(document.images().len());
     let mut unusable = Vec::new();
+    // Sharing keeps the whole file alive as long as the scene: worth it only when the images
+    // are most of it. A big GLB with a small texture copies the texture, so that its geometry
+    // bytes are freed after the load as before; then at most the images' size is ever held
+    // beyond them, as with copies.
+    let embedded: usize = document
+        .images()
+        .filter_map(|image| match image.source() {
+            gltf::image::Source::View { view, .. } => Some(view.length()),
+            gltf::image::Source::Uri { .. } => None,
+        })
+        .sum();
+    let file = file.filter(|f| embedded.saturating_mul(2) >= f.len());
     for image in document.images() {
         let index = image.index();
         let what = format!("image {index}");
