@@ -160,21 +160,7 @@ fn draco_edited(
 fn glb() -> Vec<u8> {
     let (mut json, bin) = base();
     json["buffers"] = json!([{"byteLength": 44}]);
-    let mut text = serde_json::to_vec(&json).unwrap();
-    while text.len() % 4 != 0 {
-        text.push(b' ');
-    }
-    let total = 12 + 8 + text.len() + 8 + bin.len();
-    let mut out = b"glTF".to_vec();
-    out.extend(2u32.to_le_bytes());
-    out.extend((total as u32).to_le_bytes());
-    out.extend((text.len() as u32).to_le_bytes());
-    out.extend(b"JSON");
-    out.extend(&text);
-    out.extend((bin.len() as u32).to_le_bytes());
-    out.extend(b"BIN\0");
-    out.extend(&bin);
-    out
+    common::glb_bytes(&json, &bin)
 }
 
 fn glb_case(name: &'static str, bytes: Vec<u8>, expect: fn(&K) -> bool) -> Case {
@@ -1231,4 +1217,65 @@ fn an_undecodable_png_falls_back_when_textures_decode() {
         common::stderr(&out)
     );
     assert!(!output.exists());
+}
+
+/// A GLB of one triangle and one embedded PNG of about 16 KB (noise, so that it stays that
+/// large next to the JSON chunk), its BIN chunk padded with `padding` unused bytes.
+fn glb_with_image(padding: usize) -> Vec<u8> {
+    let mut png = Vec::new();
+    image::RgbaImage::from_fn(64, 64, |x, y| {
+        let h =
+            (x.wrapping_mul(2_654_435_761) ^ y.wrapping_mul(40_503)).wrapping_mul(2_246_822_519);
+        image::Rgba(h.to_le_bytes())
+    })
+    .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
+    .unwrap();
+    let mut bin: Vec<u8> = [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    let image_at = bin.len();
+    bin.extend(&png);
+    while !bin.len().is_multiple_of(4) {
+        bin.push(0);
+    }
+    bin.resize(bin.len() + padding, 0);
+    let json = json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"byteLength": bin.len()}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": image_at, "byteLength": png.len()}
+        ],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]}],
+        "images": [{"bufferView": 1, "mimeType": "image/png"}],
+        "textures": [{"source": 0}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
+        "nodes": [{"mesh": 0}],
+        "scenes": [{"nodes": [0]}]
+    });
+    common::glb_bytes(&json, &bin)
+}
+
+/// An image that is most of its GLB shares the file's buffer instead of being copied out of
+/// it; one that is a small part of it is copied, so that the rest of the file (geometry) is not
+/// kept alive through the render. The same bytes either way.
+#[test]
+fn glb_images_share_the_file_only_when_they_are_most_of_it() {
+    let dir = tempfile::tempdir().unwrap();
+    for (padding, shared) in [(0, true), (64 << 10, false)] {
+        let path = dir.path().join(format!("image-{padding}.glb"));
+        let glb = glb_with_image(padding);
+        std::fs::write(&path, &glb).unwrap();
+        let scene = Scene::load(&path).unwrap();
+        let bytes = scene.images[0].bytes.as_ref().expect("embedded bytes");
+        assert!(bytes.starts_with(b"\x89PNG"), "padding {padding}");
+        if shared {
+            assert_eq!(bytes.held(), glb.len(), "the whole file, shared");
+        } else {
+            assert_eq!(bytes.held(), bytes.len(), "a copy of the image alone");
+        }
+    }
 }

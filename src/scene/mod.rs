@@ -682,6 +682,12 @@ impl SharedBytes {
         }
         SharedBytes::whole(part.to_vec())
     }
+
+    /// How many bytes this keeps alive: its own length for a copy, the whole buffer's for a
+    /// range of a shared one (a GLB's file).
+    pub fn held(&self) -> usize {
+        self.data.len()
+    }
 }
 
 impl std::ops::Deref for SharedBytes {
@@ -1010,82 +1016,6 @@ impl Scene {
 mod tests {
     use super::*;
 
-    /// A GLB of one triangle and one embedded 16 KB PNG, the BIN chunk padded with `padding` bytes
-    /// of unused geometry-sized data.
-    fn glb_with_image(padding: usize) -> Vec<u8> {
-        let mut png = Vec::new();
-        // Noise, so that the PNG stays large (about 16 KB) next to the JSON chunk.
-        image::RgbaImage::from_fn(64, 64, |x, y| {
-            let h = (x.wrapping_mul(2_654_435_761) ^ y.wrapping_mul(40_503))
-                .wrapping_mul(2_246_822_519);
-            image::Rgba(h.to_le_bytes())
-        })
-        .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
-        .expect("a PNG");
-        let mut bin: Vec<u8> = [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
-            .iter()
-            .flat_map(|v| v.to_le_bytes())
-            .collect();
-        let image_at = bin.len();
-        bin.extend(&png);
-        while !bin.len().is_multiple_of(4) {
-            bin.push(0);
-        }
-        bin.resize(bin.len() + padding, 0);
-        let json = serde_json::json!({
-            "asset": {"version": "2.0"},
-            "buffers": [{"byteLength": bin.len()}],
-            "bufferViews": [
-                {"buffer": 0, "byteOffset": 0, "byteLength": 36},
-                {"buffer": 0, "byteOffset": image_at, "byteLength": png.len()}
-            ],
-            "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-                           "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]}],
-            "images": [{"bufferView": 1, "mimeType": "image/png"}],
-            "textures": [{"source": 0}],
-            "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
-            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
-            "nodes": [{"mesh": 0}],
-            "scenes": [{"nodes": [0]}]
-        });
-        let mut text = serde_json::to_vec(&json).expect("JSON");
-        while !text.len().is_multiple_of(4) {
-            text.push(b' ');
-        }
-        let total = 12 + 8 + text.len() + 8 + bin.len();
-        let mut out = b"glTF".to_vec();
-        out.extend(2u32.to_le_bytes());
-        out.extend((total as u32).to_le_bytes());
-        out.extend((text.len() as u32).to_le_bytes());
-        out.extend(b"JSON");
-        out.extend(&text);
-        out.extend((bin.len() as u32).to_le_bytes());
-        out.extend(b"BIN\0");
-        out.extend(&bin);
-        out
-    }
-
-    /// An image that is most of its GLB shares the file's buffer; one that is a small part of
-    /// it is copied, so the rest of the file is not kept alive. Same bytes either way.
-    #[test]
-    fn glb_images_share_the_file_only_when_they_are_most_of_it() {
-        let dir = tempfile::tempdir().expect("a temporary folder");
-        for (padding, shared) in [(0, true), (64 << 10, false)] {
-            let path = dir.path().join(format!("image-{padding}.glb"));
-            let glb = glb_with_image(padding);
-            std::fs::write(&path, &glb).expect("written");
-            let scene = Scene::load(&path).expect("the GLB loads");
-            let bytes = scene.images[0].bytes.as_ref().expect("embedded bytes");
-            assert!(bytes.starts_with(b"\x89PNG"), "padding {padding}");
-            let held = bytes.data.len();
-            if shared {
-                assert_eq!(held, glb.len(), "the whole file, shared");
-            } else {
-                assert_eq!(held, bytes.len(), "a copy of the image alone");
-            }
-        }
-    }
-
     /// A part of the file is shared, not copied; anything else is copied; either way the bytes
     /// are the same.
     #[test]
@@ -1100,6 +1030,7 @@ mod tests {
             "a range of the file, not a copy"
         );
         assert_eq!(std::sync::Arc::strong_count(&file), 2);
+        assert_eq!(shared.held(), 256, "the file is what it keeps alive");
         // Empty parts, and the file's last byte.
         assert_eq!(&SharedBytes::within(Some(&file), &file[256..])[..], b"");
         assert_eq!(&SharedBytes::within(Some(&file), &file[255..])[..], [255]);
@@ -1108,6 +1039,7 @@ mod tests {
         let copied = SharedBytes::within(Some(&file), &other);
         assert_eq!(&copied[..], &other[..]);
         assert_ne!(copied.as_ptr(), other.as_ptr());
+        assert_eq!(copied.held(), 5);
         assert_eq!(&SharedBytes::within(None, part)[..], part);
         assert_eq!(format!("{copied:?}"), "SharedBytes(5 bytes)");
     }

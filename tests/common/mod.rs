@@ -95,6 +95,26 @@ pub fn write_gltf(dir: &Path, name: &str, mut json: serde_json::Value, bin: &[u8
     path
 }
 
+/// A GLB container: `json` in its JSON chunk (padded with spaces) and `bin` as its BIN chunk
+/// (the caller pads it to 4 bytes).
+pub fn glb_bytes(json: &serde_json::Value, bin: &[u8]) -> Vec<u8> {
+    let mut text = serde_json::to_vec(json).unwrap();
+    while !text.len().is_multiple_of(4) {
+        text.push(b' ');
+    }
+    let total = 12 + 8 + text.len() + 8 + bin.len();
+    let mut out = b"glTF".to_vec();
+    out.extend(2u32.to_le_bytes());
+    out.extend((total as u32).to_le_bytes());
+    out.extend((text.len() as u32).to_le_bytes());
+    out.extend(b"JSON");
+    out.extend(&text);
+    out.extend((bin.len() as u32).to_le_bytes());
+    out.extend(b"BIN\0");
+    out.extend(bin);
+    out
+}
+
 /// Little-endian bytes of f32s.
 pub fn f32_bytes(v: &[f32]) -> Vec<u8> {
     v.iter().flat_map(|x| x.to_le_bytes()).collect()
