@@ -14,7 +14,9 @@
 //! vectors pointing away from the surface; `n` is the shading normal.
 
 use crate::sampling::{cosine_hemisphere, frame};
-use crate::shading::{gltf_brdf, sheen_albedo, Clearcoat, SurfaceMaterial};
+use crate::shading::{
+    gltf_brdf, sheen_albedo, Clearcoat, SurfaceMaterial, MIN_COSINE, MIN_GGX_ALPHA,
+};
 use glam::Vec3;
 use std::f32::consts::PI;
 
@@ -53,6 +55,33 @@ pub struct Bsdf {
     p_coat: f32,
     /// Transmission (glass): the lobe's weight, the chance of drawing it, and how it bends.
     transmission: Option<Transmission>,
+    /// The core material's per-point constants, when it has nothing but the core BRDF (and
+    /// KHR_materials_specular / _ior, which only change F0 and F90).
+    core: Option<Core>,
+}
+
+/// What [`gltf_brdf`] and [`Bsdf::pdf`] compute again for every light direction at one point
+/// of a material with no sheen, clearcoat, iridescence or transmission: the Fresnel ends, the
+/// diffuse term, α² and the view direction's factors of the visibility and pdf terms. With
+/// them, a light sample costs one half vector, D, one square root and the Fresnel power; the
+/// result is the same function (`core_matches_the_appendix_b_brdf` checks to 1e-5).
+#[derive(Clone, Copy, Debug)]
+struct Core {
+    /// n·v floored at the BRDF's [`MIN_COSINE`], as [`gltf_brdf`]'s visibility term takes it.
+    n_dot_v: f32,
+    /// α² with α = max(roughness², [`MIN_GGX_ALPHA`]).
+    a2: f32,
+    /// √((n·v)²(1 - α²) + α²): the view's half of the height-correlated visibility term.
+    vis_v: f32,
+    /// F0 and F90 of Schlick's Fresnel (metal and dielectric mixed by metalness).
+    f0: Vec3,
+    f90: f32,
+    /// c_diff / π.
+    diffuse: Vec3,
+    /// p_specular · G1(v) / (4·n·v): the specular lobe's pdf is this times D(h).
+    specular_pdf: f32,
+    /// (1 - p_specular) / π: the diffuse lobe's pdf is this times n·l.
+    diffuse_pdf: f32,
 }
 
 /// The specular transmission lobe of `KHR_materials_transmission` (glTF: the dielectric's
@@ -104,6 +133,27 @@ impl Bsdf {
                 0.0
             }
         });
+        let plain = material.sheen.is_none()
+            && material.clearcoat.is_none()
+            && material.iridescence.is_none_or(|film| film.factor <= 0.0);
+        let n_dot_v_raw = normal.dot(to_eye);
+        let core = (plain && n_dot_v_raw > 0.0).then(|| {
+            // The same α as gltf_brdf's GGX (its floor equals MIN_ALPHA).
+            let ggx_alpha = (material.roughness * material.roughness).max(MIN_GGX_ALPHA);
+            let a2 = ggx_alpha * ggx_alpha;
+            let n_dot_v = n_dot_v_raw.max(MIN_COSINE);
+            let (f0, f90) = material.fresnel_ends();
+            Core {
+                n_dot_v,
+                a2,
+                vis_v: (n_dot_v * n_dot_v * (1.0 - a2) + a2).sqrt(),
+                f0,
+                f90,
+                diffuse: material.base_color * (1.0 - material.metallic) / PI,
+                specular_pdf: p_specular * smith_g1(n_dot_v_raw, alpha) / (4.0 * n_dot_v_raw),
+                diffuse_pdf: (1.0 - p_specular) / PI,
+            }
+        });
         Self {
             material,
             normal,
@@ -111,6 +161,46 @@ impl Bsdf {
             p_specular,
             p_coat,
             transmission: None,
+            core,
+        }
+    }
+
+    /// f·cos and the pdf for `to_light` from the per-point constants (see [`Core`]): the same
+    /// arithmetic as [`gltf_brdf`] and [`Bsdf::pdf`], with what depends only on the view done
+    /// once.
+    #[inline]
+    fn core_eval_pdf(&self, core: &Core, to_eye: Vec3, to_light: Vec3) -> (Vec3, f32) {
+        let n = self.normal;
+        let cos = n.dot(to_light);
+        if cos <= 0.0 {
+            return (Vec3::ZERO, 0.0);
+        }
+        let h = (to_light + to_eye).normalize_or_zero();
+        let v_dot_h = to_eye.dot(h).max(0.0);
+        let n_dot_h = n.dot(h).max(0.0);
+        let a2 = core.a2;
+        let d_denom = n_dot_h * n_dot_h * (a2 - 1.0) + 1.0;
+        let n_dot_l = cos.max(MIN_COSINE);
+        let vis_denom =
+            n_dot_l * core.vis_v + core.n_dot_v * (n_dot_l * n_dot_l * (1.0 - a2) + a2).sqrt();
+        // D = α²/(π·d_denom²) and V = 0.5/vis_denom from one division.
+        let r = 1.0 / (PI * d_denom * d_denom * vis_denom);
+        let d = a2 * vis_denom * r;
+        let fresnel = core.f0 + (Vec3::splat(core.f90) - core.f0) * (1.0 - v_dot_h).powi(5);
+        let f = (Vec3::ONE - fresnel) * core.diffuse + fresnel * (0.5 * a2 * r);
+        // The pdf's D is 0 where n·h ≤ 0 (gltf_brdf clamps n·h instead); with both directions
+        // above the surface n·h > 0 anyway.
+        let d_pdf = if n.dot(h) > 0.0 { d } else { 0.0 };
+        let pdf = core.specular_pdf * d_pdf + core.diffuse_pdf * cos;
+        (f * cos, pdf)
+    }
+
+    /// [`Bsdf::eval_cos`] and [`Bsdf::pdf`] of one direction together (a light sample weighed
+    /// by MIS needs both; they share the half vector and D).
+    pub fn eval_pdf(&self, to_eye: Vec3, to_light: Vec3) -> (Vec3, f32) {
+        match &self.core {
+            Some(core) => self.core_eval_pdf(core, to_eye, to_light),
+            None => (self.eval_cos(to_eye, to_light), self.pdf(to_eye, to_light)),
         }
     }
 
@@ -156,6 +246,7 @@ impl Bsdf {
             probability,
             eta,
         });
+        self.core = None;
         self
     }
 
@@ -171,6 +262,9 @@ impl Bsdf {
 
     /// f(v, l) · max(n·l, 0): the reflected radiance per unit incident radiance from `to_light`.
     pub fn eval_cos(&self, to_eye: Vec3, to_light: Vec3) -> Vec3 {
+        if let Some(core) = &self.core {
+            return self.core_eval_pdf(core, to_eye, to_light).0;
+        }
         let cos = self.normal.dot(to_light);
         if cos <= 0.0 || self.normal.dot(to_eye) <= 0.0 {
             return Vec3::ZERO;
@@ -257,11 +351,11 @@ impl Bsdf {
                 }
             }
         };
-        let pdf = self.pdf(to_eye, direction);
+        let (f, pdf) = self.eval_pdf(to_eye, direction);
         if pdf <= 0.0 || !pdf.is_finite() {
             return None;
         }
-        let weight = self.eval_cos(to_eye, direction) / pdf;
+        let weight = f / pdf;
         weight.is_finite().then_some(BsdfSample {
             direction,
             weight,
@@ -395,6 +489,52 @@ mod tests {
     use crate::sampling::Rng;
 
     use crate::shading::test_material as material;
+
+    /// The per-point constants give what the general path gives (the Appendix B BRDF times
+    /// the cosine, and the two-lobe pdf) to 1e-5 relative, for metals and dielectrics from
+    /// mirror-like to rough, with KHR_materials_specular's F0 and weight, over random view and
+    /// light directions (grazing ones included).
+    #[test]
+    fn core_matches_the_appendix_b_brdf() {
+        let mut rng = Rng::new(17);
+        let mut unit = || {
+            let (u1, u2) = (rng.next_f32(), rng.next_f32());
+            let z = 1.0 - 2.0 * u1;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = std::f32::consts::TAU * u2;
+            Vec3::new(r * phi.cos(), r * phi.sin(), z)
+        };
+        let mut checked = 0;
+        for (base, metallic, roughness) in [
+            (0.8, 0.0, 0.9),
+            (0.5, 1.0, 0.3),
+            (0.9, 0.0, 0.0),
+            (0.2, 0.4, 0.05),
+            (1.0, 1.0, 1.0),
+        ] {
+            for specular in [None, Some((Vec3::new(0.1, 0.05, 0.02), 0.6))] {
+                let mut m = material(base, metallic, roughness);
+                if let Some((f0, weight)) = specular {
+                    m.dielectric_f0 = f0;
+                    m.specular_weight = weight;
+                }
+                for _ in 0..2000 {
+                    let (n, v, l) = (unit(), unit(), unit());
+                    let bsdf = Bsdf::new(m, n, v);
+                    let (f, pdf) = bsdf.eval_pdf(v, l);
+                    let general = Bsdf { core: None, ..bsdf };
+                    let (f_ref, pdf_ref) = (general.eval_cos(v, l), general.pdf(v, l));
+                    let close = |a: f32, b: f32| (a - b).abs() <= 1e-5 * b.abs().max(1e-3);
+                    assert!(
+                        (0..3).all(|i| close(f[i], f_ref[i])) && close(pdf, pdf_ref),
+                        "{m:?} n {n} v {v} l {l}: {f} {pdf} against {f_ref} {pdf_ref}"
+                    );
+                    checked += usize::from(pdf_ref > 0.0);
+                }
+            }
+        }
+        assert!(checked > 2000, "{checked} directions above the surface");
+    }
 
     /// The sampler's pdf integrates to (nearly) 1 over the hemisphere (checked by uniform-sphere Monte
     /// Carlo), and the mean sample weight equals the directional albedo computed by uniform

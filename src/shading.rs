@@ -261,11 +261,11 @@ const MIN_ALPHA: f32 = 0.01;
 
 /// Smallest α for GGX. A perfect mirror (α = 0) reflects a punctual light into one direction
 /// only; 0.002 (roughness 0.045) keeps D finite in f32 while looking mirror-sharp.
-const MIN_GGX_ALPHA: f32 = 0.002;
+pub(crate) const MIN_GGX_ALPHA: f32 = 0.002;
 
 /// Smallest cosine used in the visibility term's denominators, against division by zero at
 /// grazing angles.
-const MIN_COSINE: f32 = 1e-4;
+pub(crate) const MIN_COSINE: f32 = 1e-4;
 
 /// Which shading model the renderer uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
