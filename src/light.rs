@@ -28,47 +28,88 @@ pub struct Incident {
 ///   `scale = 1 / max(0.001, cos(inner) - cos(outer))`, `offset = -cos(outer)·scale`,
 ///   attenuation = `clamp(cd·scale + offset, 0, 1)²`.
 pub fn incident(light: &Light, point: Vec3) -> Option<Incident> {
-    let radiant = light.color * light.intensity;
-    match light.kind {
-        LightKind::Directional => Some(Incident {
-            to_light: -light.direction,
-            distance: f32::INFINITY,
-            irradiance: radiant,
-        }),
-        LightKind::Point | LightKind::Spot { .. } => {
-            let offset = light.position - point;
-            let d2 = offset.length_squared();
-            if d2.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-                return None;
+    PunctualLight::new(light).incident(point)
+}
+
+/// A punctual light ready for [`incident`]'s question at many points: what depends only on
+/// the light (colour × intensity, a spot's cone scale and offset, which take two cosines) is
+/// computed once, when a render starts.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PunctualLight {
+    /// Colour × intensity: candela per channel (point, spot) or lux (directional).
+    radiant: Vec3,
+    /// World position (point and spot).
+    position: Vec3,
+    /// Unit direction the light travels.
+    direction: Vec3,
+    /// `range`, if any (point and spot).
+    range: Option<f32>,
+    /// Directional (no position, no falloff).
+    directional: bool,
+    /// A spot's `(scale, offset)` of the cone falloff; `None` for other lights.
+    cone: Option<(f32, f32)>,
+}
+
+impl PunctualLight {
+    /// `light`'s constants (see [`incident`] for the formulas).
+    pub fn new(light: &Light) -> PunctualLight {
+        let cone = match light.kind {
+            LightKind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            } => {
+                let cos_outer = outer_cone_angle.cos();
+                let scale = 1.0 / (inner_cone_angle.cos() - cos_outer).max(0.001);
+                Some((scale, -cos_outer * scale))
             }
-            let distance = d2.sqrt();
-            let to_light = offset / distance;
-            let window = match light.range {
-                Some(range) => {
-                    let r = distance / range;
-                    (1.0 - r * r * r * r).clamp(0.0, 1.0).powi(2)
-                }
-                None => 1.0,
-            };
-            let cone = match light.kind {
-                LightKind::Spot {
-                    inner_cone_angle,
-                    outer_cone_angle,
-                } => {
-                    let cos_outer = outer_cone_angle.cos();
-                    let scale = 1.0 / (inner_cone_angle.cos() - cos_outer).max(0.001);
-                    let cd = light.direction.dot(-to_light);
-                    (cd * scale - cos_outer * scale).clamp(0.0, 1.0).powi(2)
-                }
-                _ => 1.0,
-            };
-            let attenuation = window * cone / d2;
-            (attenuation > 0.0).then_some(Incident {
-                to_light,
-                distance,
-                irradiance: radiant * attenuation,
-            })
+            _ => None,
+        };
+        PunctualLight {
+            radiant: light.color * light.intensity,
+            position: light.position,
+            direction: light.direction,
+            range: light.range,
+            directional: light.kind == LightKind::Directional,
+            cone,
         }
+    }
+
+    /// The irradiance this light delivers at `point` (see [`incident`]).
+    pub fn incident(&self, point: Vec3) -> Option<Incident> {
+        if self.directional {
+            return Some(Incident {
+                to_light: -self.direction,
+                distance: f32::INFINITY,
+                irradiance: self.radiant,
+            });
+        }
+        let offset = self.position - point;
+        let d2 = offset.length_squared();
+        if d2.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return None;
+        }
+        let distance = d2.sqrt();
+        let to_light = offset / distance;
+        let window = match self.range {
+            Some(range) => {
+                let r = distance / range;
+                (1.0 - r * r * r * r).clamp(0.0, 1.0).powi(2)
+            }
+            None => 1.0,
+        };
+        let cone = match self.cone {
+            Some((scale, offset)) => {
+                let cd = self.direction.dot(-to_light);
+                (cd * scale + offset).clamp(0.0, 1.0).powi(2)
+            }
+            None => 1.0,
+        };
+        let attenuation = window * cone / d2;
+        (attenuation > 0.0).then_some(Incident {
+            to_light,
+            distance,
+            irradiance: self.radiant * attenuation,
+        })
     }
 }
 
@@ -85,8 +126,11 @@ pub fn incident(light: &Light, point: Vec3) -> Option<Incident> {
 pub struct AreaLights {
     /// Soup index of each light triangle.
     triangles: Vec<u32>,
-    /// Area of each light triangle.
-    areas: Vec<f32>,
+    /// Density per unit area of a point drawn on each light triangle: its probability over
+    /// its area.
+    pdf_areas: Vec<f32>,
+    /// Unit normal of each light triangle ((b - a) × (c - a), normalised).
+    normals: Vec<Vec3>,
     /// Which light to sample.
     distribution: crate::sampling::Distribution1D,
     /// For each soup triangle, its light index or `u32::MAX` (empty when there are no lights).
@@ -102,6 +146,8 @@ pub struct AreaSample {
     pub barycentric: Vec3,
     /// Probability density of the point per unit area (over all lights).
     pub pdf_area: f32,
+    /// The triangle's unit normal (it emits from both faces).
+    pub normal: Vec3,
 }
 
 impl AreaLights {
@@ -123,10 +169,12 @@ impl AreaLights {
             let power = estimate(tri);
             if power > 0.0 && power.is_finite() {
                 let [a, b, c] = soup.triangle(tri);
-                let area = 0.5 * (b - a).cross(c - a).length();
+                let n = (b - a).cross(c - a);
+                let area = 0.5 * n.length();
                 if area > 0.0 && area.is_finite() {
                     lights.triangles.push(tri as u32);
-                    lights.areas.push(area);
+                    lights.pdf_areas.push(area);
+                    lights.normals.push(n / (2.0 * area));
                     weights.push(power * area);
                 }
             }
@@ -138,6 +186,10 @@ impl AreaLights {
             }
         }
         lights.distribution = crate::sampling::Distribution1D::new(weights);
+        // (The areas were kept here until the probabilities were known.)
+        for (i, pdf) in lights.pdf_areas.iter_mut().enumerate() {
+            *pdf = lights.distribution.probability(i) / *pdf;
+        }
         lights
     }
 
@@ -154,12 +206,13 @@ impl AreaLights {
     /// A point on the lights from three uniform numbers: a light in proportion to its power,
     /// then a uniform point on it.
     pub fn sample(&self, u_light: f32, u1: f32, u2: f32) -> Option<AreaSample> {
-        let (i, _) = self.distribution.sample(u_light)?;
-        let pdf_area = self.distribution.probability(i) / self.areas[i];
+        let i = self.distribution.sample_index(u_light)?;
+        let pdf_area = self.pdf_areas[i];
         Some(AreaSample {
             triangle: self.triangles[i],
             barycentric: crate::sampling::uniform_triangle(u1, u2),
             pdf_area,
+            normal: self.normals[i],
         })
     }
 
@@ -167,9 +220,7 @@ impl AreaLights {
     /// triangle `triangle` (0 for a triangle that does not emit).
     pub fn pdf_area(&self, triangle: u32) -> f32 {
         match self.index_of.get(triangle as usize) {
-            Some(&i) if i != u32::MAX => {
-                self.distribution.probability(i as usize) / self.areas[i as usize]
-            }
+            Some(&i) if i != u32::MAX => self.pdf_areas[i as usize],
             _ => 0.0,
         }
     }

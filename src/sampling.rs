@@ -178,6 +178,14 @@ impl Distribution1D {
     /// A bin drawn with its probability, and the position of `u` within it in [0, 1).
     /// `None` for an empty distribution.
     pub fn sample(&self, u: f32) -> Option<(usize, f32)> {
+        let i = self.sample_index(u)?;
+        let (lo, hi) = (self.cdf[i], self.cdf[i + 1]);
+        let within = if hi > lo { (u - lo) / (hi - lo) } else { 0.5 };
+        Some((i, within.clamp(0.0, 1.0 - f32::EPSILON)))
+    }
+
+    /// The bin [`Distribution1D::sample`] draws for `u`, without the position within it.
+    pub fn sample_index(&self, u: f32) -> Option<usize> {
         if self.is_empty() {
             return None;
         }
@@ -194,10 +202,7 @@ impl Distribution1D {
         } else {
             self.cdf.partition_point(below)
         };
-        let i = count.saturating_sub(1).min(self.len() - 1);
-        let (lo, hi) = (self.cdf[i], self.cdf[i + 1]);
-        let within = if hi > lo { (u - lo) / (hi - lo) } else { 0.5 };
-        Some((i, within.clamp(0.0, 1.0 - f32::EPSILON)))
+        Some(count.saturating_sub(1).min(self.len() - 1))
     }
 }
 

@@ -57,6 +57,16 @@ const fn gamma(n: u8) -> f32 {
 /// (`ShadowEpsilon`).
 pub const SHADOW_EPSILON: f32 = 1e-4;
 
+/// How far a ray toward something `distance` away goes: [`SHADOW_EPSILON`] of it short of the
+/// end, and without end toward a direction (`distance` infinite).
+pub fn ray_extent(distance: f32) -> f32 {
+    if distance.is_finite() {
+        distance * (1.0 - SHADOW_EPSILON)
+    } else {
+        f32::INFINITY
+    }
+}
+
 /// A hit point with its error bound: where secondary rays leave a surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SpawnPoint {
@@ -77,7 +87,8 @@ impl SpawnPoint {
         let [p0, p1, p2] = vertices;
         let (e1, e2) = (p1 - p0, p2 - p0);
         let n = e1.cross(e2);
-        let n_len = n.length();
+        let n_len2 = n.length_squared();
+        let n_len = n_len2.sqrt();
         let sum = b.x + b.y + b.z;
         if !(n_len > 0.0 && n_len.is_finite() && sum.is_finite() && sum != 0.0) {
             return None;
@@ -85,8 +96,11 @@ impl SpawnPoint {
         let b = b / sum;
         let point = p0 * b.x + p1 * b.y + p2 * b.z;
         let largest = p0.abs().max(p1.abs()).max(p2.abs());
-        let longest = e1.length().max(e2.length()).max((p2 - p1).length());
-        let tilt = gamma(3) * longest * (e1.length() * e2.length() / n_len);
+        // Three square roots, not five: squared lengths compared, and ‖e₁‖·‖e₂‖/‖n‖ as one
+        // root of a ratio (1/sin of the angle at p₀, so it cannot overflow).
+        let (l1, l2) = (e1.length_squared(), e2.length_squared());
+        let longest = l1.max(l2).max((p2 - p1).length_squared()).sqrt();
+        let tilt = gamma(3) * longest * ((l1 / n_len2) * l2).sqrt();
         let error = gamma(16) * largest + Vec3::splat(tilt);
         point.is_finite().then_some(SpawnPoint {
             point,
@@ -138,12 +152,7 @@ impl SpawnPoint {
     /// distance from the hit point to a light or another point; infinite for a direction),
     /// stopping [`SHADOW_EPSILON`] of it short of the end.
     pub fn ray(&self, direction: Vec3, distance: f32) -> Ray {
-        let tmax = if distance.is_finite() {
-            distance * (1.0 - SHADOW_EPSILON)
-        } else {
-            f32::INFINITY
-        };
-        Ray::new(self.origin(direction), direction, 0.0, tmax)
+        Ray::new(self.origin(direction), direction, 0.0, ray_extent(distance))
     }
 }
 

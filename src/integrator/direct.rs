@@ -7,11 +7,11 @@
 use super::{CameraRay, Integrator, RayCounts};
 use crate::accel::Hit;
 use crate::geometry::Ray;
-use crate::light::incident;
+use crate::light::PunctualLight;
 use crate::prepare::Prepared;
 use crate::render::surface::{Occlusion, Surface};
 use crate::sampling::Rng;
-use crate::scene::{AlphaMode, Light};
+use crate::scene::AlphaMode;
 use crate::shading::{shade, ShadingModel};
 use glam::Vec3;
 
@@ -22,7 +22,7 @@ pub const MAX_BLEND_LAYERS: usize = 16;
 #[derive(Clone, Debug)]
 pub struct Direct {
     /// Lights in use (the file's, or the default rig).
-    pub lights: Vec<Light>,
+    pub lights: Vec<PunctualLight>,
     /// Ambient radiance multiplier for base colour (unshadowed).
     pub ambient: Vec3,
     /// Shading model.
@@ -92,7 +92,7 @@ impl Direct {
         }
         let mut color = self.ambient * s.material.base_color * s.occlusion + s.emissive;
         for light in &self.lights {
-            let Some(incoming) = incident(light, s.spawn.point) else {
+            let Some(incoming) = light.incident(s.spawn.point) else {
                 continue;
             };
             let Some(shadow) = s.shadow_ray(incoming.to_light, incoming.distance) else {

@@ -23,13 +23,12 @@ use super::{CameraRay, Integrator, RayCounts};
 use crate::accel::Hit;
 use crate::bsdf::Bsdf;
 use crate::environment::Environment;
-use crate::geometry::SpawnPoint;
-use crate::light::incident;
+use crate::light::PunctualLight;
 use crate::prepare::Prepared;
 use crate::render::surface::Occlusion;
 use crate::render::MAX_BLEND_LAYERS;
 use crate::sampling::{power_heuristic, Rng};
-use crate::scene::{AlphaMode, Light};
+use crate::scene::AlphaMode;
 use glam::Vec3;
 use std::sync::Arc;
 
@@ -43,7 +42,7 @@ const MIN_SURVIVAL: f32 = 0.05;
 #[derive(Clone, Debug)]
 pub struct PathTracer {
     /// Punctual lights.
-    pub lights: Vec<Light>,
+    pub lights: Vec<PunctualLight>,
     /// The environment that lights the scene, if any.
     pub environment: Option<Arc<Environment>>,
     /// Whether camera rays that miss see the environment (else they are transparent).
@@ -110,7 +109,7 @@ impl Integrator for PathTracer {
             {
                 // Not there for this path: go on through, from the far side.
                 pass_throughs += 1;
-                ray = surface.spawn.ray(direction, f32::INFINITY);
+                ray = surface.ray(direction, f32::INFINITY);
                 continue;
             }
             if bsdf_pdf.is_none() {
@@ -141,16 +140,19 @@ impl Integrator for PathTracer {
             }
             let to_eye = -direction;
             let material = surface.source;
-            let bsdf = Bsdf::new(surface.material, surface.normal, to_eye).with_transmission(
-                to_eye,
-                surface.transmission,
-                material.ior,
-                surface.thin_walled,
-                hit.front,
-            );
+            let mut bsdf = Bsdf::new(surface.material, surface.normal, to_eye);
+            if surface.transmission > 0.0 {
+                bsdf = bsdf.with_transmission(
+                    to_eye,
+                    surface.transmission,
+                    material.ior,
+                    surface.thin_walled,
+                    hit.front,
+                );
+            }
             // Punctual lights: every one, through a shadow ray.
             for light in &self.lights {
-                let Some(incoming) = incident(light, surface.spawn.point) else {
+                let Some(incoming) = light.incident(surface.spawn.point) else {
                     continue;
                 };
                 let f = bsdf.eval_cos(to_eye, incoming.to_light);
@@ -169,25 +171,24 @@ impl Integrator for PathTracer {
             if let Some(sample) = scene.area_lights.sample(u0, u1, u2) {
                 let tri = sample.triangle as usize;
                 let [a, b, c] = scene.scene.soup.triangle(tri);
-                let on_light = SpawnPoint::on_triangle([a, b, c], sample.barycentric);
-                if let Some(on_light) = on_light {
-                    let offset = on_light.point - surface.spawn.point;
-                    let distance = offset.length();
-                    // (A point on the light at the shading point itself is skipped below.)
-                    let to_light = offset / distance.max(f32::MIN_POSITIVE);
-                    let cos_light = on_light.normal.dot(to_light).abs();
-                    let f = bsdf.eval_cos(to_eye, to_light);
-                    if distance > 0.0 && cos_light > 0.0 && f != Vec3::ZERO {
-                        let light_pdf = sample.pdf_area * distance * distance / cos_light;
-                        if let Some(shadow) = surface.shadow_ray(to_light, distance) {
-                            counts.shadow += 1;
-                            let transmittance = scene.shadow_transmittance(&shadow);
-                            if transmittance > 0.0 {
-                                let emission = scene.emission_at(tri, sample.barycentric);
-                                let weight = power_heuristic(light_pdf, bsdf.pdf(to_eye, to_light));
-                                radiance +=
-                                    throughput * f * emission * transmittance * weight / light_pdf;
-                            }
+                let bary = sample.barycentric;
+                let on_light = a * bary.x + b * bary.y + c * bary.z;
+                let offset = on_light - surface.spawn.point;
+                let distance = offset.length();
+                // (A point on the light at the shading point itself is skipped below.)
+                let to_light = offset / distance.max(f32::MIN_POSITIVE);
+                let cos_light = sample.normal.dot(to_light).abs();
+                let (f, bsdf_pdf) = bsdf.eval_pdf(to_eye, to_light);
+                if distance > 0.0 && distance.is_finite() && cos_light > 0.0 && f != Vec3::ZERO {
+                    let light_pdf = sample.pdf_area * distance * distance / cos_light;
+                    if let Some(shadow) = surface.shadow_ray(to_light, distance) {
+                        counts.shadow += 1;
+                        let transmittance = scene.shadow_transmittance(&shadow);
+                        if transmittance > 0.0 {
+                            let emission = scene.emission_at(tri, bary);
+                            let weight = power_heuristic(light_pdf, bsdf_pdf);
+                            radiance +=
+                                throughput * f * emission * transmittance * weight / light_pdf;
                         }
                     }
                 }
@@ -196,13 +197,13 @@ impl Integrator for PathTracer {
             let (u1, u2) = (rng.next_f32(), rng.next_f32());
             if let Some(env) = &self.environment {
                 if let Some((to_light, light_radiance, light_pdf)) = env.sample(u1, u2) {
-                    let f = bsdf.eval_cos(to_eye, to_light);
+                    let (f, bsdf_pdf) = bsdf.eval_pdf(to_eye, to_light);
                     if f != Vec3::ZERO {
                         if let Some(shadow) = surface.shadow_ray(to_light, f32::INFINITY) {
                             counts.shadow += 1;
                             let transmittance = scene.shadow_transmittance(&shadow);
                             if transmittance > 0.0 {
-                                let weight = power_heuristic(light_pdf, bsdf.pdf(to_eye, to_light));
+                                let weight = power_heuristic(light_pdf, bsdf_pdf);
                                 radiance +=
                                     throughput * f * light_radiance * transmittance * weight
                                         / light_pdf;
@@ -236,7 +237,7 @@ impl Integrator for PathTracer {
                     .flatten();
             }
             cone = (cone.0 + cone.1 * hit.t, cone.1);
-            ray = surface.spawn.ray(sample.direction, f32::INFINITY);
+            ray = surface.ray(sample.direction, f32::INFINITY);
             bounces += 1;
             if bounces >= ROULETTE_DEPTH {
                 let survive = throughput.max_element().clamp(MIN_SURVIVAL, 1.0);

@@ -14,6 +14,7 @@ use crate::camera::{Lens, View};
 use crate::environment::Environment;
 use crate::geometry::Ray;
 use crate::integrator::{CameraRay, Direct, Integrator, IntegratorKind, PathTracer, RayCounts};
+use crate::light::PunctualLight;
 use crate::output::Image;
 use crate::prepare::Prepared;
 use crate::sampling::Rng;
@@ -211,7 +212,7 @@ pub fn render_region(
     let integrator: &dyn Integrator = match settings.integrator {
         IntegratorKind::Direct => {
             direct = Direct {
-                lights: settings.lights.clone(),
+                lights: settings.lights.iter().map(PunctualLight::new).collect(),
                 ambient: settings.ambient,
                 shading: settings.shading,
             };
@@ -219,7 +220,7 @@ pub fn render_region(
         }
         IntegratorKind::Path => {
             path = PathTracer {
-                lights: settings.lights.clone(),
+                lights: settings.lights.iter().map(PunctualLight::new).collect(),
                 environment: settings.environment.clone(),
                 environment_visible: settings.environment_visible,
                 max_bounces: settings.bounces,

@@ -10,7 +10,7 @@
 //! [`Prepared::shadow_transmittance`]).
 
 use crate::accel::Hit;
-use crate::geometry::{Ray, SpawnPoint};
+use crate::geometry::{spawn, Ray, SpawnPoint};
 use crate::prepare::Prepared;
 use crate::scene::{AlphaMode, Material, TextureRef, TextureTransform};
 use crate::shading::{Clearcoat, Iridescence, Sheen, SurfaceMaterial};
@@ -23,9 +23,16 @@ pub struct Surface<'m> {
     /// The hit point with its error bound: where secondary rays leave from
     /// ([`crate::geometry::spawn`]).
     pub spawn: SpawnPoint,
-    /// From `point` onto the curved surface a smooth-shaded triangle's vertex normals describe
-    /// (see [`terminator_lift`]); zero for flat triangles.
-    pub lift: Vec3,
+    /// `spawn`'s origin for rays leaving on the `geometric` side (what
+    /// [`SpawnPoint::origin`] gives for any such direction), computed once for the several
+    /// rays a path vertex sends out.
+    pub exit: Vec3,
+    /// The triangle's corners and its vertex normals turned to the `geometric` side: what
+    /// [`terminator_lift`] needs, kept so that the lift is computed only for the shadow rays
+    /// that use it.
+    corners: ([Vec3; 3], [Vec3; 3]),
+    /// The hit's barycentric coordinates.
+    barycentric: Vec3,
     /// Geometric normal facing the incoming ray.
     pub geometric: Vec3,
     /// Interpolated vertex normal on the geometric normal's side: the smooth surface the
@@ -80,12 +87,30 @@ impl Surface<'_> {
         }
         let toward = to_light.dot(self.geometric);
         let amount = (1.0 - toward / TERMINATOR_BAND).clamp(0.0, 1.0);
-        let from = if amount > 0.0 {
-            self.spawn.moved(self.lift * amount)
+        if amount > 0.0 {
+            let (vertices, normals) = self.corners;
+            let lift = terminator_lift(self.spawn.point, vertices, normals, self.barycentric);
+            Some(self.spawn.moved(lift * amount).ray(to_light, distance))
         } else {
-            self.spawn
-        };
-        Some(from.ray(to_light, distance))
+            // toward ≥ TERMINATOR_BAND > 0: the geometric side.
+            Some(self.exit_ray(to_light, distance))
+        }
+    }
+
+    /// The ray leaving the surface along `direction` (unit) as far as `distance`:
+    /// [`SpawnPoint::ray`], with the origin computed once for the geometric side.
+    pub fn ray(&self, direction: Vec3, distance: f32) -> Ray {
+        if direction.dot(self.geometric) > 0.0 {
+            self.exit_ray(direction, distance)
+        } else {
+            self.spawn.ray(direction, distance)
+        }
+    }
+
+    /// [`SpawnPoint::ray`] from [`Surface::exit`]; `direction` must point to the geometric
+    /// side.
+    fn exit_ray(&self, direction: Vec3, distance: f32) -> Ray {
+        Ray::new(self.exit, direction, 0.0, spawn::ray_extent(distance))
     }
 }
 
@@ -267,17 +292,26 @@ impl Prepared {
         let [pa, pb, pc] = soup.triangle(tri);
         // The importer drops degenerate triangles, so this always succeeds; the fallback keeps a
         // bad triangle from panicking (its shadow rays start at the interpolated point).
-        let spawn = SpawnPoint::on_triangle([pa, pb, pc], b).unwrap_or(SpawnPoint {
-            point: pa * b.x + pb * b.y + pc * b.z,
-            error: Vec3::ZERO,
-            normal: Vec3::Z,
-        });
-        let point = spawn.point;
+        let (spawn, facet) = match SpawnPoint::on_triangle([pa, pb, pc], b) {
+            Some(spawn) => (spawn, spawn.normal),
+            None => (
+                SpawnPoint {
+                    point: pa * b.x + pb * b.y + pc * b.z,
+                    error: Vec3::ZERO,
+                    normal: Vec3::Z,
+                },
+                Vec3::ZERO,
+            ),
+        };
         let direction = Vec3::from(ray.direction);
-        let mut geometric = (pb - pa).cross(pc - pa).normalize_or_zero();
-        if geometric.dot(direction) > 0.0 {
-            geometric = -geometric;
-        }
+        // The spawn point's own unit normal, turned to face the ray: negation is exact, so a
+        // direction on this side is on the side `SpawnPoint::origin` offsets to (see `exit`).
+        let geometric = if facet.dot(direction) > 0.0 {
+            -facet
+        } else {
+            facet
+        };
+        let exit = spawn.origin(geometric);
         let cos = geometric.dot(direction);
         let [na, nb, nc] = soup.corner_normals(tri);
         let mut normal = (na * b.x + nb * b.y + nc * b.z)
@@ -288,7 +322,7 @@ impl Prepared {
         }
         let smooth = normal;
         let facing = |n: Vec3| if n.dot(geometric) < 0.0 { -n } else { n };
-        let lift = terminator_lift(point, [pa, pb, pc], [facing(na), facing(nb), facing(nc)], b);
+        let corners = ([pa, pb, pc], [facing(na), facing(nb), facing(nc)]);
         static DEFAULT: std::sync::OnceLock<Material> = std::sync::OnceLock::new();
         let material = self
             .scene
@@ -425,7 +459,9 @@ impl Prepared {
             || sample(&material.thickness_texture, false).is_some_and(|t| t.y <= 0.0);
         Surface {
             spawn,
-            lift,
+            exit,
+            corners,
+            barycentric: b,
             geometric,
             smooth,
             normal,
