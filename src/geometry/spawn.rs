@@ -284,6 +284,32 @@ mod tests {
         );
     }
 
+    /// `SpawnPoint::origin` depends only on the side a direction points to, and the side test
+    /// of a normal and of its negation agree exactly: what lets a surface compute the origin
+    /// once for every ray leaving on its geometric side (`Surface::exit`).
+    #[test]
+    fn one_origin_serves_every_direction_on_a_side() {
+        let mut rng = Rng::new(31);
+        for _ in 0..2000 {
+            let magnitude = 10f32.powf(6.0 * rng.next_f32() - 3.0);
+            let [a, b, c] = [0; 3].map(|_| unit(&mut rng) * magnitude);
+            let bary = crate::sampling::uniform_triangle(rng.next_f32(), rng.next_f32());
+            let Some(p) = SpawnPoint::on_triangle([a, b, c], bary) else {
+                continue;
+            };
+            for facing in [p.normal, -p.normal] {
+                let once = p.origin(facing);
+                for _ in 0..8 {
+                    let d = toward(&mut rng, facing);
+                    if d.dot(facing) > 0.0 {
+                        assert_eq!(p.origin(d).to_array(), once.to_array());
+                        assert_eq!(p.ray(d, 2.0).origin, Ray::new(once, d, 0.0, 1.0).origin);
+                    }
+                }
+            }
+        }
+    }
+
     /// A ray toward a point stops short of it by [`SHADOW_EPSILON`] of the distance, and a
     /// direction has no end.
     #[test]
