@@ -669,6 +669,20 @@ fn cases() -> Vec<Case> {
             |k| matches!(k, K::Obj(m) if m.contains("does not exist")),
         ),
         obj_case(
+            "OBJ relative normal index before the first",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//-5\n",
+            vec![],
+            |k| matches!(k, K::Obj(m) if m.contains("line 5") && m.contains("normal")),
+        ),
+        // Found by the obj fuzz target: tobj computes (index - 1) * 3 in usize, which wrapped
+        // to 2, inside the normal array, and rendered a wrong normal without a word.
+        obj_case(
+            "OBJ normal index near 2^63",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 0 1 0\nf 1//1 2//1 3//6148914691236517207\n",
+            vec![],
+            |k| matches!(k, K::Obj(m) if m.contains("6148914691236517207")),
+        ),
+        obj_case(
             "OBJ face with two vertices",
             b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n",
             vec![],
