@@ -355,10 +355,10 @@ fn carry_materials_across_objects(text: &str) -> std::borrow::Cow<'_, str> {
 /// whole file, so a face may name a vertex that comes later, and reports those past the end).
 fn check_face_indices(text: &str) -> Result<(), String> {
     // One pass over the bytes, lines found with memchr and only their first bytes looked at,
-    // faces read by hand. It costs the Stanford bunny's load 18% more instructions (callgrind;
-    // about 6 ms of 45 in wall time, interleaved runs); with `str::lines`, `split_whitespace`
-    // and `split('/')` it was 25%. A line whose first word might start after Unicode
-    // whitespace (tobj splits on it) takes the `str` path.
+    // each face part read in one pass by hand. It costs the Stanford bunny's `info` 14% more
+    // instructions (callgrind, 269M -> 308M); with `str::lines`, `split_whitespace`,
+    // `split('/')` and `str::parse` it was 25%. A line whose first word might start after
+    // Unicode whitespace (tobj splits on it) takes the `str` path.
     let bytes = text.as_bytes();
     let ends_word = |b: Option<&u8>| b.is_none_or(is_blank);
     let mut read = [0u64; 3];
@@ -403,38 +403,55 @@ fn is_blank(b: &u8) -> bool {
 
 /// The indices of one face's words (`v`, `v/vt`, `v//vn`, `v/vt/vn`), separated by ASCII
 /// whitespace or any non-ASCII byte, against `read` = the (vertices, texture coordinates,
-/// normals) read before line `number` (from 0).
+/// normals) read before line `number` (from 0). A number is read as tobj reads it
+/// (`isize::from_str`: an optional sign, digits); a part that is not one is tobj's to report.
 fn check_face(words: &[u8], number: usize, read: &[u64; 3]) -> Result<(), String> {
     const WHAT: [&str; 3] = ["vertex", "texture coordinate", "normal"];
-    let separator = |b: &u8| is_blank(b) || *b >= 0x80;
+    let separator = |b: u8| is_blank(&b) || b >= 0x80;
+    let n = words.len();
     // Which of a word's parts the next number is: 0, 1 or 2 after as many slashes.
     let mut slot = 0;
     let mut i = 0;
-    while i < words.len() {
+    while i < n {
         let b = words[i];
         if b == b'/' {
             slot += 1;
             i += 1;
             continue;
         }
-        if separator(&b) {
+        if separator(b) {
             slot = 0;
             i += 1;
             continue;
         }
+        // One part, in one pass: sign, digits (saturating: anything past u32::MAX fails
+        // either way), and whether it ends where the part ends.
         let from = i;
-        while i < words.len() && words[i] != b'/' && !separator(&words[i]) {
+        let negative = b == b'-';
+        if b == b'-' || b == b'+' {
             i += 1;
         }
-        // Empty parts (v//vn) and bad numbers are tobj's to report.
-        let (Some(x), Some(&count)) = (face_index(&words[from..i]), read.get(slot)) else {
+        let digits = i;
+        let mut value = 0u64;
+        while i < n && words[i].is_ascii_digit() {
+            value = value
+                .saturating_mul(10)
+                .saturating_add(u64::from(words[i] - b'0'));
+            i += 1;
+        }
+        let number_ends = i > digits && (i == n || words[i] == b'/' || separator(words[i]));
+        while i < n && words[i] != b'/' && !separator(words[i]) {
+            i += 1;
+        }
+        let Some(&count) = read.get(slot).filter(|_| number_ends) else {
             continue;
         };
-        let fits = match x {
-            0 => false,
-            1.. => x <= i64::from(u32::MAX),
-            _ => x.unsigned_abs() <= count,
-        };
+        let fits = value != 0
+            && if negative {
+                value <= count
+            } else {
+                value <= u64::from(u32::MAX)
+            };
         if !fits {
             return Err(format!(
                 "line {}: face index {} refers to a {} that does not exist ({count} read \
@@ -446,27 +463,6 @@ fn check_face(words: &[u8], number: usize, read: &[u64; 3]) -> Result<(), String
         }
     }
     Ok(())
-}
-
-/// `part` as an integer the way tobj reads it (`isize::from_str`: an optional sign, digits),
-/// or `None` where that fails (tobj reports it). More than 18 digits reads as `i64::MAX`,
-/// which no check lets through.
-fn face_index(part: &[u8]) -> Option<i64> {
-    let (negative, digits) = match part {
-        [b'-', rest @ ..] => (true, rest),
-        [b'+', rest @ ..] => (false, rest),
-        rest => (false, rest),
-    };
-    if digits.is_empty() || !digits.iter().all(u8::is_ascii_digit) {
-        return None;
-    }
-    if digits.len() > 18 {
-        return Some(i64::MAX);
-    }
-    let value = digits
-        .iter()
-        .fold(0i64, |v, d| v * 10 + i64::from(d - b'0'));
-    Some(if negative { -value } else { value })
 }
 
 fn obj_error(e: tobj::LoadError) -> LoadErrorKind {
