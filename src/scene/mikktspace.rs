@@ -1,7 +1,8 @@
 //! MikkTSpace tangents for triangle lists, bit-identical to `bevy_mikktspace` 1.0.0 (itself
 //! byte-identical to Morten S. Mikkelsen's C reference on x86) and faster: DamagedHelmet's
 //! tangent phase in a real render (cold caches, fresh pages) went from 17.6-18.8 ms to about
-//! 7.6 ms (median, 2 threads); the algorithm alone, warm in a loop, from 16.9 to 6.1 ms.
+//! 7.6 ms (median, 2 threads), and with the weld by value to about 5 ms; the algorithm alone,
+//! warm in a loop, from 16.9 to 6.1 and then about 4 ms.
 //!
 //! # Why our own
 //! `bevy_mikktspace` took 17-25 ms of DamagedHelmet's load (15,452 triangles, about 1.2 µs
@@ -12,8 +13,15 @@
 //! and ~50,000 small allocations. This version keeps every floating-point operation of the
 //! reference in the same order, and changes only how the work is found and scheduled:
 //!
-//! * flat per-corner arrays instead of `Geometry` callbacks; triangles only (our soup has
-//!   nothing else), so the quad paths fall away;
+//! * an indexed triangle list instead of `Geometry` callbacks (the soup's own vertex arrays,
+//!   not a per-corner copy); triangles only (our soup has nothing else), so the quad paths
+//!   fall away;
+//! * where no edge has a choice of partner (a manifold mesh; see `unique_neighbors`), which
+//!   corner represents a weld class changes nothing, so the classes come from a hash table of
+//!   the distinct vertices' values instead of the reference's recursive spatial split, and the
+//!   edges pair without reproducing the reference's edge order; elsewhere (and for NaN or
+//!   infinite values, where the reference's weld is not plain equality) the reference's weld
+//!   and order are reproduced as below;
 //! * the per-triangle first-order tangents, the per-bucket welding and the per-group
 //!   tangent evaluation run in parallel with rayon; each is a pure function of its input
 //!   collected in order, so the result does not depend on the thread count;
@@ -59,7 +67,9 @@ use rayon::prelude::*;
 /// split of a vertex's tangent space).
 const THRESHOLD: f32 = -1.0;
 
-/// Per-corner input of [`generate`]: corner `3 * f + v` is vertex `v` of triangle `f`.
+/// The input of [`generate`]: an indexed triangle list. Corner `3 * f + v` is vertex `v` of
+/// triangle `f`, and its attributes are entry `indices[3 * f + v]` of the three slices (a mesh
+/// given per corner has the indices 0, 1, 2, ...).
 pub struct Corners<'a> {
     /// Positions.
     pub positions: &'a [[f32; 3]],
@@ -67,6 +77,46 @@ pub struct Corners<'a> {
     pub normals: &'a [[f32; 3]],
     /// Texture coordinates with v pointing up (MikkTSpace's convention).
     pub uvs: &'a [[f32; 2]],
+    /// Three a triangle, each below the length of all three slices.
+    pub indices: &'a [u32],
+}
+
+/// [`Corners`] once its indices are checked: the attributes of a corner by its id.
+#[derive(Clone, Copy)]
+struct Mesh<'a> {
+    positions: &'a [V3],
+    normals: &'a [V3],
+    uvs: &'a [[f32; 2]],
+    indices: &'a [u32],
+}
+
+impl<'a> Corners<'a> {
+    /// The attributes of a corner by its id (indices unchecked: [`generate`] checks them).
+    fn mesh(&self) -> Mesh<'a> {
+        Mesh {
+            positions: self.positions,
+            normals: self.normals,
+            uvs: self.uvs,
+            indices: self.indices,
+        }
+    }
+}
+
+impl Mesh<'_> {
+    #[inline]
+    fn position(&self, corner: usize) -> V3 {
+        self.positions[self.indices[corner] as usize]
+    }
+
+    #[inline]
+    fn normal(&self, corner: usize) -> V3 {
+        self.normals[self.indices[corner] as usize]
+    }
+
+    #[inline]
+    fn uv(&self, corner: usize) -> [f32; 2] {
+        self.uvs[self.indices[corner] as usize]
+    }
 }
 
 type V3 = [f32; 3];
@@ -134,56 +184,57 @@ struct Triangle {
 
 const NONE: u32 = u32::MAX;
 
-/// MikkTSpace tangents for `corners` (all three slices hold `3 * triangles` entries): for
-/// each corner the unit tangent and, in `w`, +1 or -1 for the bitangent's handedness, or
-/// `None` where the algorithm gives none (a degenerate triangle with no good neighbour).
-/// Equal, bit for bit, to `bevy_mikktspace::generate_tangents` over the same triangles.
+/// MikkTSpace tangents for the whole triangles of `corners`: for each corner the unit
+/// tangent and, in `w`, +1 or -1 for the bitangent's handedness, or `None` where the algorithm
+/// gives none (a degenerate triangle with no good neighbour; every corner when an index is
+/// out of range). Equal, bit for bit, to `bevy_mikktspace::generate_tangents` over the same
+/// triangles given corner by corner.
 pub fn generate(corners: &Corners) -> Vec<Option<[f32; 4]>> {
-    let n_corners = corners
+    let n_faces = corners.indices.len() / 3;
+    let n_vertices = corners
         .positions
         .len()
         .min(corners.normals.len())
         .min(corners.uvs.len());
-    let n_faces = n_corners / 3;
+    let indices = &corners.indices[..n_faces * 3];
     // Corner ids are u32; the soup's 50-million-triangle limit keeps them below 2^28.
-    if n_faces == 0 || n_faces * 3 >= NONE as usize {
+    if n_faces == 0
+        || n_faces * 3 >= NONE as usize
+        || indices.iter().any(|&v| v as usize >= n_vertices)
+    {
         return vec![None; n_faces * 3];
     }
-    let pos = &corners.positions[..n_faces * 3];
-    let nrm = &corners.normals[..n_faces * 3];
-    let uv = &corners.uvs[..n_faces * 3];
+    let mesh = Mesh {
+        indices,
+        ..corners.mesh()
+    };
 
-    // First-order tangents per triangle, then the good ones before the degenerate ones,
-    // each in file order (the reference's stable sort by (degenerate, index)).
-    // The records are filtered in place, not copied: a second 800 KB buffer for
-    // DamagedHelmet (no degenerate triangle) was a few hundred page faults on a cold load.
-    let (degenerate, mut triangles): (Vec<bool>, Vec<Triangle>) = (0..n_faces)
+    // The good triangles before the degenerate ones, each in file order (the reference's
+    // stable sort by (degenerate, index)).
+    let degenerate: Vec<bool> = (0..n_faces)
         .into_par_iter()
-        .with_min_len(1024)
-        .map(|f| triangle_info(pos, uv, f))
-        .unzip();
+        .with_min_len(4096)
+        .map(|f| is_degenerate(&mesh, f))
+        .collect();
     let mut order: Vec<u32> = Vec::with_capacity(n_faces);
     order.extend((0..n_faces as u32).filter(|&f| !degenerate[f as usize]));
     let n_good = order.len();
-    if n_good < n_faces {
-        order.extend((0..n_faces as u32).filter(|&f| degenerate[f as usize]));
-        let mut k = 0;
-        triangles.retain(|_| {
-            k += 1;
-            !degenerate[k - 1]
-        });
-    }
+    order.extend((0..n_faces as u32).filter(|&f| degenerate[f as usize]));
     drop(degenerate);
 
-    // Corner ids in that order, then each replaced by its weld representative.
-    let mut vertices: Vec<u32> = order
-        .iter()
-        .flat_map(|&f| [3 * f, 3 * f + 1, 3 * f + 2])
-        .collect();
-    weld(pos, nrm, uv, &mut vertices);
+    // The good triangles' first-order tangents, beside the welding and pairing, which do not
+    // need them.
+    let (mut triangles, (vertices, neighbors)) = rayon::join(
+        || -> Vec<Triangle> {
+            order[..n_good]
+                .par_iter()
+                .with_min_len(1024)
+                .map(|&f| triangle_info(&mesh, f as usize))
+                .collect()
+        },
+        || weld_and_pair(&mesh, &order, n_good),
+    );
     let good_vertices = &vertices[..n_good * 3];
-
-    let neighbors = build_neighbors(good_vertices);
     let groups = build_groups(&mut triangles, &neighbors, good_vertices);
     drop(neighbors);
 
@@ -204,8 +255,7 @@ pub fn generate(corners: &Corners) -> Vec<Option<[f32; 4]>> {
                     &triangles,
                     good_vertices,
                     &order,
-                    pos,
-                    nrm,
+                    &mesh,
                     &mut scratch,
                     &mut out,
                 );
@@ -236,8 +286,38 @@ pub fn generate(corners: &Corners) -> Vec<Option<[f32; 4]>> {
     tangents
 }
 
-/// Whether triangle `f` is degenerate (two equal positions), and its first-order tangents.
-fn triangle_info(pos: &[V3], uv: &[[f32; 2]], f: usize) -> (bool, Triangle) {
+/// Corner ids of triangles `order` (the good ones, `n_good`, first), each replaced by its weld
+/// representative, and the good triangles' neighbours ([`build_neighbors`]).
+///
+/// Where no edge has a choice of partners (see [`unique_neighbors`]), the neighbours, and so
+/// the tangents, do not depend on which corner of a weld class represents it: any will do, and
+/// [`weld_by_value`] finds the classes in a fraction of the reference's time. Otherwise the
+/// reference's representatives and edge order decide, and [`weld`] and [`build_neighbors`]
+/// reproduce them.
+fn weld_and_pair(mesh: &Mesh, order: &[u32], n_good: usize) -> (Vec<u32>, Vec<[u32; 3]>) {
+    let corner_ids = || order.iter().flat_map(|&f| [3 * f, 3 * f + 1, 3 * f + 2]);
+    let mut vertices: Vec<u32> = corner_ids().collect();
+    if weld_by_value(mesh, &mut vertices) {
+        if let Some(neighbors) = unique_neighbors(&vertices[..n_good * 3]) {
+            return (vertices, neighbors);
+        }
+    }
+    for (slot, corner) in vertices.iter_mut().zip(corner_ids()) {
+        *slot = corner;
+    }
+    weld(mesh, &mut vertices);
+    let neighbors = build_neighbors(&vertices[..n_good * 3]);
+    (vertices, neighbors)
+}
+
+/// Whether triangle `f` is degenerate: two of its positions are equal.
+fn is_degenerate(mesh: &Mesh, f: usize) -> bool {
+    let v = [0, 1, 2].map(|k| mesh.position(3 * f + k));
+    v[0] == v[1] || v[1] == v[2] || v[2] == v[0]
+}
+
+/// The first-order tangents of the good (not degenerate) triangle `f`.
+fn triangle_info(mesh: &Mesh, f: usize) -> Triangle {
     let mut info = Triangle {
         group: [NONE; 3],
         s: [0.0; 3],
@@ -245,11 +325,8 @@ fn triangle_info(pos: &[V3], uv: &[[f32; 2]], f: usize) -> (bool, Triangle) {
         group_with_any: false,
         orientation_preserving: false,
     };
-    let v = [pos[3 * f], pos[3 * f + 1], pos[3 * f + 2]];
-    if v[0] == v[1] || v[1] == v[2] || v[2] == v[0] {
-        return (true, info);
-    }
-    let tx = [uv[3 * f], uv[3 * f + 1], uv[3 * f + 2]];
+    let v = [0, 1, 2].map(|k| mesh.position(3 * f + k));
+    let tx = [0, 1, 2].map(|k| mesh.uv(3 * f + k));
     let d_tx = [1, 2].map(|k| [tx[k][0] - tx[0][0], tx[k][1] - tx[0][1]]);
     let d_v = [sub(v[1], v[0]), sub(v[2], v[0])];
     let signed_area_double = d_tx[0][0] * d_tx[1][1] - d_tx[0][1] * d_tx[1][0];
@@ -272,7 +349,7 @@ fn triangle_info(pos: &[V3], uv: &[[f32; 2]], f: usize) -> (bool, Triangle) {
             info.group_with_any = false;
         }
     }
-    (false, info)
+    info
 }
 
 /// One corner in the welding buffer: its attributes (copied in: looking them up by id in the
@@ -293,15 +370,15 @@ struct WeldVertex {
 /// reference (`weld_vertices_legacy.rs`): 2048 buckets along the longest axis of the bounds,
 /// each split recursively at its midpoint with the same swaps, the first equal corner of each
 /// leaf winning. Buckets are independent, so they run in parallel.
-fn weld(pos: &[V3], nrm: &[V3], uv: &[[f32; 2]], vertices: &mut [u32]) {
+fn weld(mesh: &Mesh, vertices: &mut [u32]) {
     const GROUPS: usize = 2048;
     let Some(&first) = vertices.first() else {
         return;
     };
-    let first = pos[first as usize];
+    let first = mesh.position(first as usize);
     let (mut min, mut max) = (first, first);
     for &v in vertices.iter() {
-        let p = pos[v as usize];
+        let p = mesh.position(v as usize);
         for c in 0..3 {
             min[c] = min[c].min(p[c]);
             max[c] = max[c].max(p[c]);
@@ -318,7 +395,7 @@ fn weld(pos: &[V3], nrm: &[V3], uv: &[[f32; 2]], vertices: &mut [u32]) {
     let buckets: Vec<u16> = vertices
         .par_iter()
         .with_min_len(4096)
-        .map(|&v| bucket(pos[v as usize]) as u16)
+        .map(|&v| bucket(mesh.position(v as usize)) as u16)
         .collect();
     let mut starts = vec![0usize; GROUPS + 1];
     for &b in &buckets {
@@ -344,9 +421,9 @@ fn weld(pos: &[V3], nrm: &[V3], uv: &[[f32; 2]], vertices: &mut [u32]) {
         .map(|&k| {
             let v = vertices[k as usize] as usize;
             WeldVertex {
-                position: pos[v],
-                normal: nrm[v],
-                uv: uv[v],
+                position: mesh.position(v),
+                normal: mesh.normal(v),
+                uv: mesh.uv(v),
                 index: k,
                 rep: v as u32,
             }
@@ -366,6 +443,103 @@ fn weld(pos: &[V3], nrm: &[V3], uv: &[[f32; 2]], vertices: &mut [u32]) {
     for w in &buffer {
         vertices[w.index as usize] = w.rep;
     }
+}
+
+/// The largest magnitude [`weld_by_value`] takes: the reference splits a bucket at
+/// 0.5 * (max + min), which overflows to infinity past f32::MAX / 2, and a bucket whose split
+/// is not finite welds nothing.
+const WELD_BY_VALUE_LIMIT: f32 = 1e37;
+
+/// Replaces each corner id in `vertices` by the first corner in `vertices` with the same
+/// position, normal and texture coordinate (compared with `==`): the reference's weld classes,
+/// with other representatives. Corners of one vertex index are equal without a look; the
+/// distinct vertices are matched through a hash table of their values (open addressing, at
+/// most half full, 4 bytes a slot). Returns false (with `vertices` partly rewritten) where the
+/// reference's classes may differ from these: a NaN (equal to nothing), an infinity or a value
+/// past [`WELD_BY_VALUE_LIMIT`] (the reference's splits stop there).
+fn weld_by_value(mesh: &Mesh, vertices: &mut [u32]) -> bool {
+    // A vertex's eight values as bits; `==` takes -0 for +0, and adding +0 turns every zero
+    // into +0 (IEEE 754, round to nearest), so equal values have equal bits.
+    let key = |v: usize| -> Option<[u32; 8]> {
+        let (p, n, t) = (mesh.positions[v], mesh.normals[v], mesh.uvs[v]);
+        let values = [p[0], p[1], p[2], n[0], n[1], n[2], t[0], t[1]];
+        // (NaN fails the comparison too.)
+        values
+            .iter()
+            .all(|x| x.abs() < WELD_BY_VALUE_LIMIT)
+            .then(|| values.map(|x| (x + 0.0).to_bits()))
+    };
+    let mut class = vec![NONE; mesh.positions.len()];
+    let bits = (2 * class.len().min(vertices.len()))
+        .max(2)
+        .next_power_of_two()
+        .trailing_zeros();
+    let mut table = vec![NONE; 1 << bits];
+    let mask = table.len() - 1;
+    for slot in vertices.iter_mut() {
+        let corner = *slot;
+        let v = mesh.indices[corner as usize] as usize;
+        if class[v] == NONE {
+            let Some(values) = key(v) else {
+                return false;
+            };
+            // FxHash's word step (rustc's hasher: rotate, xor, multiply by an odd constant);
+            // the slot from the product's well-mixed high bits.
+            let hash = values.iter().fold(0u64, |h, &w| {
+                (h.rotate_left(5) ^ w as u64).wrapping_mul(0xf135_7aea_2e62_a9c5)
+            });
+            let mut at = (hash >> (64 - bits)) as usize;
+            class[v] = loop {
+                let held = table[at];
+                if held == NONE {
+                    table[at] = corner;
+                    break corner;
+                }
+                if key(mesh.indices[held as usize] as usize) == Some(values) {
+                    break held;
+                }
+                at = (at + 1) & mask;
+            };
+        }
+        *slot = class[v];
+    }
+    true
+}
+
+/// The neighbours [`build_neighbors`] finds, where no edge has a choice of partner: for every
+/// pair of welded end points either at most one edge runs each way, or all run the same way.
+/// Then the reference's pairing joins exactly the opposite pairs, whatever order it visits the
+/// edges in, and whichever corner represents each weld class. `None` where some edge has a
+/// choice (a non-manifold edge with edges both ways): the reference's order decides there.
+fn unique_neighbors(vertices: &[u32]) -> Option<Vec<[u32; 3]>> {
+    let n = vertices.len();
+    let max_i0 = (0..n).map(|k| edge_key(vertices, k).0).max()?;
+    let (sorted, starts) = counting_sort_edges(vertices, max_i0, false);
+    let id = |x: u64| x as u32 as usize;
+    let mut neighbors = vec![[NONE; 3]; n / 3];
+    for (i0, run) in starts.windows(2).enumerate() {
+        let run = &sorted[run[0] as usize..run[1] as usize];
+        for same in run.chunk_by(|a, b| a >> 32 == b >> 32) {
+            let forward = |&e: &u64| edge_ends(vertices, id(e)).0 as usize == i0;
+            match same {
+                [_] => {}
+                [a, b] => {
+                    if forward(a) != forward(b) {
+                        let (ka, kb) = (id(*a), id(*b));
+                        neighbors[ka / 3][ka % 3] = (kb / 3) as u32;
+                        neighbors[kb / 3][kb % 3] = (ka / 3) as u32;
+                    }
+                }
+                _ => {
+                    let ahead = same.iter().filter(|e| forward(e)).count();
+                    if ahead != 0 && ahead != same.len() {
+                        return None;
+                    }
+                }
+            }
+        }
+    }
+    Some(neighbors)
 }
 
 /// The reference's choice of axis: y if strictly longest, else z if longer than x, else x.
@@ -520,7 +694,7 @@ fn sort_edges(vertices: &[u32]) -> (Vec<u64>, Vec<u32>) {
             replay_quick_sort(&mut replay, max_i0, INTERNAL_RND_SORT_SEED);
             replay
         },
-        || counting_sort_edges(vertices, max_i0),
+        || counting_sort_edges(vertices, max_i0, true),
     );
     let good_len = starts[max_i0 as usize] as usize;
     let tail = &mut sorted[good_len..];
@@ -537,10 +711,10 @@ fn sort_edges(vertices: &[u32]) -> (Vec<u64>, Vec<u32>) {
     (sorted, starts)
 }
 
-/// The edges but those of the largest `i0`, sorted by `(i0, i1, k)` (a counting sort on
-/// `i0`, then each run by `i1 << 32 | k`), with the room for the largest `i0`'s run left at
-/// the end; and where each `i0`'s run starts.
-fn counting_sort_edges(vertices: &[u32], max_i0: u32) -> (Vec<u64>, Vec<u32>) {
+/// The edges sorted by `(i0, i1, k)` (a counting sort on `i0`, then each run by
+/// `i1 << 32 | k`), and where each `i0`'s run starts. With `leave_last`, the largest `i0`'s
+/// run is left out, its room left at the end.
+fn counting_sort_edges(vertices: &[u32], max_i0: u32, leave_last: bool) -> (Vec<u64>, Vec<u32>) {
     let n = vertices.len();
     let n_keys = max_i0 as usize + 1;
     let mut starts = vec![0u32; n_keys + 1];
@@ -554,14 +728,15 @@ fn counting_sort_edges(vertices: &[u32], max_i0: u32) -> (Vec<u64>, Vec<u32>) {
     let mut next = starts.clone();
     for k in 0..n {
         let (i0, i1) = edge_key(vertices, k);
-        if i0 != max_i0 {
+        if !(leave_last && i0 == max_i0) {
             let slot = &mut next[i0 as usize];
             sorted[*slot as usize] = (i1 as u64) << 32 | k as u64;
             *slot += 1;
         }
     }
     drop(next);
-    for run in starts[..n_keys].windows(2) {
+    let sorted_keys = if leave_last { n_keys } else { n_keys + 1 };
+    for run in starts[..sorted_keys].windows(2) {
         let run = &mut sorted[run[0] as usize..run[1] as usize];
         if run.len() > 1 {
             run.sort_unstable();
@@ -720,12 +895,11 @@ fn evaluate_group(
     triangles: &[Triangle],
     vertices: &[u32],
     order: &[u32],
-    pos: &[V3],
-    nrm: &[V3],
+    mesh: &Mesh,
     scratch: &mut GroupScratch,
     out: &mut Vec<(u32, [f32; 4])>,
 ) {
-    let n = nrm[group.vertex as usize];
+    let n = mesh.normal(group.vertex as usize);
     let faces = &group_faces[group.start as usize..group.end as usize];
     scratch.members.clear();
     scratch.members.extend(faces.iter().map(|&f| {
@@ -767,7 +941,7 @@ fn evaluate_group(
                     triangles,
                     vertices,
                     group.vertex,
-                    pos,
+                    mesh,
                     n,
                 );
                 let start = scratch.sub_group_faces.len();
@@ -794,7 +968,7 @@ fn sub_group_tangent(
     triangles: &[Triangle],
     vertices: &[u32],
     vertex: u32,
-    pos: &[V3],
+    mesh: &Mesh,
     n: V3,
 ) -> V3 {
     let mut res = [0.0f32; 3];
@@ -807,9 +981,9 @@ fn sub_group_tangent(
         let Some(i) = tri.iter().position(|&v| v == vertex) else {
             continue;
         };
-        let p1 = pos[tri[i] as usize];
-        let p0 = pos[tri[(i + 1) % 3] as usize];
-        let p2 = pos[tri[(i + 2) % 3] as usize];
+        let p1 = mesh.position(tri[i] as usize);
+        let p0 = mesh.position(tri[(i + 1) % 3] as usize);
+        let p2 = mesh.position(tri[(i + 2) % 3] as usize);
         let v0 = project(sub(p0, p1), n);
         let v1 = project(sub(p2, p1), n);
         let cos = dot(v0, v1).clamp(-1.0, 1.0);
@@ -835,19 +1009,19 @@ mod tests {
 
     impl bevy_mikktspace::Geometry for Reference<'_> {
         fn num_faces(&self) -> usize {
-            self.corners.positions.len() / 3
+            self.corners.indices.len() / 3
         }
         fn num_vertices_of_face(&self, _face: usize) -> usize {
             3
         }
         fn position(&self, face: usize, vert: usize) -> [f32; 3] {
-            self.corners.positions[3 * face + vert]
+            self.corners.positions[self.corners.indices[3 * face + vert] as usize]
         }
         fn normal(&self, face: usize, vert: usize) -> [f32; 3] {
-            self.corners.normals[3 * face + vert]
+            self.corners.normals[self.corners.indices[3 * face + vert] as usize]
         }
         fn tex_coord(&self, face: usize, vert: usize) -> [f32; 2] {
-            self.corners.uvs[3 * face + vert]
+            self.corners.uvs[self.corners.indices[3 * face + vert] as usize]
         }
         fn set_tangent(
             &mut self,
@@ -862,7 +1036,7 @@ mod tests {
     fn reference(corners: &Corners) -> Vec<Option<[f32; 4]>> {
         let mut geometry = Reference {
             corners,
-            out: vec![None; corners.positions.len()],
+            out: vec![None; corners.indices.len() / 3 * 3],
         };
         assert!(bevy_mikktspace::generate_tangents(&mut geometry).is_ok());
         geometry.out
@@ -895,38 +1069,62 @@ mod tests {
         expected.iter().filter(|t| t.is_some()).count()
     }
 
-    /// Per-corner arrays.
+    /// Attribute arrays and their indices (per corner, 0, 1, 2, ... unless built indexed).
     #[derive(Default)]
-    struct Mesh {
+    struct TestMesh {
         positions: Vec<V3>,
         normals: Vec<V3>,
         uvs: Vec<[f32; 2]>,
+        indices: Vec<u32>,
     }
 
-    impl Mesh {
+    impl TestMesh {
         fn corners(&self) -> Corners<'_> {
             Corners {
                 positions: &self.positions,
                 normals: &self.normals,
                 uvs: &self.uvs,
+                indices: &self.indices,
             }
         }
 
+        /// A corner of its own.
         fn push(&mut self, p: V3, n: V3, uv: [f32; 2]) {
+            self.indices.push(self.positions.len() as u32);
             self.positions.push(p);
             self.normals.push(n);
             self.uvs.push(uv);
         }
 
         /// An indexed mesh, flattened.
-        fn from_indexed(p: &[V3], n: &[V3], uv: &[[f32; 2]], tris: &[[usize; 3]]) -> Mesh {
-            let mut mesh = Mesh::default();
+        fn from_indexed(p: &[V3], n: &[V3], uv: &[[f32; 2]], tris: &[[usize; 3]]) -> TestMesh {
+            let mut mesh = TestMesh::default();
             for tri in tris {
                 for &v in tri {
                     mesh.push(p[v], n[v], uv[v]);
                 }
             }
             mesh
+        }
+
+        /// Every corner its own vertex.
+        fn flattened(&self) -> TestMesh {
+            let mut mesh = TestMesh::default();
+            for &v in &self.indices {
+                let v = v as usize;
+                mesh.push(self.positions[v], self.normals[v], self.uvs[v]);
+            }
+            mesh
+        }
+
+        /// An indexed mesh, as it is.
+        fn indexed(p: &[V3], n: &[V3], uv: &[[f32; 2]], tris: &[[usize; 3]]) -> TestMesh {
+            TestMesh {
+                positions: p.to_vec(),
+                normals: n.to_vec(),
+                uvs: uv.to_vec(),
+                indices: tris.iter().flatten().map(|&v| v as u32).collect(),
+            }
         }
     }
 
@@ -942,7 +1140,12 @@ mod tests {
     /// A UV sphere: `rings` x `segments` quads as triangles, a seam column of duplicated
     /// vertices at u = 0 and u = 1, and fans at the poles. With `mirror`, the right half
     /// of the texture mirrors the left (u -> 1 - u), which flips the tangent frame there.
-    fn uv_sphere(rings: usize, segments: usize, mirror: bool) -> Mesh {
+    fn uv_sphere(rings: usize, segments: usize, mirror: bool) -> TestMesh {
+        uv_sphere_indexed(rings, segments, mirror).flattened()
+    }
+
+    /// [`uv_sphere`] with each vertex once, indexed.
+    fn uv_sphere_indexed(rings: usize, segments: usize, mirror: bool) -> TestMesh {
         let (mut p, mut n, mut uv) = (Vec::new(), Vec::new(), Vec::new());
         for r in 0..=rings {
             let theta = std::f32::consts::PI * r as f32 / rings as f32;
@@ -969,7 +1172,7 @@ mod tests {
                 tris.push([b, c, d]);
             }
         }
-        Mesh::from_indexed(&p, &n, &uv, &tris)
+        TestMesh::indexed(&p, &n, &uv, &tris)
     }
 
     #[test]
@@ -978,6 +1181,79 @@ mod tests {
         assert!(got > 0);
         // Large enough that every parallel step splits (2 * 120 * 240 = 57,600 triangles).
         assert_matches("big sphere", &uv_sphere(120, 240, false).corners());
+    }
+
+    /// The sphere as an indexed mesh (each vertex once, shared by its triangles) gives what the
+    /// reference gives for it, and, corner for corner, what the same sphere given per corner
+    /// gives; and it takes the fast weld (manifold: no edge has a choice of partner).
+    #[test]
+    fn indexed_input_matches_the_reference_and_welds_by_value() {
+        for mirror in [false, true] {
+            let indexed = uv_sphere_indexed(24, 48, mirror);
+            assert!(indexed.positions.len() < indexed.indices.len() / 2);
+            let got = assert_matches("indexed sphere", &indexed.corners());
+            assert!(got > 0);
+            let flat = indexed.flattened();
+            assert_eq!(
+                bits(&generate(&indexed.corners())),
+                bits(&generate(&flat.corners()))
+            );
+            for mesh in [&indexed, &flat] {
+                let corners = mesh.corners();
+                let mesh = corners.mesh();
+                let order: Vec<u32> = (0..corners.indices.len() as u32 / 3).collect();
+                let mut vertices: Vec<u32> = (0..corners.indices.len() as u32).collect();
+                assert!(weld_by_value(&mesh, &mut vertices));
+                assert!(unique_neighbors(&vertices).is_some());
+                // The same classes as the reference's weld, and the same neighbours.
+                let mut exact: Vec<u32> = (0..corners.indices.len() as u32).collect();
+                weld(&mesh, &mut exact);
+                let (fast, _) = weld_and_pair(&mesh, &order, order.len());
+                assert_eq!(fast, vertices);
+                for k in 0..exact.len() {
+                    for j in [k / 3 * 3, exact.len() - 1 - k] {
+                        assert_eq!(exact[k] == exact[j], vertices[k] == vertices[j], "{k} {j}");
+                    }
+                }
+                assert_eq!(unique_neighbors(&vertices), Some(build_neighbors(&exact)));
+            }
+        }
+    }
+
+    /// Where an edge has a choice of partner (three triangles on one edge, two of them running
+    /// it the same way), or a value could weld differently in the reference (NaN, infinity), the
+    /// fast weld steps aside; the result still matches the reference.
+    #[test]
+    fn ambiguous_edges_and_odd_values_take_the_reference_weld() {
+        let up = [0.0, 0.0, 1.0];
+        let p = [
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.5, 1.0, 0.0],
+            [0.5, -1.0, 0.0],
+            [0.5, 0.0, 1.0],
+        ];
+        let uv = [[0.0, 0.0], [1.0, 0.0], [0.5, 1.0], [0.5, -1.0], [0.5, 0.5]];
+        // Edge 0-1: triangles 0 and 2 run it 0 -> 1, triangle 1 runs it 1 -> 0.
+        let tris = [[0, 1, 2], [1, 0, 3], [0, 1, 4]];
+        let mesh = TestMesh::indexed(&p, &[up; 5], &uv, &tris);
+        let corners = mesh.corners();
+        let view = corners.mesh();
+        let mut vertices: Vec<u32> = (0..9).collect();
+        assert!(weld_by_value(&view, &mut vertices));
+        assert_eq!(unique_neighbors(&vertices), None);
+        assert_matches("three triangles on an edge", &corners);
+
+        for odd in [f32::NAN, f32::INFINITY, 2e38] {
+            let mut mesh = TestMesh::indexed(&p, &[up; 5], &uv, &tris[..2]);
+            mesh.uvs[4][0] = odd;
+            mesh.normals[2][1] = odd;
+            let corners = mesh.corners();
+            let view = corners.mesh();
+            let mut vertices: Vec<u32> = (0..6).collect();
+            assert!(!weld_by_value(&view, &mut vertices), "{odd}");
+            assert_matches(&format!("{odd} in the input"), &corners);
+        }
     }
 
     #[test]
@@ -1022,8 +1298,8 @@ mod tests {
     /// Random soups on a small lattice, so that positions repeat (welding, shared and
     /// non-manifold edges, the quick sort's unsorted run), with normals and UVs from small
     /// sets so that a shared position may or may not weld.
-    fn random_soup(rng: &mut Rng, triangles: usize, lattice: u32) -> Mesh {
-        let mut mesh = Mesh::default();
+    fn random_soup(rng: &mut Rng, triangles: usize, lattice: u32) -> TestMesh {
+        let mut mesh = TestMesh::default();
         let pick = |rng: &mut Rng, n: u32| (rng.next_u64() % n as u64) as f32;
         let normals = [
             [0.0, 0.0, 1.0],
@@ -1075,7 +1351,7 @@ mod tests {
                     [a, b, c]
                 })
                 .collect();
-            let mut mesh = Mesh::from_indexed(&p, &n, &uv, &tris);
+            let mut mesh = TestMesh::from_indexed(&p, &n, &uv, &tris);
             for k in 0..mesh.normals.len() {
                 if rng.next_u64().is_multiple_of(4) {
                     mesh.normals[k] = normalize(add(mesh.normals[k], [0.0, 1.0, 0.0]));
@@ -1103,11 +1379,17 @@ mod tests {
             let out = generate(&mesh.corners());
             assert_eq!(out.len(), mesh.positions.len());
         }
-        assert!(generate(&Mesh::default().corners()).is_empty());
-        // Fewer than three corners, and slices of different lengths: whole triangles only.
+        assert!(generate(&TestMesh::default().corners()).is_empty());
+        // Whole triangles only: an index list cut inside a triangle ends before it.
+        let mut mesh = random_soup(&mut rng, 2, 3);
+        mesh.indices.truncate(5);
+        assert_eq!(generate(&mesh.corners()).len(), 3);
+        // An index past the end of a slice: no tangents, and no panic.
         let mut mesh = random_soup(&mut rng, 2, 3);
         mesh.uvs.truncate(4);
-        assert_eq!(generate(&mesh.corners()).len(), 3);
+        let out = generate(&mesh.corners());
+        assert_eq!(out.len(), 6);
+        assert!(out.iter().all(Option::is_none));
     }
 
     #[test]

@@ -7,52 +7,64 @@
 use super::mikktspace::{self, Corners};
 use super::{Scene, TriangleSoup};
 use glam::Vec4;
-use rayon::prelude::*;
+use std::borrow::Cow;
 
-/// The MikkTSpace input of triangles `faces` of `soup`, flattened per corner (corner
-/// `3 * k + v` is vertex `v` of `faces[k]`), texture coordinates from set `uv_set[k]`.
-pub(crate) struct CornerData {
-    pub positions: Vec<[f32; 3]>,
-    pub normals: Vec<[f32; 3]>,
-    pub uvs: Vec<[f32; 2]>,
+/// The MikkTSpace input of triangles `faces` of `soup`, texture coordinates from set
+/// `uv_set[k]` for `faces[k]`: the soup's own vertex arrays, indexed, with the texture
+/// coordinates of each vertex flipped to MikkTSpace's v-up convention. (Copying the attributes
+/// out per corner, as MikkTSpace's callback interface reads them, was 1.5 MB and about 0.4 ms
+/// of DamagedHelmet's load.)
+pub(crate) struct CornerData<'s> {
+    positions: Cow<'s, [[f32; 3]]>,
+    normals: Cow<'s, [[f32; 3]]>,
+    uvs: Vec<[f32; 2]>,
+    indices: Vec<u32>,
 }
 
-impl CornerData {
-    pub(crate) fn gather(soup: &TriangleSoup, faces: &[usize], uv_set: &[u32]) -> CornerData {
-        let vertex = |k: usize, v: usize| soup.indices[faces[k]][v] as usize;
-        let positions = (0..faces.len() * 3)
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|c| soup.positions[vertex(c / 3, c % 3)].to_array())
-            .collect();
-        let normals = (0..faces.len() * 3)
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|c| soup.normals[vertex(c / 3, c % 3)].to_array())
-            .collect();
-        let uvs = (0..faces.len() * 3)
-            .into_par_iter()
-            .with_min_len(4096)
-            .map(|c| {
-                let k = c / 3;
-                let uvs = if uv_set.get(k) == Some(&1) {
-                    &soup.uv1
-                } else {
-                    &soup.uv0
-                };
-                let uv = uvs
-                    .get(vertex(k, c % 3))
-                    .copied()
-                    .unwrap_or(glam::Vec2::ZERO);
+impl<'s> CornerData<'s> {
+    pub(crate) fn gather(soup: &'s TriangleSoup, faces: &[usize], uv_set: &[u32]) -> Self {
+        let set_of = |k: usize| uv_set.get(k).copied().unwrap_or(0).min(1);
+        let first_set = set_of(0);
+        let mixed = (0..faces.len()).any(|k| set_of(k) != first_set);
+        let vertices = soup.vertex_count();
+        let flipped = |set: u32| {
+            let uvs = if set == 1 { &soup.uv1 } else { &soup.uv0 };
+            (0..vertices).map(move |v| {
+                let uv = uvs.get(v).copied().unwrap_or(glam::Vec2::ZERO);
                 // MikkTSpace works with v up (OpenGL); glTF's v points down the image, and its
                 // normal maps' green channel points up the image.
                 [uv.x, 1.0 - uv.y]
+            })
+        };
+        let positions: &[[f32; 3]] = bytemuck::cast_slice(&soup.positions);
+        let normals: &[[f32; 3]] = bytemuck::cast_slice(&soup.normals);
+        // Triangles that read different sets see every vertex twice: set 0's copies, then set
+        // 1's (rare: a normal map on the second set beside one on the first).
+        let (positions, normals, uvs) = if mixed {
+            let twice = |a: &[[f32; 3]]| Cow::Owned([a, a].concat());
+            let uvs = flipped(0).chain(flipped(1)).collect();
+            (twice(positions), twice(normals), uvs)
+        } else {
+            let uvs = flipped(first_set).collect();
+            (Cow::Borrowed(positions), Cow::Borrowed(normals), uvs)
+        };
+        let indices = faces
+            .iter()
+            .enumerate()
+            .flat_map(|(k, &tri)| {
+                let offset = if mixed && set_of(k) == 1 {
+                    vertices as u32
+                } else {
+                    0
+                };
+                soup.indices[tri].map(|v| v + offset)
             })
             .collect();
         CornerData {
             positions,
             normals,
             uvs,
+            indices,
         }
     }
 
@@ -61,6 +73,7 @@ impl CornerData {
             positions: &self.positions,
             normals: &self.normals,
             uvs: &self.uvs,
+            indices: &self.indices,
         }
     }
 }
