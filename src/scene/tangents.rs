@@ -114,7 +114,9 @@ pub fn generate_missing(scene: &mut Scene) -> usize {
         for corner in 0..3 {
             // A corner MikkTSpace gives no tangent (a degenerate triangle without a good
             // neighbour) keeps zero, which marks "none".
-            let tangent = out[3 * face + corner].map_or(Vec4::ZERO, Vec4::from_array);
+            let tangent = out
+                .get(3 * face + corner)
+                .map_or(Vec4::ZERO, Vec4::from_array);
             let v = soup.indices[tri][corner] as usize;
             if !assigned.get(v).copied().unwrap_or(true) {
                 assigned[v] = true;
