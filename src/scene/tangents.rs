@@ -23,7 +23,8 @@ pub(crate) struct CornerData<'s> {
 
 impl<'s> CornerData<'s> {
     pub(crate) fn gather(soup: &'s TriangleSoup, faces: &[usize], uv_set: &[u32]) -> Self {
-        let set_of = |k: usize| uv_set.get(k).copied().unwrap_or(0).min(1);
+        // Set 1 is TEXCOORD_1; any other set reads TEXCOORD_0 (the soup keeps only these two).
+        let set_of = |k: usize| u32::from(uv_set.get(k) == Some(&1));
         let first_set = set_of(0);
         let mixed = (0..faces.len()).any(|k| set_of(k) != first_set);
         let vertices = soup.vertex_count();
@@ -145,4 +146,52 @@ fn duplicate_vertex(soup: &mut TriangleSoup, v: usize) -> u32 {
         soup.colors.push(c);
     }
     new
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{Vec2, Vec3};
+
+    /// Each corner reads its vertex's position and normal and its face's texture coordinate set
+    /// (v flipped), through the indices; with both sets in use too, and a set past 1 reading
+    /// TEXCOORD_0.
+    #[test]
+    fn corners_read_their_vertex_and_their_faces_set() {
+        let soup = TriangleSoup {
+            positions: (0..5).map(|v| Vec3::new(v as f32, 1.0, 2.0)).collect(),
+            normals: (0..5).map(|v| Vec3::new(0.0, v as f32, 1.0)).collect(),
+            uv0: (0..5).map(|v| Vec2::new(v as f32, 0.25)).collect(),
+            uv1: (0..5).map(|v| Vec2::new(-(v as f32), 0.75)).collect(),
+            indices: vec![[0, 1, 2], [2, 1, 3], [3, 4, 0]],
+            ..Default::default()
+        };
+        for (faces, sets) in [
+            (vec![0, 1, 2], vec![0, 0, 0]),
+            (vec![2, 0], vec![1, 1]),
+            (vec![0, 1, 2], vec![0, 1, 2]),
+        ] {
+            let data = CornerData::gather(&soup, &faces, &sets);
+            let corners = data.corners();
+            assert_eq!(corners.indices.len(), 3 * faces.len());
+            for (k, &face) in faces.iter().enumerate() {
+                for c in 0..3 {
+                    let at = corners.indices[3 * k + c] as usize;
+                    let v = soup.indices[face][c] as usize;
+                    assert_eq!(corners.positions[at], soup.positions[v].to_array());
+                    assert_eq!(corners.normals[at], soup.normals[v].to_array());
+                    let uv = if sets[k] == 1 {
+                        soup.uv1[v]
+                    } else {
+                        soup.uv0[v]
+                    };
+                    assert_eq!(
+                        corners.uvs[at],
+                        [uv.x, 1.0 - uv.y],
+                        "face {face} corner {c}"
+                    );
+                }
+            }
+        }
+    }
 }
