@@ -305,11 +305,20 @@ fn triangle_data_reuses_the_binary_trees_node_buffer() {
     let mut spare: Vec<obvhs::bvh2::node::Bvh2Node> = bytemuck::allocation::zeroed_vec(2 * n);
     spare.truncate(2 * n - 1);
     let at = spare.as_ptr() as usize;
-    let triangles = triangle_buffer(spare, n);
-    assert_eq!(triangles.len(), n);
+    let mut triangles = triangle_buffer(spare, n);
+    assert!(triangles.is_empty());
+    assert_eq!(triangles.capacity(), n);
     assert_eq!(triangles.as_ptr() as usize, at, "same allocation");
-    // Any other size gets a buffer of its own, of the right length.
-    let fresh = triangle_buffer(bytemuck::allocation::zeroed_vec(7), n);
-    assert_eq!(fresh.len(), n);
-    assert_eq!(triangle_buffer(Vec::new(), 3).len(), 3);
+    // Filled in parallel as `Accel::build` fills it, it stays where it is.
+    let mut flags = Vec::new();
+    (0..n)
+        .into_par_iter()
+        .map(|_| (PreparedTriangle::NEVER, 0u8))
+        .unzip_into_vecs(&mut triangles, &mut flags);
+    assert_eq!((triangles.len(), triangles.as_ptr() as usize), (n, at));
+    // Any other size gets room of its own.
+    for spare in [bytemuck::allocation::zeroed_vec(7), Vec::new()] {
+        let fresh = triangle_buffer(spare, n);
+        assert!(fresh.is_empty() && fresh.capacity() >= n);
+    }
 }
