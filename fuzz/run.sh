@@ -17,6 +17,9 @@ target="${1:?usage: fuzz/run.sh TARGET [SECONDS] [libFuzzer options...]}"
 seconds="${2:-600}"
 shift $(($# < 2 ? $# : 2))
 triple="$(rustc -vV | sed -n 's/^host: //p')"
+# Seeds first: seed.sh runs the main crate's tests (a plain build), which must not see the
+# instrumentation flags below (its build scripts would not link without libFuzzer).
+[ -d "corpus/$target" ] || ./seed.sh
 export CARGO_TARGET_DIR="${CARGO_TARGET_DIR:-target}"
 export RUSTFLAGS="-Cpasses=sancov-module \
   -Cllvm-args=-sanitizer-coverage-level=4 \
@@ -25,7 +28,6 @@ export RUSTFLAGS="-Cpasses=sancov-module \
   -Cllvm-args=-sanitizer-coverage-trace-compares \
   --cfg fuzzing -Cdebug-assertions -Coverflow-checks"
 cargo build --locked --release --target "$triple" --bin "$target"
-[ -d "corpus/$target" ] || ./seed.sh
 mkdir -p "artifacts/$target" "corpus/$target.new"
 # New inputs go to corpus/TARGET.new; the seeds stay as seed.sh made them.
 exec "$CARGO_TARGET_DIR/$triple/release/$target" \

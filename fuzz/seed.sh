@@ -44,4 +44,21 @@ find "$broken" -name 'model.gltf' -type f | while read -r f; do cp "$f" "fuzz/co
 find "$broken" -name 'model.glb' | while read -r f; do cp "$f" "fuzz/corpus/glb/$(basename "$(dirname "$f")").glb"; done
 find "$broken" -name 'model.obj' | while read -r f; do cp "$f" "fuzz/corpus/obj/$(basename "$(dirname "$f")").obj"; done
 rm -rf "$broken"
+# Normal-mapped copies of the textured .gltf seeds, so that MikkTSpace (which the targets run
+# after a load, as a render does) meets their meshes: the small samples have no normal map.
+python3 - fuzz/corpus/gltf_json <<'PY'
+import glob, json, os, sys
+for f in sorted(glob.glob(os.path.join(sys.argv[1], "*.gltf"))):
+    if f.endswith("-normalmapped.gltf"):
+        continue
+    try:
+        doc = json.load(open(f))
+    except (ValueError, UnicodeDecodeError):
+        continue
+    if not doc.get("textures") or not doc.get("materials"):
+        continue
+    for m in doc["materials"]:
+        m["normalTexture"] = {"index": 0}
+    json.dump(doc, open(f[:-5] + "-normalmapped.gltf", "w"))
+PY
 for t in gltf_json glb obj; do echo "$t: $(ls fuzz/corpus/$t | wc -l) seeds"; done
