@@ -1018,11 +1018,14 @@ impl Importer<'_> {
             }
             (None, Some(accessor)) => {
                 check_accessor(&accessor, at, &INDICES, self.quantization)?;
-                let reader = primitive.reader(|b| self.buffers.get(b.index()).map(|b| &b[..]));
-                let indices: Vec<u32> = reader
-                    .read_indices()
-                    .map(|r| r.into_u32().collect())
-                    .unwrap_or_default();
+                let indices: Vec<u32> = attributes::read_indices(&accessor, self.buffers)
+                    .unwrap_or_else(|| {
+                        primitive
+                            .reader(|b| self.buffers.get(b.index()).map(|b| &b[..]))
+                            .read_indices()
+                            .map(|r| r.into_u32().collect())
+                            .unwrap_or_default()
+                    });
                 if let Some(&bad) = indices.iter().find(|&&i| i as usize >= vertex_count) {
                     return Err(LoadErrorKind::IndexOutOfRange {
                         at,
