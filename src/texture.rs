@@ -11,7 +11,7 @@
 //! minification picks a mip level from the ray footprint (trilinear, or nearest texel on the
 //! nearest level for NEAREST samplers), so distant surfaces do not alias.
 
-use crate::scene::{Filter, ImageSource, Sampler, Scene, TextureRef, Wrap};
+use crate::scene::{Encoded, Filter, ImageSource, Sampler, Scene, TextureRef, Wrap};
 use glam::{Vec2, Vec4};
 use rayon::prelude::*;
 use std::sync::{Arc, OnceLock};
@@ -319,22 +319,25 @@ const MAX_DECODE_BYTES: u64 = 2 << 30;
 fn decode(source: &ImageSource) -> Result<image::RgbaImage, String> {
     let mut limits = image::Limits::default();
     limits.max_alloc = Some(MAX_DECODE_BYTES);
-    let reader = match (&source.bytes, &source.path) {
-        (Some(bytes), _) if crate::scene::ktx2::is_ktx2(bytes) => {
+    let from_bytes = |bytes: &[u8]| -> Result<image::RgbaImage, String> {
+        if crate::scene::ktx2::is_ktx2(bytes) {
             return crate::scene::ktx2::decode(bytes);
         }
-        (None, Some(path)) if crate::scene::ktx2::is_ktx2_source(source) => {
+        let mut r = image::ImageReader::new(std::io::Cursor::new(bytes))
+            .with_guessed_format()
+            .map_err(|e| e.to_string())?;
+        r.limits(limits.clone());
+        Ok(into_rgba8(r.decode().map_err(|e| e.to_string())?))
+    };
+    let reader = match source.encoded() {
+        Encoded::Bytes(bytes) => return from_bytes(bytes),
+        // An image of a GLB that the load left on disk: read now, on the decoding thread.
+        Encoded::InFile(part) => return from_bytes(&part.read(u64::MAX)?),
+        Encoded::File(path) if crate::scene::ktx2::is_ktx2_source(source) => {
             let bytes = std::fs::read(path).map_err(|e| format!("'{}': {e}", path.display()))?;
             return crate::scene::ktx2::decode(&bytes);
         }
-        (Some(bytes), _) => {
-            let mut r = image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
-                .with_guessed_format()
-                .map_err(|e| e.to_string())?;
-            r.limits(limits);
-            r.decode()
-        }
-        (None, Some(path)) => {
+        Encoded::File(path) => {
             let mut r = image::ImageReader::open(path)
                 .map_err(|e| e.to_string())?
                 .with_guessed_format()
@@ -342,7 +345,7 @@ fn decode(source: &ImageSource) -> Result<image::RgbaImage, String> {
             r.limits(limits);
             r.decode()
         }
-        (None, None) => return Err("no image data".into()),
+        Encoded::Missing => return Err("no image data".into()),
     };
     Ok(into_rgba8(reader.map_err(|e| e.to_string())?))
 }
@@ -391,10 +394,11 @@ fn into_rgba8(image: image::DynamicImage) -> image::RgbaImage {
 /// (DamagedHelmet's progressive 1.3 MB metal-roughness JPEG takes as long as three of its
 /// other images together). Results are returned by image index, whatever the order of work.
 fn decode_used(scene: &Scene, used: &[bool]) -> Vec<Option<Result<image::RgbaImage, String>>> {
-    let encoded_size = |source: &ImageSource| match (&source.bytes, &source.path) {
-        (Some(bytes), _) => bytes.len() as u64,
-        (None, Some(path)) => std::fs::metadata(path).map_or(0, |m| m.len()),
-        (None, None) => 0,
+    let encoded_size = |source: &ImageSource| match source.encoded() {
+        Encoded::Bytes(bytes) => bytes.len() as u64,
+        Encoded::InFile(part) => part.range.end - part.range.start,
+        Encoded::File(path) => std::fs::metadata(path).map_or(0, |m| m.len()),
+        Encoded::Missing => 0,
     };
     let mut order: Vec<(u64, usize)> = (0..scene.images.len())
         .filter(|&i| used.get(i).copied().unwrap_or(false))

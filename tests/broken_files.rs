@@ -1233,26 +1233,35 @@ fn an_undecodable_png_falls_back_when_textures_decode() {
     assert!(!output.exists());
 }
 
-/// A GLB of one triangle and one embedded PNG of about 16 KB (noise, so that it stays that
-/// large next to the JSON chunk), its BIN chunk padded with `padding` unused bytes.
-fn glb_with_image(padding: usize) -> Vec<u8> {
+/// A square PNG of hashed noise (it does not compress), each texel `texel(hash)`.
+fn noise_png(side: u32, texel: fn(u32) -> [u8; 4]) -> Vec<u8> {
     let mut png = Vec::new();
-    image::RgbaImage::from_fn(64, 64, |x, y| {
+    image::RgbaImage::from_fn(side, side, |x, y| {
         let h =
             (x.wrapping_mul(2_654_435_761) ^ y.wrapping_mul(40_503)).wrapping_mul(2_246_822_519);
-        image::Rgba(h.to_le_bytes())
+        image::Rgba(texel(h))
     })
     .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
     .unwrap();
-    let mut bin: Vec<u8> = [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
-        .iter()
-        .flat_map(|v| v.to_le_bytes())
-        .collect();
+    png
+}
+
+/// A BIN chunk: `floats`, then `image` from the returned offset, padded to 4 bytes.
+fn bin_then_image(floats: &[f32], image: &[u8]) -> (Vec<u8>, usize) {
+    let mut bin = common::f32_bytes(floats);
     let image_at = bin.len();
-    bin.extend(&png);
+    bin.extend(image);
     while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
+    (bin, image_at)
+}
+
+/// A GLB of one triangle and one embedded PNG of about 16 KB (noise, so that it stays that
+/// large next to the JSON chunk), its BIN chunk padded with `padding` unused bytes.
+fn glb_with_image(padding: usize) -> Vec<u8> {
+    let png = noise_png(64, |h| h.to_le_bytes());
+    let (mut bin, image_at) = bin_then_image(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0], &png);
     bin.resize(bin.len() + padding, 0);
     let json = json!({
         "asset": {"version": "2.0"},
@@ -1291,5 +1300,189 @@ fn glb_images_share_the_file_only_when_they_are_most_of_it() {
         } else {
             assert_eq!(bytes.held(), bytes.len(), "a copy of the image alone");
         }
+    }
+}
+
+/// A GLB of one textured triangle whose 300x300 noise PNG (about 360 KB, enough to be left on
+/// disk by the load) follows the triangle in the BIN chunk; `edit` changes the JSON first.
+/// Returns the file and the PNG's bytes.
+fn glb_with_big_image(edit: impl FnOnce(&mut Value)) -> (Vec<u8>, Vec<u8>) {
+    let png = noise_png(300, |h| [h as u8, (h >> 8) as u8, (h >> 16) as u8, 255]);
+    let (bin, image_at) = bin_then_image(
+        &[
+            -1.0, -1.0, 0.0, 1.0, -1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.5, 1.0,
+        ],
+        &png,
+    );
+    let mut json = json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"byteLength": bin.len()}],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 36},
+            {"buffer": 0, "byteOffset": 36, "byteLength": 24},
+            {"buffer": 0, "byteOffset": image_at, "byteLength": png.len()}
+        ],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+             "min": [-1.0, -1.0, 0.0], "max": [1.0, 1.0, 0.0]},
+            {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}
+        ],
+        "images": [{"bufferView": 2, "mimeType": "image/png"}],
+        "textures": [{"source": 0}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1},
+                                    "material": 0}]}],
+        "nodes": [{"mesh": 0}],
+        "scenes": [{"nodes": [0]}]
+    });
+    edit(&mut json);
+    (common::glb_bytes(&json, &bin), png)
+}
+
+/// A big image that only images use stays on disk through the load, as exactly its own bytes
+/// of the file, and renders as the same PNG beside a .gltf does. Anything else that may read
+/// its bytes (an accessor, an extension's range, an overlapping view) keeps it in memory.
+#[test]
+fn glb_images_stay_on_disk_until_the_textures_are_decoded() {
+    let dir = tempfile::tempdir().unwrap();
+    let (glb, png) = glb_with_big_image(|_| {});
+    let path = dir.path().join("big.glb");
+    std::fs::write(&path, &glb).unwrap();
+    let scene = Scene::load(&path).unwrap();
+    let image = &scene.images[0];
+    assert!(image.bytes.is_none(), "not read by the load");
+    let part = image.in_file.as_ref().expect("left in the file");
+    assert_eq!(part.path, path);
+    let range = part.range.start as usize..part.range.end as usize;
+    assert_eq!(&glb[range], &png[..], "exactly the image's bytes");
+    assert_eq!(part.read(u64::MAX).unwrap(), png);
+
+    // The same scene as a .gltf with the PNG beside it renders to the same bytes.
+    let json_start = 20;
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let mut json: Value = serde_json::from_slice(&glb[json_start..json_start + json_len]).unwrap();
+    let bin_start = json_start + json_len + 8;
+    std::fs::write(dir.path().join("big.bin"), &glb[bin_start..]).unwrap();
+    std::fs::write(dir.path().join("big.png"), &png).unwrap();
+    json["buffers"][0]["uri"] = json!("big.bin");
+    json["images"][0] = json!({"uri": "big.png"});
+    let gltf = dir.path().join("big.gltf");
+    std::fs::write(&gltf, serde_json::to_vec(&json).unwrap()).unwrap();
+    let render = |model: &Path, out: &str| {
+        let out = dir.path().join(out);
+        let args = [
+            "render",
+            model.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--spp",
+            "1",
+            "-q",
+        ];
+        common::run(&args, true);
+        std::fs::read(out).unwrap()
+    };
+    assert_eq!(render(&path, "glb.png"), render(&gltf, "gltf.png"));
+
+    type Edit = fn(&mut Value);
+    let kept: [(&str, Edit); 4] = [
+        ("an accessor on the image's view", |j| {
+            j["accessors"]
+                .as_array_mut()
+                .unwrap()
+                .push(json!({"bufferView": 2, "componentType": 5121, "count": 4, "type": "SCALAR"}))
+        }),
+        ("a view overlapping it", |j| {
+            let at = j["bufferViews"][2]["byteOffset"].as_u64().unwrap();
+            j["bufferViews"]
+                .as_array_mut()
+                .unwrap()
+                .push(json!({"buffer": 0, "byteOffset": at + 100, "byteLength": 8}))
+        }),
+        ("an extension's range inside it", |j| {
+            let at = j["bufferViews"][2]["byteOffset"].as_u64().unwrap();
+            j["bufferViews"][0]["extensions"] =
+                json!({"EXT_example": {"buffer": 0, "byteOffset": at + 8, "byteLength": 4}})
+        }),
+        ("a Draco primitive's view", |j| {
+            j["meshes"][0]["primitives"][0]["extensions"] =
+                json!({"KHR_draco_mesh_compression": {"bufferView": 2, "attributes": {}}})
+        }),
+    ];
+    for (what, edit) in kept {
+        let (glb, png) = glb_with_big_image(edit);
+        let path = dir.path().join("kept.glb");
+        std::fs::write(&path, &glb).unwrap();
+        match Scene::load(&path) {
+            Ok(scene) => {
+                let image = &scene.images[0];
+                assert!(image.in_file.is_none(), "{what}");
+                assert_eq!(image.bytes.as_deref(), Some(&png[..]), "{what}");
+            }
+            // A PNG is no Draco stream: that file is refused, with all its bytes read.
+            Err(e) => assert!(what.contains("Draco"), "{what}: {e}"),
+        }
+    }
+}
+
+/// An image left on disk that is gone or cut short when the textures are decoded is a warning
+/// naming the file (the model draws with its factors), and with `--strict` an error.
+#[test]
+fn a_glb_cut_short_after_its_load_loses_only_its_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let (glb, _) = glb_with_big_image(|_| {});
+    let path = dir.path().join("cut.glb");
+    std::fs::write(&path, &glb).unwrap();
+    let scene = Scene::load(&path).unwrap();
+    std::fs::write(&path, &glb[..glb.len() - 1000]).unwrap();
+    let mut warnings = Vec::new();
+    let set = meshtracer::texture::TextureSet::load(&scene, usize::MAX, false, &mut warnings);
+    assert!(set.is_ok());
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains("cut.glb") && w.contains("ends inside")),
+        "{warnings:?}"
+    );
+    let strict = meshtracer::texture::TextureSet::load(&scene, usize::MAX, true, &mut Vec::new());
+    assert!(strict.is_err());
+}
+
+/// A big GLB that the image-deferring read gives up on part way (a JSON chunk that does not
+/// parse, a BIN chunk longer than the file, no BIN chunk) is read again whole: the load says
+/// what the same bytes in memory say.
+#[test]
+fn a_big_glb_the_deferring_read_gives_up_on_is_reported_as_from_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let (glb, _) = glb_with_big_image(|_| {});
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let bin_header = 20 + json_len;
+    type Cut = fn(&mut Vec<u8>, usize);
+    let cases: [(&str, Cut); 3] = [
+        ("JSON that does not parse", |g, _| g[20] = b'!'),
+        ("a BIN chunk past the end", |g, at| {
+            g[at..at + 4].copy_from_slice(&u32::MAX.to_le_bytes())
+        }),
+        ("no BIN chunk", |g, at| {
+            g[at + 4..at + 8].copy_from_slice(b"XYZ\0")
+        }),
+    ];
+    for (what, cut) in cases {
+        let mut bytes = glb.clone();
+        cut(&mut bytes, bin_header);
+        let path = dir.path().join("odd.glb");
+        std::fs::write(&path, &bytes).unwrap();
+        let from_disk = Scene::load(&path)
+            .map(|s| s.soup.len())
+            .map_err(|e| e.to_string());
+        let in_memory = Scene::from_bytes(&path, &bytes, &LoadOptions::default())
+            .map(|s| s.soup.len())
+            .map_err(|e| e.to_string());
+        assert_eq!(from_disk, in_memory, "{what}");
+        assert!(from_disk.is_err(), "{what}");
     }
 }

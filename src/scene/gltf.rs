@@ -23,10 +23,10 @@ use super::extensions::{known, ExtensionUse};
 use super::meshopt;
 use super::pose::{self, Pose, Skinning};
 use super::{
-    AlphaMode, Bounds, Camera, ClearcoatLayer, FileAccess, Filter, Format, ImageSource, Instance,
-    IridescenceLayer, Light, LightKind, LoadError, LoadErrorKind, LoadOptions, Material,
-    Projection, Sampler, Scene, SharedBytes, SheenLayer, SoupBuilder, SpecularLayer, Texture,
-    TextureRef, TextureTransform, UnusableImage, Wrap,
+    AlphaMode, Bounds, Camera, ClearcoatLayer, Encoded, FileAccess, FileRange, Filter, Format,
+    ImageSource, Instance, IridescenceLayer, Light, LightKind, LoadError, LoadErrorKind,
+    LoadOptions, LoadedFile, Material, Projection, Sampler, Scene, SharedBytes, SheenLayer,
+    SoupBuilder, SpecularLayer, Texture, TextureRef, TextureTransform, UnusableImage, Wrap,
 };
 use base64::Engine;
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
@@ -49,7 +49,7 @@ const GLB_HEADER_BYTES: usize = 12;
 pub(crate) fn load(
     path: &Path,
     bytes: &[u8],
-    file: Option<&std::sync::Arc<Vec<u8>>>,
+    file: Option<LoadedFile>,
     options: &LoadOptions,
 ) -> Result<Scene, LoadError> {
     let err = |kind| LoadError::new(path, kind);
@@ -267,6 +267,198 @@ fn check_glb_header(bytes: &[u8]) -> Result<(), LoadErrorKind> {
         )));
     }
     Ok(())
+}
+
+/// Images of a GLB this many bytes together or more are left on disk by the load
+/// ([`read_glb_deferring_images`]); smaller ones are read with the rest of the file.
+const MIN_DEFERRED_IMAGE_BYTES: u64 = 256 << 10;
+
+/// A GLB read without its images: the byte ranges of the file that were left unread (zero in
+/// the bytes read), each exactly the buffer view of one or more images and nothing else.
+#[derive(Debug, Default)]
+pub(crate) struct DeferredImages {
+    /// File offset of the binary chunk's data (buffer 0).
+    pub bin_start: u64,
+    /// Sorted, disjoint file ranges.
+    pub ranges: Vec<std::ops::Range<u64>>,
+}
+
+impl DeferredImages {
+    /// Whether bytes `offset..offset + length` of buffer 0 are one of the ranges left unread.
+    fn holds(&self, offset: usize, length: usize) -> bool {
+        let start = self.bin_start + offset as u64;
+        self.ranges
+            .binary_search_by_key(&start, |r| r.start)
+            .is_ok_and(|i| self.ranges[i].end - start == length as u64)
+    }
+}
+
+/// Reads a GLB of `len` bytes from `file` except the buffer views that only images use, when
+/// those are at least [`MIN_DEFERRED_IMAGE_BYTES`]: a textured GLB is mostly its JPEGs and PNGs
+/// (DamagedHelmet's meshopt GLB: 3.1 of 3.35 MB), and the load needs none of their bytes but
+/// the header, which [`check_image_header`] reads from the file. The texture phase reads them
+/// then, on the decoding threads, as it reads a .gltf's image files. The unread ranges are left
+/// zero in the returned bytes (memory the kernel maps only if it is touched).
+///
+/// A view stays in the read part when anything else may read it: a `bufferView` named anywhere
+/// in the JSON outside `images` (accessors, sparse accessors, Draco), a range that an extension
+/// of a buffer view names (meshopt's compressed bytes), or another view overlapping it. `None`
+/// (read the whole file as before) for anything that is not a plain GLB with a JSON chunk and a
+/// binary chunk inside the file, or JSON that does not parse: the full parse then says why (the
+/// caller reads the file again from its start).
+pub(crate) fn read_glb_deferring_images(
+    file: &mut std::fs::File,
+    len: u64,
+) -> std::io::Result<Option<(Vec<u8>, DeferredImages)>> {
+    use std::io::{Read, Seek, SeekFrom};
+    if len < MIN_DEFERRED_IMAGE_BYTES {
+        return Ok(None);
+    }
+    let mut head = [0u8; 20];
+    file.read_exact(&mut head)?;
+    let word =
+        |b: &[u8], i: usize| u64::from(u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]));
+    let bin_header = 20 + word(&head, 12);
+    if !head.starts_with(b"glTF") || &head[16..20] != b"JSON" || bin_header + 8 > len {
+        return Ok(None);
+    }
+    let mut json = vec![0u8; (bin_header + 8 - 20) as usize];
+    file.read_exact(&mut json)?;
+    let bin_head = json.split_off(json.len() - 8);
+    let bin_start = bin_header + 8;
+    let bin_len = word(&bin_head, 0);
+    if &bin_head[4..8] != b"BIN\0" || bin_start + bin_len > len {
+        return Ok(None);
+    }
+    let Ok(root) = serde_json::from_slice::<serde_json::Value>(&json) else {
+        return Ok(None);
+    };
+    let ranges = image_only_ranges(&root, bin_len)
+        .into_iter()
+        .map(|r| bin_start + r.start..bin_start + r.end)
+        .collect::<Vec<_>>();
+    if ranges.iter().map(|r| r.end - r.start).sum::<u64>() < MIN_DEFERRED_IMAGE_BYTES {
+        return Ok(None);
+    }
+    let size = usize::try_from(len).map_err(std::io::Error::other)?;
+    // Zeroed: the kernel maps a page of it when it is first written, so the ranges left unread
+    // cost nothing.
+    let mut bytes = vec![0u8; size];
+    bytes[..20].copy_from_slice(&head);
+    bytes[20..20 + json.len()].copy_from_slice(&json);
+    bytes[20 + json.len()..bin_start as usize].copy_from_slice(&bin_head);
+    // Everything but the ranges, in order.
+    let mut at = bin_start;
+    for (start, end) in ranges.iter().map(|r| (r.start, r.end)).chain([(len, len)]) {
+        if start > at {
+            file.seek(SeekFrom::Start(at))?;
+            file.read_exact(&mut bytes[at as usize..start as usize])?;
+        }
+        at = end;
+    }
+    Ok(Some((bytes, DeferredImages { bin_start, ranges })))
+}
+
+/// The byte ranges of buffer 0 (a GLB's binary chunk, `bin_len` bytes) that images' buffer
+/// views cover and nothing else may read (see [`read_glb_deferring_images`]), sorted and
+/// disjoint. Empty where buffer 0 is not the binary chunk (it has a `uri`).
+fn image_only_ranges(root: &serde_json::Value, bin_len: u64) -> Vec<std::ops::Range<u64>> {
+    use serde_json::Value;
+    let list = |key: &str| {
+        root.get(key)
+            .and_then(Value::as_array)
+            .map_or(&[][..], |v| v)
+    };
+    if list("buffers")
+        .first()
+        .is_none_or(|b| b.get("uri").is_some())
+    {
+        return Vec::new();
+    }
+    let int = |v: &Value, key: &str| v.get(key).and_then(Value::as_u64);
+    // A view's range of buffer 0, if that is its buffer and the range lies inside it.
+    let range = |v: &Value| -> Option<std::ops::Range<u64>> {
+        let start = int(v, "byteOffset").unwrap_or(0);
+        let end = start.checked_add(int(v, "byteLength")?)?;
+        (int(v, "buffer")? == 0 && end <= bin_len).then_some(start..end)
+    };
+    let views = list("bufferViews");
+    let mut by_images: Vec<usize> = list("images")
+        .iter()
+        .filter_map(|image| int(image, "bufferView"))
+        .filter_map(|v| usize::try_from(v).ok())
+        .collect();
+    by_images.sort_unstable();
+    by_images.dedup();
+    // Every `bufferView` named outside `images`, at any depth (accessors, sparse, Draco, ...).
+    let mut named = Vec::new();
+    fn collect(v: &Value, out: &mut Vec<u64>) {
+        match v {
+            Value::Object(map) => {
+                for (key, value) in map {
+                    match (key.as_str(), value.as_u64()) {
+                        ("bufferView", Some(index)) => out.push(index),
+                        _ => collect(value, out),
+                    }
+                }
+            }
+            Value::Array(items) => items.iter().for_each(|item| collect(item, out)),
+            _ => {}
+        }
+    }
+    if let Value::Object(map) = root {
+        for (key, value) in map {
+            if key != "images" {
+                collect(value, &mut named);
+            }
+        }
+    }
+    named.sort_unstable();
+    let only_images =
+        |i: usize| by_images.binary_search(&i).is_ok() && named.binary_search(&(i as u64)).is_err();
+    // What else may be read: every other view, and every range a view's extension names.
+    let mut other: Vec<std::ops::Range<u64>> = Vec::new();
+    for (i, view) in views.iter().enumerate() {
+        if !only_images(i) {
+            // A view of no range (absent, or past the end) is left to the full parse.
+            other.extend(range(view));
+        }
+        if let Some(Value::Object(extensions)) = view.get("extensions") {
+            other.extend(extensions.values().filter_map(range));
+        }
+    }
+    other.sort_unstable_by_key(|r| r.start);
+    // The furthest end among the first k others, for k = 0..=len.
+    let reach: Vec<u64> = std::iter::once(0)
+        .chain(other.iter().scan(0, |end, r| {
+            *end = r.end.max(*end);
+            Some(*end)
+        }))
+        .collect();
+    let mut candidates: Vec<std::ops::Range<u64>> = by_images
+        .iter()
+        .filter(|&&i| only_images(i))
+        .filter_map(|&i| views.get(i).and_then(range))
+        .filter(|r| r.end > r.start)
+        .collect();
+    candidates.sort_unstable_by_key(|r| (r.start, r.end));
+    // Two images of one view are one range.
+    candidates.dedup();
+    let mut out = Vec::with_capacity(candidates.len());
+    let mut earlier_end = 0;
+    for (i, r) in candidates.iter().enumerate() {
+        let overlaps_earlier = r.start < earlier_end;
+        let overlaps_later = candidates.get(i + 1).is_some_and(|next| next.start < r.end);
+        // Others starting before this range ends; one of them overlaps it if it reaches past
+        // its start.
+        let starting_before = other.partition_point(|o| o.start < r.end);
+        let overlaps_other = reach[starting_before] > r.start;
+        if !(overlaps_earlier || overlaps_later || overlaps_other) {
+            out.push(r.clone());
+        }
+        earlier_end = earlier_end.max(r.end);
+    }
+    out
 }
 
 /// What the `gltf` crate assumes but does not validate (both found by fuzzing): gltf-json 1.4's
@@ -1730,7 +1922,7 @@ fn textures(document: &gltf::Document, webp_fallbacks: &[Option<usize>]) -> Vec<
 fn images(
     document: &gltf::Document,
     buffers: &[Buffer],
-    file: Option<&std::sync::Arc<Vec<u8>>>,
+    file: Option<LoadedFile>,
     access: &FileAccess,
     options: &LoadOptions,
     textures: &mut [Texture],
@@ -1738,6 +1930,17 @@ fn images(
 ) -> Result<(Vec<ImageSource>, Vec<UnusableImage>), LoadError> {
     let mut out = Vec::with_capacity(document.images().len());
     let mut unusable = Vec::new();
+    // An image's view that the read left on disk (buffer 0 is then the GLB's binary chunk).
+    let deferred = |view: &gltf::buffer::View| {
+        let d = file.and_then(|f| f.deferred)?;
+        (view.buffer().index() == 0 && d.holds(view.offset(), view.length())).then(|| {
+            let start = d.bin_start + view.offset() as u64;
+            FileRange {
+                path: access.model.clone(),
+                range: start..start + view.length() as u64,
+            }
+        })
+    };
     // Sharing keeps the whole file alive as long as the scene: worth it only when the images
     // are most of it. A big GLB with a small texture copies the texture, so that its geometry
     // bytes are freed after the load as before; then at most the images' size is ever held
@@ -1745,11 +1948,15 @@ fn images(
     let embedded: usize = document
         .images()
         .filter_map(|image| match image.source() {
-            gltf::image::Source::View { view, .. } => Some(view.length()),
-            gltf::image::Source::Uri { .. } => None,
+            gltf::image::Source::View { view, .. } if deferred(&view).is_none() => {
+                Some(view.length())
+            }
+            _ => None,
         })
         .sum();
-    let file = file.filter(|f| embedded.saturating_mul(2) >= f.len());
+    let file = file
+        .map(|f| f.bytes)
+        .filter(|f| embedded.saturating_mul(2) >= f.len());
     for image in document.images() {
         let index = image.index();
         let what = format!("image {index}");
@@ -1763,6 +1970,15 @@ fn images(
             )
         };
         let source = match image.source() {
+            gltf::image::Source::View { view, mime_type } if deferred(&view).is_some() => {
+                ImageSource {
+                    origin: format!("bufferView {}", view.index()),
+                    mime_type: Some(mime_type.to_string()),
+                    path: None,
+                    bytes: None,
+                    in_file: deferred(&view),
+                }
+            }
             gltf::image::Source::View { view, mime_type } => {
                 let start = view.offset();
                 // check_views made sure this range exists.
@@ -1778,6 +1994,7 @@ fn images(
                     path: None,
                     // A GLB's own chunk is borrowed from the file: shared, not copied.
                     bytes: Some(SharedBytes::within(file, bytes)),
+                    in_file: None,
                 }
             }
             gltf::image::Source::Uri { uri, mime_type } if uri.starts_with("data:") => {
@@ -1788,6 +2005,7 @@ fn images(
                     mime_type: mime.or(mime_type.map(str::to_string)),
                     path: None,
                     bytes: Some(SharedBytes::whole(bytes)),
+                    in_file: None,
                 }
             }
             gltf::image::Source::Uri { uri, mime_type } => ImageSource {
@@ -1795,6 +2013,7 @@ fn images(
                 mime_type: mime_type.map(str::to_string),
                 path: Some(access.resolve(&what, uri)?),
                 bytes: None,
+                in_file: None,
             },
         };
         let checked = match &source.path {
@@ -1865,32 +2084,54 @@ fn read_prefix(path: &Path) -> Option<Vec<u8>> {
 /// Reads only an image's header: refuses one that is not an image, or whose declared size is
 /// over the pixel budget, before anything decodes it.
 pub(crate) fn check_image_header(source: &ImageSource, max_pixels: u64) -> Result<(), String> {
-    let dims = match (&source.bytes, &source.path) {
-        (Some(bytes), _) if super::ktx2::is_ktx2(bytes) => Ok(super::ktx2::dimensions(bytes)?),
-        (None, Some(path)) if super::ktx2::is_ktx2_source(source) => {
+    // The size of an image whose encoded bytes (or, for a JPEG, a prefix of them) are here.
+    let dims_in = |bytes: &[u8]| -> Result<Result<(u32, u32), image::ImageError>, String> {
+        if super::ktx2::is_ktx2(bytes) {
+            return Ok(Ok(super::ktx2::dimensions(bytes)?));
+        }
+        Ok(match jpeg_dimensions_from_prefix(bytes) {
+            Some(dims) => Ok(dims),
+            None => image::ImageReader::new(std::io::Cursor::new(bytes))
+                .with_guessed_format()
+                .map_err(|e| e.to_string())?
+                .into_dimensions(),
+        })
+    };
+    let dims = match source.encoded() {
+        Encoded::Bytes(bytes) => dims_in(bytes)?,
+        Encoded::InFile(part) => {
+            // The header from a prefix where that tells the size (KTX2, most JPEGs), else
+            // from the whole image, as for bytes in memory.
+            let head = part.read(JPEG_HEADER_PREFIX as u64 + 1)?;
+            let whole = head.len() as u64 == part.range.end - part.range.start;
+            if !whole && super::ktx2::is_ktx2(&head) {
+                Ok(super::ktx2::dimensions(&head)?)
+            } else if let (false, Some(dims)) = (whole, jpeg_dimensions_from_prefix(&head)) {
+                Ok(dims)
+            } else if whole {
+                dims_in(&head)?
+            } else {
+                dims_in(&part.read(u64::MAX)?)?
+            }
+        }
+        Encoded::File(path) if super::ktx2::is_ktx2_source(source) => {
             let mut header = [0u8; 28];
             let read = std::fs::File::open(path)
                 .and_then(|mut f| std::io::Read::read(&mut f, &mut header))
                 .map_err(|e| format!("'{}': {e}", path.display()))?;
             Ok(super::ktx2::dimensions(&header[..read])?)
         }
-        (Some(bytes), _) => match jpeg_dimensions_from_prefix(bytes) {
-            Some(dims) => Ok(dims),
-            None => image::ImageReader::new(std::io::Cursor::new(&bytes[..]))
-                .with_guessed_format()
-                .map_err(|e| e.to_string())?
-                .into_dimensions(),
-        },
-        (None, Some(path)) => match read_prefix(path).and_then(|p| jpeg_dimensions_from_prefix(&p))
-        {
-            Some(dims) => Ok(dims),
-            None => image::ImageReader::open(path)
-                .map_err(|e| format!("'{}': {e}", path.display()))?
-                .with_guessed_format()
-                .map_err(|e| e.to_string())?
-                .into_dimensions(),
-        },
-        (None, None) => return Err("no data".to_string()),
+        Encoded::File(path) => {
+            match read_prefix(path).and_then(|p| jpeg_dimensions_from_prefix(&p)) {
+                Some(dims) => Ok(dims),
+                None => image::ImageReader::open(path)
+                    .map_err(|e| format!("'{}': {e}", path.display()))?
+                    .with_guessed_format()
+                    .map_err(|e| e.to_string())?
+                    .into_dimensions(),
+            }
+        }
+        Encoded::Missing => return Err("no data".to_string()),
     };
     let (w, h) = dims.map_err(|e| format!("not a readable PNG, JPEG, WebP or KTX2 image: {e}"))?;
     let pixels = w as u64 * h as u64;

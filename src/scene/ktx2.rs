@@ -20,15 +20,17 @@ pub(crate) fn is_ktx2(bytes: &[u8]) -> bool {
 /// Whether an image source is KTX2: embedded bytes by their identifier, a file by its MIME
 /// type or its `.ktx2` extension (its bytes are read only when decoded).
 pub(crate) fn is_ktx2_source(source: &super::ImageSource) -> bool {
-    match (&source.bytes, &source.path) {
-        (Some(bytes), _) => is_ktx2(bytes),
-        (None, Some(path)) => {
-            source.mime_type.as_deref() == Some("image/ktx2")
+    let ktx2_mime = source.mime_type.as_deref() == Some("image/ktx2");
+    match source.encoded() {
+        super::Encoded::Bytes(bytes) => is_ktx2(bytes),
+        super::Encoded::File(path) => {
+            ktx2_mime
                 || path
                     .extension()
                     .is_some_and(|e| e.eq_ignore_ascii_case("ktx2"))
         }
-        (None, None) => false,
+        super::Encoded::InFile(_) => ktx2_mime,
+        super::Encoded::Missing => false,
     }
 }
 

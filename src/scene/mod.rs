@@ -646,6 +646,74 @@ pub struct ImageSource {
     /// The encoded bytes, for embedded images (GLB buffer views and `data:` URIs).
     #[serde(skip)]
     pub bytes: Option<SharedBytes>,
+    /// For an image embedded in a GLB that the load did not read ([`Scene::load_with`] leaves
+    /// a GLB's image-only buffer views on disk): the file and the byte range that hold it,
+    /// read when the image is decoded.
+    #[serde(skip)]
+    pub in_file: Option<FileRange>,
+}
+
+/// A byte range of a file.
+#[derive(Clone, Debug)]
+pub struct FileRange {
+    /// The file.
+    pub path: PathBuf,
+    /// The bytes, as offsets from its start.
+    pub range: std::ops::Range<u64>,
+}
+
+impl FileRange {
+    /// Reads at most `limit` bytes from the start of the range (all of it for `u64::MAX`);
+    /// a file that no longer holds the range is an error naming it.
+    pub fn read(&self, limit: u64) -> Result<Vec<u8>, String> {
+        use std::io::{Read, Seek, SeekFrom};
+        let len = (self.range.end - self.range.start).min(limit);
+        let fail = |e: std::io::Error| format!("'{}': {e}", self.path.display());
+        let mut file = std::fs::File::open(&self.path).map_err(fail)?;
+        file.seek(SeekFrom::Start(self.range.start)).map_err(fail)?;
+        let mut out = Vec::with_capacity(len as usize);
+        file.take(len).read_to_end(&mut out).map_err(fail)?;
+        if (out.len() as u64) < len {
+            return Err(format!(
+                "'{}' ends inside bytes {}..{} (changed since it was loaded?)",
+                self.path.display(),
+                self.range.start,
+                self.range.end
+            ));
+        }
+        Ok(out)
+    }
+}
+
+/// Where an image's encoded bytes are, as [`ImageSource::encoded`] tells.
+pub enum Encoded<'a> {
+    /// In memory.
+    Bytes(&'a [u8]),
+    /// A whole image file.
+    File(&'a Path),
+    /// A range of the model's file (a GLB), not read yet.
+    InFile(&'a FileRange),
+    /// Nowhere (a source the importer could not resolve).
+    Missing,
+}
+
+impl ImageSource {
+    /// Where the encoded bytes are.
+    pub fn encoded(&self) -> Encoded<'_> {
+        match (&self.bytes, &self.in_file, &self.path) {
+            (Some(bytes), _, _) => Encoded::Bytes(bytes),
+            (None, Some(range), _) => Encoded::InFile(range),
+            (None, None, Some(path)) => Encoded::File(path),
+            (None, None, None) => Encoded::Missing,
+        }
+    }
+}
+
+/// The file [`Scene::load_with`] read: its bytes, and the images it left on disk.
+#[derive(Clone, Copy)]
+pub(crate) struct LoadedFile<'a> {
+    pub bytes: &'a std::sync::Arc<Vec<u8>>,
+    pub deferred: Option<&'a gltf::DeferredImages>,
 }
 
 /// Bytes shared without copying: a range of a buffer that others hold too. An image embedded
@@ -902,10 +970,28 @@ impl Scene {
             }));
         }
         let mut steps = crate::measure::Steps::new();
-        let bytes =
-            std::sync::Arc::new(std::fs::read(path).map_err(|e| err(LoadErrorKind::Io(e)))?);
+        let io = |e| err(LoadErrorKind::Io(e));
+        let mut file = std::fs::File::open(path).map_err(io)?;
+        // A GLB's images stay on disk until the texture phase reads them.
+        let (bytes, deferred) =
+            match gltf::read_glb_deferring_images(&mut file, meta.len()).map_err(io)? {
+                Some((bytes, deferred)) => (bytes, Some(deferred)),
+                None => {
+                    // From the start again, whatever the GLB reader had read.
+                    std::io::Seek::rewind(&mut file).map_err(io)?;
+                    let mut bytes = Vec::with_capacity(meta.len() as usize);
+                    std::io::Read::read_to_end(&mut file, &mut bytes).map_err(io)?;
+                    (bytes, None)
+                }
+            };
+        drop(file);
+        let bytes = std::sync::Arc::new(bytes);
         steps.mark("read");
-        let mut scene = Scene::parse(path, &bytes, Some(&bytes), options)?;
+        let file = LoadedFile {
+            bytes: &bytes,
+            deferred: deferred.as_ref(),
+        };
+        let mut scene = Scene::parse(path, &bytes, Some(file), options)?;
         scene.load_steps.splice(0..0, steps.list().iter().cloned());
         Ok(scene)
     }
@@ -981,11 +1067,12 @@ impl Scene {
         Scene::parse(path, bytes, None, options)
     }
 
-    /// [`Scene::from_bytes`]; `file`, when it holds `bytes`, lets embedded images share it.
+    /// [`Scene::from_bytes`]; `file`, when it holds `bytes`, lets embedded images share it (or
+    /// stay on disk).
     fn parse(
         path: &Path,
         bytes: &[u8],
-        file: Option<&std::sync::Arc<Vec<u8>>>,
+        file: Option<LoadedFile>,
         options: &LoadOptions,
     ) -> Result<Scene, LoadError> {
         if bytes.is_empty() {

@@ -112,6 +112,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
                     mime_type: None,
                     path: Some(resolved),
                     bytes: None,
+                    in_file: None,
                 };
                 let checked = match &source.path {
                     Some(path) if !path.is_file() => {
