@@ -19,7 +19,7 @@ use rayon::prelude::*;
 use std::time::{Duration, Instant};
 
 /// Ray coherence of a workload.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RayKind {
     /// Camera rays in scanline order; closest hit.
     Primary,

@@ -1,9 +1,57 @@
 //! Command-line definitions (clap). Parsing only: the commands run in [`crate::app`].
 
 use crate::accel::{AccelKind, BvhPreset};
+use crate::bench::RayKind;
+use crate::integrator::IntegratorKind;
+use crate::shading::ShadingModel;
+use clap::builder::PossibleValue;
 use clap::{Args, Parser, Subcommand};
 use glam::Vec3;
 use std::path::PathBuf;
+
+/// Implements `clap::ValueEnum` for a library enum here, so that the library's types need no
+/// clap: each variant with its name on the command line and its help line.
+macro_rules! value_enum {
+    ($type:ty { $($variant:ident => $name:literal: $help:literal,)* }) => {
+        impl clap::ValueEnum for $type {
+            fn value_variants<'a>() -> &'a [Self] {
+                &[$(<$type>::$variant),*]
+            }
+            fn to_possible_value(&self) -> Option<PossibleValue> {
+                Some(match self {
+                    $(<$type>::$variant => PossibleValue::new($name).help($help),)*
+                })
+            }
+        }
+    };
+}
+
+value_enum!(AccelKind {
+    Bvh => "bvh": "obvhs compressed wide BVH (CWBVH, eight-way)",
+    Linear => "linear": "Test every triangle (the reference and benchmark baseline)",
+});
+value_enum!(BvhPreset {
+    Auto => "auto": "Chosen by the work at hand: `very-fast` for few rays per triangle, `medium` otherwise",
+    Fastest => "fastest": "`BvhBuildParams::fastest_build`",
+    VeryFast => "very-fast": "`BvhBuildParams::very_fast_build`",
+    Fast => "fast": "`BvhBuildParams::fast_build`",
+    Medium => "medium": "`BvhBuildParams::medium_build`",
+    Slow => "slow": "`BvhBuildParams::slow_build` (spatial pre-splits)",
+    VerySlow => "very-slow": "`BvhBuildParams::very_slow_build`",
+});
+value_enum!(ShadingModel {
+    Pbr => "pbr": "The glTF 2.0 metallic-roughness BRDF (Appendix B)",
+    Phong => "phong": "Blinn-Phong, the classic reference",
+});
+value_enum!(IntegratorKind {
+    Direct => "direct": "Punctual lights through shadow rays, constant ambient, emission as seen; no bounces",
+    Path => "path": "Path tracing: area lights, the environment, interreflection, MIS",
+});
+value_enum!(RayKind {
+    Primary => "primary": "Camera rays in scanline order; closest hit",
+    Shadow => "shadow": "From primary hits toward a light; any hit",
+    Diffuse => "diffuse": "From primary hits in random cosine-weighted directions; closest hit",
+});
 
 /// A CPU ray tracer for glTF 2.0 and Wavefront OBJ assets.
 #[derive(Debug, Parser)]

@@ -268,7 +268,7 @@ pub(crate) const MIN_GGX_ALPHA: f32 = 0.002;
 pub(crate) const MIN_COSINE: f32 = 1e-4;
 
 /// Which shading model the renderer uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum ShadingModel {
     /// The glTF 2.0 metallic-roughness BRDF (Appendix B).
     #[default]

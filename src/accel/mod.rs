@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use std::time::Duration;
 
 /// Which acceleration structure answers ray queries.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum AccelKind {
     /// obvhs compressed wide BVH (CWBVH, eight-way).
     #[default]
@@ -28,7 +28,7 @@ pub enum AccelKind {
 }
 
 /// obvhs build presets, from fastest build to fastest traversal, or chosen by the work.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum BvhPreset {
     /// Chosen by the work at hand ([`BvhPreset::for_work`]): `very-fast` for few rays per
     /// triangle, `medium` otherwise.

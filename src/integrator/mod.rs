@@ -47,17 +47,7 @@ pub struct RayCounts {
 }
 
 /// Which integrator renders.
-#[derive(
-    Clone,
-    Copy,
-    Debug,
-    PartialEq,
-    Eq,
-    Default,
-    clap::ValueEnum,
-    serde::Serialize,
-    serde::Deserialize,
-)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum IntegratorKind {
     /// Punctual lights through shadow rays, constant ambient, emission as seen; no bounces.
