@@ -11,6 +11,7 @@
 //! encodes the whole with the same encoder the render uses, so the bytes match.
 
 use crate::render::Region;
+use crate::view::ImageSize;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -128,15 +129,6 @@ pub fn check_crop(crop: Region, width: u32, height: u32) -> Result<Region, TileE
             crop.x, crop.y, crop.width, crop.height
         )))
     }
-}
-
-/// The size of the whole image, in a sidecar.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-pub struct ImageSize {
-    /// Columns.
-    pub width: u32,
-    /// Rows.
-    pub height: u32,
 }
 
 /// The sidecar of a tile, `OUT.tile.json`.

@@ -15,8 +15,8 @@ use std::path::Path;
 /// Version of the schema written in `meshtracer_view`.
 pub const VIEW_VERSION: u32 = 1;
 
-/// Image size.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// Image size (of a view, and of the whole image in a tile's sidecar).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ImageSize {
     /// Width in pixels.
     pub width: u32,
