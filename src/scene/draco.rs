@@ -16,7 +16,7 @@
 //! points is refused before anything is allocated for them.
 
 use super::attributes;
-use super::gltf::Buffer;
+use super::gltf_import::Buffer;
 use super::LoadLimits;
 use draco_core::{DataType as DracoType, DecodeLimits, DecoderBuffer, Mesh, MeshDecoder};
 use gltf::accessor::{DataType, Dimensions};

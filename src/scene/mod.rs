@@ -1,6 +1,6 @@
 //! The scene as plain data: a world-space triangle soup with materials, cameras and lights.
 //!
-//! Importers ([`gltf`](self::gltf) and [`obj`]) turn a file into a [`Scene`]; nothing here knows
+//! Importers ([`gltf_import`] and [`obj`]) turn a file into a [`Scene`]; nothing here knows
 //! about rays. Units are the glTF ones (glTF 2.0 §3.4): metres, radians, right-handed, +Y up.
 
 mod attributes;
@@ -8,7 +8,7 @@ mod builder;
 mod draco;
 mod error;
 pub mod extensions;
-pub mod gltf;
+pub mod gltf_import;
 pub(crate) mod ktx2;
 mod meshopt;
 mod mikktspace;
@@ -713,7 +713,7 @@ impl ImageSource {
 #[derive(Clone, Copy)]
 pub(crate) struct LoadedFile<'a> {
     pub bytes: &'a std::sync::Arc<Vec<u8>>,
-    pub deferred: Option<&'a gltf::DeferredImages>,
+    pub deferred: Option<&'a gltf_import::DeferredImages>,
 }
 
 /// Bytes shared without copying: a range of a buffer that others hold too. An image embedded
@@ -974,7 +974,7 @@ impl Scene {
         let mut file = std::fs::File::open(path).map_err(io)?;
         // A GLB's images stay on disk until the texture phase reads them.
         let (bytes, deferred) =
-            match gltf::read_glb_deferring_images(&mut file, meta.len()).map_err(io)? {
+            match gltf_import::read_glb_deferring_images(&mut file, meta.len()).map_err(io)? {
                 Some((bytes, deferred)) => (bytes, Some(deferred)),
                 None => {
                     // From the start again, whatever the GLB reader had read.
@@ -1080,7 +1080,9 @@ impl Scene {
         }
         let head = &bytes[..bytes.len().min(64)];
         let scene = match Format::sniff(path, head) {
-            Some(Format::Glb) | Some(Format::Gltf) => gltf::load(path, bytes, file, options)?,
+            Some(Format::Glb) | Some(Format::Gltf) => {
+                gltf_import::load(path, bytes, file, options)?
+            }
             Some(Format::Obj) => obj::load(path, bytes, options)?,
             None => return Err(LoadError::new(path, LoadErrorKind::UnknownFormat)),
         };

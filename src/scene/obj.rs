@@ -95,55 +95,57 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     let mut images: Vec<ImageSource> = Vec::new();
     let mut image_index: HashMap<String, usize> = HashMap::new();
     let mut unusable = Vec::new();
-    let mut texture = |what: &str,
-                       name: &Option<String>|
-     -> Result<Option<TextureRef>, LoadError> {
-        let Some(name) = name.as_deref().map(str::trim).filter(|n| !n.is_empty()) else {
-            return Ok(None);
-        };
-        // MTL texture statements may carry options ("-bm 1.0 file.png"): the file is last.
-        let file = name.split_whitespace().last().unwrap_or(name);
-        let index = match image_index.get(file) {
-            Some(&i) => i,
-            None => {
-                let resolved = access.resolve(what, file)?;
-                let source = ImageSource {
-                    origin: file.to_string(),
-                    mime_type: None,
-                    path: Some(resolved),
-                    bytes: None,
-                    in_file: None,
-                };
-                let checked = match &source.path {
-                    Some(path) if !path.is_file() => {
-                        Err(format!("{what} texture '{}' not found", path.display()))
-                    }
-                    _ => super::gltf::check_image_header(&source, options.limits.max_image_pixels),
-                };
-                if let Err(problem) = checked {
-                    unusable.push(UnusableImage {
-                        image: images.len(),
+    let mut texture =
+        |what: &str, name: &Option<String>| -> Result<Option<TextureRef>, LoadError> {
+            let Some(name) = name.as_deref().map(str::trim).filter(|n| !n.is_empty()) else {
+                return Ok(None);
+            };
+            // MTL texture statements may carry options ("-bm 1.0 file.png"): the file is last.
+            let file = name.split_whitespace().last().unwrap_or(name);
+            let index = match image_index.get(file) {
+                Some(&i) => i,
+                None => {
+                    let resolved = access.resolve(what, file)?;
+                    let source = ImageSource {
                         origin: file.to_string(),
-                        problem,
+                        mime_type: None,
+                        path: Some(resolved),
+                        bytes: None,
+                        in_file: None,
+                    };
+                    let checked = match &source.path {
+                        Some(path) if !path.is_file() => {
+                            Err(format!("{what} texture '{}' not found", path.display()))
+                        }
+                        _ => super::gltf_import::check_image_header(
+                            &source,
+                            options.limits.max_image_pixels,
+                        ),
+                    };
+                    if let Err(problem) = checked {
+                        unusable.push(UnusableImage {
+                            image: images.len(),
+                            origin: file.to_string(),
+                            problem,
+                        });
+                    }
+                    images.push(source);
+                    textures.push(Texture {
+                        name: Some(file.to_string()),
+                        image: images.len() - 1,
+                        fallback_image: None,
+                        sampler: Sampler::default(),
                     });
+                    image_index.insert(file.to_string(), textures.len() - 1);
+                    textures.len() - 1
                 }
-                images.push(source);
-                textures.push(Texture {
-                    name: Some(file.to_string()),
-                    image: images.len() - 1,
-                    fallback_image: None,
-                    sampler: Sampler::default(),
-                });
-                image_index.insert(file.to_string(), textures.len() - 1);
-                textures.len() - 1
-            }
+            };
+            Ok(Some(TextureRef {
+                texture: index,
+                tex_coord: 0,
+                transform: None,
+            }))
         };
-        Ok(Some(TextureRef {
-            texture: index,
-            tex_coord: 0,
-            transform: None,
-        }))
-    };
     let mut materials = Vec::with_capacity(mtl_materials.len() + 1);
     for m in &mtl_materials {
         let mut mat = mtl_material(m);

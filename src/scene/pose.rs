@@ -20,7 +20,7 @@
 //!   an animation's `weights` channel.
 
 use super::attributes;
-use super::gltf::Buffer;
+use super::gltf_import::Buffer;
 use glam::{Mat3, Mat4, Quat, Vec3, Vec4};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::animation::{Interpolation, Property};
