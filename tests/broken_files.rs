@@ -1081,6 +1081,21 @@ fn the_valid_bases_load() {
             .collect::<Vec<_>>()
     };
     assert_eq!(triangles(&meshopt), triangles(&plain));
+    // Also when the views decode into the buffer that holds the compressed bytes (after them).
+    let (mut json, mut bin) = meshopt_base();
+    let at = bin.len().next_multiple_of(4);
+    bin.resize(at + 44, 0);
+    json["buffers"] = json!([{"byteLength": bin.len(), "uri": "tri.bin"}]);
+    for (view, offset) in [(0, at), (1, at + 36)] {
+        json["bufferViews"][view]["buffer"] = json!(0);
+        json["bufferViews"][view]["byteOffset"] = json!(offset);
+    }
+    write_case(
+        dir.path(),
+        &gltf_case("meshopt in place", json, bin, |_| true),
+    );
+    let in_place = Scene::load(dir.path().join("model.gltf")).unwrap();
+    assert_eq!(triangles(&in_place), triangles(&plain));
     // So does the Draco-compressed one (its corners are exact under 11-bit quantization).
     let (json, bin) = draco_base();
     write_case(dir.path(), &gltf_case("draco", json, bin, |_| true));

@@ -109,25 +109,39 @@ fn parse(name: &str, ext: &Value) -> Result<Compressed, String> {
 }
 
 /// Decodes one compressed stream to `count` × `stride` bytes, under `limits`.
+#[cfg(test)]
 fn decode(c: &Compressed, source: &[u8], limits: Limits) -> Result<Vec<u8>, String> {
+    let mut data = vec![0; c.count.checked_mul(c.stride).ok_or("size overflows")?];
+    decode_into(c, source, &mut data, limits)?;
+    Ok(data)
+}
+
+/// Decodes one compressed stream into `target` (`count` × `stride` bytes), under `limits`:
+/// straight into the buffer it belongs in, with no buffer of its own to fill and copy.
+fn decode_into(
+    c: &Compressed,
+    source: &[u8],
+    target: &mut [u8],
+    limits: Limits,
+) -> Result<(), String> {
     let mut workspace = Workspace::new(limits);
     let ws = &mut workspace;
     let (count, stride) = (c.count, c.stride);
     let (result, what) = match c.mode {
         Mode::Attributes => (
-            codec::decode_vertex_buffer(count, stride, source, ws),
+            codec::decode_vertex_buffer_into(target, count, stride, source, ws),
             "vertex stream",
         ),
         Mode::Triangles => (
-            codec::decode_index_buffer(count, stride, source, ws),
+            codec::decode_index_buffer_into(target, count, stride, source, ws),
             "triangle stream",
         ),
         Mode::Indices => (
-            codec::decode_index_sequence(count, stride, source, ws),
+            codec::decode_index_sequence_into(target, count, stride, source, ws),
             "index sequence",
         ),
     };
-    let mut data = result.map_err(|e| {
+    result.map_err(|e| {
         format!(
             "{what} of {count} elements of {stride} bytes from {} compressed bytes: {e}",
             source.len()
@@ -135,13 +149,12 @@ fn decode(c: &Compressed, source: &[u8], limits: Limits) -> Result<Vec<u8>, Stri
     })?;
     match c.filter {
         Filter::None => Ok(()),
-        Filter::Octahedral => codec::decode_filter_oct(&mut data, count, stride, ws),
-        Filter::Quaternion => codec::decode_filter_quat(&mut data, count, stride, ws),
-        Filter::Exponential => codec::decode_filter_exp(&mut data, count, stride, ws),
-        Filter::Color => codec::decode_filter_color(&mut data, count, stride, ws),
+        Filter::Octahedral => codec::decode_filter_oct(target, count, stride, ws),
+        Filter::Quaternion => codec::decode_filter_quat(target, count, stride, ws),
+        Filter::Exponential => codec::decode_filter_exp(target, count, stride, ws),
+        Filter::Color => codec::decode_filter_color(target, count, stride, ws),
     }
-    .map_err(|e| format!("{:?} filter: {e}", c.filter))?;
-    Ok(data)
+    .map_err(|e| format!("{:?} filter: {e}", c.filter))
 }
 
 /// Decodes every compressed buffer view into its range of its (usually fallback) buffer.
@@ -186,32 +199,54 @@ pub(crate) fn decode_views(
                 view.stride().unwrap_or(0)
             )));
         }
-        let source = buffers
-            .get(c.buffer)
-            .and_then(|b| b.get(c.offset..c.offset.checked_add(c.length)?))
-            .ok_or_else(|| {
-                fail(format!(
-                    "compressed bytes {}..{} are not inside buffer {} ({} bytes)",
-                    c.offset,
-                    c.offset.saturating_add(c.length),
-                    c.buffer,
-                    buffers.get(c.buffer).map_or(0, |b| b.len())
-                ))
-            })?;
-        let decoded = decode(&c, source, limits).map_err(fail)?;
         let target_buffer = view.buffer().index();
         let start = view.offset();
-        let target = buffers
-            .get_mut(target_buffer)
+        let past_end = || {
+            fail(format!(
+                "its bytes {start}..{} are past the end of buffer {target_buffer}",
+                start.saturating_add(decoded_len)
+            ))
+        };
+        if target_buffer >= buffers.len() {
+            return Err(past_end());
+        }
+        // The target's buffer is taken out while the decoder writes into it (the compressed
+        // bytes are usually in another one); put back whatever happens.
+        let mut target = std::mem::take(&mut buffers[target_buffer]);
+        let source = if c.buffer == target_buffer {
+            // Both in one buffer: the compressed bytes are copied first.
+            target
+                .get(c.offset..c.offset.saturating_add(c.length))
+                .map(|s| std::borrow::Cow::Owned(s.to_vec()))
+        } else {
+            buffers
+                .get(c.buffer)
+                .and_then(|b| b.get(c.offset..c.offset.checked_add(c.length)?))
+                .map(std::borrow::Cow::Borrowed)
+        };
+        let result = match source {
+            None => Err(fail(format!(
+                "compressed bytes {}..{} are not inside buffer {} ({} bytes)",
+                c.offset,
+                c.offset.saturating_add(c.length),
+                c.buffer,
+                if c.buffer == target_buffer {
+                    target.len()
+                } else {
+                    buffers.get(c.buffer).map_or(0, |b| b.len())
+                }
+            ))),
             // Usually the fallback buffer; a view of a GLB's own chunk copies that chunk once.
-            .and_then(|b| b.to_mut().get_mut(start..start.checked_add(decoded.len())?))
-            .ok_or_else(|| {
-                fail(format!(
-                    "its bytes {start}..{} are past the end of buffer {target_buffer}",
-                    start.saturating_add(decoded.len())
-                ))
-            })?;
-        target.copy_from_slice(&decoded);
+            Some(source) => match target
+                .to_mut()
+                .get_mut(start..start.saturating_add(decoded_len))
+            {
+                None => Err(past_end()),
+                Some(into) => decode_into(&c, &source, into, limits).map_err(fail),
+            },
+        };
+        buffers[target_buffer] = target;
+        result?;
     }
     Ok(())
 }
