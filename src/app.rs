@@ -977,6 +977,9 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
     if args.side == 0 || args.side > 8192 {
         bail!("--side {}: must be between 1 and 8192", args.side);
     }
+    if args.sizes.is_empty() && args.models.is_empty() {
+        bail!("nothing to measure: name models, or generated sizes with --sizes");
+    }
     if let Some(&n) = args
         .sizes
         .iter()

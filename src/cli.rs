@@ -530,13 +530,10 @@ pub struct MergeArgs {
 pub struct BenchArgs {
     /// Models to measure besides the generated meshes.
     pub models: Vec<PathBuf>,
-    /// Triangle counts of the generated meshes (seeded bumpy spheres); empty for none.
-    #[arg(
-        long,
-        value_delimiter = ',',
-        default_value = "1000,10000,100000,1000000"
-    )]
-    pub sizes: Vec<usize>,
+    /// Triangle counts of the generated meshes (seeded bumpy spheres), comma-separated;
+    /// empty (`--sizes=`) for none.
+    #[arg(long, default_value = "1000,10000,100000,1000000")]
+    pub sizes: SizeList,
     /// Ray coherence: camera rays, shadow rays toward a light, or random diffuse bounces.
     #[arg(long, value_enum, default_value_t = crate::bench::RayKind::Primary)]
     pub rays: crate::bench::RayKind,
@@ -651,6 +648,35 @@ pub fn parse_vec3_or_scalar(s: &str) -> Result<Vec3, String> {
     match s.trim().parse::<f32>() {
         Ok(a) if a.is_finite() => Ok(Vec3::splat(a)),
         _ => parse_vec3(s),
+    }
+}
+
+/// A comma-separated list of counts, where the empty string is the empty list (`--sizes=`:
+/// clap would parse it as one empty value and refuse it).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SizeList(pub Vec<usize>);
+
+impl std::str::FromStr for SizeList {
+    type Err = String;
+    fn from_str(text: &str) -> Result<Self, String> {
+        if text.trim().is_empty() {
+            return Ok(SizeList(Vec::new()));
+        }
+        text.split(',')
+            .map(|part| {
+                part.trim()
+                    .parse()
+                    .map_err(|e| format!("'{part}' is not a count: {e}"))
+            })
+            .collect::<Result<_, _>>()
+            .map(SizeList)
+    }
+}
+
+impl std::ops::Deref for SizeList {
+    type Target = [usize];
+    fn deref(&self) -> &[usize] {
+        &self.0
     }
 }
 

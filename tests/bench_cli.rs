@@ -50,3 +50,33 @@ fn bench_plots_an_svg_and_refuses_other_plot_names_up_front() {
     );
     assert!(!png.exists());
 }
+
+/// `--sizes=` measures the models alone (the help's "empty for none"); with no model either
+/// there is nothing to measure, which is an error; a size that is not a count names itself.
+#[test]
+fn empty_sizes_measure_only_the_models() {
+    let quick = ["--side", "8", "--runs", "1", "--linear-budget", "0", "-q"];
+    let out = run(
+        &[
+            &["bench", "assets/cornell-box.gltf", "--sizes="][..],
+            &quick,
+        ]
+        .concat(),
+        true,
+    );
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(table.contains("| cornell-box.gltf |"), "{table}");
+    assert!(!table.contains("generated"), "{table}");
+    let nothing = run(&[&["bench", "--sizes="][..], &quick].concat(), false);
+    assert!(
+        stderr(&nothing).contains("nothing to measure"),
+        "{}",
+        stderr(&nothing)
+    );
+    let bad = run(&[&["bench", "--sizes=1000,x"][..], &quick].concat(), false);
+    assert!(
+        stderr(&bad).contains("'x' is not a count"),
+        "{}",
+        stderr(&bad)
+    );
+}
