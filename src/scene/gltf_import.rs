@@ -2212,6 +2212,53 @@ fn place_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Option<
 mod tests {
     use super::*;
 
+    /// The views `image_only_ranges` leaves unread: only an image's, and not one that any
+    /// `bufferView` key elsewhere names, however deep (a Draco primitive's here), nor one
+    /// that overlaps another view or an extension's range.
+    #[test]
+    fn only_views_nothing_else_reads_are_deferred() {
+        let r = |start: u64, end: u64| start..end;
+        let root = |extra: serde_json::Value| {
+            let mut json = serde_json::json!({
+                "buffers": [{"byteLength": 400}],
+                "bufferViews": [
+                    {"buffer": 0, "byteOffset": 0, "byteLength": 100},
+                    {"buffer": 0, "byteOffset": 100, "byteLength": 100},
+                    {"buffer": 0, "byteOffset": 200, "byteLength": 100},
+                    {"buffer": 0, "byteOffset": 300, "byteLength": 100}
+                ],
+                "images": [{"bufferView": 1}, {"bufferView": 2}, {"bufferView": 2}],
+                "accessors": [{"bufferView": 0}]
+            });
+            if let (Some(a), serde_json::Value::Object(b)) = (json.as_object_mut(), extra) {
+                a.extend(b);
+            }
+            json
+        };
+        assert_eq!(
+            image_only_ranges(&root(serde_json::json!({})), 400),
+            [r(100, 200), r(200, 300)]
+        );
+        let draco = serde_json::json!({"meshes": [{"primitives": [{"extensions":
+            {"KHR_draco_mesh_compression": {"bufferView": 2}}}]}]});
+        assert_eq!(image_only_ranges(&root(draco), 400), [r(100, 200)]);
+        let mut overlapping = root(serde_json::json!({}));
+        overlapping["bufferViews"][3]["byteOffset"] = serde_json::json!(150);
+        overlapping["bufferViews"][3]["byteLength"] = serde_json::json!(10);
+        assert_eq!(image_only_ranges(&overlapping, 400), [r(200, 300)]);
+        let mut extension = root(serde_json::json!({}));
+        extension["bufferViews"][3]["extensions"] = serde_json::json!({"EXT_meshopt_compression": {"buffer": 0, "byteOffset": 250, "byteLength": 4}});
+        assert_eq!(image_only_ranges(&extension, 400), [r(100, 200)]);
+        let mut external = root(serde_json::json!({}));
+        external["buffers"][0]["uri"] = serde_json::json!("data.bin");
+        assert!(image_only_ranges(&external, 400).is_empty());
+        // A view past the binary chunk is left to the full parse.
+        assert_eq!(
+            image_only_ranges(&root(serde_json::json!({})), 250),
+            [r(100, 200)]
+        );
+    }
+
     /// Influences come from every JOINTS_n/WEIGHTS_n set: here set 1 carries the weight of
     /// vertex 0, and vertex 1 has none at all and is placed by the node's transform.
     #[test]
