@@ -1386,19 +1386,14 @@ fn glb_images_stay_on_disk_until_the_textures_are_decoded() {
     std::fs::write(&gltf, serde_json::to_vec(&json).unwrap()).unwrap();
     let render = |model: &Path, out: &str| {
         let out = dir.path().join(out);
-        let args = [
+        let args = common::small_run(
             "render",
-            model.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--width",
-            "64",
-            "--height",
-            "48",
-            "--spp",
+            common::s(model),
+            common::s(&out),
+            ("64", "48"),
             "1",
-            "-q",
-        ];
+            &[],
+        );
         common::run(&args, true);
         std::fs::read(out).unwrap()
     };
