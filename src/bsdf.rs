@@ -64,11 +64,14 @@ pub struct Bsdf {
 /// of a material with no sheen, clearcoat, iridescence or transmission: the Fresnel ends, the
 /// diffuse term, α² and the view direction's factors of the visibility and pdf terms. With
 /// them, a light sample costs one half vector, D, one square root and the Fresnel power; the
-/// result is the same function (`core_matches_the_appendix_b_brdf` checks to 1e-5).
+/// result is the same function (`core_matches_the_appendix_b_brdf` checks both against an f64
+/// evaluation).
 #[derive(Clone, Copy, Debug)]
 struct Core {
     /// n·v floored at the BRDF's [`MIN_COSINE`], as [`gltf_brdf`]'s visibility term takes it.
     n_dot_v: f32,
+    /// n·v itself (positive), for the half vector's n·h.
+    n_dot_v_raw: f32,
     /// α² with α = max(roughness², [`MIN_GGX_ALPHA`]).
     a2: f32,
     /// √((n·v)²(1 - α²) + α²): the view's half of the height-correlated visibility term.
@@ -145,6 +148,7 @@ impl Bsdf {
             let (f0, f90) = material.fresnel_ends();
             Core {
                 n_dot_v,
+                n_dot_v_raw,
                 a2,
                 vis_v: (n_dot_v * n_dot_v * (1.0 - a2) + a2).sqrt(),
                 f0,
@@ -166,8 +170,16 @@ impl Bsdf {
     }
 
     /// f·cos and the pdf for `to_light` from the per-point constants (see [`Core`]): the same
-    /// arithmetic as [`gltf_brdf`] and [`Bsdf::pdf`], with what depends only on the view done
+    /// function as [`gltf_brdf`] and [`Bsdf::pdf`], with what depends only on the view done
     /// once.
+    ///
+    /// The half vector is never normalised: with the unnormalised k = l + v and s = k·k,
+    /// n·h = n·k / √s and v·h = v·k / √s, so GGX's d_denom = n·h²(α² - 1) + 1 is q / s with
+    /// q = s - (n·k)²(1 - α²). Then D = α²s² / (π·q²), V = 0.5 / vis_denom, and one division
+    /// w = 1 / (π·q²·vis_denom·√s) gives both D·V = 0.5·α²·s²·√s·w and v·h = v·k·π·q²·vis_denom·w.
+    /// (A normalised h cost a square root and a division more, in series, on the latency
+    /// chain of every light sample.) Both directions are above the surface here, so
+    /// n·k > 0, s ≥ (n·k)² > 0 and q ≥ α²(n·k)² > 0.
     #[inline]
     fn core_eval_pdf(&self, core: &Core, to_eye: Vec3, to_light: Vec3) -> (Vec3, f32) {
         let n = self.normal;
@@ -175,23 +187,28 @@ impl Bsdf {
         if cos <= 0.0 {
             return (Vec3::ZERO, 0.0);
         }
-        let h = (to_light + to_eye).normalize_or_zero();
-        let v_dot_h = to_eye.dot(h).max(0.0);
-        let n_dot_h = n.dot(h).max(0.0);
+        let k = to_light + to_eye;
+        let s = k.dot(k);
+        let n_dot_k = cos + core.n_dot_v_raw;
+        let v_dot_k = to_eye.dot(k);
         let a2 = core.a2;
-        let d_denom = n_dot_h * n_dot_h * (a2 - 1.0) + 1.0;
+        // q = s - (n·k)²(1 - α²) = |n × k|² + α²(n·k)²: written with the cross product it
+        // keeps its precision at GGX's peak (h near n), where the difference cancels.
+        let tangential = n.cross(k);
+        let q = tangential.dot(tangential) + a2 * n_dot_k * n_dot_k;
         let n_dot_l = cos.max(MIN_COSINE);
         let vis_denom =
             n_dot_l * core.vis_v + core.n_dot_v * (n_dot_l * n_dot_l * (1.0 - a2) + a2).sqrt();
-        // D = α²/(π·d_denom²) and V = 0.5/vis_denom from one division.
-        let r = 1.0 / (PI * d_denom * d_denom * vis_denom);
-        let d = a2 * vis_denom * r;
+        let root_s = s.sqrt();
+        let pi_q2_vis = PI * q * q * vis_denom;
+        let w = 1.0 / (pi_q2_vis * root_s);
+        let s2_root_s_w = s * s * root_s * w;
+        let v_dot_h = (v_dot_k * pi_q2_vis * w).clamp(0.0, 1.0);
         let fresnel = core.f0 + (Vec3::splat(core.f90) - core.f0) * (1.0 - v_dot_h).powi(5);
-        let f = (Vec3::ONE - fresnel) * core.diffuse + fresnel * (0.5 * a2 * r);
-        // The pdf's D is 0 where n·h ≤ 0 (gltf_brdf clamps n·h instead); with both directions
-        // above the surface n·h > 0 anyway.
-        let d_pdf = if n.dot(h) > 0.0 { d } else { 0.0 };
-        let pdf = core.specular_pdf * d_pdf + core.diffuse_pdf * cos;
+        let f = (Vec3::ONE - fresnel) * core.diffuse + fresnel * (0.5 * a2 * s2_root_s_w);
+        // D = α²·s²/(π·q²) = α²·vis_denom·s²·√s·w.
+        let d = a2 * vis_denom * s2_root_s_w;
+        let pdf = core.specular_pdf * d + core.diffuse_pdf * cos;
         (f * cos, pdf)
     }
 
@@ -494,6 +511,38 @@ mod tests {
     /// the cosine, and the two-lobe pdf) to 1e-5 relative, for metals and dielectrics from
     /// mirror-like to rough, with KHR_materials_specular's F0 and weight, over random view and
     /// light directions (grazing ones included).
+    /// The glTF Appendix B metallic-roughness BRDF times n·l for a material without layers,
+    /// in f64: the same floors (MIN_COSINE, MIN_GGX_ALPHA) as [`gltf_brdf`], a normalised half
+    /// vector, no rearrangement.
+    /// Also returns GGX's D(h), for the pdf, and its denominator n·h²(α² - 1) + 1.
+    fn appendix_b_f64(m: &SurfaceMaterial, n: Vec3, v: Vec3, l: Vec3) -> ([f64; 3], f64, f64) {
+        use glam::DVec3;
+        let (n, v, l) = (n.as_dvec3(), v.as_dvec3(), l.as_dvec3());
+        let cos = n.dot(l);
+        if cos <= 0.0 || n.dot(v) <= 0.0 {
+            return ([0.0; 3], 0.0, 1.0);
+        }
+        let h = (l + v).normalize();
+        let (n_dot_l, n_dot_v) = (
+            cos.max(f64::from(MIN_COSINE)),
+            n.dot(v).max(f64::from(MIN_COSINE)),
+        );
+        let alpha = f64::from(m.roughness * m.roughness).max(f64::from(MIN_GGX_ALPHA));
+        let a2 = alpha * alpha;
+        let n_dot_h = n.dot(h);
+        let d_denom = n_dot_h * n_dot_h * (a2 - 1.0) + 1.0;
+        let d = a2 / (std::f64::consts::PI * d_denom * d_denom);
+        let vis = 0.5
+            / (n_dot_l * (n_dot_v * n_dot_v * (1.0 - a2) + a2).sqrt()
+                + n_dot_v * (n_dot_l * n_dot_l * (1.0 - a2) + a2).sqrt());
+        let (f0, f90) = m.fresnel_ends();
+        let f0 = f0.as_dvec3();
+        let fresnel = f0 + (DVec3::splat(f64::from(f90)) - f0) * (1.0 - v.dot(h)).powi(5);
+        let c_diff = (m.base_color * (1.0 - m.metallic)).as_dvec3();
+        let f = (DVec3::ONE - fresnel) * c_diff / std::f64::consts::PI + fresnel * (d * vis);
+        ((f * cos).to_array(), d, d_denom)
+    }
+
     #[test]
     fn core_matches_the_appendix_b_brdf() {
         let mut rng = Rng::new(17);
@@ -504,6 +553,12 @@ mod tests {
             let phi = std::f32::consts::TAU * u2;
             Vec3::new(r * phi.cos(), r * phi.sin(), z)
         };
+        // Both f32 paths are held to the f64 value of the formula. Near a sharp GGX peak
+        // (roughness 0: α² = 4e-6) D = α²/(π·d_denom²) turns a rounding of a few ulp in n·h
+        // into a relative error of about 4·ε/d_denom, so that is allowed on top of 1e-5 (the
+        // core path measured at most 0.9·ε/d_denom, the general one 3.8·ε/d_denom).
+        let tolerance = |d_denom: f64, ulps: f64| 1e-5 + ulps * f64::from(f32::EPSILON) / d_denom;
+        let (mut worst_core, mut worst_general) = (0.0f64, 0.0f64);
         let mut checked = 0;
         for (base, metallic, roughness) in [
             (0.8, 0.0, 0.9),
@@ -524,15 +579,31 @@ mod tests {
                     let (f, pdf) = bsdf.eval_pdf(v, l);
                     let general = Bsdf { core: None, ..bsdf };
                     let (f_ref, pdf_ref) = (general.eval_cos(v, l), general.pdf(v, l));
-                    let close = |a: f32, b: f32| (a - b).abs() <= 1e-5 * b.abs().max(1e-3);
+                    let (exact, d, d_denom) = appendix_b_f64(&m, n, v, l);
+                    let pdf_exact = bsdf.core.map_or(0.0, |c| {
+                        f64::from(c.specular_pdf) * d
+                            + f64::from(c.diffuse_pdf) * f64::from(n.dot(l).max(0.0))
+                    });
+                    let rel = |a: f32, b: f64| (f64::from(a) - b).abs() / b.abs().max(1e-3);
+                    let core_error = (0..3)
+                        .map(|i| rel(f[i], exact[i]))
+                        .fold(rel(pdf, pdf_exact), f64::max);
+                    let general_error = (0..3)
+                        .map(|i| rel(f_ref[i], exact[i]))
+                        .fold(rel(pdf_ref, pdf_exact), f64::max);
                     assert!(
-                        (0..3).all(|i| close(f[i], f_ref[i])) && close(pdf, pdf_ref),
-                        "{m:?} n {n} v {v} l {l}: {f} {pdf} against {f_ref} {pdf_ref}"
+                        core_error <= tolerance(d_denom, 4.0)
+                            && general_error <= tolerance(d_denom, 8.0),
+                        "{m:?} n {n} v {v} l {l}: core {f} {pdf}, general {f_ref} {pdf_ref}, \
+                         f64 {exact:?} {pdf_exact}"
                     );
+                    worst_core = worst_core.max(core_error);
+                    worst_general = worst_general.max(general_error);
                     checked += usize::from(pdf_ref > 0.0);
                 }
             }
         }
+        eprintln!("worst relative error: core {worst_core:.2e}, general {worst_general:.2e}");
         assert!(checked > 2000, "{checked} directions above the surface");
     }
 
