@@ -63,9 +63,9 @@ pub struct Bsdf {
 /// What [`gltf_brdf`] and [`Bsdf::pdf`] compute again for every light direction at one point
 /// of a material with no sheen, clearcoat, iridescence or transmission: the Fresnel ends, the
 /// diffuse term, α² and the view direction's factors of the visibility and pdf terms. With
-/// them, a light sample costs one half vector, D, one square root and the Fresnel power; the
-/// result is the same function (`core_matches_the_appendix_b_brdf` checks both against an f64
-/// evaluation).
+/// them, a light sample costs an unnormalised half vector, two square roots, one division and
+/// the Fresnel power; the result is the same function (`core_matches_the_appendix_b_brdf`
+/// holds both against an f64 evaluation).
 #[derive(Clone, Copy, Debug)]
 struct Core {
     /// n·v floored at the BRDF's [`MIN_COSINE`], as [`gltf_brdf`]'s visibility term takes it.
@@ -507,14 +507,10 @@ mod tests {
 
     use crate::shading::test_material as material;
 
-    /// The per-point constants give what the general path gives (the Appendix B BRDF times
-    /// the cosine, and the two-lobe pdf) to 1e-5 relative, for metals and dielectrics from
-    /// mirror-like to rough, with KHR_materials_specular's F0 and weight, over random view and
-    /// light directions (grazing ones included).
     /// The glTF Appendix B metallic-roughness BRDF times n·l for a material without layers,
     /// in f64: the same floors (MIN_COSINE, MIN_GGX_ALPHA) as [`gltf_brdf`], a normalised half
-    /// vector, no rearrangement.
-    /// Also returns GGX's D(h), for the pdf, and its denominator n·h²(α² - 1) + 1.
+    /// vector, no rearrangement. Also returns GGX's D(h), for the pdf, and its denominator
+    /// n·h²(α² - 1) + 1.
     fn appendix_b_f64(m: &SurfaceMaterial, n: Vec3, v: Vec3, l: Vec3) -> ([f64; 3], f64, f64) {
         use glam::DVec3;
         let (n, v, l) = (n.as_dvec3(), v.as_dvec3(), l.as_dvec3());
@@ -543,6 +539,11 @@ mod tests {
         ((f * cos).to_array(), d, d_denom)
     }
 
+    /// The per-point constants and the general path both give the Appendix B BRDF times the
+    /// cosine, and the two-lobe pdf, as an f64 evaluation does: to 1e-5 relative plus the
+    /// rounding that GGX's peak amplifies (below), for metals and dielectrics from mirror-like
+    /// to rough, with KHR_materials_specular's F0 and weight, over random view and light
+    /// directions (grazing ones included).
     #[test]
     fn core_matches_the_appendix_b_brdf() {
         let mut rng = Rng::new(17);
