@@ -81,6 +81,7 @@ impl Surface<'_> {
     /// neighbours block a ray the smooth surface would let through. Elsewhere the lift would
     /// only move the origin off the real geometry and thin contact shadows (it cost the
     /// Avocado's seed its shadow). The same idea as Cycles' "shadow terminator geometry offset".
+    #[inline]
     pub fn shadow_ray(&self, to_light: Vec3, distance: f32) -> Option<Ray> {
         if to_light.dot(self.smooth) <= 0.0 || to_light.dot(self.normal) <= 0.0 {
             return None;
@@ -88,17 +89,25 @@ impl Surface<'_> {
         let toward = to_light.dot(self.geometric);
         let amount = (1.0 - toward / TERMINATOR_BAND).clamp(0.0, 1.0);
         if amount > 0.0 {
-            let (vertices, normals) = self.corners;
-            let lift = terminator_lift(self.spawn.point, vertices, normals, self.barycentric);
-            Some(self.spawn.moved(lift * amount).ray(to_light, distance))
+            Some(self.lifted_ray(to_light, distance, amount))
         } else {
             // toward ≥ TERMINATOR_BAND > 0: the geometric side.
             Some(self.exit_ray(to_light, distance))
         }
     }
 
+    /// The shadow ray from the point lifted toward the smooth surface by `amount` of
+    /// [`terminator_lift`]: the grazing case of [`Surface::shadow_ray`], out of line.
+    #[inline(never)]
+    fn lifted_ray(&self, to_light: Vec3, distance: f32, amount: f32) -> Ray {
+        let (vertices, normals) = self.corners;
+        let lift = terminator_lift(self.spawn.point, vertices, normals, self.barycentric);
+        self.spawn.moved(lift * amount).ray(to_light, distance)
+    }
+
     /// The ray leaving the surface along `direction` (unit) as far as `distance`:
     /// [`SpawnPoint::ray`], with the origin computed once for the geometric side.
+    #[inline]
     pub fn ray(&self, direction: Vec3, distance: f32) -> Ray {
         if direction.dot(self.geometric) > 0.0 {
             self.exit_ray(direction, distance)
@@ -109,6 +118,7 @@ impl Surface<'_> {
 
     /// [`SpawnPoint::ray`] from [`Surface::exit`]; `direction` must point to the geometric
     /// side.
+    #[inline]
     fn exit_ray(&self, direction: Vec3, distance: f32) -> Ray {
         Ray::new(self.exit, direction, 0.0, spawn::ray_extent(distance))
     }
