@@ -101,10 +101,6 @@ pub struct Distribution1D {
 /// Most entries of a guide table (4 MB): beyond it the search covers a few bins per slot.
 const MAX_GUIDE: usize = 1 << 20;
 
-/// Guide-slot spans up to this many cdf entries are counted, not searched
-/// ([`Distribution1D::sample_index`]).
-const SHORT_SPAN: usize = 8;
-
 impl Distribution1D {
     /// A distribution proportional to `weights` (negative and non-finite weights count as 0).
     /// With no positive weight it is uniform.
@@ -203,15 +199,7 @@ impl Distribution1D {
             let slots = self.guide.len() - 1;
             let k = (u * slots as f32) as usize;
             let (lo, hi) = (self.guide[k] as usize, self.guide[k + 1] as usize);
-            let span = &self.cdf[lo..hi];
-            if span.len() <= SHORT_SPAN {
-                // A few entries (a guide slot usually spans one or two): counted without
-                // branches, the same count as the binary search (the cdf is sorted), whose
-                // branches on a random u mispredicted about once a draw.
-                lo + span.iter().map(|c| usize::from(below(c))).sum::<usize>()
-            } else {
-                lo + span.partition_point(below)
-            }
+            lo + self.cdf[lo..hi].partition_point(below)
         } else {
             self.cdf.partition_point(below)
         };

@@ -129,12 +129,26 @@ impl SpawnPoint {
     pub fn origin(&self, direction: Vec3) -> Vec3 {
         // Never zero: a coordinate that is exact (all three vertices at z = 0, say) still
         // moves one float off the plane.
-        let (normal, error) = (Vec3A::from(self.normal), Vec3A::from(self.error));
-        let distance = normal.abs().dot(error).max(f32::MIN_POSITIVE);
-        // The side as a selected sign, not a branch (it is random from vertex to vertex).
-        let toward = Vec3A::from(direction).dot(normal);
-        let offset = normal * if toward < 0.0 { -distance } else { distance };
-        step_away(Vec3A::from(self.point) + offset, offset)
+        let distance = self.normal.abs().dot(self.error).max(f32::MIN_POSITIVE);
+        let mut offset = self.normal * distance;
+        if direction.dot(self.normal) < 0.0 {
+            offset = -offset;
+        }
+        let moved = self.point + offset;
+        let away = |p: f32, o: f32| {
+            if o > 0.0 {
+                p.next_up()
+            } else if o < 0.0 {
+                p.next_down()
+            } else {
+                p
+            }
+        };
+        Vec3::new(
+            away(moved.x, offset.x),
+            away(moved.y, offset.y),
+            away(moved.z, offset.z),
+        )
     }
 
     /// A ray leaving the surface along `direction` (unit length), as far as `distance` (the
@@ -142,72 +156,6 @@ impl SpawnPoint {
     /// stopping [`SHADOW_EPSILON`] of it short of the end.
     pub fn ray(&self, direction: Vec3, distance: f32) -> Ray {
         Ray::new(self.origin(direction), direction, 0.0, ray_extent(distance))
-    }
-}
-
-/// `p.next_up()` where `o` is positive, `p.next_down()` where it is negative, `p` where it is
-/// zero, per coordinate: the last step of [`SpawnPoint::origin`]. The signs of the offset and
-/// of the point change at random from one path vertex to the next, and the branches of the
-/// plain version (and of `next_up` itself, on the sign of `p`) mispredicted about once a
-/// call. For finite, nonzero coordinates the step is one more or one less in the bit pattern
-/// (away from zero or toward it), which SSE2 (part of every x86-64) does for the three lanes
-/// at once without a branch; zeros, infinities and NaN, and other targets, take the plain
-/// version.
-#[inline]
-fn step_away(p: Vec3A, o: Vec3A) -> Vec3 {
-    #[cfg(target_arch = "x86_64")]
-    if let Some(stepped) = step_away_sse2(p, o) {
-        return stepped.into();
-    }
-    Vec3::new(
-        step_away_plain(p.x, o.x),
-        step_away_plain(p.y, o.y),
-        step_away_plain(p.z, o.z),
-    )
-}
-
-/// [`step_away`] in SSE2 lanes; `None` where a coordinate that moves is zero or not finite.
-#[cfg(target_arch = "x86_64")]
-#[inline]
-fn step_away_sse2(p: Vec3A, o: Vec3A) -> Option<Vec3A> {
-    use std::arch::x86_64::*;
-    let (p, o): (__m128, __m128) = (p.into(), o.into());
-    // SAFETY: SSE2 is part of the x86-64 baseline, so these intrinsics are always available;
-    // they only compute on registers.
-    unsafe {
-        let bits = _mm_castps_si128(p);
-        let up = _mm_castps_si128(_mm_cmpgt_ps(o, _mm_setzero_ps()));
-        let down = _mm_castps_si128(_mm_cmplt_ps(o, _mm_setzero_ps()));
-        let moving = _mm_or_si128(up, down);
-        // Away from zero: up from a positive coordinate, down from a negative one.
-        let negative = _mm_srai_epi32::<31>(bits);
-        let outward = _mm_or_si128(
-            _mm_andnot_si128(negative, up),
-            _mm_and_si128(negative, down),
-        );
-        // +1 outward, -1 inward, 0 where the coordinate does not move.
-        let delta = _mm_and_si128(
-            _mm_sub_epi32(_mm_and_si128(outward, _mm_set1_epi32(2)), _mm_set1_epi32(1)),
-            moving,
-        );
-        let magnitude = _mm_and_si128(bits, _mm_set1_epi32(0x7fff_ffff));
-        let special = _mm_or_si128(
-            _mm_cmpeq_epi32(magnitude, _mm_setzero_si128()),
-            _mm_cmpgt_epi32(magnitude, _mm_set1_epi32(0x7f7f_ffff)),
-        );
-        let blocked = _mm_movemask_ps(_mm_castsi128_ps(_mm_and_si128(special, moving)));
-        (blocked & 0b111 == 0).then(|| _mm_castsi128_ps(_mm_add_epi32(bits, delta)).into())
-    }
-}
-
-/// [`step_away`] for one coordinate with `next_up` and `next_down`.
-fn step_away_plain(p: f32, o: f32) -> f32 {
-    if o > 0.0 {
-        p.next_up()
-    } else if o < 0.0 {
-        p.next_down()
-    } else {
-        p
     }
 }
 
@@ -386,48 +334,5 @@ mod tests {
         let proper = [Vec3::ZERO, Vec3::X, Vec3::Y];
         assert!(SpawnPoint::on_triangle(proper, Vec3::ZERO).is_none());
         assert!(SpawnPoint::on_triangle(proper, Vec3::splat(f32::NAN)).is_none());
-    }
-    /// The branch-free step agrees bit for bit with `next_up` / `next_down`, including zeros,
-    /// subnormals, the largest floats, infinities and NaN.
-    #[test]
-    fn step_away_is_next_up_and_next_down() {
-        let reference = |p: f32, o: f32| {
-            if o > 0.0 {
-                p.next_up()
-            } else if o < 0.0 {
-                p.next_down()
-            } else {
-                p
-            }
-        };
-        let mut values = vec![
-            0.0,
-            -0.0,
-            f32::from_bits(1),
-            -f32::from_bits(1),
-            f32::MIN_POSITIVE,
-            -f32::MIN_POSITIVE,
-            1.0,
-            -1.0,
-            f32::MAX,
-            f32::MIN,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::NAN,
-        ];
-        let mut rng = Rng::new(7);
-        values.extend((0..2000).map(|_| f32::from_bits(rng.next_u64() as u32)));
-        for p in values {
-            for o in [1e-7, -1e-7, 0.0, -0.0, f32::NAN] {
-                let (got, want) = (
-                    step_away(Vec3A::splat(p), Vec3A::splat(o)).x,
-                    reference(p, o),
-                );
-                assert!(
-                    got.to_bits() == want.to_bits() || (got.is_nan() && want.is_nan()),
-                    "step_away({p:e}, {o:e}) = {got:e}, want {want:e}"
-                );
-            }
-        }
     }
 }
