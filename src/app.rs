@@ -977,6 +977,9 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
     if args.side == 0 || args.side > 8192 {
         bail!("--side {}: must be between 1 and 8192", args.side);
     }
+    if args.path_spp > 65_536 {
+        bail!("--path-spp {}: at most 65536", args.path_spp);
+    }
     if args.sizes.is_empty() && args.models.is_empty() {
         bail!("nothing to measure: name models, or generated sizes with --sizes");
     }
@@ -1009,6 +1012,7 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
         });
     }
     let mut rows = Vec::new();
+    let mut path_rows = Vec::new();
     let (mut generated_rows, mut model_rows) = (Vec::new(), Vec::new());
     let jobs: Vec<(String, Option<usize>, Option<&std::path::PathBuf>)> = args
         .sizes
@@ -1051,8 +1055,38 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
             model_rows.push(row.clone());
         }
         rows.push(row);
+        if args.path_spp > 0 && !stop.load(Ordering::SeqCst) {
+            if !args.quiet {
+                eprintln!(
+                    "      path tracer against the BVH, {} alternating rounds...",
+                    options.runs
+                );
+            }
+            let settings = bench_path_settings(&scene, args.path_size, args.path_spp);
+            let prepare = crate::prepare::PrepareOptions {
+                bvh_preset: args.bvh_preset,
+                ..Default::default()
+            };
+            let row = pool.install(|| -> Result<crate::bench::PathRow> {
+                let mut warnings = Vec::new();
+                let prepared = crate::prepare::Prepared::new(scene, &prepare, &mut warnings)
+                    .with_context(|| format!("{name}: textures"))?;
+                Ok(crate::bench::path_versus_bvh(
+                    &prepared,
+                    &settings,
+                    name,
+                    args.side,
+                    options.runs,
+                )?)
+            })?;
+            path_rows.push(row);
+        }
     }
-    let table = markdown_table(&rows);
+    let mut table = markdown_table(&rows);
+    if !path_rows.is_empty() {
+        table.push('\n');
+        table.push_str(&crate::bench::path_table(&path_rows));
+    }
     out!("{table}");
     let partial = (rows.len() < jobs.len()).then(|| {
         format!(
@@ -1085,6 +1119,25 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
         Some(p) => Err(Interrupted(format!("{p} reported")).into()),
         None => Ok(()),
     }
+}
+
+/// What `bench --path-spp` renders: `scene`'s default view at `size` with the path tracer
+/// and `spp` samples, lit as `render --integrator path` lights it (the file's lights, else the
+/// built-in studio environment and no light rig).
+fn bench_path_settings(
+    scene: &crate::scene::Scene,
+    (width, height): (u32, u32),
+    spp: u32,
+) -> RenderSettings {
+    let mut settings = crate::setup::default_settings(scene, width, height);
+    settings.integrator = crate::integrator::IntegratorKind::Path;
+    settings.spp = spp;
+    if scene.lights.is_empty() {
+        settings.lights = Vec::new();
+        settings.ambient = glam::Vec3::ZERO;
+        settings.environment = Some(Arc::new(Environment::studio()));
+    }
+    settings
 }
 
 /// The user stopped a command with Ctrl-C after it reported what it had finished: exit 130,

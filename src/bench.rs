@@ -416,6 +416,105 @@ pub fn markdown_table(rows: &[Row]) -> String {
     out
 }
 
+/// The path tracer against the BVH alone on one prepared scene: [`path_versus_bvh`]'s result.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PathRow {
+    /// Model name.
+    pub name: String,
+    /// The render measured: width, height, samples per pixel.
+    pub render: (u32, u32, u32),
+    /// The path tracer's rays (camera, shadow and bounce) per second, in millions, each round.
+    pub path_mrays: Vec<f64>,
+    /// The BVH's closest hits of diffuse rays per second, in millions, each round.
+    pub bvh_mrays: Vec<f64>,
+}
+
+impl PathRow {
+    /// The path tracer's throughput over the BVH's, each round.
+    pub fn ratios(&self) -> Vec<f64> {
+        self.path_mrays
+            .iter()
+            .zip(&self.bvh_mrays)
+            .map(|(p, b)| p / b)
+            .collect()
+    }
+}
+
+/// The median of `v` (the upper one of an even count); 0 for none.
+fn median_f64(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    v.get(v.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Measures the path tracer's rays per second (`settings`, which should name the path
+/// integrator) and the BVH's own throughput on diffuse rays (`side`² camera rays, a
+/// cosine-distributed bounce from each hit, as [`RayKind::Diffuse`]) in the same structure,
+/// alternating the two `runs` times: a host whose speed drifts (other work, clock changes)
+/// then slows both alike, so the ratio of each round is steadier than that of two separate
+/// measurements. Every BVH run is checked against the first.
+pub fn path_versus_bvh(
+    scene: &crate::prepare::Prepared,
+    settings: &crate::render::RenderSettings,
+    name: &str,
+    side: u32,
+    runs: usize,
+) -> Result<PathRow, Mismatch> {
+    let rays = make_rays(&scene.scene, &scene.accel, RayKind::Diffuse, side, 7);
+    let expected = trace(&scene.accel, &rays, RayKind::Diffuse);
+    let cancel = std::sync::atomic::AtomicBool::new(false);
+    let (mut path_mrays, mut bvh_mrays) = (Vec::new(), Vec::new());
+    for _ in 0..runs.max(1) {
+        let start = Instant::now();
+        let got = trace(&scene.accel, &rays, RayKind::Diffuse);
+        let time = start.elapsed().as_secs_f64();
+        if got != expected {
+            return Err(Mismatch(name.into(), got, expected));
+        }
+        bvh_mrays.push(rays.len() as f64 / time.max(1e-9) / 1e6);
+        // Never cancelled: the flag is only read.
+        let stats = match crate::render::render(scene, settings, &cancel, &|_, _| {}) {
+            Ok((_, stats, _)) => stats,
+            Err(_) => unreachable!("the flag is never set"),
+        };
+        path_mrays.push(stats.rays() as f64 / stats.time.as_secs_f64().max(1e-9) / 1e6);
+    }
+    Ok(PathRow {
+        name: name.into(),
+        render: (
+            settings.view.width,
+            settings.view.height,
+            settings.spp.max(1),
+        ),
+        path_mrays,
+        bvh_mrays,
+    })
+}
+
+/// [`PathRow`]s as a Markdown table: medians, and the range of the rounds' ratios.
+pub fn path_table(rows: &[PathRow]) -> String {
+    let mut out = String::from(
+        "| scene | render | path tracer Mrays/s | BVH alone, diffuse, Mrays/s | ratio (median of rounds) | ratio range |\n|---|---|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        let ratios = r.ratios();
+        let (lo, hi) = ratios.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &x| {
+            (lo.min(x), hi.max(x))
+        });
+        let (w, h, spp) = r.render;
+        out.push_str(&format!(
+            "| {} | {w}x{h}, {spp} spp | {:.2} | {:.2} | {:.0}% | {:.0}-{:.0}% |\n",
+            r.name,
+            median_f64(&r.path_mrays),
+            median_f64(&r.bvh_mrays),
+            100.0 * median_f64(&ratios),
+            100.0 * lo,
+            100.0 * hi,
+        ));
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -513,6 +612,22 @@ mod tests {
                 "ploc",
                 "wide bvh conversion"
             ]
+        );
+    }
+    /// The path table gives the medians of the rounds and the range of their ratios.
+    #[test]
+    fn path_table_gives_medians_and_the_ratio_range() {
+        let row = PathRow {
+            name: "box".into(),
+            render: (64, 48, 2),
+            path_mrays: vec![4.0, 5.0, 6.0],
+            bvh_mrays: vec![10.0, 10.0, 8.0],
+        };
+        assert_eq!(row.ratios(), vec![0.4, 0.5, 0.75]);
+        let table = path_table(&[row]);
+        assert!(
+            table.contains("| box | 64x48, 2 spp | 5.00 | 10.00 | 50% | 40-75% |"),
+            "{table}"
         );
     }
 }

@@ -560,12 +560,38 @@ pub struct BenchArgs {
     /// meshes as lines, the models as markers.
     #[arg(long, value_name = "FILE")]
     pub plot: Option<PathBuf>,
+    /// Also measure the path tracer on every scene: render its default view at this many
+    /// samples per pixel with `--integrator path` (lit as `render` lights it: the file's
+    /// lights, else the built-in studio), alternating `--runs` times with the BVH alone on
+    /// diffuse rays in the same tree, and report both throughputs and their ratio (the rest
+    /// of the path tracer's time is shading). 0 = off.
+    #[arg(long, default_value_t = 0, value_name = "SPP")]
+    pub path_spp: u32,
+    /// The path tracer's image size for --path-spp.
+    #[arg(long, default_value = "512x384", value_name = "WIDTHxHEIGHT", value_parser = parse_size)]
+    pub path_size: (u32, u32),
     /// No progress lines.
     #[arg(short, long)]
     pub quiet: bool,
     /// Loading options.
     #[command(flatten)]
     pub load: LoadArgs,
+}
+
+/// An image size `WIDTHxHEIGHT`, each side 1 to 16384.
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("{s:?}: expected WIDTHxHEIGHT, e.g. 512x384, each side 1 to 16384");
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    let side = |t: &str| {
+        t.trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|v| (1..=16384).contains(v))
+    };
+    match (side(w), side(h)) {
+        (Some(w), Some(h)) => Ok((w, h)),
+        _ => Err(bad()),
+    }
 }
 
 /// `meshtracer compare`.
@@ -697,6 +723,15 @@ mod tests {
     fn cli_definition_is_consistent() {
         use clap::CommandFactory;
         Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn sizes_parse_as_width_by_height() {
+        assert_eq!(parse_size("512x384"), Ok((512, 384)));
+        assert_eq!(parse_size("64X48"), Ok((64, 48)));
+        for bad in ["512", "0x10", "10x0", "x", "20000x10", "-1x5", "axb"] {
+            assert!(parse_size(bad).is_err(), "{bad}");
+        }
     }
 }
 

@@ -80,3 +80,57 @@ fn empty_sizes_measure_only_the_models() {
         stderr(&bad)
     );
 }
+
+/// `--path-spp` renders each model with the path tracer in alternation with the BVH's diffuse
+/// rays and reports both and their ratio, with the render it measured; the figures are
+/// throughputs of real work (positive, finite), not timings to compare with a bound. A bad
+/// `--path-size` is refused, naming itself.
+#[test]
+fn bench_sets_the_path_tracer_against_the_bvh() {
+    let quick = ["--side", "16", "--runs", "2", "--linear-budget", "0", "-q"];
+    let path = ["--path-spp", "1", "--path-size", "40x30"];
+    let out = run(
+        &[
+            &[
+                "bench",
+                "assets/cornell-box.gltf",
+                "--sizes=",
+                "--rays",
+                "diffuse",
+            ][..],
+            &quick,
+            &path,
+        ]
+        .concat(),
+        true,
+    );
+    let table = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        table.contains("| scene | render | path tracer Mrays/s | BVH alone, diffuse, Mrays/s |"),
+        "{table}"
+    );
+    let row = table
+        .lines()
+        .find(|l| l.starts_with("| cornell-box.gltf | 40x30, 1 spp |"))
+        .unwrap_or_else(|| panic!("no path row: {table}"));
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    let figure = |i: usize| -> f64 { cells[i].trim_end_matches('%').parse().unwrap() };
+    for i in [3, 4, 5] {
+        assert!(figure(i).is_finite() && figure(i) > 0.0, "{row}");
+    }
+
+    let bad = run(
+        &[
+            &["bench", "assets/cornell-box.gltf", "--sizes="][..],
+            &quick,
+            &["--path-spp", "1", "--path-size", "0x30"],
+        ]
+        .concat(),
+        false,
+    );
+    assert!(
+        stderr(&bad).contains("--path-size") && stderr(&bad).contains("WIDTHxHEIGHT"),
+        "{}",
+        stderr(&bad)
+    );
+}
