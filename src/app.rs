@@ -977,8 +977,11 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
     if args.side == 0 || args.side > 8192 {
         bail!("--side {}: must be between 1 and 8192", args.side);
     }
-    if args.path_spp > 65_536 {
-        bail!("--path-spp {}: at most 65536", args.path_spp);
+    if args.path_spp > 4096 {
+        bail!(
+            "--path-spp {}: at most 4096 (render's --max-spp default)",
+            args.path_spp
+        );
     }
     if args.sizes.is_empty() && args.models.is_empty() {
         bail!("nothing to measure: name models, or generated sizes with --sizes");
@@ -1071,6 +1074,11 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
                 let mut warnings = Vec::new();
                 let prepared = crate::prepare::Prepared::new(scene, &prepare, &mut warnings)
                     .with_context(|| format!("{name}: textures"))?;
+                if !args.quiet {
+                    for w in &warnings {
+                        eprintln!("warning: {name}: {w}");
+                    }
+                }
                 Ok(crate::bench::path_versus_bvh(
                     &prepared,
                     &settings,

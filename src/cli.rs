@@ -578,15 +578,16 @@ pub struct BenchArgs {
     pub load: LoadArgs,
 }
 
-/// An image size `WIDTHxHEIGHT`, each side 1 to 16384.
+/// An image size `WIDTHxHEIGHT`, each side 1 to 8192 (at most the 8192² pixels `render`
+/// accepts by default).
 pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let bad = || format!("{s:?}: expected WIDTHxHEIGHT, e.g. 512x384, each side 1 to 16384");
+    let bad = || format!("{s:?}: expected WIDTHxHEIGHT, e.g. 512x384, each side 1 to 8192");
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
     let side = |t: &str| {
         t.trim()
             .parse::<u32>()
             .ok()
-            .filter(|v| (1..=16384).contains(v))
+            .filter(|v| (1..=8192).contains(v))
     };
     match (side(w), side(h)) {
         (Some(w), Some(h)) => Ok((w, h)),
@@ -729,7 +730,7 @@ mod tests {
     fn sizes_parse_as_width_by_height() {
         assert_eq!(parse_size("512x384"), Ok((512, 384)));
         assert_eq!(parse_size("64X48"), Ok((64, 48)));
-        for bad in ["512", "0x10", "10x0", "x", "20000x10", "-1x5", "axb"] {
+        for bad in ["512", "0x10", "10x0", "x", "8193x10", "-1x5", "axb"] {
             assert!(parse_size(bad).is_err(), "{bad}");
         }
     }
