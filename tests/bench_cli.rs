@@ -84,7 +84,7 @@ fn empty_sizes_measure_only_the_models() {
 /// `--path-spp` renders each model with the path tracer in alternation with the BVH's diffuse
 /// rays and reports both and their ratio, with the render it measured; the figures are
 /// throughputs of real work (positive, finite), not timings to compare with a bound. A bad
-/// `--path-size` is refused, naming itself.
+/// `--path-size` or too many samples are refused, naming the flag.
 #[test]
 fn bench_sets_the_path_tracer_against_the_bvh() {
     let quick = ["--side", "16", "--runs", "2", "--linear-budget", "0", "-q"];
@@ -133,4 +133,20 @@ fn bench_sets_the_path_tracer_against_the_bvh() {
         "{}",
         stderr(&bad)
     );
+    // More samples than render accepts is refused before anything is measured.
+    let greedy = run(
+        &[
+            &["bench", "assets/cornell-box.gltf", "--sizes="][..],
+            &quick[..6],
+            &["--path-spp", "5000"],
+        ]
+        .concat(),
+        false,
+    );
+    let err = stderr(&greedy);
+    assert!(
+        err.contains("--path-spp 5000") && err.contains("4096"),
+        "{err}"
+    );
+    assert!(!err.contains("building and tracing"), "{err}");
 }
