@@ -430,11 +430,13 @@ pub struct PathRow {
 }
 
 impl PathRow {
-    /// The path tracer's throughput over the BVH's, each round.
+    /// The path tracer's throughput over the BVH's, each round (none for rounds where the
+    /// BVH traced nothing: a scene no camera ray hits has no diffuse rays).
     pub fn ratios(&self) -> Vec<f64> {
         self.path_mrays
             .iter()
             .zip(&self.bvh_mrays)
+            .filter(|(_, b)| **b > 0.0)
             .map(|(p, b)| p / b)
             .collect()
     }
@@ -502,14 +504,19 @@ pub fn path_table(rows: &[PathRow]) -> String {
             (lo.min(x), hi.max(x))
         });
         let (w, h, spp) = r.render;
+        let (ratio, range) = if ratios.is_empty() {
+            ("-".to_string(), "-".to_string())
+        } else {
+            (
+                format!("{:.0}%", 100.0 * median_f64(&ratios)),
+                format!("{:.0}-{:.0}%", 100.0 * lo, 100.0 * hi),
+            )
+        };
         out.push_str(&format!(
-            "| {} | {w}x{h}, {spp} spp | {:.2} | {:.2} | {:.0}% | {:.0}-{:.0}% |\n",
+            "| {} | {w}x{h}, {spp} spp | {:.2} | {:.2} | {ratio} | {range} |\n",
             r.name,
             median_f64(&r.path_mrays),
             median_f64(&r.bvh_mrays),
-            100.0 * median_f64(&ratios),
-            100.0 * lo,
-            100.0 * hi,
         ));
     }
     out
@@ -627,6 +634,18 @@ mod tests {
         let table = path_table(&[row]);
         assert!(
             table.contains("| box | 64x48, 2 spp | 5.00 | 10.00 | 50% | 40-75% |"),
+            "{table}"
+        );
+        // Nothing in view: no diffuse rays, so no ratio (not "inf%").
+        let empty = PathRow {
+            name: "away".into(),
+            render: (8, 8, 1),
+            path_mrays: vec![1.0],
+            bvh_mrays: vec![0.0],
+        };
+        let table = path_table(&[empty]);
+        assert!(
+            table.contains("| away | 8x8, 1 spp | 1.00 | 0.00 | - | - |") && !table.contains("inf"),
             "{table}"
         );
     }
