@@ -111,6 +111,7 @@ struct Transmission {
 
 impl Bsdf {
     /// The BSDF of `material` around the unit shading normal `normal`, seen from `to_eye`.
+    #[inline(always)]
     pub fn new(material: SurfaceMaterial, normal: Vec3, to_eye: Vec3) -> Self {
         let alpha = (material.roughness * material.roughness).max(MIN_ALPHA);
         let n_dot_v = normal.dot(to_eye).clamp(0.0, 1.0);
@@ -358,6 +359,7 @@ impl Bsdf {
 
     /// Draws a direction from two uniform numbers in [0, 1) and a third choosing the lobe.
     /// `None` when the draw falls below the surface (the sample is then worth nothing).
+    #[inline(always)]
     pub fn sample(&self, to_eye: Vec3, u_lobe: f32, u1: f32, u2: f32) -> Option<BsdfSample> {
         let n = self.normal;
         if n.dot(to_eye) <= 0.0 {
@@ -373,20 +375,13 @@ impl Bsdf {
             Some(t) if t.probability < 1.0 => (u_lobe - t.probability) / (1.0 - t.probability),
             _ => u_lobe,
         };
-        let reflect = |n: Vec3, alpha: f32| {
-            let (t, b) = frame(n);
-            let local = Vec3::new(to_eye.dot(t), to_eye.dot(b), to_eye.dot(n));
-            let m = sample_visible_normal(local, alpha, u1, u2);
-            let h = t * m.x + b * m.y + n * m.z;
-            (2.0 * to_eye.dot(h) * h - to_eye).try_normalize()
-        };
         let direction = match self.material.clearcoat {
-            Some(c) if u_lobe < self.p_coat => reflect(c.normal, coat_alpha(&c))?,
+            Some(c) if u_lobe < self.p_coat => reflect(to_eye, c.normal, coat_alpha(&c), u1, u2)?,
             _ => {
                 // Reuse the lobe number within the base's lobes.
                 let u_lobe = (u_lobe - self.p_coat) / (1.0 - self.p_coat);
                 if u_lobe < self.p_specular {
-                    reflect(n, self.alpha)?
+                    reflect(to_eye, n, self.alpha, u1, u2)?
                 } else {
                     let (t, b) = frame(n);
                     let d = cosine_hemisphere(u1, u2);
@@ -472,6 +467,17 @@ impl Bsdf {
     }
 }
 
+/// `to_eye` mirrored about a GGX visible normal drawn around `n` with roughness `alpha` from
+/// (`u1`, `u2`); `None` when the result is not a direction.
+#[inline(always)]
+fn reflect(to_eye: Vec3, n: Vec3, alpha: f32, u1: f32, u2: f32) -> Option<Vec3> {
+    let (t, b) = frame(n);
+    let local = Vec3::new(to_eye.dot(t), to_eye.dot(b), to_eye.dot(n));
+    let m = sample_visible_normal(local, alpha, u1, u2);
+    let h = t * m.x + b * m.y + n * m.z;
+    (2.0 * to_eye.dot(h) * h - to_eye).try_normalize()
+}
+
 /// The clearcoat lobe's α (its roughness squared, floored as the base lobe's).
 fn coat_alpha(c: &Clearcoat) -> f32 {
     (c.roughness * c.roughness).max(MIN_ALPHA)
@@ -508,6 +514,7 @@ fn smith_g1(n_dot_v: f32, alpha: f32) -> f32 {
 
 /// A microfacet normal drawn from GGX's visible normals for view `v` (local frame, z = normal),
 /// Heitz 2018, listing 1.
+#[inline(always)]
 fn sample_visible_normal(v: Vec3, alpha: f32, u1: f32, u2: f32) -> Vec3 {
     let vh = Vec3::new(alpha * v.x, alpha * v.y, v.z).normalize_or_zero();
     let len2 = vh.x * vh.x + vh.y * vh.y;

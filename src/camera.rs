@@ -107,6 +107,7 @@ impl View {
     /// corner of the image and (width, height) the bottom-right; pixel (i, j)'s centre is at
     /// (i + 0.5, j + 0.5). Its direction is unit length and its interval is the near/far clip
     /// range measured along the view axis.
+    #[inline(always)]
     pub fn ray(&self, px: f32, py: f32) -> Ray {
         let s = px / self.width as f32 - 0.5;
         let t = 0.5 - py / self.height as f32;

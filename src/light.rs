@@ -206,7 +206,7 @@ impl AreaLights {
 
     /// A point on the lights from three uniform numbers: a light in proportion to its power,
     /// then a uniform point on it.
-    #[inline]
+    #[inline(always)]
     pub fn sample(&self, u_light: f32, u1: f32, u2: f32) -> Option<AreaSample> {
         let i = self.distribution.sample_index(u_light)?;
         let pdf_area = self.pdf_areas[i];

@@ -185,7 +185,7 @@ impl Distribution1D {
     }
 
     /// The bin [`Distribution1D::sample`] draws for `u`, without the position within it.
-    #[inline]
+    #[inline(always)]
     pub fn sample_index(&self, u: f32) -> Option<usize> {
         if self.is_empty() {
             return None;

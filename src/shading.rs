@@ -98,7 +98,7 @@ impl SurfaceMaterial {
 
     /// The specular reflectance at a microfacet: Schlick's Fresnel at `v_dot_h`, mixed with the
     /// thin film's reflectance at the view (`n_dot_v`) by the iridescence factor.
-    #[inline]
+    #[inline(always)]
     pub fn reflectance(&self, v_dot_h: f32, n_dot_v: f32) -> Vec3 {
         let schlick = self.fresnel(v_dot_h);
         match self.iridescence {

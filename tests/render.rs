@@ -487,8 +487,8 @@ fn output_is_identical_for_any_thread_count_and_run() {
     assert_eq!(one, std::fs::read(again).unwrap());
 }
 
-/// The ray queries and texture filtering run as x86-64-v3 code where the CPU has it and as
-/// baseline code otherwise (`src/cpu.rs`); `MESHTRACER_BASELINE_CPU=1` forces the baseline.
+/// The ray queries, texture filtering and the tile loop with its shading run as x86-64-v3 code
+/// where the CPU has it and as baseline code otherwise (`src/cpu.rs`); `MESHTRACER_BASELINE_CPU=1` forces the baseline.
 /// Both must give the same bytes: the bundled room and a ground plane receding under a
 /// perspective camera with a repeating noise texture (bilinear taps, wrapping, every mip level
 /// blended), in both integrators, beauty and depth.

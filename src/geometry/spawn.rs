@@ -125,7 +125,7 @@ impl SpawnPoint {
     /// The origin for a ray leaving along `direction`: off the surface on the side `direction`
     /// points to, by the error bound projected on the normal, every coordinate rounded one
     /// more float away from the surface.
-    #[inline]
+    #[inline(always)]
     pub fn origin(&self, direction: Vec3) -> Vec3 {
         // Never zero: a coordinate that is exact (all three vertices at z = 0, say) still
         // moves one float off the plane.
@@ -154,6 +154,7 @@ impl SpawnPoint {
     /// A ray leaving the surface along `direction` (unit length), as far as `distance` (the
     /// distance from the hit point to a light or another point; infinite for a direction),
     /// stopping [`SHADOW_EPSILON`] of it short of the end.
+    #[inline(always)]
     pub fn ray(&self, direction: Vec3, distance: f32) -> Ray {
         Ray::new(self.origin(direction), direction, 0.0, ray_extent(distance))
     }

@@ -31,6 +31,7 @@ pub struct Direct {
 
 impl Integrator for Direct {
     /// Radiance and coverage along a camera ray: (premultiplied colour, alpha).
+    #[inline(always)]
     fn radiance(
         &self,
         scene: &Prepared,

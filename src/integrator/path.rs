@@ -52,6 +52,7 @@ pub struct PathTracer {
 }
 
 impl Integrator for PathTracer {
+    #[inline(always)]
     fn radiance(
         &self,
         scene: &Prepared,

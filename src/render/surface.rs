@@ -295,6 +295,7 @@ impl Prepared {
     /// The surface point `hit` found along `ray`: material inputs with textures sampled at a
     /// mip level from the ray cone's width `cone` at the hit; the occlusion texture only if
     /// `occlusion` asks for it.
+    #[inline(always)]
     pub fn surface(&self, ray: &Ray, hit: &Hit, cone: f32, occlusion: Occlusion) -> Surface<'_> {
         let soup = &self.scene.soup;
         let tri = hit.triangle as usize;
