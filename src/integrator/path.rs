@@ -151,25 +151,30 @@ impl Integrator for PathTracer {
                     hit.front,
                 );
             }
+            // Next-event estimation: a shadow ray first, the BSDF only where light arrives (a
+            // blocked sample costs no evaluation). Seen from below its shading normal, the BSDF
+            // reflects nothing toward the eye ([`Bsdf::eval_pdf`] is zero for every light
+            // direction), so no light is sampled there; the random numbers are drawn all the
+            // same, so the stream stays aligned.
+            let lit = surface.normal.dot(to_eye) > 0.0;
             // Punctual lights: every one, through a shadow ray.
-            for light in &self.lights {
+            for light in self.lights.iter().filter(|_| lit) {
                 let Some(incoming) = light.incident(surface.spawn.point) else {
                     continue;
                 };
-                let f = bsdf.eval_cos(to_eye, incoming.to_light);
-                if f == Vec3::ZERO {
-                    continue;
-                }
                 let Some(shadow) = surface.shadow_ray(incoming.to_light, incoming.distance) else {
                     continue;
                 };
                 counts.shadow += 1;
                 let transmittance = scene.shadow_transmittance(&shadow);
-                radiance += throughput * f * incoming.irradiance * transmittance;
+                if transmittance > 0.0 {
+                    let f = bsdf.eval_cos(to_eye, incoming.to_light);
+                    radiance += throughput * f * incoming.irradiance * transmittance;
+                }
             }
             // One point on the emissive triangles.
             let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
-            if let Some(sample) = scene.area_lights.sample(u0, u1, u2) {
+            if let Some(sample) = lit.then(|| scene.area_lights.sample(u0, u1, u2)).flatten() {
                 let tri = sample.triangle as usize;
                 let [a, b, c] = scene.scene.soup.triangle(tri);
                 let bary = sample.barycentric;
@@ -179,13 +184,17 @@ impl Integrator for PathTracer {
                 // (A point on the light at the shading point itself is skipped below.)
                 let to_light = offset / distance.max(f32::MIN_POSITIVE);
                 let cos_light = sample.normal.dot(to_light).abs();
-                let (f, bsdf_pdf) = bsdf.eval_pdf(to_eye, to_light);
-                if distance > 0.0 && distance.is_finite() && cos_light > 0.0 && f != Vec3::ZERO {
-                    let light_pdf = sample.pdf_area * distance * distance / cos_light;
+                if distance > 0.0 && distance.is_finite() && cos_light > 0.0 {
                     if let Some(shadow) = surface.shadow_ray(to_light, distance) {
                         counts.shadow += 1;
                         let transmittance = scene.shadow_transmittance(&shadow);
-                        if transmittance > 0.0 {
+                        let (f, bsdf_pdf) = if transmittance > 0.0 {
+                            bsdf.eval_pdf(to_eye, to_light)
+                        } else {
+                            (Vec3::ZERO, 0.0)
+                        };
+                        if f != Vec3::ZERO {
+                            let light_pdf = sample.pdf_area * distance * distance / cos_light;
                             let emission = scene.emission_at(tri, bary);
                             let weight = power_heuristic(light_pdf, bsdf_pdf);
                             radiance +=
@@ -196,20 +205,24 @@ impl Integrator for PathTracer {
             }
             // One direction of the environment.
             let (u1, u2) = (rng.next_f32(), rng.next_f32());
-            if let Some(env) = &self.environment {
-                if let Some((to_light, light_radiance, light_pdf)) = env.sample(u1, u2) {
-                    let (f, bsdf_pdf) = bsdf.eval_pdf(to_eye, to_light);
+            let env_sample = self
+                .environment
+                .as_ref()
+                .filter(|_| lit)
+                .and_then(|env| env.sample(u1, u2));
+            if let Some((to_light, light_radiance, light_pdf)) = env_sample {
+                if let Some(shadow) = surface.shadow_ray(to_light, f32::INFINITY) {
+                    counts.shadow += 1;
+                    let transmittance = scene.shadow_transmittance(&shadow);
+                    let (f, bsdf_pdf) = if transmittance > 0.0 {
+                        bsdf.eval_pdf(to_eye, to_light)
+                    } else {
+                        (Vec3::ZERO, 0.0)
+                    };
                     if f != Vec3::ZERO {
-                        if let Some(shadow) = surface.shadow_ray(to_light, f32::INFINITY) {
-                            counts.shadow += 1;
-                            let transmittance = scene.shadow_transmittance(&shadow);
-                            if transmittance > 0.0 {
-                                let weight = power_heuristic(light_pdf, bsdf_pdf);
-                                radiance +=
-                                    throughput * f * light_radiance * transmittance * weight
-                                        / light_pdf;
-                            }
-                        }
+                        let weight = power_heuristic(light_pdf, bsdf_pdf);
+                        radiance +=
+                            throughput * f * light_radiance * transmittance * weight / light_pdf;
                     }
                 }
             }
