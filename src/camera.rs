@@ -4,7 +4,7 @@
 //! a camera looks down its local -Z with +Y up, so u, v, w are the node's local X, Y, Z).
 //! For a perspective camera the view rectangle lies one unit in front of the eye, with height
 //! `H = 2·tan(yfov/2)` and width `W = aspect·H`; the ray through image coordinates
-//! (s, t) ∈ [0,1]² (s to the right, t up) passes through
+//! (s, t) ∈ [0, 1]² (s to the right, t up) passes through
 //! `eye - w + (s - 1/2)·W·u + (t - 1/2)·H·v`. An orthographic camera shoots parallel rays along
 //! -w from the points `eye + (s - 1/2)·2·xmag·u + (t - 1/2)·2·ymag·v`.
 

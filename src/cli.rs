@@ -68,7 +68,7 @@ pub enum Command {
     /// Render a model to an image (.png 8-bit sRGB, .exr/.hdr linear float).
     Render(Box<RenderArgs>),
     /// Render every job of a manifest (a folder of models, or a JSONL file of jobs) into
-    /// DIR/<job id>/, recording each job in DIR/results.jsonl; --resume, --shard I/N.
+    /// DIR/JOB_ID/, recording each job in DIR/results.jsonl; --resume, --shard I/N.
     Batch(Box<BatchArgs>),
     /// Join the results.I-of-N.jsonl of every shard of a batch into DIR/results.jsonl.
     BatchMerge(BatchMergeArgs),

@@ -28,7 +28,7 @@ pub fn draw_text(img: &mut RgbImage, x: i32, y: i32, text: &str, scale: i32, col
 const LABEL_MARGIN: u32 = 6;
 
 /// Draws `label` inside the strip of `size` (width, height) pixels whose top-left corner is
-/// `origin`, vertically centred, [`LABEL_MARGIN`] from its left edge: at twice the font size
+/// `origin`, vertically centred, `LABEL_MARGIN` from its left edge: at twice the font size
 /// when it fits (and the strip is tall enough), else at the font size, cut to "..." and its
 /// end when still too long (a file name differs at its end: "-old.png", "-new.png").
 pub fn draw_label(

@@ -123,7 +123,7 @@ impl MipImage {
         MipImage { levels }
     }
 
-    /// What [`MipImage::bytes`] is for an image of `width` x `height`: every level of the
+    /// What `MipImage::bytes` is for an image of `width` x `height`: every level of the
     /// chain, down to 1x1, at 4 bytes a texel.
     pub fn chain_bytes(width: u32, height: u32) -> usize {
         let (mut w, mut h) = (width as usize, height as usize);

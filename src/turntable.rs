@@ -42,7 +42,7 @@ pub const MAX_GIF_SPEED: i32 = 10;
 const MIN_NEUQUANT_SAMPLES: u64 = 25_000;
 
 /// The NeuQuant speed for frames of `pixels` pixels: [`MAX_GIF_SPEED`] from 250,000 pixels
-/// (e.g. 512x512) up, slower below so that it learns from at least [`MIN_NEUQUANT_SAMPLES`].
+/// (e.g. 512x512) up, slower below so that it learns from at least `MIN_NEUQUANT_SAMPLES`.
 pub fn gif_speed(pixels: u64) -> i32 {
     (pixels / MIN_NEUQUANT_SAMPLES).clamp(1, MAX_GIF_SPEED as u64) as i32
 }

@@ -1,6 +1,6 @@
 //! Tangents for normal mapping where the file has none, with MikkTSpace (glTF 2.0 §3.7.2.1:
 //! "When tangents are not specified, client implementations SHOULD calculate tangents using
-//! default MikkTSpace algorithms"), with [`super::mikktspace`] (bit-identical to the
+//! default MikkTSpace algorithms"), with `super::mikktspace` (bit-identical to the
 //! `bevy_mikktspace` crate, which the tests compare it with, and about 3.5 times faster in a
 //! real load: DamagedHelmet's tangents take about 5 ms where the crate took 17-19).
 
