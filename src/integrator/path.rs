@@ -151,12 +151,45 @@ impl Integrator for PathTracer {
                     hit.front,
                 );
             }
+            // The direction to continue in, drawn from the BSDF (three numbers drawn whether or
+            // not it is used, so the stream stays aligned) before the light samples: its
+            // evaluation then overlaps their shadow rays' traversal.
+            let (u_lobe, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let continuation = bsdf.sample(to_eye, u_lobe, u1, u2);
             // Next-event estimation: a shadow ray first, the BSDF only where light arrives (a
             // blocked sample costs no evaluation). Seen from below its shading normal, the BSDF
             // reflects nothing toward the eye ([`Bsdf::eval_pdf`] is zero for every light
             // direction), so no light is sampled there; the random numbers are drawn all the
             // same, so the stream stays aligned.
             let lit = surface.normal.dot(to_eye) > 0.0;
+            // The area-light point and the environment direction are drawn before any shadow
+            // ray is traced, so their arithmetic (and the environment's table lookups) overlap
+            // the traversal of the punctual lights' shadow rays.
+            // One point on the emissive triangles:
+            let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let area_sample = lit
+                .then(|| scene.area_lights.sample(u0, u1, u2))
+                .flatten()
+                .and_then(|sample| {
+                    let tri = sample.triangle as usize;
+                    let [a, b, c] = scene.scene.soup.triangle(tri);
+                    let bary = sample.barycentric;
+                    let on_light = a * bary.x + b * bary.y + c * bary.z;
+                    let offset = on_light - surface.spawn.point;
+                    let distance = offset.length();
+                    // (A point on the light at the shading point itself is skipped.)
+                    let to_light = offset / distance.max(f32::MIN_POSITIVE);
+                    let cos_light = sample.normal.dot(to_light).abs();
+                    (distance > 0.0 && distance.is_finite() && cos_light > 0.0)
+                        .then_some((sample, tri, bary, to_light, distance, cos_light))
+                });
+            // One direction of the environment:
+            let (u1, u2) = (rng.next_f32(), rng.next_f32());
+            let env_sample = self
+                .environment
+                .as_ref()
+                .filter(|_| lit)
+                .and_then(|env| env.sample(u1, u2));
             // Punctual lights: every one, through a shadow ray.
             for light in self.lights.iter().filter(|_| lit) {
                 let Some(incoming) = light.incident(surface.spawn.point) else {
@@ -172,44 +205,25 @@ impl Integrator for PathTracer {
                     radiance += throughput * f * incoming.irradiance * transmittance;
                 }
             }
-            // One point on the emissive triangles.
-            let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
-            if let Some(sample) = lit.then(|| scene.area_lights.sample(u0, u1, u2)).flatten() {
-                let tri = sample.triangle as usize;
-                let [a, b, c] = scene.scene.soup.triangle(tri);
-                let bary = sample.barycentric;
-                let on_light = a * bary.x + b * bary.y + c * bary.z;
-                let offset = on_light - surface.spawn.point;
-                let distance = offset.length();
-                // (A point on the light at the shading point itself is skipped below.)
-                let to_light = offset / distance.max(f32::MIN_POSITIVE);
-                let cos_light = sample.normal.dot(to_light).abs();
-                if distance > 0.0 && distance.is_finite() && cos_light > 0.0 {
-                    if let Some(shadow) = surface.shadow_ray(to_light, distance) {
-                        counts.shadow += 1;
-                        let transmittance = scene.shadow_transmittance(&shadow);
-                        let (f, bsdf_pdf) = if transmittance > 0.0 {
-                            bsdf.eval_pdf(to_eye, to_light)
-                        } else {
-                            (Vec3::ZERO, 0.0)
-                        };
-                        if f != Vec3::ZERO {
-                            let light_pdf = sample.pdf_area * distance * distance / cos_light;
-                            let emission = scene.emission_at(tri, bary);
-                            let weight = power_heuristic(light_pdf, bsdf_pdf);
-                            radiance +=
-                                throughput * f * emission * transmittance * weight / light_pdf;
-                        }
+            // The point on the emissive triangles.
+            if let Some((sample, tri, bary, to_light, distance, cos_light)) = area_sample {
+                if let Some(shadow) = surface.shadow_ray(to_light, distance) {
+                    counts.shadow += 1;
+                    let transmittance = scene.shadow_transmittance(&shadow);
+                    let (f, bsdf_pdf) = if transmittance > 0.0 {
+                        bsdf.eval_pdf(to_eye, to_light)
+                    } else {
+                        (Vec3::ZERO, 0.0)
+                    };
+                    if f != Vec3::ZERO {
+                        let light_pdf = sample.pdf_area * distance * distance / cos_light;
+                        let emission = scene.emission_at(tri, bary);
+                        let weight = power_heuristic(light_pdf, bsdf_pdf);
+                        radiance += throughput * f * emission * transmittance * weight / light_pdf;
                     }
                 }
             }
-            // One direction of the environment.
-            let (u1, u2) = (rng.next_f32(), rng.next_f32());
-            let env_sample = self
-                .environment
-                .as_ref()
-                .filter(|_| lit)
-                .and_then(|env| env.sample(u1, u2));
+            // The direction of the environment.
             if let Some((to_light, light_radiance, light_pdf)) = env_sample {
                 if let Some(shadow) = surface.shadow_ray(to_light, f32::INFINITY) {
                     counts.shadow += 1;
@@ -226,10 +240,7 @@ impl Integrator for PathTracer {
                     }
                 }
             }
-            // Continue along a BSDF sample (three numbers drawn whether or not it is used, so
-            // the stream stays aligned).
-            let (u_lobe, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
-            let Some(sample) = bsdf.sample(to_eye, u_lobe, u1, u2) else {
+            let Some(sample) = continuation else {
                 break;
             };
             // A reflected ray may not leave through the geometric surface; a transmitted one
