@@ -7,7 +7,7 @@ pub mod direct;
 pub mod path;
 
 pub use direct::Direct;
-pub use path::PathTracer;
+pub use path::{Estimator, PathTracer};
 
 use crate::accel::Hit;
 use crate::geometry::Ray;

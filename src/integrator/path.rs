@@ -49,6 +49,55 @@ pub struct PathTracer {
     pub environment_visible: bool,
     /// Most surface interactions after the first hit (0 = direct light only).
     pub max_bounces: u32,
+    /// How light from emissive triangles and the environment is estimated (MIS by default;
+    /// the single strategies are there to test it against).
+    pub estimator: Estimator,
+}
+
+/// The strategies that estimate light from emissive triangles and the environment. Punctual
+/// lights are found by light sampling alone in every case (a BSDF sample never hits a point).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Estimator {
+    /// Light sampling and BSDF sampling, weighted by the power heuristic (Veach 1997).
+    #[default]
+    Mis,
+    /// Light sampling alone: emission found by BSDF-sampled rays counts nothing (camera rays
+    /// still see it).
+    LightOnly,
+    /// BSDF sampling alone: no light samples for emissive triangles or the environment; the
+    /// emission a BSDF-sampled ray finds counts in full.
+    BsdfOnly,
+}
+
+impl Estimator {
+    /// The weight of a light sample drawn with density `light_pdf` that the BSDF would have
+    /// drawn with density `bsdf_pdf` (both per steradian).
+    #[inline(always)]
+    fn light_weight(self, light_pdf: f32, bsdf_pdf: f32) -> f32 {
+        match self {
+            Estimator::Mis => power_heuristic(light_pdf, bsdf_pdf),
+            Estimator::LightOnly => 1.0,
+            Estimator::BsdfOnly => 0.0,
+        }
+    }
+
+    /// The weight of emission found by a BSDF sample drawn with density `bsdf_pdf` that light
+    /// sampling would have drawn with density `light_pdf`. A delta sample (`bsdf_pdf`
+    /// infinite: through smooth glass) is one no light sample can find, so it counts in full
+    /// whatever the strategy.
+    #[inline(always)]
+    fn bsdf_weight(self, bsdf_pdf: f32, light_pdf: f32) -> f32 {
+        match self {
+            Estimator::Mis => power_heuristic(bsdf_pdf, light_pdf),
+            Estimator::LightOnly if bsdf_pdf.is_finite() => 0.0,
+            Estimator::LightOnly | Estimator::BsdfOnly => 1.0,
+        }
+    }
+
+    /// Whether emissive triangles and the environment are light-sampled.
+    fn samples_lights(self) -> bool {
+        self != Estimator::BsdfOnly
+    }
 }
 
 impl Integrator for PathTracer {
@@ -88,7 +137,7 @@ impl Integrator for PathTracer {
                         }
                         None => {}
                         Some(pdf) => {
-                            let weight = power_heuristic(pdf, env.pdf(direction));
+                            let weight = self.estimator.bsdf_weight(pdf, env.pdf(direction));
                             radiance += throughput * env.radiance(direction) * weight;
                         }
                     }
@@ -129,7 +178,7 @@ impl Integrator for PathTracer {
                         let cos = surface.geometric.dot(direction).abs();
                         let light_pdf = scene.area_lights.pdf_area(hit.triangle) * hit.t * hit.t
                             / cos.max(1e-8);
-                        power_heuristic(pdf, light_pdf)
+                        self.estimator.bsdf_weight(pdf, light_pdf)
                     }
                 };
                 radiance += throughput * surface.emissive * weight;
@@ -167,7 +216,8 @@ impl Integrator for PathTracer {
             // the traversal of the punctual lights' shadow rays.
             // One point on the emissive triangles:
             let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
-            let area_sample = lit
+            let sample_lights = lit && self.estimator.samples_lights();
+            let area_sample = sample_lights
                 .then(|| scene.area_lights.sample(u0, u1, u2))
                 .flatten()
                 .and_then(|sample| {
@@ -188,7 +238,7 @@ impl Integrator for PathTracer {
             let env_sample = self
                 .environment
                 .as_ref()
-                .filter(|_| lit)
+                .filter(|_| sample_lights)
                 .and_then(|env| env.sample(u1, u2));
             // Punctual lights: every one, through a shadow ray.
             for light in self.lights.iter().filter(|_| lit) {
@@ -218,7 +268,7 @@ impl Integrator for PathTracer {
                     if f != Vec3::ZERO {
                         let light_pdf = sample.pdf_area * distance * distance / cos_light;
                         let emission = scene.emission_at(tri, bary);
-                        let weight = power_heuristic(light_pdf, bsdf_pdf);
+                        let weight = self.estimator.light_weight(light_pdf, bsdf_pdf);
                         radiance += throughput * f * emission * transmittance * weight / light_pdf;
                     }
                 }
@@ -234,7 +284,7 @@ impl Integrator for PathTracer {
                         (Vec3::ZERO, 0.0)
                     };
                     if f != Vec3::ZERO {
-                        let weight = power_heuristic(light_pdf, bsdf_pdf);
+                        let weight = self.estimator.light_weight(light_pdf, bsdf_pdf);
                         radiance +=
                             throughput * f * light_radiance * transmittance * weight / light_pdf;
                     }

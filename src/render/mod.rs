@@ -222,6 +222,7 @@ pub fn render_region(
                 environment: settings.environment.clone(),
                 environment_visible: settings.environment_visible,
                 max_bounces: settings.bounces,
+                estimator: crate::integrator::Estimator::Mis,
             };
             render_tiles(scene, &path, settings, region, cancel, progress)
         }
