@@ -874,3 +874,39 @@ fn a_killed_batch_resumes_redoing_only_the_unfinished_jobs() {
         "the resumed run's files are the uninterrupted run's, with no temporary file left"
     );
 }
+
+/// The resume fingerprint of fixed jobs is pinned, so a batch finished by one build stays
+/// finished for the next (`--resume` skips it) as long as the fingerprint's record is the
+/// same: a change that moves code or renames a command-line flag must not change it. It depends
+/// on the bundled models' bytes (copied here), the version and every render option of the job;
+/// a deliberate change of any of those, or of the record's layout, changes these values and
+/// means every earlier batch is redone on `--resume`: say so in the change.
+#[test]
+fn the_resume_fingerprint_of_fixed_jobs_is_pinned() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = jsonl_manifest(dir.path(), "jobs.jsonl", &nine_jobs());
+    let out = dir.path().join("out");
+    batch(&manifest, &out, &["--depth-out", "depth.png"], &[], true);
+    let records = by_id(&records(&out.join("results.jsonl")));
+    let pinned = [
+        (
+            "job-0",
+            "f8d52a5b8ebc87d2fc50e47d8388b7b9bd595c035337ffb88bcb40cb24e752e8",
+        ),
+        (
+            "job-2",
+            "e797d04398558992b269ba6d5c9419924d0a347ee81a5d3ff6ad6f686e98087c",
+        ),
+        (
+            "job-5",
+            "a15995e52f45039c0bfe38efe0879c33b5bd43192f8cceccdfa08ed772bceae0",
+        ),
+        (
+            "job-7",
+            "c92cfce6eea048ee7c4f02bf4642ccbe18b6570b084138c8587097cfc8f59c6f",
+        ),
+    ];
+    for (id, fingerprint) in pinned {
+        assert_eq!(records[id]["fingerprint"], fingerprint, "{id}");
+    }
+}
