@@ -3,15 +3,16 @@
 use crate::accel::{Accel, AccelKind};
 use crate::camera::{auto_camera, look_at, View};
 use crate::cli::{Command, InfoArgs, LoadArgs, RenderArgs};
+use crate::defaults::{
+    AMBIENT_WITH_FILE_LIGHTS, DEFAULT_HEIGHT, DEFAULT_WIDTH, DEFAULT_YFOV_DEGREES,
+};
 use crate::environment::Environment;
 use crate::integrator::IntegratorKind;
 use crate::output::PendingOutput;
 use crate::prepare::Prepared;
 use crate::render::{render, render_region, RenderSettings};
 use crate::scene::{Camera, LightKind, LoadOptions, Projection, Scene};
-use crate::setup::{
-    default_rig, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_HEIGHT, DEFAULT_WIDTH, DEFAULT_YFOV_DEGREES,
-};
+use crate::setup::default_rig;
 use anyhow::{bail, Context, Result};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;

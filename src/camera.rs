@@ -131,7 +131,7 @@ impl View {
 /// the front (+Z, the glTF "forward" of an asset), above and to the right, far enough that the
 /// sphere fits both the vertical and the horizontal field of view.
 pub fn auto_camera(bounds: &Bounds, aspect: f32) -> Camera {
-    let yfov = crate::setup::DEFAULT_YFOV_DEGREES.to_radians();
+    let yfov = crate::defaults::DEFAULT_YFOV_DEGREES.to_radians();
     let center = bounds.center();
     let radius = framing_radius(bounds);
     let distance = framing_distance(radius, yfov, aspect);

@@ -153,7 +153,7 @@ pub struct RenderArgs {
     pub height: Option<u32>,
     /// Samples per pixel: 1 shoots through pixel centres; N > 1 takes stratified jittered
     /// samples (square numbers stratify best).
-    #[arg(long, default_value_t = crate::setup::DEFAULT_SPP)]
+    #[arg(long, default_value_t = crate::defaults::DEFAULT_SPP)]
     pub spp: u32,
     /// Render for about this many seconds instead of a fixed --spp: one sample per pixel is
     /// timed, then the image is rendered at the largest spp that fits the rest of the budget
@@ -330,7 +330,7 @@ pub struct RenderArgs {
     pub shading: crate::shading::ShadingModel,
     /// Decoded texture memory budget in MiB; larger images are halved until they fit, with a
     /// warning.
-    #[arg(long, default_value_t = crate::setup::MAX_TEXTURE_MIB, value_name = "MIB")]
+    #[arg(long, default_value_t = crate::defaults::MAX_TEXTURE_MIB, value_name = "MIB")]
     pub max_texture_memory: usize,
     /// Do not add the default key and fill lights (direct) or the built-in studio environment
     /// (path) when the file has no lights.
@@ -342,7 +342,7 @@ pub struct RenderArgs {
     #[arg(long, value_enum, default_value_t = crate::integrator::IntegratorKind::Direct)]
     pub integrator: crate::integrator::IntegratorKind,
     /// Path tracer: most bounces after the first hit (0 = direct light only).
-    #[arg(long, default_value_t = crate::setup::DEFAULT_BOUNCES, value_name = "N")]
+    #[arg(long, default_value_t = crate::defaults::DEFAULT_BOUNCES, value_name = "N")]
     pub bounces: u32,
     /// Path tracer: light the scene with this equirectangular panorama (.hdr, or .exr with
     /// any compression but DWAA/DWAB) [default: the built-in neutral studio when the file has
@@ -739,10 +739,10 @@ mod tests {
 #[cfg(test)]
 mod help_tests {
     use super::Cli;
-    use crate::setup;
+    use crate::defaults;
     use clap::CommandFactory;
 
-    /// The defaults `--help` states in prose are the ones [`crate::setup`] applies.
+    /// The defaults `--help` states in prose are the ones [`crate::defaults`] names.
     #[test]
     fn render_help_states_the_library_defaults() {
         let mut cli = Cli::command();
@@ -751,18 +751,24 @@ mod help_tests {
             .expect("render subcommand")
             .render_long_help()
             .to_string();
-        // Each phrase as the help text words it, with the value taken from `setup`.
+        // Each phrase as the help text words it, with the value taken from `defaults`.
         for phrase in [
-            format!("default: {}", setup::DEFAULT_WIDTH),
-            format!("else {}", setup::DEFAULT_HEIGHT),
+            format!("default: {}", defaults::DEFAULT_WIDTH),
+            format!("else {}", defaults::DEFAULT_HEIGHT),
             format!(
                 "default: {}, or the file camera's",
-                setup::DEFAULT_YFOV_DEGREES
+                defaults::DEFAULT_YFOV_DEGREES
             ),
-            format!("{} with the default rig", setup::AMBIENT_WITH_DEFAULT_RIG),
-            format!("{} with the file's lights", setup::AMBIENT_WITH_FILE_LIGHTS),
-            format!("default: {}", setup::DEFAULT_SPP),
-            format!("default: {}", setup::MAX_TEXTURE_MIB),
+            format!(
+                "{} with the default rig",
+                defaults::AMBIENT_WITH_DEFAULT_RIG
+            ),
+            format!(
+                "{} with the file's lights",
+                defaults::AMBIENT_WITH_FILE_LIGHTS
+            ),
+            format!("default: {}", defaults::DEFAULT_SPP),
+            format!("default: {}", defaults::MAX_TEXTURE_MIB),
         ] {
             let flat = help.split_whitespace().collect::<Vec<_>>().join(" ");
             assert!(flat.contains(&phrase), "--help does not say \"{phrase}\"");

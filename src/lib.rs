@@ -17,7 +17,7 @@
 //! per-job record of `results.jsonl`. [`turntable`] streams an orbit's views into an
 //! animated GIF; [`sheet`] lays views or jobs out as a labelled contact sheet.
 //!
-//! Every default (image size, field of view, ambient, the light rig) is in [`setup`]. Importers
+//! Every default (image size, field of view, ambient, the light rig) is named in [`defaults`]. Importers
 //! ([`scene`]) never call the tracer; the tracer never sees a glTF or OBJ type; only [`cli`] and
 //! [`app`] know the command line.
 //!
@@ -53,6 +53,7 @@ pub mod cli;
 pub mod compare;
 mod cpu;
 pub mod dataset;
+pub mod defaults;
 pub mod denoise;
 pub mod environment;
 pub mod geometry;

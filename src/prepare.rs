@@ -38,7 +38,7 @@ impl Default for PrepareOptions {
         Self {
             accel: AccelKind::Bvh,
             bvh_preset: BvhPreset::Medium,
-            max_texture_bytes: crate::setup::MAX_TEXTURE_MIB << 20,
+            max_texture_bytes: crate::defaults::MAX_TEXTURE_MIB << 20,
             strict: false,
         }
     }

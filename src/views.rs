@@ -14,9 +14,9 @@
 //! default the automatic camera's, which frames the model).
 
 use crate::camera::look_at;
+use crate::defaults::MAX_VIEWS;
 use crate::sampling::Rng;
 use crate::scene::Camera;
-use crate::setup::MAX_VIEWS;
 use crate::view::ViewCamera;
 use glam::Vec3;
 use std::path::{Path, PathBuf};

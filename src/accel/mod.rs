@@ -50,12 +50,12 @@ pub enum BvhPreset {
 
 impl BvhPreset {
     /// The preset to build over `triangles` triangles for about `rays` rays: `Auto` resolves
-    /// to `VeryFast` below [`crate::setup::AUTO_PRESET_RAYS_PER_TRIANGLE`] rays a triangle
+    /// to `VeryFast` below [`crate::defaults::AUTO_PRESET_RAYS_PER_TRIANGLE`] rays a triangle
     /// and to `Medium` above; any other preset is kept.
     pub fn for_work(self, triangles: usize, rays: f64) -> BvhPreset {
         match self {
             BvhPreset::Auto
-                if rays < crate::setup::AUTO_PRESET_RAYS_PER_TRIANGLE * triangles as f64 =>
+                if rays < crate::defaults::AUTO_PRESET_RAYS_PER_TRIANGLE * triangles as f64 =>
             {
                 BvhPreset::VeryFast
             }

@@ -14,15 +14,16 @@ use crate::accel::{Accel, AccelKind};
 use crate::camera::{auto_camera, framing_distance, framing_radius, View};
 use crate::cli::RenderArgs;
 use crate::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
+use crate::defaults::{
+    AMBIENT_WITH_FILE_LIGHTS, DEFAULT_ORBIT_ELEVATION_DEGREES, DEFAULT_YFOV_DEGREES,
+};
 use crate::environment::Environment;
 use crate::integrator::IntegratorKind;
 use crate::output::{OutputFormat, PendingFile, PendingOutput, SaveError};
 use crate::prepare::Prepared;
 use crate::render::{render, RenderSettings, RenderStats};
 use crate::scene::{Camera, Light, Projection, Scene};
-use crate::setup::{
-    default_rig, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_ORBIT_ELEVATION_DEGREES, DEFAULT_YFOV_DEGREES,
-};
+use crate::setup::default_rig;
 use crate::sheet::{ContactSheet, SheetLayout};
 use crate::turntable::{check_fps, frame_delay_centiseconds, GifWriter};
 use crate::view::{SegmentId, ViewEnvironment, ViewFile};
