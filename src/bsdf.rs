@@ -13,6 +13,7 @@
 //! of the two lobes, so either choice is unbiased for the whole BRDF. All directions are unit
 //! vectors pointing away from the surface; `n` is the shading normal.
 
+use crate::color::luminance;
 use crate::sampling::{cosine_hemisphere, frame};
 use crate::shading::{
     gltf_brdf, sheen_albedo, Clearcoat, SurfaceMaterial, MIN_COSINE, MIN_GGX_ALPHA,
@@ -22,11 +23,6 @@ use std::f32::consts::PI;
 
 /// Same floor on α as the direct renderer's BRDF (a mirror-like GGX lobe, finite in f32).
 const MIN_ALPHA: f32 = 0.002;
-
-/// Luminance weights of linear Rec. 709.
-pub fn luminance(c: Vec3) -> f32 {
-    c.dot(Vec3::new(0.2126, 0.7152, 0.0722))
-}
 
 /// A direction drawn from the BSDF.
 #[derive(Clone, Copy, Debug, PartialEq)]

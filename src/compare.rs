@@ -84,7 +84,7 @@ pub fn read(path: &Path) -> Result<RgbaImage, CompareError> {
             let a = p.0[3].clamp(0.0, 1.0);
             let straight = |c: f32| if a > 0.0 { c / a } else { 0.0 };
             let encode = |c: f32| {
-                (crate::output::linear_to_srgb(straight(c).clamp(0.0, 1.0)) * 255.0 + 0.5) as u8
+                (crate::color::linear_to_srgb(straight(c).clamp(0.0, 1.0)) * 255.0 + 0.5) as u8
             };
             *o = image::Rgba([
                 encode(p.0[0]),

@@ -50,3 +50,7 @@ pub const KEY_LIGHT_LUX: f32 = 2.5;
 
 /// Illuminance of the default rig's fill light (lux), about a third of the key.
 pub const FILL_LIGHT_LUX: f32 = 0.8;
+
+/// Most BLEND surfaces a camera ray composites before it stops (both integrators, and the
+/// denoiser's guides, which follow the same rays).
+pub const MAX_BLEND_LAYERS: usize = 16;

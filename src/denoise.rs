@@ -21,12 +21,13 @@
 //! another CPU may differ in the last bits). `tests/denoise.rs` checks both.
 
 use crate::camera::Lens;
+use crate::defaults::MAX_BLEND_LAYERS;
 use crate::geometry::Ray;
 use crate::integrator::IntegratorKind;
 use crate::output::Image;
 use crate::prepare::Prepared;
 use crate::render::surface::Occlusion;
-use crate::render::{Region, RenderSettings, MAX_BLEND_LAYERS};
+use crate::render::{Region, RenderSettings};
 use crate::scene::AlphaMode;
 use glam::Vec3;
 use rayon::prelude::*;

@@ -13,7 +13,7 @@
 //! estimator's integrand is exactly piecewise constant where the pdf is: a panorama with a tiny
 //! sun converges.
 
-use crate::bsdf::luminance;
+use crate::color::luminance;
 use crate::sampling::Distribution1D;
 use glam::Vec3;
 use std::f32::consts::{PI, TAU};

@@ -50,6 +50,7 @@ pub mod bench;
 pub mod bsdf;
 pub mod camera;
 pub mod cli;
+pub mod color;
 pub mod compare;
 mod cpu;
 pub mod dataset;

@@ -159,7 +159,7 @@ impl AreaLights {
         let emits: Vec<bool> = scene
             .materials
             .iter()
-            .map(|m| crate::bsdf::luminance(m.emissive * m.emissive_strength) > 0.0)
+            .map(|m| crate::color::luminance(m.emissive * m.emissive_strength) > 0.0)
             .collect();
         let mut lights = AreaLights::default();
         let mut weights = Vec::new();

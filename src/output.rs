@@ -5,6 +5,7 @@
 //! write goes to a temporary file in the destination folder that is renamed into place, so a
 //! failed or interrupted write never leaves a partial file or clobbers an existing one.
 
+use crate::color::linear_to_srgb;
 use glam::{Vec3, Vec4};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -72,24 +73,6 @@ impl OutputFormat {
             Some("hdr") => Ok(OutputFormat::Hdr),
             _ => Err(SaveError::UnknownFormat(path.to_path_buf())),
         }
-    }
-}
-
-/// Linear -> sRGB transfer function (IEC 61966-2-1), for values in [0, 1].
-pub fn linear_to_srgb(c: f32) -> f32 {
-    if c <= 0.003_130_8 {
-        12.92 * c
-    } else {
-        1.055 * c.powf(1.0 / 2.4) - 0.055
-    }
-}
-
-/// sRGB -> linear transfer function (IEC 61966-2-1), for values in [0, 1].
-pub fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.040_45 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
     }
 }
 
@@ -398,6 +381,7 @@ mod tests {
 
     #[test]
     fn srgb_round_trips_and_clamps() {
+        use crate::color::srgb_to_linear;
         for i in 0..=255 {
             let c = i as f32 / 255.0;
             assert!((srgb_to_linear(linear_to_srgb(c)) - c).abs() < 1e-5);

@@ -86,7 +86,7 @@ impl Prepared {
         let area_lights = AreaLights::new(&prepared.scene, |tri| {
             points
                 .iter()
-                .map(|&b| crate::bsdf::luminance(prepared.emission_at(tri, b)))
+                .map(|&b| crate::color::luminance(prepared.emission_at(tri, b)))
                 .sum::<f32>()
                 / points.len() as f32
         });

@@ -57,7 +57,7 @@ pub struct TextureSet {
 
 fn srgb_table() -> &'static [f32; 256] {
     static TABLE: OnceLock<[f32; 256]> = OnceLock::new();
-    TABLE.get_or_init(|| std::array::from_fn(|i| crate::output::srgb_to_linear(i as f32 / 255.0)))
+    TABLE.get_or_init(|| std::array::from_fn(|i| crate::color::srgb_to_linear(i as f32 / 255.0)))
 }
 
 impl MipImage {

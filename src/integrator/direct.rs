@@ -6,6 +6,7 @@
 
 use super::{CameraRay, Integrator, RayCounts};
 use crate::accel::Hit;
+use crate::defaults::MAX_BLEND_LAYERS;
 use crate::geometry::Ray;
 use crate::light::PunctualLight;
 use crate::prepare::Prepared;
@@ -14,9 +15,6 @@ use crate::sampling::Rng;
 use crate::scene::AlphaMode;
 use crate::shading::{shade, ShadingModel};
 use glam::Vec3;
-
-/// Most BLEND surfaces a camera ray composites before it stops.
-pub const MAX_BLEND_LAYERS: usize = 16;
 
 /// Direct lighting from punctual lights and a constant ambient term.
 #[derive(Clone, Debug)]

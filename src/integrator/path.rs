@@ -22,11 +22,11 @@
 use super::{CameraRay, Integrator, RayCounts};
 use crate::accel::Hit;
 use crate::bsdf::Bsdf;
+use crate::defaults::MAX_BLEND_LAYERS;
 use crate::environment::Environment;
 use crate::light::PunctualLight;
 use crate::prepare::Prepared;
 use crate::render::surface::Occlusion;
-use crate::render::MAX_BLEND_LAYERS;
 use crate::sampling::{power_heuristic, Rng};
 use crate::scene::AlphaMode;
 use glam::Vec3;

@@ -9,8 +9,8 @@
 pub mod surface;
 
 use crate::accel::Hit;
-use crate::bsdf::luminance;
 use crate::camera::{Lens, View};
+use crate::color::luminance;
 use crate::environment::Environment;
 use crate::geometry::Ray;
 use crate::integrator::{CameraRay, Direct, Integrator, IntegratorKind, PathTracer, RayCounts};
@@ -25,8 +25,6 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-
-pub use crate::integrator::direct::MAX_BLEND_LAYERS;
 
 /// Tile edge in pixels: small enough to balance load over cores, large enough that per-tile
 /// overhead vanishes.

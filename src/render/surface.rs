@@ -595,7 +595,7 @@ impl Prepared {
                     // Luminance of the straight-through share at this point (textures read):
                     // a scalar attenuation (the tint is lost in shadows; the camera sees it).
                     let through = self.straight_transmittance_at(material, tri as usize, b);
-                    let pass = crate::bsdf::luminance(through);
+                    let pass = crate::color::luminance(through);
                     transmittance.set(transmittance.get() * pass.clamp(0.0, 1.0));
                     transmittance.get() < 1e-3
                 }
