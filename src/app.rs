@@ -189,7 +189,7 @@ fn spp_for_time_limit(
 }
 
 /// Most path bounces `--bounces` accepts: far beyond any visible difference.
-const MAX_BOUNCES: u32 = crate::view::MAX_VIEW_BOUNCES;
+const MAX_BOUNCES: u32 = crate::output::view_file::MAX_VIEW_BOUNCES;
 
 /// Runs one command.
 pub fn run(command: Command) -> Result<()> {
@@ -534,7 +534,7 @@ fn render_model(
         bail!("image width and height must be at least 1");
     }
     let view_file = match &args.view {
-        Some(path) => Some(crate::view::ViewFile::read(path)?),
+        Some(path) => Some(crate::output::view_file::ViewFile::read(path)?),
         None => None,
     };
     if let Some(v) = &view_file {
@@ -547,7 +547,7 @@ fn render_model(
         (&args.segmentation_out, &["npy", "png"][..]),
     ] {
         if let Some(p) = path {
-            crate::aov::check(p, allowed)?;
+            crate::output::aov::check(p, allowed)?;
         }
     }
     if !(args.depth_scale > 0.0 && args.depth_scale.is_finite()) {
@@ -567,10 +567,10 @@ fn render_model(
         bail!("--bounces {}: at most {MAX_BOUNCES}", args.bounces);
     }
     if let Some(p) = &args.env_out {
-        crate::aov::check(p, &["hdr"])?;
+        crate::output::aov::check(p, &["hdr"])?;
     }
     if let Some(p) = &args.stats {
-        crate::aov::check(p, &["json"])?;
+        crate::output::aov::check(p, &["json"])?;
     }
     tiles::check_render(args)?;
     let env_file = match &args.env {
@@ -741,22 +741,28 @@ fn render_model(
     let background = args.background;
     output.commit(&image, background)?;
     if let Some(mode) = args.preview {
-        crate::preview::show(&image, background, mode).context("--preview")?;
+        crate::output::preview::show(&image, background, mode).context("--preview")?;
     }
     if let Some(a) = &aovs {
         if let Some(p) = &args.depth_out {
-            crate::aov::write_depth(p, image.width, image.height, &a.depth, args.depth_scale)?;
+            crate::output::aov::write_depth(
+                p,
+                image.width,
+                image.height,
+                &a.depth,
+                args.depth_scale,
+            )?;
         }
         if let Some(p) = &args.normal_out {
-            crate::aov::write_normals(p, image.width, image.height, &a.normal)?;
+            crate::output::aov::write_normals(p, image.width, image.height, &a.normal)?;
         }
         if let Some(p) = &args.segmentation_out {
-            crate::aov::write_segmentation(p, image.width, image.height, &a.instance)?;
+            crate::output::aov::write_segmentation(p, image.width, image.height, &a.instance)?;
         }
     }
     if let Some(p) = &args.mask_out {
         let coverage: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();
-        crate::aov::write_mask(p, image.width, image.height, &coverage)?;
+        crate::output::aov::write_mask(p, image.width, image.height, &coverage)?;
     }
     if let (Some(path), Some(env)) = (&args.env_out, &settings.environment) {
         let panorama = env.to_rgb32f();
@@ -775,7 +781,7 @@ fn render_model(
         crate::output::write_atomic(path, &bytes)?;
     }
     if let Some(path) = &args.view_out {
-        let mut view = crate::view::ViewFile::new(
+        let mut view = crate::output::view_file::ViewFile::new(
             &camera,
             width,
             height,
@@ -787,7 +793,7 @@ fn render_model(
             .instances
             .iter()
             .enumerate()
-            .map(|(i, inst)| crate::view::SegmentId {
+            .map(|(i, inst)| crate::output::view_file::SegmentId {
                 id: i as u32 + 1,
                 node: inst.node,
                 mesh: inst.mesh,
@@ -798,33 +804,30 @@ fn render_model(
         view.integrator = settings.integrator;
         if settings.integrator == IntegratorKind::Path {
             view.bounces = Some(settings.bounces);
-            view.environment =
-                settings
-                    .environment
-                    .as_ref()
-                    .map(|env| crate::view::ViewEnvironment {
-                        source: env.source.clone(),
-                        rotation_degrees: env.rotation_degrees(),
-                        intensity: env.intensity(),
-                        visible: settings.environment_visible,
-                        panorama: args
-                            .env_out
-                            .as_ref()
-                            .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())),
-                    });
+            view.environment = settings.environment.as_ref().map(|env| {
+                crate::output::view_file::ViewEnvironment {
+                    source: env.source.clone(),
+                    rotation_degrees: env.rotation_degrees(),
+                    intensity: env.intensity(),
+                    visible: settings.environment_visible,
+                    panorama: args
+                        .env_out
+                        .as_ref()
+                        .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())),
+                }
+            });
         }
-        view.denoise =
-            denoised
-                .as_ref()
-                .map(|(report, guide_samples, _)| crate::view::ViewDenoise {
-                    denoiser: "Intel Open Image Denoise".into(),
-                    version: report.library_version.clone(),
-                    filter: "RT".into(),
-                    hdr: true,
-                    guides: vec!["albedo".into(), "normal".into()],
-                    guide_samples_per_pixel: *guide_samples,
-                    clean_aux: true,
-                });
+        view.denoise = denoised.as_ref().map(|(report, guide_samples, _)| {
+            crate::output::view_file::ViewDenoise {
+                denoiser: "Intel Open Image Denoise".into(),
+                version: report.library_version.clone(),
+                filter: "RT".into(),
+                hdr: true,
+                guides: vec!["albedo".into(), "normal".into()],
+                guide_samples_per_pixel: *guide_samples,
+                clean_aux: true,
+            }
+        });
         view.write(path)?;
     }
     tiles::write_sidecar(args, region, &settings, scene)?;

@@ -203,7 +203,7 @@ pub struct RenderArgs {
     #[arg(
         long,
         value_name = "N",
-        value_parser = clap::value_parser!(u32).range(1..=i64::from(crate::turntable::MAX_TURNTABLE_FRAMES)),
+        value_parser = clap::value_parser!(u32).range(1..=i64::from(crate::output::turntable::MAX_TURNTABLE_FRAMES)),
         conflicts_with_all = ["views", "view", "camera", "look_from", "up", "time_limit", "stats"]
     )]
     pub turntable: Option<u32>,
@@ -255,7 +255,7 @@ pub struct RenderArgs {
     #[arg(
         long,
         value_name = "PX",
-        default_value_t = crate::sheet::DEFAULT_CELL_WIDTH,
+        default_value_t = crate::output::sheet::DEFAULT_CELL_WIDTH,
         requires = "contact_sheet"
     )]
     pub sheet_cell_width: u32,

@@ -10,7 +10,7 @@
 //! - Coverage IoU: pixels covered in both over pixels covered in either, where covered means
 //!   alpha above zero, or a colour different from `background` for images without alpha.
 
-use crate::raster::{draw_label, fill_rect};
+use crate::output::raster::{composite, draw_label, fill_rect};
 use image::{Rgb, RgbImage, RgbaImage};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -96,22 +96,6 @@ pub fn read(path: &Path) -> Result<RgbaImage, CompareError> {
         return Ok(out);
     }
     Ok(img.to_rgba8())
-}
-
-/// An image with straight alpha composited over an opaque `background`, in 8-bit sRGB as the
-/// PNG holds it (the blend a viewer shows).
-pub fn composite(img: &RgbaImage, background: [u8; 3]) -> RgbImage {
-    let mut out = RgbImage::new(img.width(), img.height());
-    for (o, p) in out.pixels_mut().zip(img.pixels()) {
-        let a = u32::from(p.0[3]);
-        let mix = |c: u8, b: u8| ((u32::from(c) * a + u32::from(b) * (255 - a) + 127) / 255) as u8;
-        *o = Rgb([
-            mix(p.0[0], background[0]),
-            mix(p.0[1], background[1]),
-            mix(p.0[2], background[2]),
-        ]);
-    }
-    out
 }
 
 fn covered(img: &RgbaImage, background: Option<[u8; 3]>) -> Vec<bool> {

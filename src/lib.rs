@@ -43,7 +43,6 @@
 #![deny(missing_docs)]
 
 pub mod accel;
-pub mod aov;
 pub mod app;
 pub mod batch;
 pub mod bench;
@@ -53,7 +52,6 @@ pub mod cli;
 pub mod color;
 pub mod compare;
 mod cpu;
-pub mod dataset;
 pub mod defaults;
 pub mod denoise;
 pub mod environment;
@@ -61,22 +59,16 @@ pub mod geometry;
 pub mod integrator;
 pub mod light;
 pub mod measure;
-pub mod npy;
 pub mod output;
 pub mod plot;
 pub mod prepare;
-pub mod preview;
-pub mod raster;
 pub mod render;
 pub mod sampling;
 pub mod scene;
 pub mod setup;
 pub mod shading;
-pub mod sheet;
 pub mod texture;
 pub mod tiles;
-pub mod turntable;
-pub mod view;
 pub mod views;
 
 /// Runs `f` on a rayon pool of `threads` threads: for the tests that demand the same result at

@@ -10,8 +10,8 @@
 //! renders are not joined. The merge decodes each tile's files ([`Raster`]), pastes them and
 //! encodes the whole with the same encoder the render uses, so the bytes match.
 
+use crate::output::view_file::ImageSize;
 use crate::render::Region;
-use crate::view::ImageSize;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -337,7 +337,7 @@ pub fn extension(path: &Path) -> String {
 pub enum Raster {
     /// A PNG or EXR image, in the layout it was written with (8- or 16-bit, float).
     Image(image::DynamicImage),
-    /// A NumPy array of shape (rows, columns, ...) as [`crate::aov`] writes it.
+    /// A NumPy array of shape (rows, columns, ...) as [`crate::output::aov`] writes it.
     Npy {
         /// The element type, e.g. `<f4`.
         descr: String,
@@ -367,7 +367,7 @@ impl Raster {
                     .map(Raster::Image)
                     .map_err(|e| bad(format!("cannot decode: {e}")))
             }
-            "npy" => crate::npy::decode(&bytes)
+            "npy" => crate::output::npy::decode(&bytes)
                 .map(|a| Raster::Npy {
                     descr: a.descr,
                     shape: a.shape,
@@ -406,7 +406,7 @@ impl Raster {
             Raster::Npy { descr, shape, .. } => {
                 let mut whole = vec![height as usize, width as usize];
                 whole.extend(&shape[2..]);
-                let bytes = whole.iter().product::<usize>() * crate::npy::item_size(descr);
+                let bytes = whole.iter().product::<usize>() * crate::output::npy::item_size(descr);
                 Raster::Npy {
                     descr: descr.clone(),
                     shape: whole,
@@ -446,7 +446,8 @@ impl Raster {
                     ..
                 },
             ) => {
-                let pixel = shape[2..].iter().product::<usize>() * crate::npy::item_size(descr);
+                let pixel =
+                    shape[2..].iter().product::<usize>() * crate::output::npy::item_size(descr);
                 let (columns, part_rows, part_columns) = (shape[1], part_shape[0], part_shape[1]);
                 let row_bytes = part_columns * pixel;
                 for row in 0..part_rows {
@@ -484,7 +485,9 @@ impl Raster {
                 }
                 other => Err(bad(format!("cannot write an image as .{other}"))),
             },
-            Raster::Npy { descr, shape, data } => Ok(crate::npy::encode(descr, shape, data)),
+            Raster::Npy { descr, shape, data } => {
+                Ok(crate::output::npy::encode(descr, shape, data))
+            }
         }
     }
 }
@@ -526,7 +529,7 @@ mod tests {
     #[test]
     fn an_npy_tile_is_written_back_as_it_was_read() {
         let data: Vec<u8> = (0..2 * 3 * 3 * 4).map(|i| i as u8).collect();
-        let bytes = crate::npy::encode("<f4", &[2, 3, 3], &data);
+        let bytes = crate::output::npy::encode("<f4", &[2, 3, 3], &data);
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("x.npy");
         std::fs::write(&path, &bytes).unwrap();

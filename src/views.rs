@@ -15,9 +15,9 @@
 
 use crate::camera::look_at;
 use crate::defaults::MAX_VIEWS;
+use crate::output::view_file::ViewCamera;
 use crate::sampling::Rng;
 use crate::scene::Camera;
-use crate::view::ViewCamera;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 

@@ -99,7 +99,7 @@ fn numpy_reads_the_aovs_and_the_merger_reads_numpys_files() {
     for ((name, path), (line, (dtype, shape))) in
         names.iter().zip(&paths).zip(lines.iter().zip(expected))
     {
-        let ours = meshtracer::npy::decode(&std::fs::read(path).unwrap()).unwrap();
+        let ours = meshtracer::output::npy::decode(&std::fs::read(path).unwrap()).unwrap();
         let fields: Vec<&str> = line.split(' ').collect();
         assert_eq!(
             (fields[0], fields[1]),
@@ -113,10 +113,14 @@ fn numpy_reads_the_aovs_and_the_merger_reads_numpys_files() {
         );
         // NumPy's own file of the same array (its padding, its header) reads back the same.
         let theirs = std::fs::read(file(&format!("{name}.numpy.npy"))).unwrap();
-        assert_eq!(meshtracer::npy::decode(&theirs).unwrap(), ours, "{name}");
+        assert_eq!(
+            meshtracer::output::npy::decode(&theirs).unwrap(),
+            ours,
+            "{name}"
+        );
     }
     // The AOVs are not all empty: the depth has finite values where the mask covers.
-    let mask = meshtracer::npy::decode(&std::fs::read(&paths[2]).unwrap()).unwrap();
+    let mask = meshtracer::output::npy::decode(&std::fs::read(&paths[2]).unwrap()).unwrap();
     assert!(mask
         .data
         .chunks(4)

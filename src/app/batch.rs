@@ -22,8 +22,8 @@ use crate::batch::{
     Job, JobRecord, OutputRecord, Shard, Status, Timings, JOB_FILE, RESULTS_FILE,
 };
 use crate::cli::{BatchArgs, BatchMergeArgs, RenderArgs};
+use crate::output::sheet::ContactSheet;
 use crate::output::PendingFile;
-use crate::sheet::ContactSheet;
 use anyhow::{anyhow, bail, Context, Result};
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -128,7 +128,7 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
             write_sheet(file, &sheet, "jobs", defaults.quiet)?;
         }
         if let Some(mode) = defaults.preview {
-            crate::preview::show_rgb(sheet.image(), mode).context("--preview")?;
+            crate::output::preview::show_rgb(sheet.image(), mode).context("--preview")?;
         }
     }
     let count = |status| records.iter().filter(|r| r.status == status).count();
@@ -428,7 +428,7 @@ fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArg
     args.contact_sheet = None;
     args.preview = None;
     args.sheet_columns = None;
-    args.sheet_cell_width = crate::sheet::DEFAULT_CELL_WIDTH;
+    args.sheet_cell_width = crate::output::sheet::DEFAULT_CELL_WIDTH;
     if job.width.is_some() {
         args.width = job.width;
     }

@@ -1,10 +1,10 @@
 //! `render MODEL --views SPEC -o DIR`: many views of one model after one load and one BVH
 //! build. The spec becomes cameras ([`crate::views`]); every view is rendered from the
 //! prepared scene with the same settings and writes its image, the AOVs asked for and its view
-//! file; the folder gets one `transforms.json` ([`crate::dataset`]). `--turntable N` is an
+//! file; the folder gets one `transforms.json` ([`crate::output::dataset`]). `--turntable N` is an
 //! orbit that starts at the plain render's azimuth; `--gif` streams its frames into an
-//! animated GIF ([`crate::turntable`]) and `--contact-sheet` lays any views out in a grid
-//! ([`crate::sheet`]), both from the images in memory as the views finish.
+//! animated GIF ([`crate::output::turntable`]) and `--contact-sheet` lays any views out in a grid
+//! ([`crate::output::sheet`]), both from the images in memory as the views finish.
 //!
 //! Kept apart from the single-view flow in `app.rs`, which hands over after checking the
 //! options they share.
@@ -13,20 +13,20 @@ use super::{check_size, image_size, interrupt_flag, load, worker_pool, Interrupt
 use crate::accel::{Accel, AccelKind};
 use crate::camera::{auto_camera, framing_distance, framing_radius, View};
 use crate::cli::RenderArgs;
-use crate::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
 use crate::defaults::{
     AMBIENT_WITH_FILE_LIGHTS, DEFAULT_ORBIT_ELEVATION_DEGREES, DEFAULT_YFOV_DEGREES,
 };
 use crate::environment::Environment;
 use crate::integrator::IntegratorKind;
+use crate::output::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
+use crate::output::sheet::{ContactSheet, SheetLayout};
+use crate::output::turntable::{check_fps, frame_delay_centiseconds, GifWriter};
+use crate::output::view_file::{SegmentId, ViewEnvironment, ViewFile};
 use crate::output::{OutputFormat, PendingFile, PendingOutput, SaveError};
 use crate::prepare::Prepared;
 use crate::render::{render, RenderSettings, RenderStats};
 use crate::scene::{Camera, Light, Projection, Scene};
 use crate::setup::default_rig;
-use crate::sheet::{ContactSheet, SheetLayout};
-use crate::turntable::{check_fps, frame_delay_centiseconds, GifWriter};
-use crate::view::{SegmentId, ViewEnvironment, ViewFile};
 use crate::views::{
     azimuth_degrees, elevation_degrees, fibonacci_directions, orbit_directions, random_directions,
     read_views_file, ExplicitView, Framing, NamePattern, ViewSpec,
@@ -601,18 +601,23 @@ impl ViewRun<'_> {
         if let Some(a) = &aovs {
             if let Some(name) = &names.depth {
                 let path = dir.join(name);
-                crate::aov::write_depth(&path, width, height, &a.depth, args.depth_scale)?;
+                crate::output::aov::write_depth(&path, width, height, &a.depth, args.depth_scale)?;
             }
             if let Some(name) = &names.normal {
-                crate::aov::write_normals(&dir.join(name), width, height, &a.normal)?;
+                crate::output::aov::write_normals(&dir.join(name), width, height, &a.normal)?;
             }
             if let Some(name) = &names.segmentation {
-                crate::aov::write_segmentation(&dir.join(name), width, height, &a.instance)?;
+                crate::output::aov::write_segmentation(
+                    &dir.join(name),
+                    width,
+                    height,
+                    &a.instance,
+                )?;
             }
         }
         if let Some(name) = &names.mask {
             let coverage: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();
-            crate::aov::write_mask(&dir.join(name), width, height, &coverage)?;
+            crate::output::aov::write_mask(&dir.join(name), width, height, &coverage)?;
         }
         crate::output::write_atomic(&view_path, text.as_bytes())?;
         if !args.quiet {
@@ -853,7 +858,7 @@ impl Extras {
                 written.push(write_sheet(file, sheet, "views", quiet)?);
             }
             if let (Some(mode), Some(sheet)) = (preview, &sheet) {
-                crate::preview::show_rgb(sheet.image(), mode).context("--preview")?;
+                crate::output::preview::show_rgb(sheet.image(), mode).context("--preview")?;
             }
         }
         Ok(written)

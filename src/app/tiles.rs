@@ -100,7 +100,7 @@ pub(super) fn write_sidecar(
     .collect();
     let file = TileFile {
         meshtracer_tile: TILE_FILE_VERSION,
-        image: crate::view::ImageSize {
+        image: crate::output::view_file::ImageSize {
             width: settings.view.width,
             height: settings.view.height,
         },

@@ -6,7 +6,10 @@
 //! from a generator keyed by (seed, x, y), so the image is the same, byte for byte, whatever the
 //! number of threads or the order tiles finish in.
 
+pub mod film;
 pub mod surface;
+
+pub use film::Image;
 
 use crate::accel::Hit;
 use crate::camera::{Lens, View};
@@ -15,7 +18,6 @@ use crate::environment::Environment;
 use crate::geometry::Ray;
 use crate::integrator::{CameraRay, Direct, Integrator, IntegratorKind, PathTracer, RayCounts};
 use crate::light::PunctualLight;
-use crate::output::Image;
 use crate::prepare::Prepared;
 use crate::sampling::Rng;
 use crate::scene::Light;

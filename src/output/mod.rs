@@ -4,22 +4,26 @@
 //! float RGBA (premultiplied, the OpenEXR convention); `.hdr` is linear RGB over black. Every
 //! write goes to a temporary file in the destination folder that is renamed into place, so a
 //! failed or interrupted write never leaves a partial file or clobbers an existing one.
+//!
+//! Every file a render writes is here, written the same way: the image ([`PendingOutput`]),
+//! the AOVs ([`aov`], as [`npy`], EXR or PNG), the view file ([`view_file`]), a NeRF-style
+//! `transforms.json` ([`dataset`]), turntable GIFs ([`turntable`]), contact sheets ([`sheet`],
+//! drawn with [`raster`]) and the terminal preview ([`preview`]).
+
+pub mod aov;
+pub mod dataset;
+pub mod npy;
+pub mod preview;
+pub mod raster;
+pub mod sheet;
+pub mod turntable;
+pub mod view_file;
 
 use crate::color::linear_to_srgb;
+pub use crate::render::film::Image;
 use glam::{Vec3, Vec4};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-
-/// A linear RGBA image with premultiplied alpha, row-major from the top-left pixel.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Image {
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// `width * height` pixels.
-    pub pixels: Vec<Vec4>,
-}
 
 /// Output file formats, chosen by extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -307,20 +311,6 @@ pub(crate) fn exr_rgba(
 }
 
 impl Image {
-    /// A transparent black image.
-    pub fn new(width: u32, height: u32) -> Image {
-        Image {
-            width,
-            height,
-            pixels: vec![Vec4::ZERO; width as usize * height as usize],
-        }
-    }
-
-    /// The pixel at column `x`, row `y` (row 0 at the top).
-    pub fn get(&self, x: u32, y: u32) -> Vec4 {
-        self.pixels[(y * self.width + x) as usize]
-    }
-
     /// 8-bit sRGB RGBA with straight alpha: colour is un-premultiplied before encoding, or
     /// composited over `background` (then alpha is 255).
     pub fn to_srgb8(&self, background: Option<Vec3>) -> Vec<u8> {

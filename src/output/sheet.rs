@@ -7,8 +7,8 @@
 //! A thumbnail is the view composited over [`CELL_BACKGROUND`] (where it is transparent) and
 //! resized to fit its box with a Lanczos-3 filter, centred when its aspect differs.
 
-use crate::compare::composite;
-use crate::raster::{draw_label, fill_rect, line};
+use crate::output::raster::composite;
+use crate::output::raster::{draw_label, fill_rect, line};
 use image::{imageops::FilterType, Rgb, RgbImage, RgbaImage};
 
 /// Border around and between cells, pixels.

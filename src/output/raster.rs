@@ -2,7 +2,7 @@
 //! `font8x8` bitmap font. The labels of contact sheets and comparison strips, which are PNGs
 //! themselves; vector plots go through `plotters` instead (see [`crate::plot`]).
 
-use image::{Rgb, RgbImage};
+use image::{Rgb, RgbImage, RgbaImage};
 
 /// Draws `text` with its top-left corner at (x, y), each font pixel `scale` pixels wide
 /// (printable ASCII; other characters draw blank).
@@ -139,4 +139,20 @@ mod tests {
             );
         }
     }
+}
+
+/// An image with straight alpha composited over an opaque `background`, in 8-bit sRGB as the
+/// PNG holds it (the blend a viewer shows).
+pub fn composite(img: &RgbaImage, background: [u8; 3]) -> RgbImage {
+    let mut out = RgbImage::new(img.width(), img.height());
+    for (o, p) in out.pixels_mut().zip(img.pixels()) {
+        let a = u32::from(p.0[3]);
+        let mix = |c: u8, b: u8| ((u32::from(c) * a + u32::from(b) * (255 - a) + 127) / 255) as u8;
+        *o = Rgb([
+            mix(p.0[0], background[0]),
+            mix(p.0[1], background[1]),
+            mix(p.0[2], background[2]),
+        ]);
+    }
+    out
 }

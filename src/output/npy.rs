@@ -26,7 +26,7 @@ pub struct Array {
     pub data: Vec<u8>,
 }
 
-/// The element types read back (the ones [`crate::aov`] writes).
+/// The element types read back (the ones [`crate::output::aov`] writes).
 const READABLE: [&str; 2] = ["<f4", "<u4"];
 
 /// The bytes of a `.npy` file (format 1.0) of `data`, elements of type `descr` in C order.

@@ -73,7 +73,7 @@ pub fn write_depth(
             height,
             depth.iter().flat_map(|&d| [d, d, d, 1.0]).collect(),
         ),
-        "npy" => crate::npy::encode(
+        "npy" => crate::output::npy::encode(
             "<f4",
             &[height as usize, width as usize],
             &f32_bytes(depth.iter().copied()),
@@ -107,7 +107,7 @@ pub fn write_normals(
             height,
             normals.iter().flat_map(|n| [n.x, n.y, n.z, 1.0]).collect(),
         ),
-        "npy" => crate::npy::encode(
+        "npy" => crate::output::npy::encode(
             "<f4",
             &[height as usize, width as usize, 3],
             &f32_bytes(normals.iter().flat_map(|n| n.to_array())),
@@ -137,7 +137,7 @@ pub fn write_normals(
 /// Writes coverage (the image's alpha).
 pub fn write_mask(path: &Path, width: u32, height: u32, coverage: &[f32]) -> Result<(), SaveError> {
     let bytes = match extension(path).as_str() {
-        "npy" => crate::npy::encode(
+        "npy" => crate::output::npy::encode(
             "<f4",
             &[height as usize, width as usize],
             &f32_bytes(coverage.iter().copied()),
@@ -165,7 +165,7 @@ pub fn write_segmentation(
     ids: &[u32],
 ) -> Result<(), SaveError> {
     let bytes = match extension(path).as_str() {
-        "npy" => crate::npy::encode(
+        "npy" => crate::output::npy::encode(
             "<u4",
             &[height as usize, width as usize],
             &ids.iter()
