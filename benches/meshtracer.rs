@@ -12,9 +12,9 @@
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::{Vec3, Vec3A};
 use meshtracer::accel::{Accel, AccelKind, BvhPreset};
-use meshtracer::bench::{generated_mesh, make_rays, scene_from_soup, trace, RayKind};
 use meshtracer::geometry::{PreparedTriangle, Ray};
 use meshtracer::sampling::Rng;
+use meshtracer::tools::bench::{generated_mesh, make_rays, scene_from_soup, trace, RayKind};
 use meshtracer::Scene;
 use std::hint::black_box;
 use std::time::Duration;

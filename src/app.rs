@@ -961,7 +961,9 @@ fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
 }
 
 fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
-    use crate::bench::{generated_mesh, markdown_table, measure, scene_from_soup, BenchOptions};
+    use crate::tools::bench::{
+        generated_mesh, markdown_table, measure, scene_from_soup, BenchOptions,
+    };
     for path in [&args.report, &args.plot].into_iter().flatten() {
         if path.is_dir() {
             bail!("{}: is a directory", path.display());
@@ -1074,7 +1076,7 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
                 bvh_preset: args.bvh_preset,
                 ..Default::default()
             };
-            let row = pool.install(|| -> Result<crate::bench::PathRow> {
+            let row = pool.install(|| -> Result<crate::tools::bench::PathRow> {
                 let mut warnings = Vec::new();
                 let prepared = crate::prepare::Prepared::new(scene, &prepare, &mut warnings)
                     .with_context(|| format!("{name}: textures"))?;
@@ -1083,7 +1085,7 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
                         eprintln!("warning: {name}: {w}");
                     }
                 }
-                Ok(crate::bench::path_versus_bvh(
+                Ok(crate::tools::bench::path_versus_bvh(
                     &prepared,
                     &settings,
                     name,
@@ -1097,7 +1099,7 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
     let mut table = markdown_table(&rows);
     if !path_rows.is_empty() {
         table.push('\n');
-        table.push_str(&crate::bench::path_table(&path_rows));
+        table.push_str(&crate::tools::bench::path_table(&path_rows));
     }
     out!("{table}");
     let partial = (rows.len() < jobs.len()).then(|| {
@@ -1124,7 +1126,7 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
     }
     if let Some(path) = &args.plot {
         let title = format!("time per {:?} ray vs triangles", args.rays).to_lowercase();
-        let svg = crate::plot::scaling_plot(&generated_rows, &model_rows, &title)?;
+        let svg = crate::tools::plot::scaling_plot(&generated_rows, &model_rows, &title)?;
         crate::output::write_atomic(path, svg.as_bytes())?;
     }
     match partial {
@@ -1172,7 +1174,7 @@ fn cpu_name() -> String {
 }
 
 fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
-    use crate::compare::{compare_files, side_by_side};
+    use crate::tools::compare::{compare_files, side_by_side};
     for (metric, _) in &args.fail_above {
         if !["flip", "rmse", "max_abs"].contains(&metric.as_str()) {
             bail!("--fail-above {metric}: use --fail-below for psnr, ssim and coverage_iou");

@@ -1,9 +1,9 @@
 //! Command-line definitions (clap). Parsing only: the commands run in [`crate::app`].
 
 use crate::accel::{AccelKind, BvhPreset};
-use crate::bench::RayKind;
 use crate::integrator::IntegratorKind;
 use crate::shading::ShadingModel;
+use crate::tools::bench::RayKind;
 use clap::builder::PossibleValue;
 use clap::{Args, Parser, Subcommand};
 use glam::Vec3;
@@ -274,7 +274,7 @@ pub struct RenderArgs {
         value_parser = parse_tile,
         conflicts_with_all = ["views", "turntable", "time_limit", "crop"]
     )]
-    pub tile: Option<crate::tiles::TileIndex>,
+    pub tile: Option<crate::jobs::tiles::TileIndex>,
     /// Render only the rectangle of W x H pixels whose top-left pixel is X,Y (from the
     /// image's top-left corner); written like a --tile, with its sidecar.
     #[arg(
@@ -468,8 +468,8 @@ pub struct BatchArgs {
     /// Render only shard I of N (0-based, I < N): the jobs whose id hashes (FNV-1a 64 of its
     /// UTF-8 bytes) to I modulo N [default: from SLURM_ARRAY_TASK_ID and
     /// SLURM_ARRAY_TASK_COUNT, or JOB_COMPLETION_INDEX and --shard-count; 0/1 for all jobs].
-    #[arg(long, value_name = "I/N", value_parser = crate::batch::Shard::parse)]
-    pub shard: Option<crate::batch::Shard>,
+    #[arg(long, value_name = "I/N", value_parser = crate::jobs::batch::Shard::parse)]
+    pub shard: Option<crate::jobs::batch::Shard>,
     /// The number of shards when JOB_COMPLETION_INDEX (a Kubernetes Indexed Job) gives the
     /// index [default: MESHTRACER_SHARD_COUNT].
     #[arg(long, value_name = "N", conflicts_with = "shard")]
@@ -535,8 +535,8 @@ pub struct BenchArgs {
     #[arg(long, default_value = "1000,10000,100000,1000000")]
     pub sizes: SizeList,
     /// Ray coherence: camera rays, shadow rays toward a light, or random diffuse bounces.
-    #[arg(long, value_enum, default_value_t = crate::bench::RayKind::Primary)]
-    pub rays: crate::bench::RayKind,
+    #[arg(long, value_enum, default_value_t = crate::tools::bench::RayKind::Primary)]
+    pub rays: crate::tools::bench::RayKind,
     /// Camera rays per image side (side² primary rays per run).
     #[arg(long, default_value_t = 512)]
     pub side: u32,
@@ -644,13 +644,13 @@ pub fn parse_threshold(s: &str) -> Result<(String, f64), String> {
 }
 
 /// Parses `--tile I/N`.
-pub fn parse_tile(s: &str) -> Result<crate::tiles::TileIndex, String> {
-    crate::tiles::TileIndex::parse(s).map_err(|e| e.to_string())
+pub fn parse_tile(s: &str) -> Result<crate::jobs::tiles::TileIndex, String> {
+    crate::jobs::tiles::TileIndex::parse(s).map_err(|e| e.to_string())
 }
 
 /// Parses `--crop X,Y,W,H`.
 pub fn parse_crop(s: &str) -> Result<crate::render::Region, String> {
-    crate::tiles::parse_crop(s).map_err(|e| e.to_string())
+    crate::jobs::tiles::parse_crop(s).map_err(|e| e.to_string())
 }
 
 /// Parses `X,Y,Z` into a vector of three finite numbers.

@@ -44,23 +44,20 @@
 
 pub mod accel;
 pub mod app;
-pub mod batch;
-pub mod bench;
 pub mod bsdf;
 pub mod camera;
 pub mod cli;
 pub mod color;
-pub mod compare;
 mod cpu;
 pub mod defaults;
 pub mod denoise;
 pub mod environment;
 pub mod geometry;
 pub mod integrator;
+pub mod jobs;
 pub mod light;
 pub mod measure;
 pub mod output;
-pub mod plot;
 pub mod prepare;
 pub mod render;
 pub mod sampling;
@@ -68,8 +65,7 @@ pub mod scene;
 pub mod setup;
 pub mod shading;
 pub mod texture;
-pub mod tiles;
-pub mod views;
+pub mod tools;
 
 /// Runs `f` on a rayon pool of `threads` threads: for the tests that demand the same result at
 /// any thread count.

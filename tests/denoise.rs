@@ -46,7 +46,7 @@ fn a_build_without_the_feature_refuses_denoise_and_says_how() {
 #[cfg(feature = "denoise")]
 mod with_the_feature {
     use super::*;
-    use meshtracer::compare::{compare_files, Metrics};
+    use meshtracer::tools::compare::{compare_files, Metrics};
 
     /// The image size of the quality test: large enough for FLIP's 67-pixel-per-degree filters
     /// and the denoiser's receptive field, small enough for a 256-spp reference in seconds.

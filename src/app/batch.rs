@@ -17,11 +17,11 @@
 
 use super::multi_view::{has_extension, sheet_layout, write_sheet};
 use super::{image_size, interrupt_flag, render_model, Interrupted, RenderReport};
-use crate::batch::{
+use crate::cli::{BatchArgs, BatchMergeArgs, RenderArgs};
+use crate::jobs::batch::{
     check_output_name, output_key, read_manifest, read_results, results_jsonl, sha256_file, Entry,
     Job, JobRecord, OutputRecord, Shard, Status, Timings, JOB_FILE, RESULTS_FILE,
 };
-use crate::cli::{BatchArgs, BatchMergeArgs, RenderArgs};
 use crate::output::sheet::ContactSheet;
 use crate::output::PendingFile;
 use anyhow::{anyhow, bail, Context, Result};
@@ -409,7 +409,7 @@ fn job_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<(RenderArgs,
     canonical.model = PathBuf::from(&job.model_text);
     canonical.threads = 0;
     let model_hash = sha256_file(&job.model).unwrap_or_else(|e| format!("unreadable ({e})"));
-    let fingerprint = crate::batch::sha256_hex(
+    let fingerprint = crate::jobs::batch::sha256_hex(
         format!(
             "meshtracer {}\nmodel sha256 {model_hash}\n{canonical:?}",
             env!("CARGO_PKG_VERSION")
@@ -571,7 +571,7 @@ impl JobSheet {
             .outputs
             .iter()
             .find(|o| Some(&o.path) != panorama.as_ref())
-            .and_then(|o| crate::compare::read(&dir.join(&o.path)).ok());
+            .and_then(|o| crate::tools::compare::read(&dir.join(&o.path)).ok());
         match image {
             Some(image) => self.sheet.place(k, &image, id),
             None => self.sheet.place_failed(k, id),

@@ -1,5 +1,5 @@
 //! `render MODEL --views SPEC -o DIR`: many views of one model after one load and one BVH
-//! build. The spec becomes cameras ([`crate::views`]); every view is rendered from the
+//! build. The spec becomes cameras ([`crate::jobs::views`]); every view is rendered from the
 //! prepared scene with the same settings and writes its image, the AOVs asked for and its view
 //! file; the folder gets one `transforms.json` ([`crate::output::dataset`]). `--turntable N` is an
 //! orbit that starts at the plain render's azimuth; `--gif` streams its frames into an
@@ -18,6 +18,10 @@ use crate::defaults::{
 };
 use crate::environment::Environment;
 use crate::integrator::IntegratorKind;
+use crate::jobs::views::{
+    azimuth_degrees, elevation_degrees, fibonacci_directions, orbit_directions, random_directions,
+    read_views_file, ExplicitView, Framing, NamePattern, ViewSpec,
+};
 use crate::output::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
 use crate::output::sheet::{ContactSheet, SheetLayout};
 use crate::output::turntable::{check_fps, frame_delay_centiseconds, GifWriter};
@@ -27,10 +31,6 @@ use crate::prepare::Prepared;
 use crate::render::{render, RenderSettings, RenderStats};
 use crate::scene::{Camera, Light, Projection, Scene};
 use crate::setup::default_rig;
-use crate::views::{
-    azimuth_degrees, elevation_degrees, fibonacci_directions, orbit_directions, random_directions,
-    read_views_file, ExplicitView, Framing, NamePattern, ViewSpec,
-};
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use std::collections::{BTreeSet, HashMap};

@@ -1,11 +1,13 @@
 //! `render --tile I/N` / `--crop X,Y,W,H` (the part of the image a render covers, and the
 //! sidecar it leaves) and `merge` (tiles joined into the whole image). The formats and checks
-//! are in [`crate::tiles`].
+//! are in [`crate::jobs::tiles`].
 
 use crate::cli::{MergeArgs, RenderArgs};
+use crate::jobs::tiles::{
+    check_cover, extension, fingerprint, Raster, TileFile, TILE_FILE_VERSION,
+};
 use crate::render::{Region, RenderSettings};
 use crate::scene::Scene;
-use crate::tiles::{check_cover, extension, fingerprint, Raster, TileFile, TILE_FILE_VERSION};
 use anyhow::{bail, Context, Result};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -32,7 +34,7 @@ pub(super) fn check_render(args: &RenderArgs) -> Result<()> {
 pub(super) fn region(args: &RenderArgs, width: u32, height: u32) -> Result<Region> {
     Ok(match (args.tile, args.crop) {
         (Some(tile), _) => tile.region(width, height)?,
-        (None, Some(crop)) => crate::tiles::check_crop(crop, width, height)?,
+        (None, Some(crop)) => crate::jobs::tiles::check_crop(crop, width, height)?,
         (None, None) => Region::full(width, height),
     })
 }

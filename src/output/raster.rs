@@ -1,6 +1,6 @@
 //! Drawing on 8-bit raster images: filled rectangles, thick lines and text labels from the
 //! `font8x8` bitmap font. The labels of contact sheets and comparison strips, which are PNGs
-//! themselves; vector plots go through `plotters` instead (see [`crate::plot`]).
+//! themselves; vector plots go through `plotters` instead (see [`crate::tools::plot`]).
 
 use image::{Rgb, RgbImage, RgbaImage};
 

@@ -5,7 +5,7 @@
 //! The generated meshes (a seeded bumpy sphere of growing size) are the two lines, BVH and
 //! linear scan; models measured beside them are triangle markers of the same colours.
 
-use crate::bench::Row;
+use crate::tools::bench::Row;
 use plotters::prelude::*;
 
 const WIDTH: u32 = 880;

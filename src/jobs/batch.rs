@@ -495,9 +495,9 @@ fn job_of_line(line: ManifestLine, id: String, folder: &Path) -> Result<Job, Str
     }
     let views = match &line.views {
         Some(spec) => {
-            let parsed = crate::views::ViewSpec::parse(spec).map_err(|e| e.to_string())?;
+            let parsed = crate::jobs::views::ViewSpec::parse(spec).map_err(|e| e.to_string())?;
             Some(match parsed {
-                crate::views::ViewSpec::File(p) if p.is_relative() => {
+                crate::jobs::views::ViewSpec::File(p) if p.is_relative() => {
                     folder.join(p).to_string_lossy().into_owned()
                 }
                 _ => spec.clone(),

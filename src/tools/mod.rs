@@ -1,0 +1,6 @@
+//! What users measure meshtracer with: image comparison ([`compare`]), the benchmark workloads
+//! ([`bench`]) and their plots ([`plot`]).
+
+pub mod bench;
+pub mod compare;
+pub mod plot;
