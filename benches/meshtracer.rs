@@ -367,7 +367,7 @@ fn render(c: &mut Criterion) {
     let scene = meshtracer::prepare::Prepared::from_parts(
         scene,
         accel,
-        meshtracer::texture::TextureSet::default(),
+        meshtracer::prepare::textures::TextureSet::default(),
     );
     let cancel = std::sync::atomic::AtomicBool::new(false);
     let pool = one_thread();
@@ -447,7 +447,7 @@ fn path_tracer(c: &mut Criterion) {
         integrator: meshtracer::integrator::IntegratorKind::Path,
         bounces: 8,
         environment: Some(std::sync::Arc::new(
-            meshtracer::environment::Environment::studio(),
+            meshtracer::light::environment::Environment::studio(),
         )),
         environment_visible: false,
     };

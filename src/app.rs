@@ -6,8 +6,8 @@ use crate::cli::{Command, InfoArgs, LoadArgs, RenderArgs};
 use crate::defaults::{
     AMBIENT_WITH_FILE_LIGHTS, DEFAULT_HEIGHT, DEFAULT_WIDTH, DEFAULT_YFOV_DEGREES,
 };
-use crate::environment::Environment;
 use crate::integrator::IntegratorKind;
+use crate::light::environment::Environment;
 use crate::output::PendingOutput;
 use crate::prepare::Prepared;
 use crate::render::{render, render_region, RenderSettings};
@@ -91,9 +91,9 @@ pub use crate::measure::peak_memory_bytes;
 pub(crate) fn load_textures(
     args: &RenderArgs,
     scene: &crate::scene::Scene,
-) -> Result<(crate::texture::TextureSet, Vec<String>)> {
+) -> Result<(crate::prepare::textures::TextureSet, Vec<String>)> {
     let mut warnings = Vec::new();
-    let textures = crate::texture::TextureSet::load(
+    let textures = crate::prepare::textures::TextureSet::load(
         scene,
         args.max_texture_memory.saturating_mul(1 << 20),
         args.strict,
@@ -515,8 +515,8 @@ fn render_model(
         bail!("--exposure must be a finite number");
     }
     if args.denoise {
-        if !crate::denoise::AVAILABLE {
-            bail!(crate::denoise::NOT_BUILT);
+        if !crate::render::denoise::AVAILABLE {
+            bail!(crate::render::denoise::NOT_BUILT);
         }
         // The command line refuses these combinations; a batch job's manifest can still ask.
         if args.views.is_some() || args.turntable.is_some() {
@@ -722,10 +722,10 @@ fn render_model(
         let denoised = if args.denoise {
             // On the linear HDR film, before the output encodes it (sRGB PNG, EXR, HDR).
             let guide_start = Instant::now();
-            let guides = crate::denoise::guides(&prepared, &settings, region);
+            let guides = crate::render::denoise::guides(&prepared, &settings, region);
             phases.mark("denoise guides", guide_start);
             let denoise_start = Instant::now();
-            let report = crate::denoise::denoise(&mut image, &guides)?;
+            let report = crate::render::denoise::denoise(&mut image, &guides)?;
             phases.mark("denoise", denoise_start);
             if cancel.load(Ordering::SeqCst) {
                 return Err(crate::render::Cancelled.into());

@@ -2,6 +2,7 @@
 
 use crate::accel::{AccelKind, BvhPreset};
 use crate::integrator::IntegratorKind;
+pub use crate::output::preview::PreviewMode;
 use crate::shading::ShadingModel;
 use crate::tools::bench::RayKind;
 use clap::builder::PossibleValue;
@@ -29,6 +30,10 @@ macro_rules! value_enum {
 value_enum!(AccelKind {
     Bvh => "bvh": "obvhs compressed wide BVH (CWBVH, eight-way)",
     Linear => "linear": "Test every triangle (the reference and benchmark baseline)",
+});
+value_enum!(PreviewMode {
+    Auto => "auto": "Only when standard output is a terminal, in the best protocol it answers for",
+    Blocks => "blocks": "Always, as half blocks, with no terminal queries",
 });
 value_enum!(BvhPreset {
     Auto => "auto": "Chosen by the work at hand: `very-fast` for few rays per triangle, `medium` otherwise",
@@ -484,15 +489,6 @@ pub struct BatchMergeArgs {
     /// No summary line.
     #[arg(short, long)]
     pub quiet: bool,
-}
-
-/// When `render --preview` prints.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum PreviewMode {
-    /// Only when standard output is a terminal, in the best protocol it answers for.
-    Auto,
-    /// Always, as half blocks, with no terminal queries.
-    Blocks,
 }
 
 /// `meshtracer merge`.

@@ -44,14 +44,11 @@
 
 pub mod accel;
 pub mod app;
-pub mod bsdf;
 pub mod camera;
 pub mod cli;
 pub mod color;
 mod cpu;
 pub mod defaults;
-pub mod denoise;
-pub mod environment;
 pub mod geometry;
 pub mod integrator;
 pub mod jobs;
@@ -64,7 +61,6 @@ pub mod sampling;
 pub mod scene;
 pub mod setup;
 pub mod shading;
-pub mod texture;
 pub mod tools;
 
 /// Runs `f` on a rayon pool of `threads` threads: for the tests that demand the same result at

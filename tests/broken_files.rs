@@ -1442,7 +1442,8 @@ fn a_glb_cut_short_after_its_load_loses_only_its_image() {
     let scene = Scene::load(&path).unwrap();
     std::fs::write(&path, &glb[..glb.len() - 1000]).unwrap();
     let mut warnings = Vec::new();
-    let set = meshtracer::texture::TextureSet::load(&scene, usize::MAX, false, &mut warnings);
+    let set =
+        meshtracer::prepare::textures::TextureSet::load(&scene, usize::MAX, false, &mut warnings);
     assert!(set.is_ok());
     assert!(
         warnings
@@ -1450,7 +1451,8 @@ fn a_glb_cut_short_after_its_load_loses_only_its_image() {
             .any(|w| w.contains("cut.glb") && w.contains("ends inside")),
         "{warnings:?}"
     );
-    let strict = meshtracer::texture::TextureSet::load(&scene, usize::MAX, true, &mut Vec::new());
+    let strict =
+        meshtracer::prepare::textures::TextureSet::load(&scene, usize::MAX, true, &mut Vec::new());
     assert!(strict.is_err());
 }
 

@@ -16,12 +16,12 @@ use crate::cli::RenderArgs;
 use crate::defaults::{
     AMBIENT_WITH_FILE_LIGHTS, DEFAULT_ORBIT_ELEVATION_DEGREES, DEFAULT_YFOV_DEGREES,
 };
-use crate::environment::Environment;
 use crate::integrator::IntegratorKind;
 use crate::jobs::views::{
     azimuth_degrees, elevation_degrees, fibonacci_directions, orbit_directions, random_directions,
     read_views_file, ExplicitView, Framing, NamePattern, ViewSpec,
 };
+use crate::light::environment::Environment;
 use crate::output::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
 use crate::output::sheet::{ContactSheet, SheetLayout};
 use crate::output::turntable::{check_fps, frame_delay_centiseconds, GifWriter};

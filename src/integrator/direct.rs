@@ -10,9 +10,9 @@ use crate::defaults::MAX_BLEND_LAYERS;
 use crate::geometry::Ray;
 use crate::light::PunctualLight;
 use crate::prepare::Prepared;
-use crate::render::surface::{Occlusion, Surface};
 use crate::sampling::Rng;
 use crate::scene::AlphaMode;
+use crate::shading::surface::{Occlusion, Surface};
 use crate::shading::{shade, ShadingModel};
 use glam::Vec3;
 

@@ -3,8 +3,8 @@
 //! At every surface the path meets it estimates direct light three ways: each punctual light
 //! through a shadow ray (delta lights: light sampling only), one point on the emissive
 //! triangles ([`crate::light::AreaLights`], drawn by power) and one direction of the
-//! environment ([`crate::environment::Environment`], drawn by luminance); then it continues in
-//! a direction drawn from the BSDF ([`crate::bsdf::Bsdf`]: GGX visible normals or cosine).
+//! environment ([`crate::light::environment::Environment`], drawn by luminance); then it continues in
+//! a direction drawn from the BSDF ([`crate::shading::bsdf::Bsdf`]: GGX visible normals or cosine).
 //! Emission that a BSDF-sampled ray then finds (an emissive triangle, or the environment when it
 //! escapes) is weighted against the light-sampling estimate of the same light by the power
 //! heuristic (Veach 1997), so neither strategy is counted twice and each covers where the other
@@ -14,21 +14,21 @@
 //! BLEND surfaces are hit with probability alpha and passed through otherwise; MASK cut-outs
 //! are skipped in traversal as for camera rays. Materials are the glTF metallic-roughness BRDF
 //! with the specular, sheen and clearcoat layers ([`crate::shading`]) and smooth transmission
-//! ([`crate::bsdf`]).
+//! ([`crate::shading::bsdf`]).
 //!
 //! All randomness comes from the pixel's own stream, in a fixed order, so the image is the same
 //! for any number of threads.
 
 use super::{CameraRay, Integrator, RayCounts};
 use crate::accel::Hit;
-use crate::bsdf::Bsdf;
 use crate::defaults::MAX_BLEND_LAYERS;
-use crate::environment::Environment;
+use crate::light::environment::Environment;
 use crate::light::PunctualLight;
 use crate::prepare::Prepared;
-use crate::render::surface::Occlusion;
 use crate::sampling::{power_heuristic, Rng};
 use crate::scene::AlphaMode;
+use crate::shading::bsdf::Bsdf;
+use crate::shading::surface::Occlusion;
 use glam::Vec3;
 use std::sync::Arc;
 

@@ -15,11 +15,19 @@
 //! half covered, so transparent pixels (nothing hit) keep the terminal's own background and the
 //! model's silhouette stands on it with a sharp edge rather than `viuer`'s checkerboard.
 
-use crate::cli::PreviewMode;
 use crate::output::Image;
 use glam::Vec3;
 use image::{DynamicImage, RgbaImage};
 use std::io::IsTerminal;
+
+/// When `render --preview` prints.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PreviewMode {
+    /// Only when standard output is a terminal, in the best protocol it answers for.
+    Auto,
+    /// Always, as half blocks, with no terminal queries.
+    Blocks,
+}
 
 /// Alpha at or above which a pixel is drawn (below it, the terminal's background shows).
 const OPAQUE_ENOUGH: f32 = 0.5;

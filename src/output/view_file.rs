@@ -5,8 +5,8 @@
 //! Units are glTF's: metres, radians, candela (point, spot), lux (directional). Directions are
 //! unit vectors in world space; a light's `direction` is the way its light travels.
 
-use crate::environment::{Environment, EnvironmentSource};
 use crate::integrator::IntegratorKind;
+use crate::light::environment::{Environment, EnvironmentSource};
 use crate::scene::{Camera, Light, LightKind, Projection};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -157,7 +157,7 @@ pub struct ViewEnvironment {
 
 impl ViewEnvironment {
     /// The environment this record describes (a file is read again).
-    pub fn load(&self) -> Result<Environment, crate::environment::EnvironmentError> {
+    pub fn load(&self) -> Result<Environment, crate::light::environment::EnvironmentError> {
         let base = match &self.source {
             EnvironmentSource::File { path } => Environment::load(path)?,
             EnvironmentSource::Studio { .. } => Environment::studio(),

@@ -1,22 +1,22 @@
 //! The render phase: the pixel loop. Camera rays per pixel (stratified jittered samples), each
 //! handed to an [`Integrator`]; the samples averaged into the film; AOVs from pixel-centre rays.
-//! Surface evaluation lives in [`surface`], light transport in [`crate::integrator`].
+//! Surface evaluation lives in [`crate::shading::surface`], light transport in [`crate::integrator`].
 //!
 //! Work is split into square tiles rendered in parallel with rayon. Every pixel's samples come
 //! from a generator keyed by (seed, x, y), so the image is the same, byte for byte, whatever the
 //! number of threads or the order tiles finish in.
 
+pub mod denoise;
 pub mod film;
-pub mod surface;
 
 pub use film::Image;
 
 use crate::accel::Hit;
 use crate::camera::{Lens, View};
 use crate::color::luminance;
-use crate::environment::Environment;
 use crate::geometry::Ray;
 use crate::integrator::{CameraRay, Direct, Integrator, IntegratorKind, PathTracer, RayCounts};
+use crate::light::environment::Environment;
 use crate::light::PunctualLight;
 use crate::prepare::Prepared;
 use crate::sampling::Rng;

@@ -1,10 +1,12 @@
 //! The prepare phase: a loaded [`Scene`] plus what rendering it needs (the acceleration
 //! structure and the decoded textures), built once and shared read-only by every render of it.
 
+pub mod textures;
+
 use crate::accel::{Accel, AccelKind, BvhPreset};
 use crate::light::AreaLights;
+use crate::prepare::textures::{TextureError, TextureSet};
 use crate::scene::{AlphaMode, Scene};
-use crate::texture::{TextureError, TextureSet};
 
 /// A scene ready to render.
 pub struct Prepared {

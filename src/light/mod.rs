@@ -5,6 +5,8 @@
 //! the same photometric scale: a white Lambertian surface under 1 lux at normal incidence has
 //! radiance 1/π ≈ 0.318, which `--exposure 0` writes unchanged (before sRGB encoding).
 
+pub mod environment;
+
 use crate::scene::{Light, LightKind};
 use glam::Vec3;
 

@@ -11,10 +11,10 @@
 
 use crate::accel::Hit;
 use crate::geometry::{spawn, Ray, SpawnPoint};
+use crate::prepare::textures::transform_uv;
 use crate::prepare::Prepared;
 use crate::scene::{AlphaMode, Material, TextureRef, TextureTransform};
 use crate::shading::{Clearcoat, Iridescence, Sheen, SurfaceMaterial};
-use crate::texture::transform_uv;
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::Cell;
 

@@ -51,6 +51,9 @@
 //! Ambient light adds `ambient · baseColor` (unshadowed, for what no light reaches) and emissive
 //! adds `emissive · emissiveStrength`.
 
+pub mod bsdf;
+pub mod surface;
+
 use glam::Vec3;
 use std::f32::consts::PI;
 

@@ -25,10 +25,10 @@ use crate::defaults::MAX_BLEND_LAYERS;
 use crate::geometry::Ray;
 use crate::integrator::IntegratorKind;
 use crate::prepare::Prepared;
-use crate::render::surface::Occlusion;
 use crate::render::Image;
 use crate::render::{Region, RenderSettings};
 use crate::scene::AlphaMode;
+use crate::shading::surface::Occlusion;
 use glam::Vec3;
 use rayon::prelude::*;
 use std::time::Duration;
@@ -115,7 +115,7 @@ fn first_surfaces(
     scene: &Prepared,
     camera: &Ray,
     spread: (f32, f32),
-    background: Option<(&std::sync::Arc<crate::environment::Environment>, f32)>,
+    background: Option<(&std::sync::Arc<crate::light::environment::Environment>, f32)>,
 ) -> (Vec3, Vec3) {
     let direction = Vec3::from(camera.direction);
     let (mut albedo, mut normal) = (Vec3::ZERO, Vec3::ZERO);
