@@ -43,9 +43,7 @@
 #![deny(missing_docs)]
 
 pub mod accel;
-pub mod app;
 pub mod camera;
-pub mod cli;
 pub mod color;
 mod cpu;
 pub mod defaults;

@@ -1,38 +1,38 @@
 //! `render MODEL --views SPEC -o DIR`: many views of one model after one load and one BVH
-//! build. The spec becomes cameras ([`crate::jobs::views`]); every view is rendered from the
+//! build. The spec becomes cameras ([`meshtracer::jobs::views`]); every view is rendered from the
 //! prepared scene with the same settings and writes its image, the AOVs asked for and its view
-//! file; the folder gets one `transforms.json` ([`crate::output::dataset`]). `--turntable N` is an
+//! file; the folder gets one `transforms.json` ([`meshtracer::output::dataset`]). `--turntable N` is an
 //! orbit that starts at the plain render's azimuth; `--gif` streams its frames into an
-//! animated GIF ([`crate::output::turntable`]) and `--contact-sheet` lays any views out in a grid
-//! ([`crate::output::sheet`]), both from the images in memory as the views finish.
+//! animated GIF ([`meshtracer::output::turntable`]) and `--contact-sheet` lays any views out in a grid
+//! ([`meshtracer::output::sheet`]), both from the images in memory as the views finish.
 //!
 //! Kept apart from the single-view flow in `app.rs`, which hands over after checking the
 //! options they share.
 
 use super::{check_size, image_size, interrupt_flag, load, worker_pool, Interrupted, RenderReport};
-use crate::accel::{Accel, AccelKind};
-use crate::camera::{auto_camera, framing_distance, framing_radius, View};
 use crate::cli::RenderArgs;
-use crate::defaults::{
+use anyhow::{bail, Context, Result};
+use glam::Vec3;
+use meshtracer::accel::{Accel, AccelKind};
+use meshtracer::camera::{auto_camera, framing_distance, framing_radius, View};
+use meshtracer::defaults::{
     AMBIENT_WITH_FILE_LIGHTS, DEFAULT_ORBIT_ELEVATION_DEGREES, DEFAULT_YFOV_DEGREES,
 };
-use crate::integrator::IntegratorKind;
-use crate::jobs::views::{
+use meshtracer::integrator::IntegratorKind;
+use meshtracer::jobs::views::{
     azimuth_degrees, elevation_degrees, fibonacci_directions, orbit_directions, random_directions,
     read_views_file, ExplicitView, Framing, NamePattern, ViewSpec,
 };
-use crate::light::environment::Environment;
-use crate::output::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
-use crate::output::sheet::{ContactSheet, SheetLayout};
-use crate::output::turntable::{check_fps, frame_delay_centiseconds, GifWriter};
-use crate::output::view_file::{SegmentId, ViewEnvironment, ViewFile};
-use crate::output::{OutputFormat, PendingFile, PendingOutput, SaveError};
-use crate::prepare::Prepared;
-use crate::render::{render, RenderSettings, RenderStats};
-use crate::scene::{Camera, Light, Projection, Scene};
-use crate::setup::default_rig;
-use anyhow::{bail, Context, Result};
-use glam::Vec3;
+use meshtracer::light::environment::Environment;
+use meshtracer::output::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
+use meshtracer::output::sheet::{ContactSheet, SheetLayout};
+use meshtracer::output::turntable::{check_fps, frame_delay_centiseconds, GifWriter};
+use meshtracer::output::view_file::{SegmentId, ViewEnvironment, ViewFile};
+use meshtracer::output::{OutputFormat, PendingFile, PendingOutput, SaveError};
+use meshtracer::prepare::Prepared;
+use meshtracer::render::{render, RenderSettings, RenderStats};
+use meshtracer::scene::{Camera, Light, Projection, Scene};
+use meshtracer::setup::default_rig;
 use std::collections::{BTreeSet, HashMap};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -291,7 +291,7 @@ pub(super) fn render_views(
     let load_start = Instant::now();
     let load_options = super::render_load_options(args);
     let mut scene = load(&args.model, &load_options)?;
-    crate::scene::tangents::generate_missing(&mut scene);
+    meshtracer::scene::tangents::generate_missing(&mut scene);
     let load_time = load_start.elapsed();
     super::report_load(args, &scene);
 
@@ -339,7 +339,7 @@ pub(super) fn render_views(
     let (summary, frames) = pool.install(|| -> Result<_> {
         let bvh_start = Instant::now();
         // Every view's rays count toward the choice of preset: the tree is built once.
-        let rays = crate::setup::expected_rays(
+        let rays = meshtracer::setup::expected_rays(
             u64::from(width) * u64::from(height),
             args.spp,
             lights.len(),
@@ -538,7 +538,7 @@ impl ViewRun<'_> {
         k: usize,
         camera: &Camera,
         names: &ViewNames,
-    ) -> Result<(Frame, RenderStats, crate::output::Image)> {
+    ) -> Result<(Frame, RenderStats, meshtracer::output::Image)> {
         let (args, dir, (width, height)) = (self.args, self.dir, (self.width, self.height));
         let path_tracing = args.integrator == IntegratorKind::Path;
         let mut record = ViewFile::new(
@@ -601,13 +601,19 @@ impl ViewRun<'_> {
         if let Some(a) = &aovs {
             if let Some(name) = &names.depth {
                 let path = dir.join(name);
-                crate::output::aov::write_depth(&path, width, height, &a.depth, args.depth_scale)?;
+                meshtracer::output::aov::write_depth(
+                    &path,
+                    width,
+                    height,
+                    &a.depth,
+                    args.depth_scale,
+                )?;
             }
             if let Some(name) = &names.normal {
-                crate::output::aov::write_normals(&dir.join(name), width, height, &a.normal)?;
+                meshtracer::output::aov::write_normals(&dir.join(name), width, height, &a.normal)?;
             }
             if let Some(name) = &names.segmentation {
-                crate::output::aov::write_segmentation(
+                meshtracer::output::aov::write_segmentation(
                     &dir.join(name),
                     width,
                     height,
@@ -617,9 +623,9 @@ impl ViewRun<'_> {
         }
         if let Some(name) = &names.mask {
             let coverage: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();
-            crate::output::aov::write_mask(&dir.join(name), width, height, &coverage)?;
+            meshtracer::output::aov::write_mask(&dir.join(name), width, height, &coverage)?;
         }
-        crate::output::write_atomic(&view_path, text.as_bytes())?;
+        meshtracer::output::write_atomic(&view_path, text.as_bytes())?;
         if !args.quiet {
             eprintln!(
                 "[{}/{}] {} rendered in {:.3} s",
@@ -659,7 +665,7 @@ fn segmentation_ids(scene: &Scene) -> Vec<SegmentId> {
 struct Summary {
     triangles: usize,
     accel: AccelKind,
-    preset: crate::accel::BvhPreset,
+    preset: meshtracer::accel::BvhPreset,
     load_time: Duration,
     bvh_time: Duration,
     views: usize,
@@ -714,7 +720,7 @@ fn write_panorama(path: &Path, env: &Environment) -> Result<()> {
             panorama.height() as usize,
         )
         .with_context(|| format!("{}: cannot encode the panorama", path.display()))?;
-    crate::output::write_atomic(path, &bytes)?;
+    meshtracer::output::write_atomic(path, &bytes)?;
     Ok(())
 }
 
@@ -811,7 +817,7 @@ impl Extras {
         &mut self,
         k: usize,
         camera: &Camera,
-        image: &crate::output::Image,
+        image: &meshtracer::output::Image,
         background: Option<Vec3>,
     ) -> Result<()> {
         if self.gif.is_none() && self.sheet.is_none() {
@@ -858,7 +864,7 @@ impl Extras {
                 written.push(write_sheet(file, sheet, "views", quiet)?);
             }
             if let (Some(mode), Some(sheet)) = (preview, &sheet) {
-                crate::output::preview::show_rgb(sheet.image(), mode).context("--preview")?;
+                meshtracer::output::preview::show_rgb(sheet.image(), mode).context("--preview")?;
             }
         }
         Ok(written)

@@ -1,19 +1,19 @@
 //! The commands: glue between the CLI and the library phases.
 
-use crate::accel::{Accel, AccelKind};
-use crate::camera::{auto_camera, look_at, View};
 use crate::cli::{Command, InfoArgs, LoadArgs, RenderArgs};
-use crate::defaults::{
+use anyhow::{bail, Context, Result};
+use meshtracer::accel::{Accel, AccelKind};
+use meshtracer::camera::{auto_camera, look_at, View};
+use meshtracer::defaults::{
     AMBIENT_WITH_FILE_LIGHTS, DEFAULT_HEIGHT, DEFAULT_WIDTH, DEFAULT_YFOV_DEGREES,
 };
-use crate::integrator::IntegratorKind;
-use crate::light::environment::Environment;
-use crate::output::PendingOutput;
-use crate::prepare::Prepared;
-use crate::render::{render, render_region, RenderSettings};
-use crate::scene::{Camera, LightKind, LoadOptions, Projection, Scene};
-use crate::setup::default_rig;
-use anyhow::{bail, Context, Result};
+use meshtracer::integrator::IntegratorKind;
+use meshtracer::light::environment::Environment;
+use meshtracer::output::PendingOutput;
+use meshtracer::prepare::Prepared;
+use meshtracer::render::{render, render_region, RenderSettings};
+use meshtracer::scene::{Camera, LightKind, LoadOptions, Projection, Scene};
+use meshtracer::setup::default_rig;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -34,14 +34,19 @@ macro_rules! out {
 }
 
 mod batch;
-mod multi_view;
 mod tiles;
+mod views;
 
 /// Wall time and peak memory after each phase of a render, for `--stats`.
 #[derive(Default)]
 struct Phases {
     /// (phase, seconds, peak resident memory in bytes after it, its own steps).
-    list: Vec<(&'static str, f64, Option<u64>, Vec<crate::measure::Step>)>,
+    list: Vec<(
+        &'static str,
+        f64,
+        Option<u64>,
+        Vec<meshtracer::measure::Step>,
+    )>,
 }
 
 impl Phases {
@@ -55,7 +60,7 @@ impl Phases {
     }
 
     /// Records the steps the last phase was made of.
-    fn sub_steps(&mut self, steps: &[crate::measure::Step]) {
+    fn sub_steps(&mut self, steps: &[meshtracer::measure::Step]) {
         if let Some(last) = self.list.last_mut() {
             last.3 = steps.to_vec();
         }
@@ -63,7 +68,7 @@ impl Phases {
 
     /// The phases as JSON: name, seconds, peak memory and, where measured, their steps.
     fn to_json(&self) -> serde_json::Value {
-        let step = |s: &crate::measure::Step| {
+        let step = |s: &meshtracer::measure::Step| {
             serde_json::json!({
                 "step": s.name, "seconds": s.time.as_secs_f64(), "peak_memory_bytes": s.peak_memory,
             })
@@ -83,17 +88,17 @@ impl Phases {
     }
 }
 
-pub use crate::measure::peak_memory_bytes;
+pub use meshtracer::measure::peak_memory_bytes;
 
 /// Decodes the textures `render` (one view or many) draws, within `--max-texture-memory`,
 /// printing the decoder's warnings unless `--quiet`. Returns the textures and every warning
 /// of the load and the decoding, for a caller that records them (batch).
 pub(crate) fn load_textures(
     args: &RenderArgs,
-    scene: &crate::scene::Scene,
-) -> Result<(crate::prepare::textures::TextureSet, Vec<String>)> {
+    scene: &meshtracer::scene::Scene,
+) -> Result<(meshtracer::prepare::textures::TextureSet, Vec<String>)> {
     let mut warnings = Vec::new();
-    let textures = crate::prepare::textures::TextureSet::load(
+    let textures = meshtracer::prepare::textures::TextureSet::load(
         scene,
         args.max_texture_memory.saturating_mul(1 << 20),
         args.strict,
@@ -137,7 +142,7 @@ pub(crate) fn report_load(args: &RenderArgs, scene: &Scene) {
 /// ambient and emission lights it (shared by single- and multi-view renders).
 pub(crate) fn check_lighting(
     args: &RenderArgs,
-    lights: &[crate::scene::Light],
+    lights: &[meshtracer::scene::Light],
     environment: Option<&Environment>,
 ) -> Result<()> {
     if let (Some(path), None) = (&args.env_out, environment) {
@@ -157,10 +162,10 @@ pub(crate) fn check_lighting(
 /// The preset a BVH was built with, for the summary line: "VeryFast, auto" when `--bvh-preset
 /// auto` chose it.
 pub(crate) fn preset_label(
-    asked: crate::accel::BvhPreset,
-    built: crate::accel::BvhPreset,
+    asked: meshtracer::accel::BvhPreset,
+    built: meshtracer::accel::BvhPreset,
 ) -> String {
-    if asked == crate::accel::BvhPreset::Auto {
+    if asked == meshtracer::accel::BvhPreset::Auto {
         format!("{built:?}, auto")
     } else {
         format!("{built:?}")
@@ -189,7 +194,7 @@ fn spp_for_time_limit(
 }
 
 /// Most path bounces `--bounces` accepts: far beyond any visible difference.
-const MAX_BOUNCES: u32 = crate::output::view_file::MAX_VIEW_BOUNCES;
+const MAX_BOUNCES: u32 = meshtracer::output::view_file::MAX_VIEW_BOUNCES;
 
 /// Runs one command.
 pub fn run(command: Command) -> Result<()> {
@@ -263,7 +268,7 @@ fn worker_pool(requested: usize) -> Result<(usize, rayon::ThreadPool)> {
 fn load_options(args: &LoadArgs) -> LoadOptions {
     let mut options = LoadOptions {
         allow_external_files: args.allow_external_files,
-        pose: crate::scene::PoseOptions {
+        pose: meshtracer::scene::PoseOptions {
             animation: args.animation.clone(),
             time: args.time,
         },
@@ -515,8 +520,8 @@ fn render_model(
         bail!("--exposure must be a finite number");
     }
     if args.denoise {
-        if !crate::render::denoise::AVAILABLE {
-            bail!(crate::render::denoise::NOT_BUILT);
+        if !meshtracer::render::denoise::AVAILABLE {
+            bail!(meshtracer::render::denoise::NOT_BUILT);
         }
         // The command line refuses these combinations; a batch job's manifest can still ask.
         if args.views.is_some() || args.turntable.is_some() {
@@ -534,7 +539,7 @@ fn render_model(
         bail!("image width and height must be at least 1");
     }
     let view_file = match &args.view {
-        Some(path) => Some(crate::output::view_file::ViewFile::read(path)?),
+        Some(path) => Some(meshtracer::output::view_file::ViewFile::read(path)?),
         None => None,
     };
     if let Some(v) = &view_file {
@@ -547,7 +552,7 @@ fn render_model(
         (&args.segmentation_out, &["npy", "png"][..]),
     ] {
         if let Some(p) = path {
-            crate::output::aov::check(p, allowed)?;
+            meshtracer::output::aov::check(p, allowed)?;
         }
     }
     if !(args.depth_scale > 0.0 && args.depth_scale.is_finite()) {
@@ -567,10 +572,10 @@ fn render_model(
         bail!("--bounces {}: at most {MAX_BOUNCES}", args.bounces);
     }
     if let Some(p) = &args.env_out {
-        crate::output::aov::check(p, &["hdr"])?;
+        meshtracer::output::aov::check(p, &["hdr"])?;
     }
     if let Some(p) = &args.stats {
-        crate::output::aov::check(p, &["json"])?;
+        meshtracer::output::aov::check(p, &["json"])?;
     }
     tiles::check_render(args)?;
     let env_file = match &args.env {
@@ -581,11 +586,11 @@ fn render_model(
     };
     if let Some(spec) = &args.views {
         // Many views after one load and one BVH build: its own flow, in app/multi_view.rs.
-        return multi_view::render_views(args, spec, env_file, on_view);
+        return views::render_views(args, spec, env_file, on_view);
     }
     if let Some(frames) = args.turntable {
         // A turntable is an orbit (starting where the plain render stands).
-        return multi_view::render_views(args, &format!("orbit:{frames}"), env_file, on_view);
+        return views::render_views(args, &format!("orbit:{frames}"), env_file, on_view);
     }
     if args.contact_sheet.is_some() {
         bail!("--contact-sheet lays out many views: add --views SPEC or --turntable N (or give it to batch, for a cell per job)");
@@ -600,7 +605,7 @@ fn render_model(
     phases.mark("parse and flatten", load_start);
     phases.sub_steps(&scene.load_steps);
     let tangent_start = Instant::now();
-    crate::scene::tangents::generate_missing(&mut scene);
+    meshtracer::scene::tangents::generate_missing(&mut scene);
     phases.mark("tangents", tangent_start);
     let load_time = load_start.elapsed();
     report_load(args, &scene);
@@ -693,7 +698,7 @@ fn render_model(
     let cancel = interrupt_flag();
     let (prepared, (image, stats, aovs), denoised) = pool.install(|| -> Result<_> {
         let bvh_start = Instant::now();
-        let rays = crate::setup::expected_rays(
+        let rays = meshtracer::setup::expected_rays(
             u64::from(width) * u64::from(height),
             settings.spp,
             settings.lights.len(),
@@ -722,13 +727,13 @@ fn render_model(
         let denoised = if args.denoise {
             // On the linear HDR film, before the output encodes it (sRGB PNG, EXR, HDR).
             let guide_start = Instant::now();
-            let guides = crate::render::denoise::guides(&prepared, &settings, region);
+            let guides = meshtracer::render::denoise::guides(&prepared, &settings, region);
             phases.mark("denoise guides", guide_start);
             let denoise_start = Instant::now();
-            let report = crate::render::denoise::denoise(&mut image, &guides)?;
+            let report = meshtracer::render::denoise::denoise(&mut image, &guides)?;
             phases.mark("denoise", denoise_start);
             if cancel.load(Ordering::SeqCst) {
-                return Err(crate::render::Cancelled.into());
+                return Err(meshtracer::render::Cancelled.into());
             }
             Some((report, guides.samples_per_pixel, guide_start.elapsed()))
         } else {
@@ -741,11 +746,11 @@ fn render_model(
     let background = args.background;
     output.commit(&image, background)?;
     if let Some(mode) = args.preview {
-        crate::output::preview::show(&image, background, mode).context("--preview")?;
+        meshtracer::output::preview::show(&image, background, mode).context("--preview")?;
     }
     if let Some(a) = &aovs {
         if let Some(p) = &args.depth_out {
-            crate::output::aov::write_depth(
+            meshtracer::output::aov::write_depth(
                 p,
                 image.width,
                 image.height,
@@ -754,15 +759,15 @@ fn render_model(
             )?;
         }
         if let Some(p) = &args.normal_out {
-            crate::output::aov::write_normals(p, image.width, image.height, &a.normal)?;
+            meshtracer::output::aov::write_normals(p, image.width, image.height, &a.normal)?;
         }
         if let Some(p) = &args.segmentation_out {
-            crate::output::aov::write_segmentation(p, image.width, image.height, &a.instance)?;
+            meshtracer::output::aov::write_segmentation(p, image.width, image.height, &a.instance)?;
         }
     }
     if let Some(p) = &args.mask_out {
         let coverage: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();
-        crate::output::aov::write_mask(p, image.width, image.height, &coverage)?;
+        meshtracer::output::aov::write_mask(p, image.width, image.height, &coverage)?;
     }
     if let (Some(path), Some(env)) = (&args.env_out, &settings.environment) {
         let panorama = env.to_rgb32f();
@@ -778,10 +783,10 @@ fn render_model(
                 panorama.height() as usize,
             )
             .with_context(|| format!("{}: cannot encode the panorama", path.display()))?;
-        crate::output::write_atomic(path, &bytes)?;
+        meshtracer::output::write_atomic(path, &bytes)?;
     }
     if let Some(path) = &args.view_out {
-        let mut view = crate::output::view_file::ViewFile::new(
+        let mut view = meshtracer::output::view_file::ViewFile::new(
             &camera,
             width,
             height,
@@ -793,7 +798,7 @@ fn render_model(
             .instances
             .iter()
             .enumerate()
-            .map(|(i, inst)| crate::output::view_file::SegmentId {
+            .map(|(i, inst)| meshtracer::output::view_file::SegmentId {
                 id: i as u32 + 1,
                 node: inst.node,
                 mesh: inst.mesh,
@@ -805,7 +810,7 @@ fn render_model(
         if settings.integrator == IntegratorKind::Path {
             view.bounces = Some(settings.bounces);
             view.environment = settings.environment.as_ref().map(|env| {
-                crate::output::view_file::ViewEnvironment {
+                meshtracer::output::view_file::ViewEnvironment {
                     source: env.source.clone(),
                     rotation_degrees: env.rotation_degrees(),
                     intensity: env.intensity(),
@@ -818,7 +823,7 @@ fn render_model(
             });
         }
         view.denoise = denoised.as_ref().map(|(report, guide_samples, _)| {
-            crate::output::view_file::ViewDenoise {
+            meshtracer::output::view_file::ViewDenoise {
                 denoiser: "Intel Open Image Denoise".into(),
                 version: report.library_version.clone(),
                 filter: "RT".into(),
@@ -847,7 +852,7 @@ fn render_model(
             "mrays_per_second": stats.mrays_per_second(),
             "denoised": denoised.is_some(),
         });
-        crate::output::write_atomic(path, serde_json::to_string_pretty(&json)?.as_bytes())?;
+        meshtracer::output::write_atomic(path, serde_json::to_string_pretty(&json)?.as_bytes())?;
     }
     if !args.quiet {
         let structure = match accel.kind() {
@@ -961,7 +966,7 @@ fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
 }
 
 fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
-    use crate::tools::bench::{
+    use meshtracer::tools::bench::{
         generated_mesh, markdown_table, measure, scene_from_soup, BenchOptions,
     };
     for path in [&args.report, &args.plot].into_iter().flatten() {
@@ -1072,20 +1077,20 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
                 );
             }
             let settings = bench_path_settings(&scene, args.path_size, args.path_spp);
-            let prepare = crate::prepare::PrepareOptions {
+            let prepare = meshtracer::prepare::PrepareOptions {
                 bvh_preset: args.bvh_preset,
                 ..Default::default()
             };
-            let row = pool.install(|| -> Result<crate::tools::bench::PathRow> {
+            let row = pool.install(|| -> Result<meshtracer::tools::bench::PathRow> {
                 let mut warnings = Vec::new();
-                let prepared = crate::prepare::Prepared::new(scene, &prepare, &mut warnings)
+                let prepared = meshtracer::prepare::Prepared::new(scene, &prepare, &mut warnings)
                     .with_context(|| format!("{name}: textures"))?;
                 if !args.quiet {
                     for w in &warnings {
                         eprintln!("warning: {name}: {w}");
                     }
                 }
-                Ok(crate::tools::bench::path_versus_bvh(
+                Ok(meshtracer::tools::bench::path_versus_bvh(
                     &prepared,
                     &settings,
                     name,
@@ -1099,7 +1104,7 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
     let mut table = markdown_table(&rows);
     if !path_rows.is_empty() {
         table.push('\n');
-        table.push_str(&crate::tools::bench::path_table(&path_rows));
+        table.push_str(&meshtracer::tools::bench::path_table(&path_rows));
     }
     out!("{table}");
     let partial = (rows.len() < jobs.len()).then(|| {
@@ -1122,12 +1127,12 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
     out!("{settings}");
     if let Some(path) = &args.report {
         let report = format!("# meshtracer bench\n\n{settings}\n\n{table}");
-        crate::output::write_atomic(path, report.as_bytes())?;
+        meshtracer::output::write_atomic(path, report.as_bytes())?;
     }
     if let Some(path) = &args.plot {
         let title = format!("time per {:?} ray vs triangles", args.rays).to_lowercase();
-        let svg = crate::tools::plot::scaling_plot(&generated_rows, &model_rows, &title)?;
-        crate::output::write_atomic(path, svg.as_bytes())?;
+        let svg = meshtracer::tools::plot::scaling_plot(&generated_rows, &model_rows, &title)?;
+        meshtracer::output::write_atomic(path, svg.as_bytes())?;
     }
     match partial {
         Some(p) => Err(Interrupted(format!("{p} reported")).into()),
@@ -1139,12 +1144,12 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
 /// and `spp` samples, lit as `render --integrator path` lights it (the file's lights, else the
 /// built-in studio environment and no light rig).
 fn bench_path_settings(
-    scene: &crate::scene::Scene,
+    scene: &meshtracer::scene::Scene,
     (width, height): (u32, u32),
     spp: u32,
 ) -> RenderSettings {
-    let mut settings = crate::setup::default_settings(scene, width, height);
-    settings.integrator = crate::integrator::IntegratorKind::Path;
+    let mut settings = meshtracer::setup::default_settings(scene, width, height);
+    settings.integrator = meshtracer::integrator::IntegratorKind::Path;
     settings.spp = spp;
     if scene.lights.is_empty() {
         settings.lights = Vec::new();
@@ -1174,7 +1179,7 @@ fn cpu_name() -> String {
 }
 
 fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
-    use crate::tools::compare::{compare_files, side_by_side};
+    use meshtracer::tools::compare::{compare_files, side_by_side};
     for (metric, _) in &args.fail_above {
         if !["flip", "rmse", "max_abs"].contains(&metric.as_str()) {
             bail!("--fail-above {metric}: use --fail-below for psnr, ssim and coverage_iou");
@@ -1199,7 +1204,7 @@ fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
         let mut png = Vec::new();
         heat.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
             .context("encoding the heatmap")?;
-        crate::output::write_atomic(path, &png)?;
+        meshtracer::output::write_atomic(path, &png)?;
     }
     if let Some(path) = &args.side_by_side {
         let name = |p: &std::path::Path| {
@@ -1218,7 +1223,7 @@ fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
         strip
             .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
             .context("encoding the side-by-side image")?;
-        crate::output::write_atomic(path, &png)?;
+        meshtracer::output::write_atomic(path, &png)?;
     }
     if args.json {
         out!("{}", serde_json::to_string_pretty(&metrics)?);

@@ -1,14 +1,14 @@
 //! `render --tile I/N` / `--crop X,Y,W,H` (the part of the image a render covers, and the
 //! sidecar it leaves) and `merge` (tiles joined into the whole image). The formats and checks
-//! are in [`crate::jobs::tiles`].
+//! are in [`meshtracer::jobs::tiles`].
 
 use crate::cli::{MergeArgs, RenderArgs};
-use crate::jobs::tiles::{
+use anyhow::{bail, Context, Result};
+use meshtracer::jobs::tiles::{
     check_cover, extension, fingerprint, Raster, TileFile, TILE_FILE_VERSION,
 };
-use crate::render::{Region, RenderSettings};
-use crate::scene::Scene;
-use anyhow::{bail, Context, Result};
+use meshtracer::render::{Region, RenderSettings};
+use meshtracer::scene::Scene;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -34,7 +34,7 @@ pub(super) fn check_render(args: &RenderArgs) -> Result<()> {
 pub(super) fn region(args: &RenderArgs, width: u32, height: u32) -> Result<Region> {
     Ok(match (args.tile, args.crop) {
         (Some(tile), _) => tile.region(width, height)?,
-        (None, Some(crop)) => crate::jobs::tiles::check_crop(crop, width, height)?,
+        (None, Some(crop)) => meshtracer::jobs::tiles::check_crop(crop, width, height)?,
         (None, None) => Region::full(width, height),
     })
 }
@@ -102,7 +102,7 @@ pub(super) fn write_sidecar(
     .collect();
     let file = TileFile {
         meshtracer_tile: TILE_FILE_VERSION,
-        image: crate::output::view_file::ImageSize {
+        image: meshtracer::output::view_file::ImageSize {
             width: settings.view.width,
             height: settings.view.height,
         },
@@ -112,7 +112,7 @@ pub(super) fn write_sidecar(
         outputs,
     };
     let text = serde_json::to_string_pretty(&file)?;
-    crate::output::write_atomic(&sidecar, text.as_bytes())?;
+    meshtracer::output::write_atomic(&sidecar, text.as_bytes())?;
     Ok(())
 }
 
@@ -202,7 +202,7 @@ pub(super) fn merge_command(args: &MergeArgs) -> Result<()> {
         }
         if let Some(whole) = whole {
             let bytes = whole.encode(out)?;
-            crate::output::write_atomic(out, &bytes)?;
+            meshtracer::output::write_atomic(out, &bytes)?;
         }
     }
     if !args.quiet {

@@ -15,16 +15,16 @@
 //! first image a job wrote (read back from its file, a skipped job's too), a failed job a
 //! crossed-out cell, labelled with the job id.
 
-use super::multi_view::{has_extension, sheet_layout, write_sheet};
+use super::views::{has_extension, sheet_layout, write_sheet};
 use super::{image_size, interrupt_flag, render_model, Interrupted, RenderReport};
 use crate::cli::{BatchArgs, BatchMergeArgs, RenderArgs};
-use crate::jobs::batch::{
+use anyhow::{anyhow, bail, Context, Result};
+use meshtracer::jobs::batch::{
     check_output_name, output_key, read_manifest, read_results, results_jsonl, sha256_file, Entry,
     Job, JobRecord, OutputRecord, Shard, Status, Timings, JOB_FILE, RESULTS_FILE,
 };
-use crate::output::sheet::ContactSheet;
-use crate::output::PendingFile;
-use anyhow::{anyhow, bail, Context, Result};
+use meshtracer::output::sheet::ContactSheet;
+use meshtracer::output::PendingFile;
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
@@ -122,13 +122,13 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
     }
     progress.finish();
     let results = dir.join(shard.results_file());
-    crate::output::write_atomic(&results, results_jsonl(&records).as_bytes())?;
+    meshtracer::output::write_atomic(&results, results_jsonl(&records).as_bytes())?;
     if let Some(JobSheet { file, sheet }) = sheet {
         if let Some(file) = file {
             write_sheet(file, &sheet, "jobs", defaults.quiet)?;
         }
         if let Some(mode) = defaults.preview {
-            crate::output::preview::show_rgb(sheet.image(), mode).context("--preview")?;
+            meshtracer::output::preview::show_rgb(sheet.image(), mode).context("--preview")?;
         }
     }
     let count = |status| records.iter().filter(|r| r.status == status).count();
@@ -287,7 +287,7 @@ fn run_job(args: &BatchArgs, dir: &Path, entry: &Entry, progress: &Progress) -> 
     record.seconds.total = start.elapsed().as_secs_f64();
     record.fingerprint = Some(fingerprint);
     let text = serde_json::to_string_pretty(&record).expect("a record serialises") + "\n";
-    if let Err(e) = crate::output::write_atomic(&record_path, text.as_bytes()) {
+    if let Err(e) = meshtracer::output::write_atomic(&record_path, text.as_bytes()) {
         return fail(format!("job '{}': {e}", job.id));
     }
     Outcome::Done(Box::new(record), note)
@@ -409,7 +409,7 @@ fn job_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<(RenderArgs,
     canonical.model = PathBuf::from(&job.model_text);
     canonical.threads = 0;
     let model_hash = sha256_file(&job.model).unwrap_or_else(|e| format!("unreadable ({e})"));
-    let fingerprint = crate::jobs::batch::sha256_hex(
+    let fingerprint = meshtracer::jobs::batch::sha256_hex(
         format!(
             "meshtracer {}\nmodel sha256 {model_hash}\n{canonical:?}",
             env!("CARGO_PKG_VERSION")
@@ -428,7 +428,7 @@ fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArg
     args.contact_sheet = None;
     args.preview = None;
     args.sheet_columns = None;
-    args.sheet_cell_width = crate::output::sheet::DEFAULT_CELL_WIDTH;
+    args.sheet_cell_width = meshtracer::output::sheet::DEFAULT_CELL_WIDTH;
     if job.width.is_some() {
         args.width = job.width;
     }
@@ -571,7 +571,7 @@ impl JobSheet {
             .outputs
             .iter()
             .find(|o| Some(&o.path) != panorama.as_ref())
-            .and_then(|o| crate::tools::compare::read(&dir.join(&o.path)).ok());
+            .and_then(|o| meshtracer::tools::compare::read(&dir.join(&o.path)).ok());
         match image {
             Some(image) => self.sheet.place(k, &image, id),
             None => self.sheet.place_failed(k, id),
@@ -732,7 +732,7 @@ pub(super) fn merge_command(args: &BatchMergeArgs) -> Result<()> {
         }
     }
     let results = dir.join(RESULTS_FILE);
-    crate::output::write_atomic(&results, results_jsonl(&records).as_bytes())?;
+    meshtracer::output::write_atomic(&results, results_jsonl(&records).as_bytes())?;
     if !args.quiet {
         let count_of = |status| records.iter().filter(|r| r.status == status).count();
         eprintln!(

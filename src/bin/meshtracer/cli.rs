@@ -1,30 +1,44 @@
-//! Command-line definitions (clap). Parsing only: the commands run in [`crate::app`].
+//! Command-line definitions (clap). Parsing only: the commands run in [`crate::commands`].
 
-use crate::accel::{AccelKind, BvhPreset};
-use crate::integrator::IntegratorKind;
-pub use crate::output::preview::PreviewMode;
-use crate::shading::ShadingModel;
-use crate::tools::bench::RayKind;
-use clap::builder::PossibleValue;
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
 use glam::Vec3;
+use meshtracer::accel::{AccelKind, BvhPreset};
+use meshtracer::integrator::IntegratorKind;
+pub use meshtracer::output::preview::PreviewMode;
+use meshtracer::shading::ShadingModel;
+use meshtracer::tools::bench::RayKind;
 use std::path::PathBuf;
 
-/// Implements `clap::ValueEnum` for a library enum here, so that the library's types need no
-/// clap: each variant with its name on the command line and its help line.
+/// A library enum as a command-line choice: each variant with its name on the command line and
+/// its help line. The library's types know nothing of clap (and a foreign type cannot get clap's
+/// `ValueEnum` here), so their fields take [`choice`] as their value parser.
+trait Choice: Copy + Send + Sync + 'static {
+    /// Every variant, its name and its help line, in the order `--help` lists them.
+    const CHOICES: &'static [(Self, &'static str, &'static str)];
+}
+
 macro_rules! value_enum {
     ($type:ty { $($variant:ident => $name:literal: $help:literal,)* }) => {
-        impl clap::ValueEnum for $type {
-            fn value_variants<'a>() -> &'a [Self] {
-                &[$(<$type>::$variant),*]
-            }
-            fn to_possible_value(&self) -> Option<PossibleValue> {
-                Some(match self {
-                    $(<$type>::$variant => PossibleValue::new($name).help($help),)*
-                })
-            }
+        impl Choice for $type {
+            const CHOICES: &'static [(Self, &'static str, &'static str)] =
+                &[$((<$type>::$variant, $name, $help)),*];
         }
     };
+}
+
+/// The value parser of a [`Choice`]: one of its names, listed with their help in `--help`.
+fn choice<T: Choice>() -> impl TypedValueParser<Value = T> {
+    let names = T::CHOICES
+        .iter()
+        .map(|&(_, name, help)| PossibleValue::new(name).help(help));
+    PossibleValuesParser::new(names).try_map(|name: String| {
+        T::CHOICES
+            .iter()
+            .find(|&&(_, n, _)| n == name)
+            .map(|&(value, _, _)| value)
+            .ok_or_else(|| format!("'{name}' is not one of the choices"))
+    })
 }
 
 value_enum!(AccelKind {
@@ -119,7 +133,7 @@ fn parse_time(text: &str) -> Result<f32, String> {
         .trim()
         .parse()
         .map_err(|_| format!("'{text}' is not a number of seconds"))?;
-    crate::scene::PoseOptions {
+    meshtracer::scene::PoseOptions {
         animation: None,
         time: Some(time),
     }
@@ -158,7 +172,7 @@ pub struct RenderArgs {
     pub height: Option<u32>,
     /// Samples per pixel: 1 shoots through pixel centres; N > 1 takes stratified jittered
     /// samples (square numbers stratify best).
-    #[arg(long, default_value_t = crate::defaults::DEFAULT_SPP)]
+    #[arg(long, default_value_t = meshtracer::defaults::DEFAULT_SPP)]
     pub spp: u32,
     /// Render for about this many seconds instead of a fixed --spp: one sample per pixel is
     /// timed, then the image is rendered at the largest spp that fits the rest of the budget
@@ -208,7 +222,7 @@ pub struct RenderArgs {
     #[arg(
         long,
         value_name = "N",
-        value_parser = clap::value_parser!(u32).range(1..=i64::from(crate::output::turntable::MAX_TURNTABLE_FRAMES)),
+        value_parser = clap::value_parser!(u32).range(1..=i64::from(meshtracer::output::turntable::MAX_TURNTABLE_FRAMES)),
         conflicts_with_all = ["views", "view", "camera", "look_from", "up", "time_limit", "stats"]
     )]
     pub turntable: Option<u32>,
@@ -260,7 +274,7 @@ pub struct RenderArgs {
     #[arg(
         long,
         value_name = "PX",
-        default_value_t = crate::output::sheet::DEFAULT_CELL_WIDTH,
+        default_value_t = meshtracer::output::sheet::DEFAULT_CELL_WIDTH,
         requires = "contact_sheet"
     )]
     pub sheet_cell_width: u32,
@@ -279,7 +293,7 @@ pub struct RenderArgs {
         value_parser = parse_tile,
         conflicts_with_all = ["views", "turntable", "time_limit", "crop"]
     )]
-    pub tile: Option<crate::jobs::tiles::TileIndex>,
+    pub tile: Option<meshtracer::jobs::tiles::TileIndex>,
     /// Render only the rectangle of W x H pixels whose top-left pixel is X,Y (from the
     /// image's top-left corner); written like a --tile, with its sidecar.
     #[arg(
@@ -288,7 +302,7 @@ pub struct RenderArgs {
         value_parser = parse_crop,
         conflicts_with_all = ["views", "turntable", "time_limit"]
     )]
-    pub crop: Option<crate::render::Region>,
+    pub crop: Option<meshtracer::render::Region>,
     /// Show the finished image in the terminal, sized to it: as sixel, iTerm2 or kitty
     /// graphics when the terminal speaks one, else as Unicode half blocks (24-bit colour when
     /// COLORTERM says so, 256 colours otherwise). `--preview` (auto) prints only when standard
@@ -297,7 +311,7 @@ pub struct RenderArgs {
     /// or batch: the views or jobs once at the end, as a contact sheet.
     #[arg(
         long,
-        value_enum,
+        value_parser = choice::<PreviewMode>(),
         value_name = "MODE",
         num_args = 0..=1,
         require_equals = true,
@@ -305,11 +319,11 @@ pub struct RenderArgs {
     )]
     pub preview: Option<PreviewMode>,
     /// Acceleration structure: the BVH, or a linear scan of every triangle (the baseline).
-    #[arg(long, value_enum, default_value_t = AccelKind::Bvh)]
+    #[arg(long, value_parser = choice::<AccelKind>(), default_value = "bvh")]
     pub accel: AccelKind,
     /// obvhs build preset for the BVH; `auto` picks `very-fast` when the render traces fewer
     /// than 32 rays a triangle (a big model, a small image), `medium` otherwise.
-    #[arg(long, value_enum, default_value_t = BvhPreset::Auto)]
+    #[arg(long, value_parser = choice::<BvhPreset>(), default_value = "auto")]
     pub bvh_preset: BvhPreset,
     /// Worker threads (0 = one per core).
     #[arg(long, default_value_t = 0)]
@@ -331,11 +345,11 @@ pub struct RenderArgs {
     #[arg(long, value_name = "R,G,B", value_parser = parse_vec3_or_scalar)]
     pub ambient: Option<Vec3>,
     /// Shading model: the glTF metallic-roughness BRDF, or classic Blinn-Phong.
-    #[arg(long, value_enum, default_value_t = crate::shading::ShadingModel::Pbr)]
-    pub shading: crate::shading::ShadingModel,
+    #[arg(long, value_parser = choice::<ShadingModel>(), default_value = "pbr")]
+    pub shading: meshtracer::shading::ShadingModel,
     /// Decoded texture memory budget in MiB; larger images are halved until they fit, with a
     /// warning.
-    #[arg(long, default_value_t = crate::defaults::MAX_TEXTURE_MIB, value_name = "MIB")]
+    #[arg(long, default_value_t = meshtracer::defaults::MAX_TEXTURE_MIB, value_name = "MIB")]
     pub max_texture_memory: usize,
     /// Do not add the default key and fill lights (direct) or the built-in studio environment
     /// (path) when the file has no lights.
@@ -344,10 +358,10 @@ pub struct RenderArgs {
     /// Light transport: `direct` (punctual lights through shadow rays, constant ambient) or
     /// `path` (path tracing: emissive surfaces as area lights, the environment,
     /// interreflection, multiple importance sampling).
-    #[arg(long, value_enum, default_value_t = crate::integrator::IntegratorKind::Direct)]
-    pub integrator: crate::integrator::IntegratorKind,
+    #[arg(long, value_parser = choice::<IntegratorKind>(), default_value = "direct")]
+    pub integrator: meshtracer::integrator::IntegratorKind,
     /// Path tracer: most bounces after the first hit (0 = direct light only).
-    #[arg(long, default_value_t = crate::defaults::DEFAULT_BOUNCES, value_name = "N")]
+    #[arg(long, default_value_t = meshtracer::defaults::DEFAULT_BOUNCES, value_name = "N")]
     pub bounces: u32,
     /// Path tracer: light the scene with this equirectangular panorama (.hdr, or .exr with
     /// any compression but DWAA/DWAB) [default: the built-in neutral studio when the file has
@@ -473,8 +487,8 @@ pub struct BatchArgs {
     /// Render only shard I of N (0-based, I < N): the jobs whose id hashes (FNV-1a 64 of its
     /// UTF-8 bytes) to I modulo N [default: from SLURM_ARRAY_TASK_ID and
     /// SLURM_ARRAY_TASK_COUNT, or JOB_COMPLETION_INDEX and --shard-count; 0/1 for all jobs].
-    #[arg(long, value_name = "I/N", value_parser = crate::jobs::batch::Shard::parse)]
-    pub shard: Option<crate::jobs::batch::Shard>,
+    #[arg(long, value_name = "I/N", value_parser = meshtracer::jobs::batch::Shard::parse)]
+    pub shard: Option<meshtracer::jobs::batch::Shard>,
     /// The number of shards when JOB_COMPLETION_INDEX (a Kubernetes Indexed Job) gives the
     /// index [default: MESHTRACER_SHARD_COUNT].
     #[arg(long, value_name = "N", conflicts_with = "shard")]
@@ -531,8 +545,8 @@ pub struct BenchArgs {
     #[arg(long, default_value = "1000,10000,100000,1000000")]
     pub sizes: SizeList,
     /// Ray coherence: camera rays, shadow rays toward a light, or random diffuse bounces.
-    #[arg(long, value_enum, default_value_t = crate::tools::bench::RayKind::Primary)]
-    pub rays: crate::tools::bench::RayKind,
+    #[arg(long, value_parser = choice::<RayKind>(), default_value = "primary")]
+    pub rays: meshtracer::tools::bench::RayKind,
     /// Camera rays per image side (side² primary rays per run).
     #[arg(long, default_value_t = 512)]
     pub side: u32,
@@ -544,7 +558,7 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = 2_000_000_000)]
     pub linear_budget: u64,
     /// obvhs build preset.
-    #[arg(long, value_enum, default_value_t = BvhPreset::Medium)]
+    #[arg(long, value_parser = choice::<BvhPreset>(), default_value = "medium")]
     pub bvh_preset: BvhPreset,
     /// Worker threads (0 = one per core).
     #[arg(long, default_value_t = 0)]
@@ -640,13 +654,13 @@ pub fn parse_threshold(s: &str) -> Result<(String, f64), String> {
 }
 
 /// Parses `--tile I/N`.
-pub fn parse_tile(s: &str) -> Result<crate::jobs::tiles::TileIndex, String> {
-    crate::jobs::tiles::TileIndex::parse(s).map_err(|e| e.to_string())
+pub fn parse_tile(s: &str) -> Result<meshtracer::jobs::tiles::TileIndex, String> {
+    meshtracer::jobs::tiles::TileIndex::parse(s).map_err(|e| e.to_string())
 }
 
 /// Parses `--crop X,Y,W,H`.
-pub fn parse_crop(s: &str) -> Result<crate::render::Region, String> {
-    crate::jobs::tiles::parse_crop(s).map_err(|e| e.to_string())
+pub fn parse_crop(s: &str) -> Result<meshtracer::render::Region, String> {
+    meshtracer::jobs::tiles::parse_crop(s).map_err(|e| e.to_string())
 }
 
 /// Parses `X,Y,Z` into a vector of three finite numbers.
@@ -735,10 +749,10 @@ mod tests {
 #[cfg(test)]
 mod help_tests {
     use super::Cli;
-    use crate::defaults;
     use clap::CommandFactory;
+    use meshtracer::defaults;
 
-    /// The defaults `--help` states in prose are the ones [`crate::defaults`] names.
+    /// The defaults `--help` states in prose are the ones [`meshtracer::defaults`] names.
     #[test]
     fn render_help_states_the_library_defaults() {
         let mut cli = Cli::command();

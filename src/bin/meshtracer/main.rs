@@ -1,20 +1,23 @@
 //! The `meshtracer` binary: parse options, run, print the error chain once, exit non-zero.
 
+mod cli;
+mod commands;
+
+use crate::cli::Cli;
 use clap::Parser;
-use meshtracer::cli::Cli;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
     keep_freed_memory();
     let cli = Cli::parse();
-    match meshtracer::app::run(cli.command) {
+    match crate::commands::run(cli.command) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             if e.is::<meshtracer::render::Cancelled>() {
                 eprintln!("meshtracer: interrupted; no output written");
                 return ExitCode::from(130);
             }
-            if let Some(stopped) = e.downcast_ref::<meshtracer::app::Interrupted>() {
+            if let Some(stopped) = e.downcast_ref::<crate::commands::Interrupted>() {
                 eprintln!("meshtracer: {stopped}");
                 return ExitCode::from(130);
             }
