@@ -6,10 +6,13 @@ use crate::defaults::{
     AMBIENT_WITH_DEFAULT_RIG, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_BOUNCES, DEFAULT_SPP,
     FILL_LIGHT_LUX, KEY_LIGHT_LUX,
 };
+use crate::integrator::IntegratorKind;
+use crate::light::environment::Environment;
 use crate::render::RenderSettings;
 use crate::scene::{Light, LightKind, Scene};
 use crate::shading::ShadingModel;
 use glam::Vec3;
+use std::sync::Arc;
 
 /// About how many rays a render traces: a camera ray per sample, one shadow ray per light at
 /// each hit and, for the path tracer, about two rays (a bounce and a light sample) for each of
@@ -18,15 +21,13 @@ pub fn expected_rays(
     pixels: u64,
     spp: u32,
     lights: usize,
-    integrator: crate::integrator::IntegratorKind,
+    integrator: IntegratorKind,
     bounces: u32,
 ) -> f64 {
     let samples = pixels as f64 * f64::from(spp.max(1));
     match integrator {
-        crate::integrator::IntegratorKind::Direct => samples * (1 + lights) as f64,
-        crate::integrator::IntegratorKind::Path => {
-            samples * (1.0 + 2.0 * f64::from(bounces.min(3)))
-        }
+        IntegratorKind::Direct => samples * (1 + lights) as f64,
+        IntegratorKind::Path => samples * (1.0 + 2.0 * f64::from(bounces.min(3))),
     }
 }
 
@@ -56,6 +57,109 @@ pub fn default_rig(view: &View) -> (Vec<Light>, Vec3) {
     (vec![key, fill], Vec3::splat(AMBIENT_WITH_DEFAULT_RIG))
 }
 
+/// What a command asks of a view's lighting (the render options that decide it).
+#[derive(Clone, Debug)]
+pub struct LightingOptions {
+    /// The direct integrator is lit by the default rig when the file has no lights; the path
+    /// tracer by the built-in studio environment.
+    pub integrator: IntegratorKind,
+    /// Neither the rig nor the studio environment (`--no-default-lights`).
+    pub no_default_lights: bool,
+    /// A panorama to light with (`--env`), already rotated and scaled.
+    pub environment: Option<Environment>,
+    /// `--env-rotation` in degrees, applied to the built-in studio environment.
+    pub studio_rotation_degrees: f32,
+    /// `--env-intensity`, applied to the built-in studio environment.
+    pub studio_intensity: f32,
+}
+
+impl LightingOptions {
+    /// The lighting options of `integrator` with no option given.
+    pub fn new(integrator: IntegratorKind) -> LightingOptions {
+        LightingOptions {
+            integrator,
+            no_default_lights: false,
+            environment: None,
+            studio_rotation_degrees: 0.0,
+            studio_intensity: 1.0,
+        }
+    }
+}
+
+/// Lighting recorded in a view file (`--view`): used as it is.
+#[derive(Clone, Debug)]
+pub struct RecordedLighting {
+    /// The lights, in world space.
+    pub lights: Vec<Light>,
+    /// The ambient factor.
+    pub ambient: Vec3,
+    /// The environment the recorded render was lit by, if any.
+    pub environment: Option<Environment>,
+}
+
+/// A view's lighting, as [`lighting`] decides it.
+#[derive(Clone, Debug)]
+pub struct Lighting {
+    /// Punctual lights.
+    pub lights: Vec<Light>,
+    /// The ambient factor that goes with them (the caller's `--ambient` overrides it).
+    pub ambient: Vec3,
+    /// The environment (path tracer).
+    pub environment: Option<Arc<Environment>>,
+    /// Whether `lights` is the default rig.
+    pub default_rig: bool,
+}
+
+/// The one lighting policy, used by every command and by [`default_settings`]:
+/// - a view file's recorded lights and ambient are used as they are;
+/// - else the file's lights, with [`AMBIENT_WITH_FILE_LIGHTS`];
+/// - else, for the direct integrator, the default rig placed for `rig_view` (the view itself,
+///   or for many views one camera they share, so lights stay put from view to view);
+/// - else (path tracer, or `--no-default-lights`) no punctual light and no ambient.
+///
+/// The environment is `--env`; else, for the path tracer, the view file's recorded one; else,
+/// for the path tracer of a file without lights, the built-in studio environment (turned and
+/// scaled by the options); else none.
+pub fn lighting(
+    scene_lights: &[Light],
+    recorded: Option<RecordedLighting>,
+    rig_view: &View,
+    options: LightingOptions,
+) -> Lighting {
+    let path_tracing = options.integrator == IntegratorKind::Path;
+    let default_rig_wanted = !options.no_default_lights && scene_lights.is_empty();
+    let default_rig = recorded.is_none() && default_rig_wanted && !path_tracing;
+    let studio = recorded.is_none() && default_rig_wanted && path_tracing;
+    let (lights, ambient, recorded_environment) = match recorded {
+        Some(r) => (r.lights, r.ambient, r.environment),
+        None if !scene_lights.is_empty() => (
+            scene_lights.to_vec(),
+            Vec3::splat(AMBIENT_WITH_FILE_LIGHTS),
+            None,
+        ),
+        None if default_rig => {
+            let (lights, ambient) = self::default_rig(rig_view);
+            (lights, ambient, None)
+        }
+        None => (Vec::new(), Vec3::ZERO, None),
+    };
+    let recorded_environment = recorded_environment.filter(|_| path_tracing);
+    let environment = match options.environment.or(recorded_environment) {
+        Some(env) => Some(env),
+        None if studio => Some(
+            Environment::studio()
+                .with_transform(options.studio_rotation_degrees, options.studio_intensity),
+        ),
+        None => None,
+    };
+    Lighting {
+        lights,
+        ambient,
+        environment: environment.map(Arc::new),
+        default_rig,
+    }
+}
+
 /// The default render of `scene` at `width` x `height`: its first camera (else the automatic
 /// one framing its bounds), its lights with [`AMBIENT_WITH_FILE_LIGHTS`] (else the default
 /// rig), [`DEFAULT_SPP`] samples per pixel, seed 0, the glTF BRDF, no exposure change, no AOVs.
@@ -68,23 +172,24 @@ pub fn default_settings(scene: &Scene, width: u32, height: u32) -> RenderSetting
         .cloned()
         .unwrap_or_else(|| auto_camera(&scene.bounds, aspect));
     let view = View::from_camera(&camera, width, height);
-    let (lights, ambient) = if scene.lights.is_empty() {
-        default_rig(&view)
-    } else {
-        (scene.lights.clone(), Vec3::splat(AMBIENT_WITH_FILE_LIGHTS))
-    };
+    let lighting = lighting(
+        &scene.lights,
+        None,
+        &view,
+        LightingOptions::new(IntegratorKind::Direct),
+    );
     RenderSettings {
         view,
         spp: DEFAULT_SPP,
         seed: 0,
-        lights,
-        ambient,
+        lights: lighting.lights,
+        ambient: lighting.ambient,
         exposure: 0.0,
         shading: ShadingModel::Pbr,
         aovs: false,
-        integrator: crate::integrator::IntegratorKind::Direct,
+        integrator: IntegratorKind::Direct,
         bounces: DEFAULT_BOUNCES,
-        environment: None,
+        environment: lighting.environment,
         environment_visible: false,
     }
 }

@@ -37,6 +37,6 @@ pub fn load(name: &str, data: &[u8]) {
         // phase, not in the load: decode what the drawn materials use, within a small budget.
         // An image that fails is a warning (or the error of --strict), never a panic.
         let mut warnings = Vec::new();
-        let _ = meshtracer::texture::TextureSet::load(&scene, 64 << 20, false, &mut warnings);
+        let _ = meshtracer::prepare::textures::TextureSet::load(&scene, 64 << 20, false, &mut warnings);
     }
 }

@@ -94,6 +94,22 @@ pub fn line(
     }
 }
 
+/// An image with straight alpha composited over an opaque `background`, in 8-bit sRGB as the
+/// PNG holds it (the blend a viewer shows).
+pub fn composite(img: &RgbaImage, background: [u8; 3]) -> RgbImage {
+    let mut out = RgbImage::new(img.width(), img.height());
+    for (o, p) in out.pixels_mut().zip(img.pixels()) {
+        let a = u32::from(p.0[3]);
+        let mix = |c: u8, b: u8| ((u32::from(c) * a + u32::from(b) * (255 - a) + 127) / 255) as u8;
+        *o = Rgb([
+            mix(p.0[0], background[0]),
+            mix(p.0[1], background[1]),
+            mix(p.0[2], background[2]),
+        ]);
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -139,20 +155,4 @@ mod tests {
             );
         }
     }
-}
-
-/// An image with straight alpha composited over an opaque `background`, in 8-bit sRGB as the
-/// PNG holds it (the blend a viewer shows).
-pub fn composite(img: &RgbaImage, background: [u8; 3]) -> RgbImage {
-    let mut out = RgbImage::new(img.width(), img.height());
-    for (o, p) in out.pixels_mut().zip(img.pixels()) {
-        let a = u32::from(p.0[3]);
-        let mix = |c: u8, b: u8| ((u32::from(c) * a + u32::from(b) * (255 - a) + 127) / 255) as u8;
-        *o = Rgb([
-            mix(p.0[0], background[0]),
-            mix(p.0[1], background[1]),
-            mix(p.0[2], background[2]),
-        ]);
-    }
-    out
 }

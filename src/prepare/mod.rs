@@ -1,5 +1,8 @@
-//! The prepare phase: a loaded [`Scene`] plus what rendering it needs (the acceleration
-//! structure and the decoded textures), built once and shared read-only by every render of it.
+//! The prepare phase: a loaded [`Scene`] plus what rendering it needs (tangents, the decoded
+//! textures, the acceleration structure and the area lights), built once and shared read-only
+//! by every render of it. [`Prepared::build`] is the one build sequence: the CLI's commands,
+//! the benchmarks, the denoiser and library users all go through it, so the same scene and
+//! settings give the same image whoever renders it.
 
 pub mod textures;
 
@@ -7,6 +10,7 @@ use crate::accel::{Accel, AccelKind, BvhPreset};
 use crate::light::AreaLights;
 use crate::prepare::textures::{TextureError, TextureSet};
 use crate::scene::{AlphaMode, Scene};
+use std::time::Instant;
 
 /// A scene ready to render.
 pub struct Prepared {
@@ -46,23 +50,59 @@ impl Default for PrepareOptions {
     }
 }
 
+/// A step of [`Prepared::build`], in the order they run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PrepareStep {
+    /// MikkTSpace tangents for the normal-mapped primitives that lack them.
+    Tangents,
+    /// The textures decoded, within the memory budget.
+    Textures,
+    /// The acceleration structure built (`accel.build_steps()` has its parts).
+    Bvh,
+    /// The emissive triangles gathered as area lights.
+    AreaLights,
+}
+
 impl Prepared {
-    /// Decodes the textures and builds the acceleration structure (on the current rayon pool).
-    /// Texture warnings (images halved to fit the budget) are appended to `warnings`.
+    /// [`Prepared::build`] without step reports.
     pub fn new(
         scene: Scene,
         options: &PrepareOptions,
         warnings: &mut Vec<String>,
     ) -> Result<Prepared, TextureError> {
+        Prepared::build(scene, options, warnings, &mut |_, _| {})
+    }
+
+    /// The one build sequence (on the current rayon pool): MikkTSpace tangents where a normal
+    /// map needs them and the file has none, the textures, the acceleration structure, the area
+    /// lights. Texture warnings (images halved to fit the budget, images drawn without) are
+    /// appended to `warnings`. `on_step` is told each step as it ends, with the instant it
+    /// started (`render --stats` times them).
+    pub fn build(
+        mut scene: Scene,
+        options: &PrepareOptions,
+        warnings: &mut Vec<String>,
+        on_step: &mut dyn FnMut(PrepareStep, Instant),
+    ) -> Result<Prepared, TextureError> {
+        let start = Instant::now();
+        crate::scene::tangents::generate_missing(&mut scene);
+        on_step(PrepareStep::Tangents, start);
+        let start = Instant::now();
         let textures =
             TextureSet::load(&scene, options.max_texture_bytes, options.strict, warnings)?;
+        on_step(PrepareStep::Textures, start);
+        let start = Instant::now();
         let accel = Accel::build(
             &scene.soup,
             &scene.materials,
             options.accel,
             options.bvh_preset,
         );
-        Ok(Prepared::from_parts(scene, accel, textures))
+        on_step(PrepareStep::Bvh, start);
+        let start = Instant::now();
+        let prepared = Prepared::from_parts(scene, accel, textures);
+        on_step(PrepareStep::AreaLights, start);
+        Ok(prepared)
     }
 
     /// Assembles a prepared scene from parts built separately (the CLI times each phase).

@@ -2,18 +2,16 @@
 
 use crate::cli::{Command, InfoArgs, LoadArgs, RenderArgs};
 use anyhow::{bail, Context, Result};
-use meshtracer::accel::{Accel, AccelKind};
+use meshtracer::accel::AccelKind;
 use meshtracer::camera::{auto_camera, look_at, View};
-use meshtracer::defaults::{
-    AMBIENT_WITH_FILE_LIGHTS, DEFAULT_HEIGHT, DEFAULT_WIDTH, DEFAULT_YFOV_DEGREES,
-};
+use meshtracer::defaults::{DEFAULT_HEIGHT, DEFAULT_WIDTH, DEFAULT_YFOV_DEGREES};
 use meshtracer::integrator::IntegratorKind;
 use meshtracer::light::environment::Environment;
 use meshtracer::output::PendingOutput;
 use meshtracer::prepare::Prepared;
 use meshtracer::render::{render, render_region, RenderSettings};
 use meshtracer::scene::{Camera, LightKind, LoadOptions, Projection, Scene};
-use meshtracer::setup::default_rig;
+use meshtracer::setup::{lighting, Lighting, LightingOptions, RecordedLighting};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -39,7 +37,7 @@ mod views;
 
 /// Wall time and peak memory after each phase of a render, for `--stats`.
 #[derive(Default)]
-struct Phases {
+pub(crate) struct Phases {
     /// (phase, seconds, peak resident memory in bytes after it, its own steps).
     list: Vec<(
         &'static str,
@@ -57,6 +55,13 @@ impl Phases {
             peak_memory_bytes(),
             Vec::new(),
         ));
+    }
+
+    /// Records the steps the phase named `phase` was made of.
+    fn sub_steps_of(&mut self, phase: &str, steps: &[meshtracer::measure::Step]) {
+        if let Some(entry) = self.list.iter_mut().find(|e| e.0 == phase) {
+            entry.3 = steps.to_vec();
+        }
     }
 
     /// Records the steps the last phase was made of.
@@ -90,28 +95,83 @@ impl Phases {
 
 pub use meshtracer::measure::peak_memory_bytes;
 
-/// Decodes the textures `render` (one view or many) draws, within `--max-texture-memory`,
-/// printing the decoder's warnings unless `--quiet`. Returns the textures and every warning
-/// of the load and the decoding, for a caller that records them (batch).
-pub(crate) fn load_textures(
+/// What [`prepare_scene`] hands back.
+pub(crate) struct PreparedModel {
+    /// The scene ready to render.
+    pub prepared: Prepared,
+    /// Every warning of the load and the texture decoding, for a caller that records them
+    /// (batch).
+    pub warnings: Vec<String>,
+    /// Wall time of the tangent generation (part of the load, as `render` reports it).
+    pub tangents: Duration,
+    /// Wall time of the texture decoding.
+    pub textures: Duration,
+}
+
+/// Prepares `scene` for `render` (one view or many) through the library's one build sequence
+/// ([`Prepared::build`]): the BVH preset chosen for `rays` rays, textures within
+/// `--max-texture-memory`, each step timed into `phases`, the decoder's warnings printed unless
+/// `--quiet`.
+pub(crate) fn prepare_scene(
     args: &RenderArgs,
-    scene: &meshtracer::scene::Scene,
-) -> Result<(meshtracer::prepare::textures::TextureSet, Vec<String>)> {
+    scene: Scene,
+    rays: f64,
+    phases: &mut Phases,
+) -> Result<PreparedModel> {
+    let options = meshtracer::prepare::PrepareOptions {
+        accel: args.accel,
+        bvh_preset: args.bvh_preset.for_work(scene.soup.len(), rays),
+        max_texture_bytes: args.max_texture_memory.saturating_mul(1 << 20),
+        strict: args.strict,
+    };
+    let mut all = scene.warnings.clone();
     let mut warnings = Vec::new();
-    let textures = meshtracer::prepare::textures::TextureSet::load(
-        scene,
-        args.max_texture_memory.saturating_mul(1 << 20),
-        args.strict,
-        &mut warnings,
-    )?;
+    let (mut tangents, mut textures) = (Duration::ZERO, Duration::ZERO);
+    let prepared = Prepared::build(scene, &options, &mut warnings, &mut |step, start| {
+        use meshtracer::prepare::PrepareStep;
+        match step {
+            PrepareStep::Tangents => tangents = start.elapsed(),
+            PrepareStep::Textures => textures = start.elapsed(),
+            PrepareStep::Bvh | PrepareStep::AreaLights => {}
+        }
+        phases.mark(
+            match step {
+                PrepareStep::Tangents => "tangents",
+                PrepareStep::Textures => "textures",
+                PrepareStep::Bvh => "bvh build",
+                PrepareStep::AreaLights => "prepare (area lights)",
+            },
+            start,
+        );
+    })?;
+    phases.sub_steps_of("bvh build", prepared.accel.build_steps());
     if !args.quiet {
         for w in &warnings {
             eprintln!("warning: {}: {w}", args.model.display());
         }
     }
-    let mut all = scene.warnings.clone();
     all.extend(warnings);
-    Ok((textures, all))
+    Ok(PreparedModel {
+        prepared,
+        warnings: all,
+        tangents,
+        textures,
+    })
+}
+
+/// The lighting options of `render` (one view or many): the integrator, `--no-default-lights`,
+/// the `--env` panorama and the studio environment's `--env-rotation` and `--env-intensity`.
+pub(crate) fn lighting_options(
+    args: &RenderArgs,
+    env_file: Option<Environment>,
+) -> LightingOptions {
+    LightingOptions {
+        integrator: args.integrator,
+        no_default_lights: args.no_default_lights,
+        environment: env_file,
+        studio_rotation_degrees: args.env_rotation,
+        studio_intensity: args.env_intensity,
+    }
 }
 
 /// How `render` (one view or many) loads its model: the shared load options, `--strict` and
@@ -601,13 +661,10 @@ fn render_model(
     let load_start = Instant::now();
     let load_options = render_load_options(args);
     let mut phases = Phases::default();
-    let mut scene = load(&args.model, &load_options)?;
+    let scene = load(&args.model, &load_options)?;
     phases.mark("parse and flatten", load_start);
     phases.sub_steps(&scene.load_steps);
-    let tangent_start = Instant::now();
-    meshtracer::scene::tangents::generate_missing(&mut scene);
-    phases.mark("tangents", tangent_start);
-    let load_time = load_start.elapsed();
+    let mut load_time = load_start.elapsed();
     report_load(args, &scene);
 
     let file_camera = match args.camera {
@@ -640,39 +697,29 @@ fn render_model(
     let view = View::from_camera(&camera, width, height);
     let region = tiles::region(args, width, height)?;
 
-    let using_rig =
-        view_file.is_none() && scene.lights.is_empty() && !args.no_default_lights && !path_tracing;
-    let (lights, default_ambient) = if let Some(v) = &view_file {
-        (v.lights(), glam::Vec3::from(v.ambient))
-    } else if !scene.lights.is_empty() {
-        (
-            scene.lights.clone(),
-            glam::Vec3::splat(AMBIENT_WITH_FILE_LIGHTS),
-        )
-    } else if args.no_default_lights || path_tracing {
-        // The path tracer's fill is the built-in studio environment (below), not a rig.
-        (Vec::new(), glam::Vec3::ZERO)
-    } else {
-        default_rig(&view)
-    };
-    // The path tracer's default fill is the built-in studio environment, not a light rig.
     // A view file's environment lights the path tracer again unless --env says otherwise.
-    let from_view = match view_file.as_ref().and_then(|v| v.environment.as_ref()) {
-        Some(recorded) if path_tracing && env_file.is_none() => Some(recorded.load()?),
-        _ => None,
-    };
-    let environment = match env_file.or(from_view) {
-        Some(env) => Some(env),
-        None if path_tracing
-            && view_file.is_none()
-            && scene.lights.is_empty()
-            && !args.no_default_lights =>
-        {
-            Some(Environment::studio().with_transform(args.env_rotation, args.env_intensity))
-        }
+    let recorded = match &view_file {
+        Some(v) => Some(RecordedLighting {
+            lights: v.lights(),
+            ambient: glam::Vec3::from(v.ambient),
+            environment: match &v.environment {
+                Some(recorded) if path_tracing && env_file.is_none() => Some(recorded.load()?),
+                _ => None,
+            },
+        }),
         None => None,
-    }
-    .map(Arc::new);
+    };
+    let Lighting {
+        lights,
+        ambient: default_ambient,
+        environment,
+        default_rig: using_rig,
+    } = lighting(
+        &scene.lights,
+        recorded,
+        &view,
+        lighting_options(args, env_file),
+    );
     check_lighting(args, &lights, environment.as_deref())?;
     let mut settings = RenderSettings {
         view,
@@ -690,57 +737,60 @@ fn render_model(
         environment,
         environment_visible: args.env_visible,
     };
-    let texture_start = Instant::now();
-    let (textures, warnings) = load_textures(args, &scene)?;
-    phases.mark("textures", texture_start);
-    let texture_time = texture_start.elapsed();
 
     let cancel = interrupt_flag();
-    let (prepared, (image, stats, aovs), denoised) = pool.install(|| -> Result<_> {
-        let bvh_start = Instant::now();
-        let rays = meshtracer::setup::expected_rays(
-            u64::from(width) * u64::from(height),
-            settings.spp,
-            settings.lights.len(),
-            settings.integrator,
-            settings.bounces,
-        );
-        let preset = args.bvh_preset.for_work(scene.soup.len(), rays);
-        let accel = Accel::build(&scene.soup, &scene.materials, args.accel, preset);
-        phases.mark("bvh build", bvh_start);
-        phases.sub_steps(accel.build_steps());
-        let prepare_start = Instant::now();
-        let prepared = Prepared::from_parts(scene, accel, textures);
-        phases.mark("prepare (area lights)", prepare_start);
-        let render_start = Instant::now();
-        if let Some(limit) = args.time_limit {
-            settings.spp = spp_for_time_limit(&prepared, &settings, &cancel, limit, args.max_spp)?;
-        }
-        let bar = progress_bar(args.quiet);
-        let result = render_region(&prepared, &settings, region, &cancel, &|done, total| {
-            bar.set_length(total);
-            bar.set_position(done);
-        });
-        bar.finish_and_clear();
-        phases.mark("render", render_start);
-        let (mut image, stats, aovs) = result?;
-        let denoised = if args.denoise {
-            // On the linear HDR film, before the output encodes it (sRGB PNG, EXR, HDR).
-            let guide_start = Instant::now();
-            let guides = meshtracer::render::denoise::guides(&prepared, &settings, region);
-            phases.mark("denoise guides", guide_start);
-            let denoise_start = Instant::now();
-            let report = meshtracer::render::denoise::denoise(&mut image, &guides)?;
-            phases.mark("denoise", denoise_start);
-            if cancel.load(Ordering::SeqCst) {
-                return Err(meshtracer::render::Cancelled.into());
+    let (prepared, warnings, texture_time, (image, stats, aovs), denoised) =
+        pool.install(|| -> Result<_> {
+            let rays = meshtracer::setup::expected_rays(
+                u64::from(width) * u64::from(height),
+                settings.spp,
+                settings.lights.len(),
+                settings.integrator,
+                settings.bounces,
+            );
+            let PreparedModel {
+                prepared,
+                warnings,
+                tangents,
+                textures: texture_time,
+            } = prepare_scene(args, scene, rays, &mut phases)?;
+            load_time += tangents;
+            let render_start = Instant::now();
+            if let Some(limit) = args.time_limit {
+                settings.spp =
+                    spp_for_time_limit(&prepared, &settings, &cancel, limit, args.max_spp)?;
             }
-            Some((report, guides.samples_per_pixel, guide_start.elapsed()))
-        } else {
-            None
-        };
-        Ok((prepared, (image, stats, aovs), denoised))
-    })?;
+            let bar = progress_bar(args.quiet);
+            let result = render_region(&prepared, &settings, region, &cancel, &|done, total| {
+                bar.set_length(total);
+                bar.set_position(done);
+            });
+            bar.finish_and_clear();
+            phases.mark("render", render_start);
+            let (mut image, stats, aovs) = result?;
+            let denoised = if args.denoise {
+                // On the linear HDR film, before the output encodes it (sRGB PNG, EXR, HDR).
+                let guide_start = Instant::now();
+                let guides = meshtracer::render::denoise::guides(&prepared, &settings, region);
+                phases.mark("denoise guides", guide_start);
+                let denoise_start = Instant::now();
+                let report = meshtracer::render::denoise::denoise(&mut image, &guides)?;
+                phases.mark("denoise", denoise_start);
+                if cancel.load(Ordering::SeqCst) {
+                    return Err(meshtracer::render::Cancelled.into());
+                }
+                Some((report, guides.samples_per_pixel, guide_start.elapsed()))
+            } else {
+                None
+            };
+            Ok((
+                prepared,
+                warnings,
+                texture_time,
+                (image, stats, aovs),
+                denoised,
+            ))
+        })?;
     let write_start = Instant::now();
     let (scene, accel, textures) = (&prepared.scene, &prepared.accel, &prepared.textures);
     let background = args.background;
@@ -1151,11 +1201,15 @@ fn bench_path_settings(
     let mut settings = meshtracer::setup::default_settings(scene, width, height);
     settings.integrator = meshtracer::integrator::IntegratorKind::Path;
     settings.spp = spp;
-    if scene.lights.is_empty() {
-        settings.lights = Vec::new();
-        settings.ambient = glam::Vec3::ZERO;
-        settings.environment = Some(Arc::new(Environment::studio()));
-    }
+    let lit = lighting(
+        &scene.lights,
+        None,
+        &settings.view,
+        LightingOptions::new(settings.integrator),
+    );
+    settings.lights = lit.lights;
+    settings.ambient = lit.ambient;
+    settings.environment = lit.environment;
     settings
 }
 

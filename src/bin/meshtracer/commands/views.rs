@@ -13,11 +13,9 @@ use super::{check_size, image_size, interrupt_flag, load, worker_pool, Interrupt
 use crate::cli::RenderArgs;
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
-use meshtracer::accel::{Accel, AccelKind};
+use meshtracer::accel::AccelKind;
 use meshtracer::camera::{auto_camera, framing_distance, framing_radius, View};
-use meshtracer::defaults::{
-    AMBIENT_WITH_FILE_LIGHTS, DEFAULT_ORBIT_ELEVATION_DEGREES, DEFAULT_YFOV_DEGREES,
-};
+use meshtracer::defaults::{DEFAULT_ORBIT_ELEVATION_DEGREES, DEFAULT_YFOV_DEGREES};
 use meshtracer::integrator::IntegratorKind;
 use meshtracer::jobs::views::{
     azimuth_degrees, elevation_degrees, fibonacci_directions, orbit_directions, random_directions,
@@ -32,7 +30,7 @@ use meshtracer::output::{OutputFormat, PendingFile, PendingOutput, SaveError};
 use meshtracer::prepare::Prepared;
 use meshtracer::render::{render, RenderSettings, RenderStats};
 use meshtracer::scene::{Camera, Light, Projection, Scene};
-use meshtracer::setup::default_rig;
+use meshtracer::setup::{lighting, Lighting};
 use std::collections::{BTreeSet, HashMap};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -290,8 +288,7 @@ pub(super) fn render_views(
 
     let load_start = Instant::now();
     let load_options = super::render_load_options(args);
-    let mut scene = load(&args.model, &load_options)?;
-    meshtracer::scene::tangents::generate_missing(&mut scene);
+    let scene = load(&args.model, &load_options)?;
     let load_time = load_start.elapsed();
     super::report_load(args, &scene);
 
@@ -311,33 +308,22 @@ pub(super) fn render_views(
 
     // Lights stay put in the world from view to view, as multi-view reconstruction expects of
     // its photographs: the file's, or the default rig placed for the automatic camera.
-    let path_tracing = args.integrator == IntegratorKind::Path;
-    let using_rig = scene.lights.is_empty() && !args.no_default_lights && !path_tracing;
-    let (lights, default_ambient) = if !scene.lights.is_empty() {
-        (scene.lights.clone(), Vec3::splat(AMBIENT_WITH_FILE_LIGHTS))
-    } else if using_rig {
-        let front = auto_camera(&scene.bounds, width as f32 / height as f32);
-        default_rig(&View::from_camera(&front, width, height))
-    } else {
-        (Vec::new(), Vec3::ZERO)
-    };
-    let environment = match env_file {
-        Some(env) => Some(env),
-        None if path_tracing && scene.lights.is_empty() && !args.no_default_lights => {
-            Some(Environment::studio().with_transform(args.env_rotation, args.env_intensity))
-        }
-        None => None,
-    }
-    .map(Arc::new);
+    let front = auto_camera(&scene.bounds, width as f32 / height as f32);
+    let Lighting {
+        lights,
+        ambient: default_ambient,
+        environment,
+        default_rig: using_rig,
+    } = lighting(
+        &scene.lights,
+        None,
+        &View::from_camera(&front, width, height),
+        super::lighting_options(args, env_file),
+    );
     super::check_lighting(args, &lights, environment.as_deref())?;
-    let (textures, warnings) = super::load_textures(args, &scene)?;
-    if let (Some(path), Some(env)) = (&args.env_out, &environment) {
-        write_panorama(path, env)?;
-    }
     let cancel = interrupt_flag();
 
-    let (summary, frames) = pool.install(|| -> Result<_> {
-        let bvh_start = Instant::now();
+    let (summary, frames, warnings) = pool.install(|| -> Result<_> {
         // Every view's rays count toward the choice of preset: the tree is built once.
         let rays = meshtracer::setup::expected_rays(
             u64::from(width) * u64::from(height),
@@ -346,10 +332,17 @@ pub(super) fn render_views(
             args.integrator,
             args.bounces,
         ) * cameras.len() as f64;
-        let preset = args.bvh_preset.for_work(scene.soup.len(), rays);
-        let accel = Accel::build(&scene.soup, &scene.materials, args.accel, preset);
-        let bvh_time = bvh_start.elapsed();
-        let prepared = Prepared::from_parts(scene, accel, textures);
+        let super::PreparedModel {
+            prepared,
+            warnings,
+            tangents,
+            ..
+        } = super::prepare_scene(args, scene, rays, &mut super::Phases::default())?;
+        let load_time = load_time + tangents;
+        let bvh_time = prepared.accel.build_time();
+        if let (Some(path), Some(env)) = (&args.env_out, &environment) {
+            write_panorama(path, env)?;
+        }
         let run = ViewRun {
             args,
             dir,
@@ -389,7 +382,7 @@ pub(super) fn render_views(
             totals,
             threads,
         };
-        Ok((summary, frames))
+        Ok((summary, frames, warnings))
     })?;
     let depth_unit_scale_factor = args.depth_out.as_ref().map(|p| {
         let png = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
