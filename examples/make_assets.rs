@@ -1,6 +1,6 @@
 //! Writes the scenes bundled in `assets/`: `cornell-box.gltf` (the default scene) and
 //! `shapes.obj` + `shapes.mtl`. Run `cargo run --example make_assets` from the repository root;
-//! `tests/bundled_assets.rs` checks that the committed files equal what this writes.
+//! `tests/it/bundled_assets.rs` checks that the committed files equal what this writes.
 
 use base64::Engine;
 use glam::{Quat, Vec3};

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Seeds fuzz/corpus/{gltf_json,glb,obj} from the shared sample models (small files only) and
-# from the broken-file corpus that tests/broken_files.rs generates.
+# from the broken-file corpus that tests/it/broken_files.rs generates.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 samples="${MESHTRACER_SAMPLES:-../shared/assets}"

@@ -5,7 +5,7 @@
 //! a Python dict literal naming the element type, the memory order and the shape, padded so
 //! the data starts at a multiple of 64 bytes, then the raw elements. This module writes exactly
 //! that, and reads back what it writes and what `numpy.save` writes for the same arrays
-//! (versions 1.0 to 3.0, any padding); `tests/numpy.rs` checks both directions against NumPy.
+//! (versions 1.0 to 3.0, any padding); `tests/it/numpy.rs` checks both directions against NumPy.
 //!
 //! Kept by hand rather than through `npyz` or `ndarray-npy`, on purpose: both parse the header
 //! with `py_literal`, a general Python-literal parser built on `pest`, whose build pulls

@@ -18,7 +18,7 @@
 //!
 //! Determinism: the guides are the same bytes for any thread count; OIDN's CPU device gives the
 //! same output for the same input on the same machine (it picks kernels by instruction set, so
-//! another CPU may differ in the last bits). `tests/denoise.rs` checks both.
+//! another CPU may differ in the last bits). `tests/it/denoise.rs` checks both.
 
 use crate::camera::Lens;
 use crate::defaults::MAX_BLEND_LAYERS;

@@ -4,9 +4,7 @@
 //! Needs a Python with NumPy: `MESHTRACER_PYRENDER_PYTHON` (the pyrender environment that
 //! `.ci/run` makes has it) or `python3`; skips with a notice when neither imports numpy.
 
-mod common;
-
-use common::{root, run, s};
+use crate::common::{root, run, s};
 use std::path::PathBuf;
 use std::process::Command;
 

@@ -1,8 +1,6 @@
 //! `meshtracer compare` through the binary: metrics, outputs, thresholds and refusals.
 
-mod common;
-
-use common::{run, s};
+use crate::common::{run, s};
 
 fn write(path: &std::path::Path, img: &image::RgbaImage) {
     img.save(path).unwrap();
@@ -53,7 +51,7 @@ fn compare_reports_metrics_writes_images_and_fails_on_thresholds() {
         &["compare", s(&a), s(&b), "--fail-above", "flip=0.0001"],
         false,
     );
-    assert!(common::stderr(&failed).contains("flip"));
+    assert!(crate::common::stderr(&failed).contains("flip"));
     run(&["compare", s(&a), s(&b), "--fail-below", "psnr=20"], true);
     run(
         &[
@@ -77,16 +75,16 @@ fn images_of_different_sizes_are_an_error_not_a_resample() {
     write(&a, &image::RgbaImage::new(40, 30));
     write(&b, &image::RgbaImage::new(41, 30));
     let out = run(&["compare", s(&a), s(&b)], false);
-    let err = common::stderr(&out);
+    let err = crate::common::stderr(&out);
     assert!(err.contains("40x30") && err.contains("41x30"), "{err}");
     let missing = run(&["compare", s(&a), "nope.png"], false);
-    assert!(common::stderr(&missing).contains("nope.png"));
+    assert!(crate::common::stderr(&missing).contains("nope.png"));
 }
 
 #[test]
 fn a_render_compared_with_itself_across_accelerators_is_perfect() {
     let dir = tempfile::tempdir().unwrap();
-    let model = common::root().join("assets/cornell-box.gltf");
+    let model = crate::common::root().join("assets/cornell-box.gltf");
     let a = dir.path().join("bvh.png");
     let b = dir.path().join("linear.png");
     run(
@@ -138,12 +136,12 @@ fn a_render_compared_with_itself_across_accelerators_is_perfect() {
 /// panicking on the failed write (it did: "failed printing to stdout: Broken pipe").
 #[test]
 fn a_closed_pipe_ends_a_command_quietly() {
-    let model = common::root().join("assets/cornell-box.gltf");
+    let model = crate::common::root().join("assets/cornell-box.gltf");
     for args in [
-        vec!["info", common::s(&model)],
-        vec!["info", common::s(&model), "--json"],
+        vec!["info", crate::common::s(&model)],
+        vec!["info", crate::common::s(&model), "--json"],
     ] {
-        let mut child = common::bin()
+        let mut child = crate::common::bin()
             .args(&args)
             .stdout(std::process::Stdio::piped())
             .stderr(std::process::Stdio::piped())

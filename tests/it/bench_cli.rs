@@ -1,9 +1,7 @@
 //! `meshtracer bench --plot`: the log-log plot is an SVG with both series; any other name is
 //! refused before a measurement starts, leaving no file.
 
-mod common;
-
-use common::{run, s, stderr};
+use crate::common::{run, s, stderr};
 
 #[test]
 fn bench_plots_an_svg_and_refuses_other_plot_names_up_front() {

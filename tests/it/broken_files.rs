@@ -7,8 +7,6 @@
 //! `MESHTRACER_WRITE_CORPUS=DIR cargo test --test broken_files` also writes every case to DIR
 //! (the fuzzers' seed corpus).
 
-mod common;
-
 use base64::Engine;
 use meshtracer::LoadErrorKind as K;
 use meshtracer::{LoadOptions, Scene};
@@ -25,7 +23,7 @@ struct Case {
 
 /// A valid one-triangle glTF with its buffer in `tri.bin`: the base most cases break.
 fn base() -> (Value, Vec<u8>) {
-    let mut bin = common::f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    let mut bin = crate::common::f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
     bin.extend([0u16, 1, 2].iter().flat_map(|i| i.to_le_bytes()));
     bin.extend([0, 0]);
     let json = json!({
@@ -80,7 +78,7 @@ fn edited(
 fn meshopt_base() -> (Value, Vec<u8>) {
     use meshoptimizer_rs::codec;
     let mut ws = meshoptimizer_rs::Workspace::new(meshoptimizer_rs::Limits::default());
-    let positions = common::f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    let positions = crate::common::f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
     let vertices =
         codec::encode_vertex_buffer(&positions, 3, 12, codec::VertexEncoding::DEFAULT, &mut ws)
             .unwrap();
@@ -160,7 +158,7 @@ fn draco_edited(
 fn glb() -> Vec<u8> {
     let (mut json, bin) = base();
     json["buffers"] = json!([{"byteLength": 44}]);
-    common::glb_bytes(&json, &bin)
+    crate::common::glb_bytes(&json, &bin)
 }
 
 fn glb_case(name: &'static str, bytes: Vec<u8>, expect: fn(&K) -> bool) -> Case {
@@ -485,7 +483,7 @@ fn cases() -> Vec<Case> {
         ),
         edited(
             "degenerate triangle",
-            |_, bin| bin[24..36].copy_from_slice(&common::f32_bytes(&[2.0, 0.0, 0.0])),
+            |_, bin| bin[24..36].copy_from_slice(&crate::common::f32_bytes(&[2.0, 0.0, 0.0])),
             |k| matches!(k, K::NoTriangles(d) if d.contains("degenerate")),
         ),
         edited(
@@ -961,13 +959,13 @@ fn the_binary_exits_non_zero_with_one_message_naming_the_file() {
         let out = if TEXTURE_CASES.contains(&case.name) {
             let args = ["render", "--strict", "-q", "--width", "8", "--height", "8"];
             let mut args = args.to_vec();
-            args.extend([common::s(&model), "-o", common::s(&output)]);
-            common::run(&args, false)
+            args.extend([crate::common::s(&model), "-o", crate::common::s(&output)]);
+            crate::common::run(&args, false)
         } else {
-            common::run(&["info", common::s(&model)], false)
+            crate::common::run(&["info", crate::common::s(&model)], false)
         };
         assert!(!output.exists(), "{}: no output is left", case.name);
-        let err = common::stderr(&out);
+        let err = crate::common::stderr(&out);
         assert_eq!(out.status.code(), Some(1), "{}: {err}", case.name);
         assert!(!err.contains("panicked"), "{}: {err}", case.name);
         assert_eq!(
@@ -1163,7 +1161,12 @@ fn a_missing_png_renders_with_a_warning_and_strict_refuses_it() {
     let model = dir.path().join("model.gltf");
     let output = dir.path().join("out.png");
     let render = |extra: &[&str], ok: bool| {
-        let mut args = vec!["render", common::s(&model), "-o", common::s(&output)];
+        let mut args = vec![
+            "render",
+            crate::common::s(&model),
+            "-o",
+            crate::common::s(&output),
+        ];
         args.extend([
             "--width",
             "16",
@@ -1174,11 +1177,11 @@ fn a_missing_png_renders_with_a_warning_and_strict_refuses_it() {
         ]);
         args.extend(["--look-at", "0.3,0.3,0"]);
         args.extend(extra);
-        common::run(&args, ok)
+        crate::common::run(&args, ok)
     };
 
     let out = render(&[], true);
-    let err = common::stderr(&out);
+    let err = crate::common::stderr(&out);
     let warnings: Vec<&str> = err.lines().filter(|l| l.contains("missing.png")).collect();
     assert_eq!(warnings.len(), 1, "one warning: {err}");
     let missing = dir.path().join("missing.png");
@@ -1191,7 +1194,7 @@ fn a_missing_png_renders_with_a_warning_and_strict_refuses_it() {
         assert!(warnings[0].contains(part), "names {part}: {err}");
     }
     // Drawn with its factor: the centre pixel is red.
-    let (w, h, pixels) = common::read_rgba(&output);
+    let (w, h, pixels) = crate::common::read_rgba(&output);
     let centre = pixels[(h / 2 * w + w / 2) as usize];
     assert!(
         centre[0] > 0.2 && centre[1] < 0.05 && centre[3] == 1.0,
@@ -1200,7 +1203,7 @@ fn a_missing_png_renders_with_a_warning_and_strict_refuses_it() {
 
     std::fs::remove_file(&output).unwrap();
     let out = render(&["--strict"], false);
-    let err = common::stderr(&out);
+    let err = crate::common::stderr(&out);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
         err.contains("missing.png") && err.contains("--strict"),
@@ -1222,16 +1225,16 @@ fn an_undecodable_png_falls_back_when_textures_decode() {
     let output = dir.path().join("out.png");
     let args = [
         "render",
-        common::s(&model),
+        crate::common::s(&model),
         "-o",
-        common::s(&output),
+        crate::common::s(&output),
         "--width",
         "8",
         "--height",
         "8",
     ];
-    let out = common::run(&args, true);
-    let err = common::stderr(&out);
+    let out = crate::common::run(&args, true);
+    let err = crate::common::stderr(&out);
     assert!(
         err.contains("image 0 (empty.png)") && err.contains("material 0 drawn without it"),
         "{err}"
@@ -1239,11 +1242,11 @@ fn an_undecodable_png_falls_back_when_textures_decode() {
     std::fs::remove_file(&output).unwrap();
     let mut strict_args = args.to_vec();
     strict_args.push("--strict");
-    let out = common::run(&strict_args, false);
+    let out = crate::common::run(&strict_args, false);
     assert!(
-        common::stderr(&out).contains("empty.png"),
+        crate::common::stderr(&out).contains("empty.png"),
         "{}",
-        common::stderr(&out)
+        crate::common::stderr(&out)
     );
     assert!(!output.exists());
 }
@@ -1263,7 +1266,7 @@ fn noise_png(side: u32, texel: fn(u32) -> [u8; 4]) -> Vec<u8> {
 
 /// A BIN chunk: `floats`, then `image` from the returned offset, padded to 4 bytes.
 fn bin_then_image(floats: &[f32], image: &[u8]) -> (Vec<u8>, usize) {
-    let mut bin = common::f32_bytes(floats);
+    let mut bin = crate::common::f32_bytes(floats);
     let image_at = bin.len();
     bin.extend(image);
     while !bin.len().is_multiple_of(4) {
@@ -1294,7 +1297,7 @@ fn glb_with_image(padding: usize) -> Vec<u8> {
         "nodes": [{"mesh": 0}],
         "scenes": [{"nodes": [0]}]
     });
-    common::glb_bytes(&json, &bin)
+    crate::common::glb_bytes(&json, &bin)
 }
 
 /// An image that is most of its GLB shares the file's buffer instead of being copied out of
@@ -1351,7 +1354,7 @@ fn glb_with_big_image(edit: impl FnOnce(&mut Value)) -> (Vec<u8>, Vec<u8>) {
         "scenes": [{"nodes": [0]}]
     });
     edit(&mut json);
-    (common::glb_bytes(&json, &bin), png)
+    (crate::common::glb_bytes(&json, &bin), png)
 }
 
 /// A big image that only images use stays on disk through the load, as exactly its own bytes
@@ -1386,15 +1389,15 @@ fn glb_images_stay_on_disk_until_the_textures_are_decoded() {
     std::fs::write(&gltf, serde_json::to_vec(&json).unwrap()).unwrap();
     let render = |model: &Path, out: &str| {
         let out = dir.path().join(out);
-        let args = common::small_run(
+        let args = crate::common::small_run(
             "render",
-            common::s(model),
-            common::s(&out),
+            crate::common::s(model),
+            crate::common::s(&out),
             ("64", "48"),
             "1",
             &[],
         );
-        common::run(&args, true);
+        crate::common::run(&args, true);
         std::fs::read(out).unwrap()
     };
     assert_eq!(render(&path, "glb.png"), render(&gltf, "gltf.png"));

@@ -3,9 +3,7 @@
 //! a sixel, kitty or iTerm2 terminal the picture arrives in that protocol at full resolution;
 //! piped, `--preview` prints nothing and `--preview=blocks` prints the blocks anyway.
 
-mod common;
-
-use common::{root, run, s};
+use crate::common::{root, run, s};
 use std::process::Command;
 use std::time::{Duration, Instant};
 
@@ -143,7 +141,7 @@ fn piped_preview_prints_nothing_unless_blocks_are_asked_for() {
     assert!(auto.stdout.is_empty(), "nothing on a pipe");
     // 24-bit colour where COLORTERM says the terminal has it, the 256-colour palette otherwise.
     for (colorterm, escape) in [(Some("truecolor"), "\x1b[38;2;"), (None, "\x1b[38;5;")] {
-        let mut command = common::bin();
+        let mut command = crate::common::bin();
         command.args([&base[..], &["--preview=blocks"]].concat());
         match colorterm {
             Some(value) => command.env("COLORTERM", value),
@@ -201,7 +199,7 @@ fn fake_terminal(claims: Claims) -> (Vec<u8>, image::RgbaImage) {
     };
     assert_eq!(opened, 0, "openpty");
     let (master, slave) = unsafe { (OwnedFd::from_raw_fd(master), OwnedFd::from_raw_fd(slave)) };
-    let mut command = common::bin();
+    let mut command = crate::common::bin();
     command
         .args([
             "render",

@@ -5,9 +5,7 @@
 //! after a real kill, the example Slurm and Kubernetes scripts run locally for every index,
 //! and (with MESHTRACER_SAMPLES) a batch over every shared sample model plus a broken file.
 
-mod common;
-
-use common::{root, s};
+use crate::common::{root, s};
 use serde_json::Value;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -288,15 +286,15 @@ fn a_job_records_the_warnings_of_its_model() {
     let dir = tempfile::tempdir().unwrap();
     let models = dir.path().join("models");
     std::fs::create_dir_all(&models).unwrap();
-    let (json, bin) = common::quads_gltf(
-        &[(common::square(1.0, 0.0), 0)],
+    let (json, bin) = crate::common::quads_gltf(
+        &[(crate::common::square(1.0, 0.0), 0)],
         serde_json::json!({
             "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
             "textures": [{"source": 0}],
             "images": [{"uri": "missing.png"}]
         }),
     );
-    common::write_gltf(&models, "untextured.gltf", json, &bin);
+    crate::common::write_gltf(&models, "untextured.gltf", json, &bin);
     std::fs::copy(
         root().join("assets/cornell-box.gltf"),
         models.join("cornell-box.gltf"),
@@ -396,7 +394,7 @@ fn a_jsonl_batch_refuses_bad_lines_and_escaping_names_and_writes_only_inside_dir
 /// (timings aside).
 #[test]
 fn a_batch_over_every_sample_model_fails_only_the_broken_file_and_shards_equal_it() {
-    let Some(samples) = common::samples(
+    let Some(samples) = crate::common::samples(
         "a_batch_over_every_sample_model_fails_only_the_broken_file_and_shards_equal_it",
     ) else {
         return;

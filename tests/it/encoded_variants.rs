@@ -2,9 +2,7 @@
 //! plain file is rendered with `--view-out`, the encoded one with `--view`, and `meshtracer
 //! compare` measures coverage IoU and mean FLIP. Needs `MESHTRACER_SAMPLES`.
 
-mod common;
-
-use common::{run, s, samples};
+use crate::common::{run, s, samples};
 
 /// Mesh encodings quantize positions and normals: an edge or a highlight may move slightly.
 const MESH_MIN_IOU: f64 = 0.995;
@@ -174,7 +172,7 @@ fn ktx2_textures_look_like_their_png_and_jpeg_versions() {
     };
     let lamp = dir.join("StainedGlassLamp");
     let out = tempfile::tempdir().unwrap();
-    let quad = common::square(1.0, 0.0);
+    let quad = crate::common::square(1.0, 0.0);
     let draw = |image: &std::path::Path, name: &str, extra_images: serde_json::Value| {
         let file_name = image.file_name().unwrap().to_str().unwrap().to_string();
         std::fs::copy(image, out.path().join(&file_name)).unwrap();
@@ -191,7 +189,7 @@ fn ktx2_textures_look_like_their_png_and_jpeg_versions() {
         } else {
             serde_json::json!({"source": 0})
         };
-        let (json, bin) = common::quads_gltf(
+        let (json, bin) = crate::common::quads_gltf(
             &[(quad, 0)],
             serde_json::json!({
                 "extensionsUsed": ["KHR_materials_unlit", "KHR_texture_basisu"],
@@ -203,7 +201,7 @@ fn ktx2_textures_look_like_their_png_and_jpeg_versions() {
                 "nodes": [{"camera": 0, "translation": [0.0, 0.0, 2.0]}]
             }),
         );
-        let model = common::write_gltf(out.path(), &format!("{name}.gltf"), json, &bin);
+        let model = crate::common::write_gltf(out.path(), &format!("{name}.gltf"), json, &bin);
         let png = out.path().join(format!("{name}.png"));
         let args = [
             "render",
@@ -216,7 +214,10 @@ fn ktx2_textures_look_like_their_png_and_jpeg_versions() {
             "128",
         ];
         let result = run(&[&args[..], &["--spp", "4"]].concat(), true);
-        (common::read_rgba(&png).2, common::stderr(&result))
+        (
+            crate::common::read_rgba(&png).2,
+            crate::common::stderr(&result),
+        )
     };
     for (stem, plain) in [
         ("StainedGlassLamp_glass_basecolor-alpha", "png"),

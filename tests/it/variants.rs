@@ -1,15 +1,13 @@
 //! KHR_materials_variants: `--variant NAME` draws the variant's materials, `info` lists the
 //! variants, and an unknown name is refused with the list of the file's variants.
 
-mod common;
-
 use meshtracer::{LoadOptions, Scene};
 use serde_json::json;
 use std::path::PathBuf;
 
 /// One triangle whose material is red by default and under "red", green under "green".
 fn two_variant_triangle(dir: &std::path::Path) -> PathBuf {
-    let mut bin = common::f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    let mut bin = crate::common::f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
     bin.extend([0u16, 1, 2].iter().flat_map(|i| i.to_le_bytes()));
     bin.extend([0, 0]);
     let json = json!({
@@ -39,7 +37,7 @@ fn two_variant_triangle(dir: &std::path::Path) -> PathBuf {
             {"buffer": 0, "byteOffset": 36, "byteLength": 6}
         ]
     });
-    common::write_gltf(dir, "variants.gltf", json, &bin)
+    crate::common::write_gltf(dir, "variants.gltf", json, &bin)
 }
 
 fn with_variant(name: &str) -> LoadOptions {
@@ -70,22 +68,22 @@ fn a_variant_replaces_the_materials_it_maps() {
     }
 
     // Through the binary: info lists them, render draws the chosen one.
-    let out = common::run(&["info", common::s(&model)], true);
+    let out = crate::common::run(&["info", crate::common::s(&model)], true);
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(
         text.contains("variants    2") && text.contains("'red', 'green'"),
         "{text}"
     );
-    let out = common::run(&["info", "--json", common::s(&model)], true);
+    let out = crate::common::run(&["info", "--json", crate::common::s(&model)], true);
     let info: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(info["variants"], json!(["red", "green"]));
     let output = dir.path().join("green.png");
-    common::run(
+    crate::common::run(
         &[
             "render",
-            common::s(&model),
+            crate::common::s(&model),
             "-o",
-            common::s(&output),
+            crate::common::s(&output),
             "--variant",
             "green",
             "--width",
@@ -100,24 +98,24 @@ fn a_variant_replaces_the_materials_it_maps() {
         ],
         true,
     );
-    let (w, h, pixels) = common::read_rgba(&output);
+    let (w, h, pixels) = crate::common::read_rgba(&output);
     let centre = pixels[(h / 2 * w + w / 2) as usize];
     assert!(centre[1] > 0.2 && centre[0] < 0.05, "green: {centre:?}");
-    let out = common::run(
+    let out = crate::common::run(
         &[
             "render",
-            common::s(&model),
+            crate::common::s(&model),
             "-o",
-            common::s(&output),
+            crate::common::s(&output),
             "--variant",
             "blue",
         ],
         false,
     );
     assert!(
-        common::stderr(&out).contains("'red', 'green'"),
+        crate::common::stderr(&out).contains("'red', 'green'"),
         "{}",
-        common::stderr(&out)
+        crate::common::stderr(&out)
     );
 }
 
@@ -125,7 +123,8 @@ fn a_variant_replaces_the_materials_it_maps() {
 /// "Lamp off"; glTF-JPG-PNG has none). The "on" materials glow.
 #[test]
 fn stained_glass_lamp_variants_draw_their_own_materials() {
-    let Some(dir) = common::samples("stained_glass_lamp_variants_draw_their_own_materials") else {
+    let Some(dir) = crate::common::samples("stained_glass_lamp_variants_draw_their_own_materials")
+    else {
         return;
     };
     let model = dir.join("StainedGlassLamp/glTF-KTX-BasisU/StainedGlassLamp.gltf");
@@ -159,12 +158,12 @@ fn stained_glass_lamp_variants_draw_their_own_materials() {
     let out_dir = tempfile::tempdir().unwrap();
     let render = |name: &str| {
         let output = out_dir.path().join(format!("{name}.png"));
-        common::run(
+        crate::common::run(
             &[
                 "render",
-                common::s(&model),
+                crate::common::s(&model),
                 "-o",
-                common::s(&output),
+                crate::common::s(&output),
                 "--variant",
                 name,
                 "--width",
@@ -177,7 +176,7 @@ fn stained_glass_lamp_variants_draw_their_own_materials() {
             ],
             true,
         );
-        common::read_rgba(&output).2
+        crate::common::read_rgba(&output).2
     };
     let (a, b) = (render("Lamp on"), render("Lamp off"));
     // Over the pixels the lamp covers (it fills about a quarter of the frame).

@@ -2,9 +2,7 @@
 //! BRDF's own albedo, a room lit only by its emissive ceiling, environment maps, determinism,
 //! glass (clear, frosted, and a slab's offset where its thickness texture makes it a volume).
 
-mod common;
-
-use common::{quads_gltf, read_rgba, run, s, samples, square, write_gltf};
+use crate::common::{quads_gltf, read_rgba, run, s, samples, square, write_gltf};
 use meshtracer::shading::{gltf_brdf, SurfaceMaterial};
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -67,7 +65,7 @@ fn white_furnace_returns_the_brdf_albedo() {
     let white = json!({"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
         "metallicFactor": 0.0, "roughnessFactor": 1.0}});
     let (mut json, bin) =
-        common::sphere_gltf((32, 64), glam::Vec3::ZERO, 1.0, glam::Vec3::Y, 0.0, white);
+        crate::common::sphere_gltf((32, 64), glam::Vec3::ZERO, 1.0, glam::Vec3::Y, 0.0, white);
     // No punctual light: only the environment.
     json.as_object_mut().unwrap().remove("extensions");
     json["nodes"].as_array_mut().unwrap().pop();
@@ -340,7 +338,7 @@ fn mis_light_only_and_bsdf_only_estimators_agree() {
 #[test]
 fn path_tracing_is_deterministic() {
     let dir = tempfile::tempdir().unwrap();
-    let model = common::root().join("assets/cornell-box.gltf");
+    let model = crate::common::root().join("assets/cornell-box.gltf");
     let render = |name: &str, threads: &str| {
         let out = dir.path().join(name);
         render(
@@ -372,14 +370,14 @@ fn path_tracing_is_deterministic() {
 #[test]
 fn environment_options_are_checked_first() {
     let dir = tempfile::tempdir().unwrap();
-    let model = common::root().join("assets/cornell-box.gltf");
+    let model = crate::common::root().join("assets/cornell-box.gltf");
     let out = dir.path().join("never.png");
     let env = uniform_hdr(dir.path(), 1.0);
     let refused = run(
         &["render", s(&model), "-o", s(&out), "--env", s(&env)],
         false,
     );
-    assert!(common::stderr(&refused).contains("--integrator path"));
+    assert!(crate::common::stderr(&refused).contains("--integrator path"));
     let junk = dir.path().join("junk.hdr");
     std::fs::write(&junk, b"#?RADIANCE\nnot really").unwrap();
     let refused = run(
@@ -396,9 +394,9 @@ fn environment_options_are_checked_first() {
         false,
     );
     assert!(
-        common::stderr(&refused).contains("junk.hdr"),
+        crate::common::stderr(&refused).contains("junk.hdr"),
         "{}",
-        common::stderr(&refused)
+        crate::common::stderr(&refused)
     );
     assert!(!out.exists());
 }
@@ -408,7 +406,7 @@ fn environment_options_are_checked_first() {
 #[test]
 fn the_builtin_studio_can_be_written_out() {
     let dir = tempfile::tempdir().unwrap();
-    let model = common::root().join("assets/shapes.obj");
+    let model = crate::common::root().join("assets/shapes.obj");
     let out = dir.path().join("shapes.png");
     let env = dir.path().join("studio.hdr");
     render(
@@ -441,7 +439,7 @@ fn the_builtin_studio_can_be_written_out() {
 #[test]
 fn the_view_file_records_the_environment() {
     let dir = tempfile::tempdir().unwrap();
-    let model = common::root().join("assets/shapes.obj");
+    let model = crate::common::root().join("assets/shapes.obj");
     // A panorama brighter toward +X, so that a rotation shows.
     let env = dir.path().join("gradient.hdr");
     let pixels: Vec<image::Rgb<f32>> = (0..8)
@@ -512,7 +510,7 @@ fn the_view_file_records_the_environment() {
 #[test]
 fn noise_falls_as_one_over_the_square_root_of_spp() {
     let dir = tempfile::tempdir().unwrap();
-    let model = common::root().join("assets/shapes.obj");
+    let model = crate::common::root().join("assets/shapes.obj");
     let noise = |spp: &str| -> f32 {
         let out = dir.path().join(format!("n{spp}.png"));
         let result = render(
@@ -529,7 +527,7 @@ fn noise_falls_as_one_over_the_square_root_of_spp() {
                 "path",
             ],
         );
-        let err = common::stderr(&result);
+        let err = crate::common::stderr(&result);
         let at = err
             .find("noise ±")
             .unwrap_or_else(|| panic!("no noise in: {err}"));
@@ -594,7 +592,7 @@ fn glass_scene(
     for (k, v) in extra.as_object().unwrap() {
         top[k] = v.clone();
     }
-    let (json, bin) = common::quads_gltf(quads, top);
+    let (json, bin) = crate::common::quads_gltf(quads, top);
     write_gltf(dir, &format!("glass-{roughness}.gltf"), json, &bin)
 }
 
@@ -616,7 +614,7 @@ fn clear_glass_shows_what_is_behind_it() {
     let half = image::RgbaImage::from_fn(2, 1, |x, _| image::Rgba([255 * x as u8, 0, 0, 255]));
     let textured_dir = dir.path().join("textured");
     std::fs::create_dir_all(&textured_dir).unwrap();
-    let images = json!([{"uri": common::png_data_uri(&half)}]);
+    let images = json!([{"uri": crate::common::png_data_uri(&half)}]);
     let textured = glass_scene(&textured_dir, &quads, vec![red], 0.0, images);
     for (model, integrator) in [
         (&plain, "direct"),
@@ -819,13 +817,13 @@ fn a_slab_offsets_a_line_except_where_its_thickness_texture_is_0() {
                 "KHR_materials_ior": {"ior": ior},
                 "KHR_materials_volume": {"thicknessFactor": thickness,
                     "thicknessTexture": {"index": 0}}}}],
-        "images": [{"uri": common::png_data_uri(&half)}],
+        "images": [{"uri": crate::common::png_data_uri(&half)}],
         "samplers": [{"magFilter": 9728, "minFilter": 9728, "wrapS": 33071, "wrapT": 33071}],
         "textures": [{"source": 0, "sampler": 0}],
         "cameras": [{"type": "orthographic", "orthographic": {"xmag": 1.0, "ymag": 1.0, "znear": 0.1, "zfar": 20.0}}],
         "nodes": [{"camera": 0, "translation": [0.0, 0.0, 5.0]}]
     });
-    let (json, bin) = common::quads_gltf(&quads, top_level);
+    let (json, bin) = crate::common::quads_gltf(&quads, top_level);
     let model = write_gltf(dir.path(), "slab.gltf", json, &bin);
     let out = dir.path().join("slab.exr");
     let args = "--quiet --width 200 --height 200 --spp 16 --integrator path --bounces 4 \
@@ -893,12 +891,12 @@ fn a_slab_offsets_a_line_except_where_its_thickness_texture_is_0() {
 #[test]
 fn a_time_limited_render_is_the_render_of_the_spp_it_reached() {
     let dir = tempfile::tempdir().unwrap();
-    let model = common::root().join("assets/shapes.obj");
+    let model = crate::common::root().join("assets/shapes.obj");
     let timed = dir.path().join("timed.png");
     let size = ["--width", "40", "--height", "30", "--integrator", "path"];
     let mut args = vec!["render", s(&model), "-o", s(&timed), "--time-limit", "0.5"];
     args.extend(size);
-    let err = common::stderr(&run(&args, true));
+    let err = crate::common::stderr(&run(&args, true));
     let at = err.find(" spp rendered").unwrap_or_else(|| panic!("{err}"));
     let spp: String = err[..at]
         .chars()
@@ -929,7 +927,7 @@ fn a_time_limited_render_is_the_render_of_the_spp_it_reached() {
         &["render", s(&model), "-o", s(&fixed), "--time-limit", "0"],
         false,
     );
-    assert!(common::stderr(&refused).contains("--time-limit"));
+    assert!(crate::common::stderr(&refused).contains("--time-limit"));
 }
 
 /// `KHR_materials_unlit`: a quad shows exactly its base colour as linear radiance, whatever
@@ -938,8 +936,8 @@ fn a_time_limited_render_is_the_render_of_the_spp_it_reached() {
 fn unlit_materials_show_their_base_colour() {
     let dir = tempfile::tempdir().unwrap();
     let colour = [0.2f32, 0.5, 0.8];
-    let (json, bin) = common::quads_gltf(
-        &[(common::square(1.0, 0.0), 0)],
+    let (json, bin) = crate::common::quads_gltf(
+        &[(crate::common::square(1.0, 0.0), 0)],
         json!({
             "materials": [{"pbrMetallicRoughness": {"baseColorFactor": [colour[0], colour[1], colour[2], 1.0]},
                 "extensions": {"KHR_materials_unlit": {}}}],
@@ -984,7 +982,7 @@ fn unlit_materials_show_their_base_colour() {
 #[test]
 fn hostile_environments_are_refused() {
     let dir = tempfile::tempdir().unwrap();
-    let model = common::root().join("assets/shapes.obj");
+    let model = crate::common::root().join("assets/shapes.obj");
     let out = dir.path().join("never.png");
     let huge = dir.path().join("huge.hdr");
     std::fs::write(
@@ -1005,7 +1003,7 @@ fn hostile_environments_are_refused() {
         ],
         false,
     );
-    let message = common::stderr(&refused);
+    let message = crate::common::stderr(&refused);
     assert!(message.contains("huge.hdr"), "{message}");
     assert!(!message.contains("panicked"), "{message}");
 
@@ -1047,7 +1045,7 @@ fn hostile_environments_are_refused() {
         ],
         false,
     );
-    let message = common::stderr(&refused);
+    let message = crate::common::stderr(&refused);
     assert!(
         message.contains("view.json") && message.contains("environment intensity"),
         "{message}"

@@ -6,9 +6,7 @@
 //! both sides, so anti-aliased edges do not count) and must reach IoU 0.99; depth, where both
 //! hit, must agree to a median relative error of 1%.
 
-mod common;
-
-use common::{run, s, samples};
+use crate::common::{run, s, samples};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -62,7 +60,7 @@ fn meshtracer_and_pyrender_agree_on_coverage_and_depth() {
         return;
     };
     let Some(python) = python() else { return };
-    let script = common::root().join("scripts/reference/pyrender_render.py");
+    let script = crate::common::root().join("scripts/reference/pyrender_render.py");
     let dir = tempfile::tempdir().unwrap();
     // A file camera, file lights, and neither (automatic camera and default rig).
     for model in [

@@ -3,9 +3,7 @@
 //! tile can be written in; missing, overlapping and mismatched tiles and bad specs are refused
 //! with one error and exit 1.
 
-mod common;
-
-use common::{root, run, s, stderr};
+use crate::common::{root, run, s, stderr};
 use std::path::{Path, PathBuf};
 
 /// The test renders' size: small, and 32 rows cut into 4 bands of 8.

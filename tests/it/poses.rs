@@ -3,9 +3,7 @@
 //! camera and light placement, and a rendered mask), and on the sample models (skipped when
 //! `MESHTRACER_SAMPLES` is unset).
 
-mod common;
-
-use common::{f32_bytes, read_rgba, run, s, samples, stderr, write_gltf};
+use crate::common::{f32_bytes, read_rgba, run, s, samples, stderr, write_gltf};
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 

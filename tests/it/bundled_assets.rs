@@ -1,7 +1,7 @@
 //! The scenes in `assets/` are exactly what `examples/make_assets.rs` writes, and they load
 //! with the cameras and lights the README promises.
 
-#[path = "../examples/make_assets.rs"]
+#[path = "../../examples/make_assets.rs"]
 mod make_assets;
 
 use meshtracer::scene::LightKind;

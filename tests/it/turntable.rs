@@ -3,9 +3,7 @@
 //! starting where the plain render stands), `--contact-sheet` of views and of a batch with a
 //! failing job (layout, each cell the view's thumbnail, labels), and refusals of bad options.
 
-mod common;
-
-use common::{root, run, s, small_run, stderr};
+use crate::common::{root, run, s, small_run, stderr};
 use image::{AnimationDecoder, RgbImage, RgbaImage};
 use serde_json::Value;
 use std::path::{Path, PathBuf};

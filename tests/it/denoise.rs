@@ -3,9 +3,7 @@
 //! once denoised, the same bytes every run and for any --threads, with either integrator, and
 //! recorded in the view file. Without the feature: the flag is refused with the way to get it.
 
-mod common;
-
-use common::{run, s, small_run, stderr};
+use crate::common::{run, s, small_run, stderr};
 use std::path::{Path, PathBuf};
 
 /// A folder under cargo's target dir for this test's images, kept after a failure to look at.
@@ -19,7 +17,7 @@ fn scratch(test: &str) -> PathBuf {
 }
 
 fn cornell() -> String {
-    common::root()
+    crate::common::root()
         .join("assets/cornell-box.gltf")
         .display()
         .to_string()

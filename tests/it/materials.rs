@@ -3,9 +3,9 @@
 //! geometry it imitates, UVs are oriented as glTF says, and the textured sample models render
 //! with their textures.
 
-mod common;
-
-use common::{png_data_uri, quads_gltf, read_rgba, run, s, samples, shadow_scene, write_gltf};
+use crate::common::{
+    png_data_uri, quads_gltf, read_rgba, run, s, samples, shadow_scene, write_gltf,
+};
 use serde_json::json;
 use std::path::Path;
 
@@ -299,7 +299,7 @@ fn a_normal_mapped_quad_shades_like_the_tilted_geometry() {
     extra["materials"] = json!([mapped_material]);
     extra["images"] = json!([{"uri": png_data_uri(&normal_map)}]);
     extra["textures"] = json!([{"source": 0}]);
-    let flat = common::square(1.0, 0.0);
+    let flat = crate::common::square(1.0, 0.0);
     let (gltf, bin) = quads_gltf(&[(flat, 0)], extra);
     let mapped_model = write_gltf(dir.path(), "mapped.gltf", gltf, &bin);
     // The real thing: the same quad turned 30° about +Y (x' = x cos, z' = -x sin).
@@ -446,7 +446,7 @@ fn webp_textures_are_chosen_and_fall_back_to_the_core_source() {
     };
     let load = |webp_uri: String| {
         let (json, bin) = quads_gltf(
-            &[(common::square(1.0, 0.0), 0)],
+            &[(crate::common::square(1.0, 0.0), 0)],
             json!({
                 "extensionsUsed": ["EXT_texture_webp"],
                 "extensionsRequired": ["EXT_texture_webp"],

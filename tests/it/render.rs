@@ -1,9 +1,7 @@
 //! The renderer through the real binary: analytic radiance, a shadow of known shape, camera
 //! conventions, determinism, every sample model, and refusals of bad options.
 
-mod common;
-
-use common::{quads_gltf, read_rgba, run, s, samples, shadow_scene, write_gltf};
+use crate::common::{quads_gltf, read_rgba, run, s, samples, shadow_scene, write_gltf};
 use serde_json::json;
 use std::f32::consts::PI;
 use std::path::{Path, PathBuf};
@@ -138,7 +136,7 @@ fn quad_matches(material: serde_json::Value, shading: &str, brdf: impl Fn(f32, f
             "nodes": [{"translation": [0.0, 0.0, h], "extensions": {"KHR_lights_punctual": {"light": 0}}}]
         }),
     );
-    let quad = common::square(2.0, 0.0);
+    let quad = crate::common::square(2.0, 0.0);
     let (json, bin) = quads_gltf(&[(quad, 0)], extra);
     let model = write_gltf(dir.path(), "quad.gltf", json, &bin);
     let mut args: Vec<&str> = "--width 64 --height 64 --spp 1 --ambient 0"
@@ -375,7 +373,7 @@ fn a_coarse_smooth_sphere_has_a_smooth_terminator() {
     let tilt = 8f32.to_radians();
     let to_light = glam::Vec3::new(tilt.cos(), 0.0, tilt.sin());
     let (json, bin) =
-        common::sphere_gltf((8, 12), glam::Vec3::ZERO, 1.0, to_light, 3.0, white(false));
+        crate::common::sphere_gltf((8, 12), glam::Vec3::ZERO, 1.0, to_light, 3.0, white(false));
     let model = write_gltf(dir.path(), "sphere.gltf", json, &bin);
     let n = 160usize;
     let (radiance, normal) = radiance_and_normals(dir.path(), &model, 160);
@@ -420,7 +418,7 @@ fn a_sphere_far_from_the_origin_has_no_shadow_acne() {
     let dir = tempfile::tempdir().unwrap();
     let to_light = glam::Vec3::new(0.5, 0.6, 0.8).normalize();
     for scale in [1.0f32, 1e-4, 1e4] {
-        let (json, bin) = common::sphere_gltf(
+        let (json, bin) = crate::common::sphere_gltf(
             (48, 96),
             glam::Vec3::splat(13.0 * scale),
             scale,
@@ -450,7 +448,7 @@ fn a_sphere_far_from_the_origin_has_no_shadow_acne() {
 }
 
 fn cornell() -> PathBuf {
-    common::root().join("assets/cornell-box.gltf")
+    crate::common::root().join("assets/cornell-box.gltf")
 }
 
 #[test]
@@ -509,7 +507,7 @@ fn both_cpu_code_paths_give_identical_images() {
     let (json, bin) = quads_gltf(
         &[(ground, 0)],
         json!({
-            "images": [{"uri": common::png_data_uri(&noise)}],
+            "images": [{"uri": crate::common::png_data_uri(&noise)}],
             "samplers": [{"wrapS": 10497, "wrapT": 33648, "minFilter": 9987, "magFilter": 9729}],
             "textures": [{"source": 0, "sampler": 0}],
             "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0,
@@ -535,7 +533,7 @@ fn both_cpu_code_paths_give_identical_images() {
             );
             let out = dir.path().join(format!("{stem}.png"));
             let depth = dir.path().join(format!("{stem}.depth.exr"));
-            let status = common::bin()
+            let status = crate::common::bin()
                 .env("MESHTRACER_BASELINE_CPU", baseline)
                 .args([
                     "render",
@@ -614,7 +612,7 @@ fn the_bundled_scenes_render_with_their_lights_and_shadows() {
 
     let obj = render_to(
         dir.path(),
-        &common::root().join("assets/shapes.obj"),
+        &crate::common::root().join("assets/shapes.obj"),
         "shapes.png",
         &["--width", "160", "--spp", "1"],
     );
@@ -649,7 +647,7 @@ fn every_sample_model_renders_visible_content() {
     for (model, _) in MODELS {
         let path = samples.join(model);
         let out = dir.path().join("out.png");
-        let result = common::bin()
+        let result = crate::common::bin()
             .args([
                 "render",
                 s(&path),
@@ -666,7 +664,7 @@ fn every_sample_model_renders_visible_content() {
             .output()
             .unwrap();
         if !result.status.success() {
-            problems.push(format!("{model}: {}", common::stderr(&result)));
+            problems.push(format!("{model}: {}", crate::common::stderr(&result)));
             continue;
         }
         let (_, _, pixels) = read_rgba(&out);
@@ -732,7 +730,7 @@ fn bad_options_are_refused_before_any_work() {
     let out = |name: &str| dir.path().join(name);
     let refuse = |args: &[&str], needle: &str| {
         let result = run(args, false);
-        let err = common::stderr(&result);
+        let err = crate::common::stderr(&result);
         assert!(
             err.contains(needle),
             "{args:?}: expected '{needle}' in: {err}"
@@ -799,7 +797,7 @@ fn bad_options_are_refused_before_any_work() {
         "X,Y,Z",
     );
     // Nothing was left behind by the refusals.
-    let left = common::file_names(dir.path());
+    let left = crate::common::file_names(dir.path());
     assert!(left.is_empty(), "files left behind: {left:?}");
 }
 
@@ -829,9 +827,9 @@ fn a_failed_render_keeps_the_existing_output() {
         ],
         false,
     );
-    assert!(common::stderr(&result).contains("already exists"));
+    assert!(crate::common::stderr(&result).contains("already exists"));
     assert_eq!(std::fs::read(&out).unwrap(), b"previous image");
-    let names = common::file_names(dir.path());
+    let names = crate::common::file_names(dir.path());
     assert_eq!(names.len(), 2, "no temporary files left: {names:?}");
 }
 
@@ -847,7 +845,7 @@ fn the_summary_reports_what_the_render_did() {
         args.extend_from_slice(extra);
         run(&args, true)
     };
-    let err = common::stderr(&render(&[]));
+    let err = crate::common::stderr(&render(&[]));
     for needle in [
         "2244 triangles",
         "BVH",
@@ -862,7 +860,7 @@ fn the_summary_reports_what_the_render_did() {
     }
     // A noise estimate needs more than one sample per pixel.
     assert!(!err.contains("noise"), "{err}");
-    let err = common::stderr(&render(&["--spp", "4"]));
+    let err = crate::common::stderr(&render(&["--spp", "4"]));
     assert!(err.contains("noise ±"), "{err}");
     assert!(render(&["--quiet"]).stderr.is_empty());
     // --stats: every phase with its time and the peak memory after it.
@@ -908,7 +906,7 @@ fn the_view_round_trips() {
     let dir = tempfile::tempdir().unwrap();
     for (name, model) in [
         ("cornell", cornell()),
-        ("shapes", common::root().join("assets/shapes.obj")),
+        ("shapes", crate::common::root().join("assets/shapes.obj")),
     ] {
         let view = dir.path().join(format!("{name}.json"));
         let first = render_to(
@@ -954,7 +952,7 @@ fn the_view_round_trips() {
     let (model, out) = (cornell(), dir.path().join("refused.png"));
     for (view, needle) in [(&edited, "up"), (&bad, "bad.json")] {
         let args = ["render", s(&model), "-o", s(&out), "--view", s(view)];
-        let err = common::stderr(&run(&args, false));
+        let err = crate::common::stderr(&run(&args, false));
         assert!(err.contains(needle), "{err}");
         assert!(!out.exists());
     }
@@ -1073,7 +1071,7 @@ fn aovs_at_one_sample_equal_those_of_their_own_centre_ray() {
 
 /// Issue 12's measure on the model that showed the acne: MetalRoughSpheresNoTextures at
 /// 1024x768, 1 spp, default view and lights, counting isolated dark pixels
-/// ([`common::speckles`]: more than 40/255 darker than their 3x3 median) per 10,000 covered
+/// ([`crate::common::speckles`]: more than 40/255 darker than their 3x3 median) per 10,000 covered
 /// pixels, also with a root node scaling the whole model by 1e-4 and 1e4 (the camera fits the
 /// model). Before the per-hit offset bound there were about 240; now at most 2 once the four
 /// label meshes are hidden (scaled to nothing, same view). With the labels about 30 more
@@ -1082,7 +1080,8 @@ fn aovs_at_one_sample_equal_those_of_their_own_centre_ray() {
 /// The test checks that too: every speckle that the labels add is a pixel they darken.
 #[test]
 fn metal_rough_spheres_have_no_shadow_acne_at_any_scale() {
-    let Some(samples) = common::samples("metal_rough_spheres_have_no_shadow_acne_at_any_scale")
+    let Some(samples) =
+        crate::common::samples("metal_rough_spheres_have_no_shadow_acne_at_any_scale")
     else {
         return;
     };
@@ -1120,7 +1119,7 @@ fn metal_rough_spheres_have_no_shadow_acne_at_any_scale() {
             args.extend([if labels { "--view-out" } else { "--view" }, s(&view)]);
             let image = read_rgba(&render_to(dir.path(), &model, "spheres.png", &args));
             let covered: Vec<bool> = read_rgba(&mask).2.iter().map(|p| p[0] > 0.5).collect();
-            let (found, judged) = common::speckles(image.clone(), &covered);
+            let (found, judged) = crate::common::speckles(image.clone(), &covered);
             let per_10k = found.len() as f64 * 1e4 / judged as f64;
             eprintln!(
                 "scale {scale}, labels {labels}: {} speckles in {judged} covered pixels \

@@ -1,9 +1,7 @@
 //! The importer on every real sample model in `MESHTRACER_SAMPLES` (skipped when unset):
 //! triangle counts, cameras, lights and scene selection, against `../shared/assets/README.md`.
 
-mod common;
-
-use common::samples;
+use crate::common::samples;
 use meshtracer::scene::{LightKind, Projection};
 use meshtracer::Scene;
 
@@ -308,7 +306,7 @@ fn info_json_has_the_documented_keys() {
         return;
     };
     let model = dir.join("Duck/glTF-Binary/Duck.glb");
-    let out = common::run(&["info", common::s(&model), "--json"], true);
+    let out = crate::common::run(&["info", crate::common::s(&model), "--json"], true);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     for key in [
         "format",
@@ -339,7 +337,7 @@ fn info_json_reports_each_extension_with_its_status() {
         return;
     };
     let model = dir.join("StainedGlassLamp/glTF-KTX-BasisU/StainedGlassLamp.gltf");
-    let out = common::run(&["info", common::s(&model), "--json"], true);
+    let out = crate::common::run(&["info", crate::common::s(&model), "--json"], true);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let status = |name: &str| {
         let list = v["extensions"].as_array().expect("extensions list");
@@ -381,7 +379,7 @@ fn info_json_reports_each_extension_with_its_status() {
          {warnings:?}"
     );
     let plain = dir.join("Duck/glTF/Duck.gltf");
-    let out = common::run(&["info", common::s(&plain), "--json"], true);
+    let out = crate::common::run(&["info", crate::common::s(&plain), "--json"], true);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(v["extensions"], serde_json::json!([]));
 }

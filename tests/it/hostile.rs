@@ -1,9 +1,7 @@
 //! What a hostile environment must not achieve: reading files outside the model's folder
 //! through a symlink, or losing the user's previous output to an interrupted render.
 
-mod common;
-
-use common::{run, s};
+use crate::common::{run, s};
 use meshtracer::{LoadErrorKind, Scene};
 
 #[test]
@@ -14,7 +12,7 @@ fn a_symlink_out_of_the_model_folder_is_refused() {
     std::fs::create_dir_all(&outside).unwrap();
     std::fs::create_dir_all(&model_dir).unwrap();
     // A real triangle buffer, kept outside; the model folder only has a link to it.
-    let mut bin = common::f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    let mut bin = crate::common::f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
     bin.extend([0u8; 4]);
     std::fs::write(outside.join("secret.bin"), &bin).unwrap();
     std::os::unix::fs::symlink(outside.join("secret.bin"), model_dir.join("tri.bin")).unwrap();
@@ -35,7 +33,7 @@ fn a_symlink_out_of_the_model_folder_is_refused() {
         "{err}"
     );
     let out = run(&["info", s(&model)], false);
-    assert!(common::stderr(&out).contains("--allow-external-files"));
+    assert!(crate::common::stderr(&out).contains("--allow-external-files"));
     // The user can allow it.
     run(&["info", s(&model), "--allow-external-files"], true);
 }
@@ -45,9 +43,9 @@ fn ctrl_c_during_a_render_keeps_the_previous_output() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("image.png");
     std::fs::write(&out, b"previous image").unwrap();
-    let model = common::root().join("assets/cornell-box.gltf");
+    let model = crate::common::root().join("assets/cornell-box.gltf");
     // Far more work than can finish before the signal: 4096x3072 at 64 spp.
-    let child = common::bin()
+    let child = crate::common::bin()
         .args([
             "render",
             s(&model),
@@ -69,7 +67,7 @@ fn ctrl_c_during_a_render_keeps_the_previous_output() {
     assert_eq!(output.status.code(), Some(130), "{err}");
     assert!(err.contains("interrupted"), "{err}");
     assert_eq!(std::fs::read(&out).unwrap(), b"previous image");
-    let names = common::file_names(dir.path());
+    let names = crate::common::file_names(dir.path());
     assert_eq!(names.len(), 1, "no temporary file left: {names:?}");
 }
 
@@ -82,9 +80,9 @@ fn ctrl_c_during_views_keeps_the_finished_views_whole() {
     use std::io::{BufRead, Read};
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("views");
-    let model = common::root().join("assets/cornell-box.gltf");
+    let model = crate::common::root().join("assets/cornell-box.gltf");
     let depth = out.join("{view:03}.depth.exr");
-    let mut child = common::bin()
+    let mut child = crate::common::bin()
         .args(["render", s(&model), "--views", "orbit:500", "-o", s(&out)])
         .args(["--width", "160", "--height", "120", "--spp", "16"])
         .args(["--depth-out", s(&depth)])
@@ -108,7 +106,7 @@ fn ctrl_c_during_views_keeps_the_finished_views_whole() {
         err.contains(&format!("{reported} of 500 views written")),
         "{err}"
     );
-    let mut names: Vec<String> = common::file_names(&out)
+    let mut names: Vec<String> = crate::common::file_names(&out)
         .into_iter()
         .map(|n| n.to_string_lossy().into_owned())
         .collect();
@@ -125,7 +123,7 @@ fn ctrl_c_during_views_keeps_the_finished_views_whole() {
     expected.sort();
     assert_eq!(names, expected, "{err}");
     for k in 0..reported {
-        let (w, h, _) = common::read_rgba(&out.join(format!("{k:03}.png")));
+        let (w, h, _) = crate::common::read_rgba(&out.join(format!("{k:03}.png")));
         assert_eq!((w, h), (160, 120));
         image::open(out.join(format!("{k:03}.depth.exr"))).unwrap();
     }
@@ -136,7 +134,7 @@ fn ctrl_c_during_views_keeps_the_finished_views_whole() {
 /// it `interrupts` SIGINTs (200 ms apart) and returns its exit code, stdout and stderr.
 fn interrupt_bench(args: &[&str], interrupts: usize) -> (Option<i32>, String, String) {
     use std::io::{BufRead, Read};
-    let mut child = common::bin()
+    let mut child = crate::common::bin()
         .arg("bench")
         .args(args)
         .stdout(std::process::Stdio::piped())
@@ -206,7 +204,7 @@ fn a_second_ctrl_c_quits_a_benchmark_at_once() {
     assert_eq!(code, Some(130), "{err}");
     assert!(err.contains("no output written"), "{err}");
     assert!(!report.exists(), "no report after quitting");
-    assert!(common::file_names(dir.path()).is_empty());
+    assert!(crate::common::file_names(dir.path()).is_empty());
 }
 
 /// Sends SIGINT (what Ctrl-C sends) to a child process.

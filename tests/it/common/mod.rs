@@ -1,5 +1,4 @@
 //! Helpers for integration tests: run the real binary, find the sample models, read images.
-#![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

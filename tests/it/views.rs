@@ -3,9 +3,7 @@
 //! known surface, a view of a run equal to the same view rendered alone, determinism, views
 //! files and the file's cameras, and refusals of bad specs.
 
-mod common;
-
-use common::{read_rgba, root, run, s};
+use crate::common::{read_rgba, root, run, s};
 use glam::{Mat4, Vec3, Vec4};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -583,7 +581,7 @@ fn bad_specs_give_one_clear_error() {
         let mut args = vec!["render", s(&model), "-o", s(&out), "--views"];
         args.extend(views.iter().copied());
         let result = run(&args, false);
-        let err = common::stderr(&result);
+        let err = crate::common::stderr(&result);
         assert_eq!(result.status.code(), Some(1), "{views:?}: {err}");
         assert!(
             err.contains(&expected),
@@ -597,7 +595,7 @@ fn bad_specs_give_one_clear_error() {
     }
 
     // An image name for the folder, and --no-clobber over a finished run.
-    let err = common::stderr(&run(
+    let err = crate::common::stderr(&run(
         &[
             "render",
             s(&shapes()),
@@ -629,6 +627,6 @@ fn bad_specs_give_one_clear_error() {
         ],
         false,
     );
-    assert!(common::stderr(&result).contains("already exists (--no-clobber)"));
+    assert!(crate::common::stderr(&result).contains("already exists (--no-clobber)"));
     assert_eq!(std::fs::read(out.join("000.png")).unwrap(), before);
 }
