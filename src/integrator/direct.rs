@@ -9,6 +9,7 @@ use crate::accel::Hit;
 use crate::defaults::MAX_BLEND_LAYERS;
 use crate::geometry::Ray;
 use crate::light::PunctualLight;
+use crate::prepare::lights::SceneLight;
 use crate::prepare::Prepared;
 use crate::sampling::Rng;
 use crate::scene::AlphaMode;
@@ -91,7 +92,8 @@ impl Direct {
         }
         let mut color = self.ambient * s.material.base_color * s.occlusion + s.emissive;
         for light in &self.lights {
-            let Some(incoming) = light.incident(s.spawn.point) else {
+            let Some(incoming) = SceneLight::Punctual(light).sample(scene, s.spawn.point, [0.0; 3])
+            else {
                 continue;
             };
             let Some(shadow) = s.shadow_ray(incoming.to_light, incoming.distance) else {
@@ -109,7 +111,7 @@ impl Direct {
                     s.normal,
                     incoming.to_light,
                     to_eye,
-                    incoming.irradiance,
+                    incoming.arriving(scene),
                 );
         }
         color

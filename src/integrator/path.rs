@@ -24,11 +24,12 @@ use crate::accel::Hit;
 use crate::defaults::MAX_BLEND_LAYERS;
 use crate::light::environment::Environment;
 use crate::light::PunctualLight;
+use crate::prepare::lights::{EmitterHit, LightSample, SceneLight};
 use crate::prepare::Prepared;
 use crate::sampling::{power_heuristic, Rng};
 use crate::scene::AlphaMode;
 use crate::shading::bsdf::Bsdf;
-use crate::shading::surface::Occlusion;
+use crate::shading::surface::{Occlusion, Surface};
 use glam::Vec3;
 use std::sync::Arc;
 
@@ -129,18 +130,11 @@ impl Integrator for PathTracer {
             }
             let direction = Vec3::from(ray.direction);
             let Some(hit) = scene.intersect_camera(&ray) else {
-                if let Some(env) = &self.environment {
-                    match bsdf_pdf {
-                        None if self.environment_visible => {
-                            radiance += throughput * env.radiance(direction);
-                            coverage = 1.0;
-                        }
-                        None => {}
-                        Some(pdf) => {
-                            let weight = self.estimator.bsdf_weight(pdf, env.pdf(direction));
-                            radiance += throughput * env.radiance(direction) * weight;
-                        }
-                    }
+                if bsdf_pdf.is_none() && self.environment_visible && self.environment.is_some() {
+                    coverage = 1.0;
+                }
+                if let Some(seen) = self.escaped(scene, throughput, direction, bsdf_pdf) {
+                    radiance += seen;
                 }
                 break;
             };
@@ -175,9 +169,12 @@ impl Integrator for PathTracer {
                 let weight = match bsdf_pdf {
                     None => 1.0,
                     Some(pdf) => {
-                        let cos = surface.geometric.dot(direction).abs();
-                        let light_pdf = scene.area_lights.pdf_area(hit.triangle) * hit.t * hit.t
-                            / cos.max(1e-8);
+                        let at = EmitterHit {
+                            triangle: hit.triangle,
+                            distance: hit.t,
+                            cos: surface.geometric.dot(direction).abs(),
+                        };
+                        let light_pdf = SceneLight::Area.pdf(scene, direction, Some(at));
                         self.estimator.bsdf_weight(pdf, light_pdf)
                     }
                 };
@@ -205,91 +202,14 @@ impl Integrator for PathTracer {
             // evaluation then overlaps their shadow rays' traversal.
             let (u_lobe, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
             let continuation = bsdf.sample(to_eye, u_lobe, u1, u2);
-            // Next-event estimation: a shadow ray first, the BSDF only where light arrives (a
-            // blocked sample costs no evaluation). Seen from below its shading normal, the BSDF
-            // reflects nothing toward the eye ([`Bsdf::eval_pdf`] is zero for every light
-            // direction), so no light is sampled there; the random numbers are drawn all the
-            // same, so the stream stays aligned.
-            let lit = surface.normal.dot(to_eye) > 0.0;
-            // The area-light point and the environment direction are drawn before any shadow
-            // ray is traced, so their arithmetic (and the environment's table lookups) overlap
-            // the traversal of the punctual lights' shadow rays.
-            // One point on the emissive triangles:
-            let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
-            let sample_lights = lit && self.estimator.samples_lights();
-            let area_sample = sample_lights
-                .then(|| scene.area_lights.sample(u0, u1, u2))
-                .flatten()
-                .and_then(|sample| {
-                    let tri = sample.triangle as usize;
-                    let [a, b, c] = scene.scene.soup.triangle(tri);
-                    let bary = sample.barycentric;
-                    let on_light = a * bary.x + b * bary.y + c * bary.z;
-                    let offset = on_light - surface.spawn.point;
-                    let distance = offset.length();
-                    // (A point on the light at the shading point itself is skipped.)
-                    let to_light = offset / distance.max(f32::MIN_POSITIVE);
-                    let cos_light = sample.normal.dot(to_light).abs();
-                    (distance > 0.0 && distance.is_finite() && cos_light > 0.0)
-                        .then_some((sample, tri, bary, to_light, distance, cos_light))
-                });
-            // One direction of the environment:
-            let (u1, u2) = (rng.next_f32(), rng.next_f32());
-            let env_sample = self
-                .environment
-                .as_ref()
-                .filter(|_| sample_lights)
-                .and_then(|env| env.sample(u1, u2));
-            // Punctual lights: every one, through a shadow ray.
-            for light in self.lights.iter().filter(|_| lit) {
-                let Some(incoming) = light.incident(surface.spawn.point) else {
-                    continue;
-                };
-                let Some(shadow) = surface.shadow_ray(incoming.to_light, incoming.distance) else {
-                    continue;
-                };
-                counts.shadow += 1;
-                let transmittance = scene.shadow_transmittance(&shadow);
-                if transmittance > 0.0 {
-                    let f = bsdf.eval_cos(to_eye, incoming.to_light);
-                    radiance += throughput * f * incoming.irradiance * transmittance;
-                }
-            }
-            // The point on the emissive triangles.
-            if let Some((sample, tri, bary, to_light, distance, cos_light)) = area_sample {
-                if let Some(shadow) = surface.shadow_ray(to_light, distance) {
-                    counts.shadow += 1;
-                    let transmittance = scene.shadow_transmittance(&shadow);
-                    let (f, bsdf_pdf) = if transmittance > 0.0 {
-                        bsdf.eval_pdf(to_eye, to_light)
-                    } else {
-                        (Vec3::ZERO, 0.0)
-                    };
-                    if f != Vec3::ZERO {
-                        let light_pdf = sample.pdf_area * distance * distance / cos_light;
-                        let emission = scene.emission_at(tri, bary);
-                        let weight = self.estimator.light_weight(light_pdf, bsdf_pdf);
-                        radiance += throughput * f * emission * transmittance * weight / light_pdf;
-                    }
-                }
-            }
-            // The direction of the environment.
-            if let Some((to_light, light_radiance, light_pdf)) = env_sample {
-                if let Some(shadow) = surface.shadow_ray(to_light, f32::INFINITY) {
-                    counts.shadow += 1;
-                    let transmittance = scene.shadow_transmittance(&shadow);
-                    let (f, bsdf_pdf) = if transmittance > 0.0 {
-                        bsdf.eval_pdf(to_eye, to_light)
-                    } else {
-                        (Vec3::ZERO, 0.0)
-                    };
-                    if f != Vec3::ZERO {
-                        let weight = self.estimator.light_weight(light_pdf, bsdf_pdf);
-                        radiance +=
-                            throughput * f * light_radiance * transmittance * weight / light_pdf;
-                    }
-                }
-            }
+            let vertex = Vertex {
+                scene,
+                surface: &surface,
+                bsdf: &bsdf,
+                to_eye,
+                throughput,
+            };
+            self.next_event(&vertex, &mut radiance, rng, counts);
             let Some(sample) = continuation else {
                 break;
             };
@@ -326,6 +246,125 @@ impl Integrator for PathTracer {
             }
         }
         (radiance, coverage)
+    }
+}
+
+/// A path vertex as next-event estimation sees it.
+struct Vertex<'a> {
+    scene: &'a Prepared,
+    surface: &'a Surface<'a>,
+    bsdf: &'a Bsdf,
+    /// Unit vector toward where the path came from.
+    to_eye: Vec3,
+    /// The path's throughput up to this vertex.
+    throughput: Vec3,
+}
+
+impl PathTracer {
+    /// What a ray that meets no surface brings back: the environment's radiance, seen directly
+    /// by a camera ray when it is visible, or found by a BSDF sample (drawn with density
+    /// `bsdf_pdf`) and weighed against light sampling. `None` without an environment.
+    #[inline(always)]
+    fn escaped(
+        &self,
+        scene: &Prepared,
+        throughput: Vec3,
+        direction: Vec3,
+        bsdf_pdf: Option<f32>,
+    ) -> Option<Vec3> {
+        let env = self.environment.as_deref()?;
+        match bsdf_pdf {
+            None if self.environment_visible => Some(throughput * env.radiance(direction)),
+            None => None,
+            Some(pdf) => {
+                let light_pdf = SceneLight::Environment(env).pdf(scene, direction, None);
+                let weight = self.estimator.bsdf_weight(pdf, light_pdf);
+                Some(throughput * env.radiance(direction) * weight)
+            }
+        }
+    }
+
+    /// Next-event estimation at `vertex`, added to `radiance`: every punctual light, one point on
+    /// the emissive triangles and one direction of the environment, each through a shadow ray
+    /// ([`PathTracer::light_sample`]). The area-light point and the environment direction are
+    /// drawn (five numbers, drawn in any case so the stream stays aligned) before any shadow
+    /// ray is traced, so their arithmetic (and the environment's table lookups) overlaps the
+    /// traversal of the punctual lights' shadow rays. Seen from below its shading normal, the
+    /// BSDF reflects nothing toward the eye ([`Bsdf::eval_pdf`] is zero for every light
+    /// direction), so no light is sampled there.
+    #[inline(always)]
+    fn next_event(
+        &self,
+        vertex: &Vertex,
+        radiance: &mut Vec3,
+        rng: &mut Rng,
+        counts: &mut RayCounts,
+    ) {
+        let (scene, point) = (vertex.scene, vertex.surface.spawn.point);
+        let lit = vertex.surface.normal.dot(vertex.to_eye) > 0.0;
+        let sample_lights = lit && self.estimator.samples_lights();
+        let u_area = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+        let area = sample_lights
+            .then(|| SceneLight::Area.sample(scene, point, u_area))
+            .flatten();
+        let u_env = [rng.next_f32(), rng.next_f32(), 0.0];
+        let environment = self
+            .environment
+            .as_deref()
+            .filter(|_| sample_lights)
+            .and_then(|env| SceneLight::Environment(env).sample(scene, point, u_env));
+        for light in self.lights.iter().filter(|_| lit) {
+            let Some(sample) = SceneLight::Punctual(light).sample(scene, point, [0.0; 3]) else {
+                continue;
+            };
+            self.light_sample(vertex, &sample, radiance, counts);
+        }
+        if let Some(sample) = area {
+            self.light_sample(vertex, &sample, radiance, counts);
+        }
+        if let Some(sample) = environment {
+            self.light_sample(vertex, &sample, radiance, counts);
+        }
+    }
+
+    /// Adds to `radiance` what one light sample brings to `vertex` (times its throughput): a
+    /// shadow ray first, the BSDF only where light arrives (a blocked sample costs no
+    /// evaluation), weighed against BSDF sampling for lights that it can find too.
+    #[inline(always)]
+    fn light_sample(
+        &self,
+        vertex: &Vertex,
+        sample: &LightSample,
+        radiance: &mut Vec3,
+        counts: &mut RayCounts,
+    ) {
+        let Some(shadow) = vertex.surface.shadow_ray(sample.to_light, sample.distance) else {
+            return;
+        };
+        counts.shadow += 1;
+        let transmittance = vertex.scene.shadow_transmittance(&shadow);
+        let (to_eye, throughput) = (vertex.to_eye, vertex.throughput);
+        match sample.pdf {
+            // A delta light: light sampling alone finds it.
+            None => {
+                if transmittance > 0.0 {
+                    let f = vertex.bsdf.eval_cos(to_eye, sample.to_light);
+                    *radiance += throughput * f * sample.arriving(vertex.scene) * transmittance;
+                }
+            }
+            Some(light_pdf) => {
+                let (f, bsdf_pdf) = if transmittance > 0.0 {
+                    vertex.bsdf.eval_pdf(to_eye, sample.to_light)
+                } else {
+                    (Vec3::ZERO, 0.0)
+                };
+                if f != Vec3::ZERO {
+                    let arriving = sample.arriving(vertex.scene);
+                    let weight = self.estimator.light_weight(light_pdf, bsdf_pdf);
+                    *radiance += throughput * f * arriving * transmittance * weight / light_pdf;
+                }
+            }
+        }
     }
 }
 

@@ -4,6 +4,7 @@
 //! the benchmarks, the denoiser and library users all go through it, so the same scene and
 //! settings give the same image whoever renders it.
 
+pub mod lights;
 mod queries;
 pub mod textures;
 
