@@ -28,7 +28,7 @@ fn main() {
     }
     if std::env::var("CARGO_CFG_TARGET_OS").is_ok_and(|os| os == "linux") {
         // An absolute run path: the binary finds the library wherever it is started from, and
-        // stops finding it if the folder moves (then set LD_LIBRARY_PATH, see README).
+        // stops finding it if the folder moves (then set LD_LIBRARY_PATH, see docs/denoising.md).
         println!("cargo:rustc-link-arg=-Wl,-rpath,{}", lib.display());
     }
 }

@@ -1,25 +1,28 @@
 //! meshtracer: a CPU ray tracer for glTF 2.0 and Wavefront OBJ assets.
 //!
-//! The program is a pipeline of phases that hand over plain data:
+//! The program is a pipeline of phases that hand over plain data, each a module; data flows
+//! one way, from the leaves up, and no module imports one above it:
 //!
 //! ```text
-//! load         Scene::load(path)                          scene/ (glTF, OBJ importers)
-//! prepare      Prepared::new(scene, &options)             prepare.rs: BVH (accel/), textures
-//! integrate    render(&prepared, &settings, ...)          render/ (pixel loop, surface), integrator/
-//! film         Image (linear RGBA f32) + Aovs             output.rs, render/
-//! denoise      denoise::guides, denoise::denoise          denoise.rs (feature `denoise`)
-//! outputs      PendingOutput::commit, aov::write_*        output.rs, aov.rs, view.rs
+//! leaves     defaults, color, sampling, cpu, measure     named defaults, colour, random numbers
+//! load       Scene::load(path)                           scene/ (glTF, OBJ importers)
+//! accel      Accel::build(&soup, ...)                    accel/ (obvhs BVH, linear scan)
+//! lights     PunctualLight, AreaLights, Environment      light/
+//! prepare    Prepared::build(scene, &options, ...)       prepare/ (the one build sequence,
+//!                                                        the light interface, point queries)
+//! shading    Prepared::surface -> Surface -> Bsdf        shading/
+//! integrate  Integrator::radiance along a camera ray     integrator/ (direct, path)
+//! render     render(&prepared, &settings, ...)           render/ (pixel loop, film, denoise)
+//! settings   setup::default_settings, setup::lighting    setup (the one lighting policy)
+//! outputs    PendingOutput::commit, aov::write_*         output/ (every file, atomically)
+//! jobs       views, batches, tiles planned as data       jobs/
+//! tools      compare, bench, plot                        tools/
 //! ```
 //!
-//! Many views of one prepared scene (`render --views`): [`views`] turns a spec into cameras
-//! and names their files, [`dataset`] writes the `transforms.json` that NeRF tools read.
-//! Many models (`batch`): [`batch`] reads manifests, assigns jobs to shards and defines the
-//! per-job record of `results.jsonl`. [`turntable`] streams an orbit's views into an
-//! animated GIF; [`sheet`] lays views or jobs out as a labelled contact sheet.
-//!
-//! Every default (image size, field of view, ambient, the light rig) is named in [`defaults`]. Importers
-//! ([`scene`]) never call the tracer; the tracer never sees a glTF or OBJ type; only [`cli`] and
-//! [`app`] know the command line.
+//! The command line is the binary's alone (`src/bin/meshtracer/`); the library knows nothing
+//! of clap and never exits the process. Every default (image size, field of view, ambient, the
+//! light rig) is named in [`defaults`]. Importers ([`scene`]) never call the tracer; the tracer
+//! never sees a glTF or OBJ type.
 //!
 //! Rendering a model to a linear float buffer:
 //!

@@ -36,7 +36,7 @@ say() { echo "fetch.sh: $*" >&2; }
 die() { say "error: $*"; exit 1; }
 
 if [ "$(uname -s)" != Linux ] || [ "$(uname -m)" != x86_64 ]; then
-    die "this script installs the Linux x86_64 library; on $(uname -sm) install Open Image Denoise 2.x yourself and set OIDN_DIR (see README)"
+    die "this script installs the Linux x86_64 library; on $(uname -sm) install Open Image Denoise 2.x yourself and set OIDN_DIR (see docs/denoising.md)"
 fi
 for tool in sha256sum unzip; do
     command -v "$tool" >/dev/null || die "needs $tool"

@@ -1,6 +1,6 @@
 //! Batches (`meshtracer batch`): what a manifest says, which jobs a shard takes, and the record
 //! each job leaves. Plain data and checks; the command that renders the jobs is in
-//! `app/batch.rs`.
+//! `src/bin/meshtracer/commands/batch.rs`.
 //!
 //! - A **manifest** is a folder of models (every `.gltf`, `.glb` and `.obj` below it, hidden
 //!   entries skipped, sorted by path) or a JSONL file, one job a line (see [`ManifestLine`]).

@@ -38,7 +38,7 @@ pub const AVAILABLE: bool = cfg!(feature = "denoise");
 
 /// The error a build without the denoiser gives for `--denoise`.
 pub const NOT_BUILT: &str =
-    "--denoise: this build has no denoiser; rebuild with --features denoise, see README (Denoising)";
+    "--denoise: this build has no denoiser; rebuild with --features denoise, see docs/denoising.md";
 
 /// Most guide rays per pixel and axis: 4 x 4 = 16 first hits make edges and textures smooth;
 /// more change the guides by less than OIDN's own half-precision weights resolve.

@@ -1,5 +1,5 @@
 //! What users measure meshtracer with: image comparison ([`compare`]), the benchmark workloads
-//! ([`bench`]) and their plots ([`plot`]).
+//! ([`bench`](mod@bench)) and their plots ([`plot`]).
 
 pub mod bench;
 pub mod compare;

@@ -1,5 +1,5 @@
-//! `render --denoise` through the real binary. Built with `--features denoise` (README,
-//! "Denoising"): a path-traced Cornell box at 4 spp comes out closer to a 256-spp reference
+//! `render --denoise` through the real binary. Built with `--features denoise` (docs/denoising.md):
+//! a path-traced Cornell box at 4 spp comes out closer to a 256-spp reference
 //! once denoised, the same bytes every run and for any --threads, with either integrator, and
 //! recorded in the view file. Without the feature: the flag is refused with the way to get it.
 

@@ -1,5 +1,5 @@
 //! The `.npy` AOVs as NumPy itself reads them, and NumPy's own `.npy` files as the tile
-//! merger reads them (src/npy.rs writes and reads the format by hand; this is its check).
+//! merger reads them (src/output/npy.rs writes and reads the format by hand; this is its check).
 //!
 //! Needs a Python with NumPy: `MESHTRACER_PYRENDER_PYTHON` (the pyrender environment that
 //! `.ci/run` makes has it) or `python3`; skips with a notice when neither imports numpy.

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 /// Width and height of the test renders: small, the tests check plumbing, not pictures.
 const W: u32 = 64;
 const H: u32 = 48;
-/// Sheet layout constants, as the README documents them (src/sheet.rs).
+/// Sheet layout constants, as the README documents them (src/output/sheet.rs).
 const PADDING: u32 = 4;
 const LABEL_HEIGHT: u32 = 20;
 const SHEET_BACKGROUND: [u8; 3] = [255, 255, 255];

@@ -182,7 +182,7 @@ pub struct RenderArgs {
     pub time_limit: Option<f64>,
     /// Denoise the image with Intel Open Image Denoise (its RT filter on the linear HDR image,
     /// guided by first-hit albedo and normals), with either integrator; the view file and the
-    /// summary say so. Only in builds made with `--features denoise` (README, "Denoising");
+    /// summary say so. Only in builds made with `--features denoise` (docs/denoising.md);
     /// other builds refuse it. Not with --views, --turntable, --tile or --crop.
     #[arg(long, conflicts_with_all = ["views", "turntable", "tile", "crop"])]
     pub denoise: bool,
@@ -208,7 +208,7 @@ pub struct RenderArgs {
     /// Render many views after one load and one BVH build, into the folder -o names:
     /// orbit:N (a circle around the model), sphere:N (spread evenly over a sphere), random:N
     /// (random directions from --seed), cameras (every camera of the file), or a JSON file of
-    /// views (format in the README). Each view writes its image, the AOVs asked for and its
+    /// views (format in docs/views-and-datasets.md). Each view writes its image, the AOVs asked for and its
     /// view file; the folder gets a transforms.json (nerfstudio, instant-ngp).
     #[arg(
         long,
@@ -410,7 +410,7 @@ pub struct RenderArgs {
     /// of the BVH build.
     #[arg(long, value_name = "FILE.json")]
     pub stats: Option<PathBuf>,
-    /// Write the camera and lights actually used as JSON (the schema is in the README).
+    /// Write the camera and lights actually used as JSON (the schema is in docs/view-file.md).
     #[arg(long, value_name = "FILE")]
     pub view_out: Option<PathBuf>,
     /// Render with exactly the camera, lights, ambient and image size of a view file written

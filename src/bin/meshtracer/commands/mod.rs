@@ -645,7 +645,7 @@ fn render_model(
         None => None,
     };
     if let Some(spec) = &args.views {
-        // Many views after one load and one BVH build: its own flow, in app/multi_view.rs.
+        // Many views after one load and one BVH build: its own flow, in commands/views.rs.
         return views::render_views(args, spec, env_file, on_view);
     }
     if let Some(frames) = args.turntable {
