@@ -201,3 +201,73 @@ mod with_the_feature {
         }
     }
 }
+
+/// The denoiser's guides through the library (any build): what the filter is fed.
+mod guides {
+    use glam::Vec3;
+    use meshtracer::prepare::{PrepareOptions, Prepared};
+    use meshtracer::render::denoise::guides;
+    use meshtracer::render::{Region, RenderSettings};
+    use meshtracer::Scene;
+
+    fn cornell(spp: u32) -> (Prepared, RenderSettings) {
+        let scene = Scene::load(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/assets/cornell-box.gltf"
+        ))
+        .expect("bundled scene loads");
+        let mut warnings = Vec::new();
+        let prepared = Prepared::new(scene, &PrepareOptions::default(), &mut warnings)
+            .expect("bundled scene prepares");
+        let mut settings = meshtracer::setup::default_settings(&prepared.scene, 40, 30);
+        settings.spp = spp;
+        (prepared, settings)
+    }
+
+    #[test]
+    fn guides_are_in_range_and_cover_the_box() {
+        let (prepared, settings) = cornell(16);
+        let g = guides(&prepared, &settings, Region::full(40, 30));
+        assert_eq!(g.samples_per_pixel, 16);
+        assert_eq!((g.albedo.len(), g.normal.len()), (1200, 1200));
+        assert!(g
+            .albedo
+            .iter()
+            .all(|a| a.min_element() >= 0.0 && a.max_element() <= 1.0));
+        // Averages of unit vectors: never longer than 1 (plus rounding).
+        assert!(g.normal.iter().all(|n| n.length() <= 1.0 + 1e-5));
+        // The box fills most of the frame; around it nothing is hit and, without a visible
+        // environment, both guides are zero.
+        let covered = g.normal.iter().filter(|n| **n != Vec3::ZERO).count();
+        assert!(covered > 1200 / 2, "{covered} of 1200 pixels see the box");
+        assert!(g
+            .albedo
+            .iter()
+            .zip(&g.normal)
+            .all(|(a, n)| *n != Vec3::ZERO || *a == Vec3::ZERO));
+    }
+
+    #[test]
+    fn guides_of_a_region_are_the_same_pixels() {
+        let (prepared, settings) = cornell(4);
+        let whole = guides(&prepared, &settings, Region::full(40, 30));
+        let region = Region {
+            x: 10,
+            y: 5,
+            width: 7,
+            height: 3,
+        };
+        let part = guides(&prepared, &settings, region);
+        for row in 0..3 {
+            let begin = (5 + row) * 40 + 10;
+            assert_eq!(
+                part.albedo[row * 7..row * 7 + 7],
+                whole.albedo[begin..begin + 7]
+            );
+            assert_eq!(
+                part.normal[row * 7..row * 7 + 7],
+                whole.normal[begin..begin + 7]
+            );
+        }
+    }
+}
