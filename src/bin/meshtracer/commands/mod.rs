@@ -538,8 +538,8 @@ pub(crate) struct RenderReport {
     pub warnings: Vec<String>,
 }
 
-/// The process's Ctrl-C flag, shared by every render of the process (a batch runs many):
-/// ctrlc takes one handler per process, so a flag made per render would go unheard after the
+/// The process's Ctrl-C flag, shared by every render of the process (a batch runs many) and by
+/// bench: ctrlc takes one handler per process, so a flag made per render would go unheard after the
 /// first. Without a handler Ctrl-C kills the process; every file is still whole (renamed into
 /// place after a complete write).
 fn interrupt_flag() -> Arc<AtomicBool> {
@@ -547,10 +547,22 @@ fn interrupt_flag() -> Arc<AtomicBool> {
     Arc::clone(FLAG.get_or_init(|| {
         let flag = Arc::new(AtomicBool::new(false));
         let handler_flag = Arc::clone(&flag);
-        let _ = ctrlc::set_handler(move || handler_flag.store(true, Ordering::SeqCst));
+        let _ = ctrlc::set_handler(move || {
+            if handler_flag.swap(true, Ordering::SeqCst) && QUIT_ON_SECOND_PRESS.get().is_some() {
+                eprintln!("meshtracer: interrupted; no output written");
+                std::process::exit(130);
+            }
+            if let Some(notice) = QUIT_ON_SECOND_PRESS.get() {
+                eprintln!("{notice}");
+            }
+        });
         flag
     }))
 }
+
+/// Set by a command whose first Ctrl-C lets it finish what is under way and report (bench):
+/// the notice the first press prints; a second press then quits at once, writing nothing.
+static QUIT_ON_SECOND_PRESS: std::sync::OnceLock<&'static str> = std::sync::OnceLock::new();
 
 fn render_command(args: &RenderArgs) -> Result<()> {
     render_model(args, &|_, _| {}).map(|_| ())
@@ -1064,17 +1076,9 @@ fn bench_command(args: &crate::cli::BenchArgs) -> Result<()> {
     };
     // Ctrl-C once: finish the measurement under way, then report what is done (exit 130).
     // Twice: quit at once, writing nothing (a 1M-triangle linear scan can take a minute).
-    let stop = Arc::new(AtomicBool::new(false));
-    {
-        let stop = Arc::clone(&stop);
-        let _ = ctrlc::set_handler(move || {
-            if stop.swap(true, Ordering::SeqCst) {
-                eprintln!("meshtracer: interrupted; no output written");
-                std::process::exit(130);
-            }
-            eprintln!("stopping after the current measurement (Ctrl-C again to quit now)");
-        });
-    }
+    let _ = QUIT_ON_SECOND_PRESS
+        .set("stopping after the current measurement (Ctrl-C again to quit now)");
+    let stop = interrupt_flag();
     let mut rows = Vec::new();
     let mut path_rows = Vec::new();
     let (mut generated_rows, mut model_rows) = (Vec::new(), Vec::new());
