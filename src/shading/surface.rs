@@ -288,6 +288,56 @@ impl Prepared {
             ((material.ior - 1.0) / (material.ior + 1.0)).powi(2)
         };
         shaded.dielectric_f0 = Vec3::splat(ior_f0);
+        self.add_layers(
+            material,
+            &mut shaded,
+            ior_f0,
+            &sample,
+            (tri, b, smooth, geometric),
+        );
+        let mut transmission = material.transmission;
+        if let Some(t) = sample(&material.transmission_texture, false) {
+            transmission *= t.x;
+        }
+        // KHR_materials_volume: a thickness of 0 (factor × texture green) is a thin wall.
+        let thin_walled = material.thin_walled
+            || sample(&material.thickness_texture, false).is_some_and(|t| t.y <= 0.0);
+        Surface {
+            spawn,
+            exit,
+            corners,
+            barycentric: b,
+            geometric,
+            smooth,
+            normal,
+            material: shaded,
+            emissive,
+            occlusion,
+            alpha: if material.alpha_mode == AlphaMode::Opaque {
+                1.0
+            } else {
+                base.w.clamp(0.0, 1.0)
+            },
+            transmission: transmission.clamp(0.0, 1.0),
+            thin_walled,
+            source: material,
+        }
+    }
+
+    /// The extension layers of `material` on `shaded` (the core material with `ior_f0`, the
+    /// dielectric's F0 from KHR_materials_ior): KHR_materials_specular, sheen, clearcoat (with
+    /// its own normal map, else the interpolated normal `smooth`) and iridescence, their
+    /// textures read through `sample` in a fixed order. `at` is the hit's triangle,
+    /// barycentrics, interpolated normal and geometric normal.
+    #[inline(always)]
+    fn add_layers(
+        &self,
+        material: &Material,
+        shaded: &mut SurfaceMaterial,
+        ior_f0: f32,
+        sample: &impl Fn(&Option<TextureRef>, bool) -> Option<Vec4>,
+        (tri, b, smooth, geometric): (usize, Vec3, Vec3, Vec3),
+    ) {
         if let Some(layer) = &material.specular_layer {
             // KHR_materials_specular: F0 = min(F0(ior)·colour, 1)·specular, F90 = specular.
             let mut color = layer.color;
@@ -358,33 +408,6 @@ impl Prepared {
                     thickness,
                 });
             }
-        }
-        let mut transmission = material.transmission;
-        if let Some(t) = sample(&material.transmission_texture, false) {
-            transmission *= t.x;
-        }
-        // KHR_materials_volume: a thickness of 0 (factor × texture green) is a thin wall.
-        let thin_walled = material.thin_walled
-            || sample(&material.thickness_texture, false).is_some_and(|t| t.y <= 0.0);
-        Surface {
-            spawn,
-            exit,
-            corners,
-            barycentric: b,
-            geometric,
-            smooth,
-            normal,
-            material: shaded,
-            emissive,
-            occlusion,
-            alpha: if material.alpha_mode == AlphaMode::Opaque {
-                1.0
-            } else {
-                base.w.clamp(0.0, 1.0)
-            },
-            transmission: transmission.clamp(0.0, 1.0),
-            thin_walled,
-            source: material,
         }
     }
 
