@@ -68,6 +68,11 @@ fn detect() -> Protocol {
     }
 }
 
+/// The terminal could not be written to (the message is `viuer`'s).
+#[derive(Debug, thiserror::Error)]
+#[error("cannot show the image in the terminal: {0}")]
+pub struct PreviewError(String);
+
 /// Shows `image` on standard output. `Auto` shows it only when standard output is a terminal
 /// (a preview piped into a file or another program would be noise), in the best protocol the
 /// terminal speaks; `Blocks` always, as half blocks, without asking the terminal anything.
@@ -77,19 +82,22 @@ pub fn show(
     image: &Image,
     background: Option<Vec3>,
     mode: PreviewMode,
-) -> anyhow::Result<Option<Protocol>> {
+) -> Result<Option<Protocol>, PreviewError> {
     let rgba = RgbaImage::from_raw(image.width, image.height, image.to_srgb8(background))
         .unwrap_or_default();
     show_rgba(&rgba, mode)
 }
 
 /// [`show`] for an opaque 8-bit sRGB image (a contact sheet of views or jobs).
-pub fn show_rgb(image: &image::RgbImage, mode: PreviewMode) -> anyhow::Result<Option<Protocol>> {
+pub fn show_rgb(
+    image: &image::RgbImage,
+    mode: PreviewMode,
+) -> Result<Option<Protocol>, PreviewError> {
     show_rgba(&DynamicImage::ImageRgb8(image.clone()).to_rgba8(), mode)
 }
 
 /// [`show`] for an 8-bit sRGB image with straight alpha.
-pub fn show_rgba(image: &RgbaImage, mode: PreviewMode) -> anyhow::Result<Option<Protocol>> {
+pub fn show_rgba(image: &RgbaImage, mode: PreviewMode) -> Result<Option<Protocol>, PreviewError> {
     let terminal = std::io::stdout().is_terminal();
     if mode == PreviewMode::Auto && !terminal {
         return Ok(None);
@@ -123,7 +131,7 @@ pub fn show_rgba(image: &RgbaImage, mode: PreviewMode) -> anyhow::Result<Option<
         _ => image.clone(),
     };
     viuer::print(&DynamicImage::ImageRgba8(picture), &config)
-        .map_err(|e| anyhow::anyhow!("cannot show the image in the terminal: {e}"))?;
+        .map_err(|e| PreviewError(e.to_string()))?;
     Ok(Some(protocol))
 }
 

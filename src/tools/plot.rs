@@ -22,7 +22,7 @@ fn points(rows: &[Row], value: impl Fn(&Row) -> Option<f64>) -> Vec<(f64, f64)> 
 
 /// The SVG document of the plot of nanoseconds per ray (per thread) against triangles for the
 /// BVH and the linear scan: `generated` rows as lines with points, `models` as triangle markers.
-pub fn scaling_plot(generated: &[Row], models: &[Row], title: &str) -> anyhow::Result<String> {
+pub fn scaling_plot(generated: &[Row], models: &[Row], title: &str) -> Result<String, PlotError> {
     let bvh = points(generated, |r| Some(r.bvh_ns_per_ray()));
     let linear = points(generated, Row::linear_ns_per_ray);
     let model_bvh = points(models, |r| Some(r.bvh_ns_per_ray()));
@@ -106,8 +106,12 @@ pub fn scaling_plot(generated: &[Row], models: &[Row], title: &str) -> anyhow::R
 }
 
 /// A drawing error of plotters (drawing into a string fails only on a plotting bug).
-fn draw_error<E: std::error::Error + Send + Sync>(e: DrawingAreaErrorKind<E>) -> anyhow::Error {
-    anyhow::anyhow!("drawing the plot: {e}")
+#[derive(Debug, thiserror::Error)]
+#[error("drawing the plot: {0}")]
+pub struct PlotError(String);
+
+fn draw_error<E: std::error::Error + Send + Sync>(e: DrawingAreaErrorKind<E>) -> PlotError {
+    PlotError(e.to_string())
 }
 
 /// Whole decades around the values (powers of ten), at least one decade wide.
