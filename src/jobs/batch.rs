@@ -763,6 +763,82 @@ pub fn sha256_file(path: &Path) -> std::io::Result<String> {
     Ok(hex(&hasher.finalize()))
 }
 
+/// The version of [`FingerprintRecord`]'s layout. A job's fingerprint changes (and `--resume`
+/// redoes it) whenever its options, the model file or meshtracer's version change; a change of
+/// this layout would change every fingerprint at once, so it is versioned and pinned by a test.
+pub const FINGERPRINT_RECORD_VERSION: u32 = 1;
+
+/// What a job's resume fingerprint is computed from: every render option of the job, in a
+/// fixed order, with its value written as Rust's `Debug` writes it (`Some(32)`, `"name.png"`,
+/// `Vec3(1.0, 2.0, 3.0)`, `false`). The record is explicit rather than the `Debug` text of the
+/// command line's option struct, so that renaming a flag or moving code leaves finished
+/// batches finished.
+///
+/// Version 1, the layout meshtracer 0.1.0 wrote: `RenderArgs { name: value, ... }`, the load
+/// options nested as the value of `load` in a `LoadArgs { ... }` group. The names `RenderArgs`
+/// and `LoadArgs` are part of the layout, not references to any type.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FingerprintRecord {
+    group: &'static str,
+    fields: Vec<(&'static str, String)>,
+}
+
+impl FingerprintRecord {
+    /// The record of a job's render options (version 1's outer group).
+    pub fn render_options() -> FingerprintRecord {
+        FingerprintRecord::group("RenderArgs")
+    }
+
+    /// The record of a job's load options (version 1's group nested under `load`).
+    pub fn load_options() -> FingerprintRecord {
+        FingerprintRecord::group("LoadArgs")
+    }
+
+    fn group(group: &'static str) -> FingerprintRecord {
+        FingerprintRecord {
+            group,
+            fields: Vec::new(),
+        }
+    }
+
+    /// Appends option `name` with `value` (written as `Debug` writes it).
+    pub fn field(mut self, name: &'static str, value: &dyn std::fmt::Debug) -> Self {
+        self.fields.push((name, format!("{value:?}")));
+        self
+    }
+
+    /// Appends a nested group under `name`.
+    pub fn group_field(mut self, name: &'static str, group: &FingerprintRecord) -> Self {
+        self.fields.push((name, group.text()));
+        self
+    }
+
+    /// The record as hashed: `Group { name: value, ... }`.
+    pub fn text(&self) -> String {
+        if self.fields.is_empty() {
+            return self.group.to_string();
+        }
+        let fields: Vec<String> = self
+            .fields
+            .iter()
+            .map(|(name, value)| format!("{name}: {value}"))
+            .collect();
+        format!("{} {{ {} }}", self.group, fields.join(", "))
+    }
+
+    /// The job's fingerprint: SHA-256 (hex) of `meshtracer VERSION`, the model file's SHA-256
+    /// (`model_sha256`) and this record, one a line.
+    pub fn fingerprint(&self, meshtracer_version: &str, model_sha256: &str) -> String {
+        sha256_hex(
+            format!(
+                "meshtracer {meshtracer_version}\nmodel sha256 {model_sha256}\n{}",
+                self.text()
+            )
+            .as_bytes(),
+        )
+    }
+}
+
 /// SHA-256 of bytes, lower-case hex.
 pub fn sha256_hex(bytes: &[u8]) -> String {
     use sha2::Digest;
@@ -775,6 +851,37 @@ fn hex(bytes: &[u8]) -> String {
 
 #[cfg(test)]
 mod tests {
+    /// The record writes what `derive(Debug)` of version 1's option structs wrote.
+    #[test]
+    fn a_fingerprint_record_is_written_as_debug_writes_a_struct() {
+        #[derive(Debug)]
+        struct LoadArgs {
+            strict: bool,
+        }
+        #[derive(Debug)]
+        #[allow(dead_code)]
+        struct RenderArgs {
+            model: std::path::PathBuf,
+            width: Option<u32>,
+            up: Option<glam::Vec3>,
+            load: LoadArgs,
+        }
+        let args = RenderArgs {
+            model: "a b/\"c\".gltf".into(),
+            width: Some(32),
+            up: Some(glam::Vec3::new(0.0, 1.0, -0.5)),
+            load: LoadArgs { strict: true },
+        };
+        let load = FingerprintRecord::load_options().field("strict", &args.load.strict);
+        let record = FingerprintRecord::render_options()
+            .field("model", &args.model)
+            .field("width", &args.width)
+            .field("up", &args.up)
+            .group_field("load", &load);
+        assert_eq!(record.text(), format!("{args:?}"));
+        assert_eq!(FingerprintRecord::load_options().text(), "LoadArgs");
+    }
+
     use super::*;
 
     #[test]

@@ -17,11 +17,12 @@
 
 use super::views::{has_extension, sheet_layout, write_sheet};
 use super::{image_size, interrupt_flag, render_model, Interrupted, RenderReport};
-use crate::cli::{BatchArgs, BatchMergeArgs, RenderArgs};
+use crate::cli::{BatchArgs, BatchMergeArgs, LoadArgs, RenderArgs};
 use anyhow::{anyhow, bail, Context, Result};
 use meshtracer::jobs::batch::{
     check_output_name, output_key, read_manifest, read_results, results_jsonl, sha256_file, Entry,
-    Job, JobRecord, OutputRecord, Shard, Status, Timings, JOB_FILE, RESULTS_FILE,
+    FingerprintRecord, Job, JobRecord, OutputRecord, Shard, Status, Timings, JOB_FILE,
+    RESULTS_FILE,
 };
 use meshtracer::output::sheet::ContactSheet;
 use meshtracer::output::PendingFile;
@@ -409,14 +410,146 @@ fn job_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<(RenderArgs,
     canonical.model = PathBuf::from(&job.model_text);
     canonical.threads = 0;
     let model_hash = sha256_file(&job.model).unwrap_or_else(|e| format!("unreadable ({e})"));
-    let fingerprint = meshtracer::jobs::batch::sha256_hex(
-        format!(
-            "meshtracer {}\nmodel sha256 {model_hash}\n{canonical:?}",
-            env!("CARGO_PKG_VERSION")
-        )
-        .as_bytes(),
-    );
+    let fingerprint =
+        fingerprint_record(&canonical).fingerprint(env!("CARGO_PKG_VERSION"), &model_hash);
     Ok((args, fingerprint))
+}
+
+/// The fingerprint record (version 1, [`FingerprintRecord`]) of a job's canonical options:
+/// every field of [`RenderArgs`] and [`LoadArgs`], in version 1's order. The destructuring
+/// names every field, so an option added to the command line does not compile until its place
+/// in the record is decided (appending it changes every fingerprint: a new record version).
+fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
+    let RenderArgs {
+        model,
+        output,
+        width,
+        height,
+        spp,
+        time_limit,
+        denoise,
+        seed,
+        camera,
+        look_from,
+        look_at,
+        up,
+        yfov,
+        views,
+        turntable,
+        gif,
+        fps,
+        orbit_elevation,
+        orbit_azimuth,
+        orbit_radius,
+        contact_sheet,
+        sheet_columns,
+        sheet_cell_width,
+        view_name,
+        tile,
+        crop,
+        preview,
+        accel,
+        bvh_preset,
+        threads,
+        exposure,
+        background,
+        ambient,
+        shading,
+        max_texture_memory,
+        no_default_lights,
+        integrator,
+        bounces,
+        env,
+        env_rotation,
+        env_intensity,
+        env_visible,
+        env_out,
+        depth_out,
+        depth_scale,
+        normal_out,
+        mask_out,
+        segmentation_out,
+        stats,
+        view_out,
+        view,
+        max_pixels,
+        max_spp,
+        no_clobber,
+        quiet,
+        strict,
+        variant,
+        load,
+    } = args;
+    let LoadArgs {
+        allow_external_files,
+        max_triangles,
+        animation,
+        time,
+    } = load;
+    let load_record = FingerprintRecord::load_options()
+        .field("allow_external_files", allow_external_files)
+        .field("max_triangles", max_triangles)
+        .field("animation", animation)
+        .field("time", time);
+    FingerprintRecord::render_options()
+        .field("model", model)
+        .field("output", output)
+        .field("width", width)
+        .field("height", height)
+        .field("spp", spp)
+        .field("time_limit", time_limit)
+        .field("denoise", denoise)
+        .field("seed", seed)
+        .field("camera", camera)
+        .field("look_from", look_from)
+        .field("look_at", look_at)
+        .field("up", up)
+        .field("yfov", yfov)
+        .field("views", views)
+        .field("turntable", turntable)
+        .field("gif", gif)
+        .field("fps", fps)
+        .field("orbit_elevation", orbit_elevation)
+        .field("orbit_azimuth", orbit_azimuth)
+        .field("orbit_radius", orbit_radius)
+        .field("contact_sheet", contact_sheet)
+        .field("sheet_columns", sheet_columns)
+        .field("sheet_cell_width", sheet_cell_width)
+        .field("view_name", view_name)
+        .field("tile", tile)
+        .field("crop", crop)
+        .field("preview", preview)
+        .field("accel", accel)
+        .field("bvh_preset", bvh_preset)
+        .field("threads", threads)
+        .field("exposure", exposure)
+        .field("background", background)
+        .field("ambient", ambient)
+        .field("shading", shading)
+        .field("max_texture_memory", max_texture_memory)
+        .field("no_default_lights", no_default_lights)
+        .field("integrator", integrator)
+        .field("bounces", bounces)
+        .field("env", env)
+        .field("env_rotation", env_rotation)
+        .field("env_intensity", env_intensity)
+        .field("env_visible", env_visible)
+        .field("env_out", env_out)
+        .field("depth_out", depth_out)
+        .field("depth_scale", depth_scale)
+        .field("normal_out", normal_out)
+        .field("mask_out", mask_out)
+        .field("segmentation_out", segmentation_out)
+        .field("stats", stats)
+        .field("view_out", view_out)
+        .field("view", view)
+        .field("max_pixels", max_pixels)
+        .field("max_spp", max_spp)
+        .field("no_clobber", no_clobber)
+        .field("quiet", quiet)
+        .field("strict", strict)
+        .field("variant", variant)
+        .group_field("load", &load_record)
 }
 
 fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArgs> {
