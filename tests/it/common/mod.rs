@@ -357,3 +357,33 @@ pub fn speckles(
     }
     (found, judged)
 }
+
+/// Keeps the images of a failed image comparison for inspection, as the failure message should
+/// say: copies `reference` and `actual` into `target/tmp/failed-images/<test>/` with the
+/// difference image `meshtracer compare` draws of them (`diff.png`, when their sizes agree),
+/// and returns the folder. The test's own temporary folder is deleted when it panics.
+pub fn keep_failed_images(test: &str, reference: &Path, actual: &Path) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("failed-images")
+        .join(test);
+    let _ = std::fs::create_dir_all(&dir);
+    let name = |p: &Path, fallback: &str| {
+        p.file_name()
+            .map_or_else(|| fallback.into(), |n| n.to_os_string())
+    };
+    let kept_reference = dir.join(format!(
+        "reference-{}",
+        name(reference, "reference.png").to_string_lossy()
+    ));
+    let kept_actual = dir.join(format!(
+        "actual-{}",
+        name(actual, "actual.png").to_string_lossy()
+    ));
+    let _ = std::fs::copy(reference, &kept_reference);
+    let _ = std::fs::copy(actual, &kept_actual);
+    let diff = dir.join("diff.png");
+    let _ = bin()
+        .args(["compare", s(reference), s(actual), "--diff-out", s(&diff)])
+        .output();
+    dir
+}
