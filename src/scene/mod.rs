@@ -11,7 +11,6 @@ pub mod extensions;
 pub mod gltf_import;
 pub(crate) mod ktx2;
 mod meshopt;
-mod mikktspace;
 pub mod obj;
 mod paths;
 pub mod pose;
