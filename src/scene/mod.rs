@@ -9,6 +9,7 @@ mod draco;
 mod error;
 pub mod extensions;
 pub mod gltf_import;
+mod image_header;
 pub(crate) mod ktx2;
 mod meshopt;
 pub mod obj;

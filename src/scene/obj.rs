@@ -117,7 +117,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
                         Some(path) if !path.is_file() => {
                             Err(format!("{what} texture '{}' not found", path.display()))
                         }
-                        _ => super::gltf_import::check_image_header(
+                        _ => super::image_header::check_image_header(
                             &source,
                             options.limits.max_image_pixels,
                         ),
