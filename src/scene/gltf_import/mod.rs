@@ -12,17 +12,19 @@
 //! - §3.10: cameras look down local -Z with +Y up; `yfov` in radians.
 //! - KHR_lights_punctual: lights shine along local -Z; candela (point, spot), lux (directional).
 //! - §3.7.3, §3.7.2.2, §3.11: skins, morph targets and animations pose the model: see
-//!   [`super::pose`]. Without `--animation`/`--time` the static pose is drawn (the nodes' own
+//!   the `pose` module. Without `--animation`/`--time` the static pose is drawn (the nodes' own
 //!   transforms and weights), skinned meshes through their joints.
 
-use super::attributes;
+mod attributes;
+mod buffer;
+mod draco;
+mod meshopt;
+mod pose;
+
 use super::builder::VerticesIn;
-use super::draco;
 use super::error::PrimitiveAt;
 use super::extensions::{known, ExtensionUse};
 use super::image_header::check_image_header;
-use super::meshopt;
-use super::pose::{self, Pose, Skinning};
 use super::{
     AlphaMode, Bounds, Camera, ClearcoatLayer, FileAccess, FileRange, Filter, Format, ImageSource,
     Instance, IridescenceLayer, Light, LightKind, LoadError, LoadErrorKind, LoadOptions,
@@ -30,9 +32,11 @@ use super::{
     SpecularLayer, Texture, TextureRef, TextureTransform, UnusableImage, Wrap,
 };
 use base64::Engine;
+use buffer::Buffer;
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Mode;
+use pose::{Pose, Skinning};
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::Path;
@@ -221,10 +225,6 @@ fn choose_variant(variants: &[String], name: &str) -> Result<(u32, String), Load
         }
     }
 }
-
-/// A glTF buffer's bytes: borrowed from a GLB's binary chunk, owned when read from a file or a
-/// `data:` URI or written by the meshopt decoder.
-pub(crate) type Buffer<'a> = Cow<'a, [u8]>;
 
 /// The unvalidated document and, for a GLB, its binary chunk, borrowed from `bytes`.
 /// `gltf::Gltf::from_slice_without_validation` copies the chunk into a `Vec`: for
