@@ -40,7 +40,7 @@ use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use gltf::accessor::Dimensions;
 use gltf::mesh::Mode;
 use material::material;
-use pose::{Pose, Skinning};
+use pose::{skin_vertices, Pose, Skinning};
 use std::collections::HashMap;
 use std::path::Path;
 use std::rc::Rc;
@@ -899,53 +899,6 @@ impl Importer<'_> {
     }
 }
 
-/// Skins vertices in place to world space (§3.7.3): each position by the weighted sum of its
-/// joints' matrices, each normal by the weighted sum of their inverse transposes, each
-/// tangent's xyz by the matrices' linear part. `influences` holds each JOINTS_n/WEIGHTS_n set
-/// as read (joint indices as floats). A vertex whose weights sum to nothing is placed by
-/// `world` instead; returns how many were.
-fn skin_vertices(
-    skinning: &Skinning,
-    influences: &[(Vec<Vec4>, Vec<Vec4>)],
-    world: Mat4,
-    positions: &mut [Vec3],
-    mut normals: Option<&mut [Vec3]>,
-    mut tangents: Option<&mut [Vec4]>,
-) -> Result<usize, String> {
-    let mut unweighted = 0;
-    let mut pairs = Vec::with_capacity(4 * influences.len());
-    for (v, position) in positions.iter_mut().enumerate() {
-        pairs.clear();
-        for (joints, weights) in influences {
-            if let (Some(j), Some(w)) = (joints.get(v), weights.get(v)) {
-                pairs.extend(j.to_array().into_iter().zip(w.to_array()));
-            }
-        }
-        let (matrix, normal_matrix) = match skinning.blend(&pairs) {
-            Ok(Some(blend)) => blend,
-            Ok(None) => {
-                unweighted += 1;
-                (world, Mat3::from_mat4(world).inverse().transpose())
-            }
-            Err(joint) => {
-                return Err(format!(
-                    "vertex {v} has weight on joint {joint}, but the skin has {} joints",
-                    skinning.joints.len()
-                ))
-            }
-        };
-        *position = matrix.transform_point3(*position);
-        if let Some(n) = normals.as_deref_mut().and_then(|n| n.get_mut(v)) {
-            *n = normal_matrix * *n;
-        }
-        if let Some(t) = tangents.as_deref_mut().and_then(|t| t.get_mut(v)) {
-            let xyz = (Mat3::from_mat4(matrix) * t.truncate()).normalize_or_zero();
-            *t = xyz.extend(t.w);
-        }
-    }
-    Ok(unweighted)
-}
-
 fn place_camera(camera: &gltf::Camera, world: Mat4, node_name: Option<String>) -> Option<Camera> {
     let (position, forward, up) = frame(world)?;
     let projection = match camera.projection() {
@@ -1014,45 +967,6 @@ fn place_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Option<
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// Influences come from every JOINTS_n/WEIGHTS_n set: here set 1 carries the weight of
-    /// vertex 0, and vertex 1 has none at all and is placed by the node's transform.
-    #[test]
-    fn skinning_reads_every_influence_set_and_places_unweighted_vertices_by_the_node() {
-        let lift = Mat4::from_translation(Vec3::Y);
-        let skinning = Skinning::new(&[Mat4::IDENTITY, lift], &[Mat4::IDENTITY; 2]);
-        let set0 = (vec![Vec4::ZERO; 2], vec![Vec4::ZERO; 2]);
-        let set1 = (
-            vec![Vec4::new(1.0, 0.0, 0.0, 0.0), Vec4::ZERO],
-            vec![Vec4::new(1.0, 0.0, 0.0, 0.0), Vec4::ZERO],
-        );
-        let node = Mat4::from_translation(Vec3::new(0.0, 0.0, 5.0));
-        let mut positions = vec![Vec3::X, Vec3::X];
-        let mut normals = vec![Vec3::Z, Vec3::Z];
-        let unweighted = skin_vertices(
-            &skinning,
-            &[set0, set1],
-            node,
-            &mut positions,
-            Some(&mut normals),
-            None,
-        )
-        .unwrap();
-        assert_eq!(unweighted, 1);
-        assert_eq!(
-            positions,
-            vec![Vec3::new(1.0, 1.0, 0.0), Vec3::new(1.0, 0.0, 5.0)]
-        );
-        assert_eq!(normals, vec![Vec3::Z, Vec3::Z]);
-        // A weighted joint past the skin's two is refused, naming the vertex and the joint.
-        let bad = (vec![Vec4::splat(2.0)], vec![Vec4::new(1.0, 0.0, 0.0, 0.0)]);
-        let mut one = vec![Vec3::ZERO];
-        let message = skin_vertices(&skinning, &[bad], node, &mut one, None, None).unwrap_err();
-        assert!(
-            message.contains("vertex 0") && message.contains("joint 2"),
-            "{message}"
-        );
-    }
 
     #[test]
     fn camera_frame_removes_scale_and_keeps_minus_z() {
