@@ -24,6 +24,7 @@ mod meshopt;
 mod pose;
 mod textures;
 mod validate;
+mod vertices;
 mod walk;
 
 pub(crate) use container::{read_glb_deferring_images, DeferredImages};
