@@ -59,6 +59,97 @@ impl VertexReader<'_> {
         deform: &Deform,
     ) -> Result<WorldVertices, LoadErrorKind> {
         use gltf::Semantic;
+        let (count, influence_sets) = self.check_attributes(primitive, at, draco, deform)?;
+
+        // Each attribute is read straight into the type the soup keeps (the vectors of
+        // [f32; N] become Vec3 and Vec2 in place); three-component colours get alpha 1.
+        let read =
+            |semantic: Semantic, expect: &Expect| -> Result<Option<Vec<Vec4>>, LoadErrorKind> {
+                let three = primitive
+                    .get(&semantic)
+                    .is_some_and(|a| a.dimensions() == Dimensions::Vec3);
+                Ok(if three {
+                    self.read_attribute::<3>(primitive, at, draco, semantic, expect, count)?
+                        .map(|v| {
+                            v.into_iter()
+                                .map(|[x, y, z]| Vec4::new(x, y, z, 1.0))
+                                .collect()
+                        })
+                } else {
+                    self.read_attribute::<4>(primitive, at, draco, semantic, expect, count)?
+                        .map(|v| v.into_iter().map(Vec4::from).collect())
+                })
+            };
+        let read3 =
+            |semantic: Semantic, expect: &Expect| -> Result<Option<Vec<Vec3>>, LoadErrorKind> {
+                Ok(self
+                    .read_attribute::<3>(primitive, at, draco, semantic, expect, count)?
+                    .map(|v| v.into_iter().map(Vec3::from).collect()))
+            };
+        let mut positions = read3(Semantic::Positions, &POSITION)?.unwrap_or_default();
+        let mut normals = read3(Semantic::Normals, &NORMAL)?;
+        let mut tangents = read(Semantic::Tangents, &TANGENT)?;
+        self.morph(
+            primitive,
+            at,
+            deform.weights,
+            &mut positions,
+            normals.as_deref_mut(),
+            tangents.as_deref_mut(),
+        )?;
+        let mut influences = Vec::with_capacity(influence_sets as usize);
+        for set in 0..influence_sets {
+            let joints = read(Semantic::Joints(set), &JOINTS)?.unwrap_or_default();
+            let weights = read(Semantic::Weights(set), &WEIGHTS)?.unwrap_or_default();
+            influences.push((joints, weights));
+        }
+        let (skinned, warnings) = place(
+            world,
+            deform.skin,
+            &influences,
+            at,
+            &mut positions,
+            normals.as_deref_mut(),
+            tangents.as_deref_mut(),
+        )?;
+        let uv = |set: u32| -> Result<Option<Vec<Vec2>>, LoadErrorKind> {
+            Ok(self
+                .read_attribute::<2>(
+                    primitive,
+                    at,
+                    draco,
+                    Semantic::TexCoords(set),
+                    &TEXCOORD,
+                    count,
+                )?
+                .map(|v| v.into_iter().map(Vec2::from).collect()))
+        };
+        let uv0 = uv(0)?;
+        let uv1 = uv(1)?;
+        let colors = read(Semantic::Colors(0), &COLOR)?;
+        Ok(WorldVertices {
+            positions,
+            normals,
+            tangents,
+            uv0,
+            uv1,
+            colors,
+            skinned,
+            warnings,
+        })
+    }
+
+    /// Checks every attribute the soup uses before any is read: POSITION, then the optional
+    /// ones (each against POSITION's count) and, with a skin, as many JOINTS_n/WEIGHTS_n sets
+    /// as the file gives. Returns POSITION's count and the number of influence sets.
+    fn check_attributes(
+        &self,
+        primitive: &gltf::Primitive,
+        at: PrimitiveAt,
+        draco: Option<&draco::Decoded>,
+        deform: &Deform,
+    ) -> Result<(usize, u32), LoadErrorKind> {
+        use gltf::Semantic;
         let decoded = |semantic: &Semantic| draco.filter(|d| d.has(&semantic.to_string()));
         let check = |accessor: &gltf::Accessor,
                      semantic: &Semantic,
@@ -112,119 +203,7 @@ impl VertexReader<'_> {
                 influence_sets += 1;
             }
         }
-
-        // Each attribute is read straight into the type the soup keeps (the vectors of
-        // [f32; N] become Vec3 and Vec2 in place); three-component colours get alpha 1.
-        let read =
-            |semantic: Semantic, expect: &Expect| -> Result<Option<Vec<Vec4>>, LoadErrorKind> {
-                let three = primitive
-                    .get(&semantic)
-                    .is_some_and(|a| a.dimensions() == Dimensions::Vec3);
-                Ok(if three {
-                    self.read_attribute::<3>(primitive, at, draco, semantic, expect, count)?
-                        .map(|v| {
-                            v.into_iter()
-                                .map(|[x, y, z]| Vec4::new(x, y, z, 1.0))
-                                .collect()
-                        })
-                } else {
-                    self.read_attribute::<4>(primitive, at, draco, semantic, expect, count)?
-                        .map(|v| v.into_iter().map(Vec4::from).collect())
-                })
-            };
-        let read3 =
-            |semantic: Semantic, expect: &Expect| -> Result<Option<Vec<Vec3>>, LoadErrorKind> {
-                Ok(self
-                    .read_attribute::<3>(primitive, at, draco, semantic, expect, count)?
-                    .map(|v| v.into_iter().map(Vec3::from).collect()))
-            };
-        let mut positions = read3(Semantic::Positions, &POSITION)?.unwrap_or_default();
-        let mut normals = read3(Semantic::Normals, &NORMAL)?;
-        let mut tangents = read(Semantic::Tangents, &TANGENT)?;
-        self.morph(
-            primitive,
-            at,
-            deform.weights,
-            &mut positions,
-            normals.as_deref_mut(),
-            tangents.as_deref_mut(),
-        )?;
-        let mut warnings = Vec::new();
-        let mut influences = Vec::with_capacity(influence_sets as usize);
-        for set in 0..influence_sets {
-            let joints = read(Semantic::Joints(set), &JOINTS)?.unwrap_or_default();
-            let weights = read(Semantic::Weights(set), &WEIGHTS)?.unwrap_or_default();
-            influences.push((joints, weights));
-        }
-        let skinned = match deform.skin {
-            Some((skin, skinning)) if !influences.is_empty() => {
-                let unweighted = skin_vertices(
-                    skinning,
-                    &influences,
-                    world,
-                    &mut positions,
-                    normals.as_deref_mut(),
-                    tangents.as_deref_mut(),
-                )
-                .map_err(|problem| LoadErrorKind::Skin {
-                    skin,
-                    problem: format!("{at}: {problem}"),
-                })?;
-                if unweighted > 0 {
-                    warnings.push(format!(
-                        "{at}: {unweighted} skinned vertices have no joint weight; they are placed by their node's transform"
-                    ));
-                }
-                true
-            }
-            Some((skin, _)) => {
-                warnings.push(format!(
-                    "{at}: the node's skin {skin} has no JOINTS_0/WEIGHTS_0 to apply; drawn by the node's transform"
-                ));
-                false
-            }
-            None => false,
-        };
-        if !skinned {
-            let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
-            let linear = Mat3::from_mat4(world);
-            let mirror = if world.determinant() < 0.0 { -1.0 } else { 1.0 };
-            for p in &mut positions {
-                *p = world.transform_point3(*p);
-            }
-            for n in normals.iter_mut().flatten() {
-                *n = normal_matrix * *n;
-            }
-            for t in tangents.iter_mut().flatten() {
-                let xyz = (linear * t.truncate()).normalize_or_zero();
-                *t = xyz.extend(t.w * mirror);
-            }
-        }
-        let uv = |set: u32| -> Result<Option<Vec<Vec2>>, LoadErrorKind> {
-            Ok(self
-                .read_attribute::<2>(
-                    primitive,
-                    at,
-                    draco,
-                    Semantic::TexCoords(set),
-                    &TEXCOORD,
-                    count,
-                )?
-                .map(|v| v.into_iter().map(Vec2::from).collect()))
-        };
-        let uv0 = uv(0)?;
-        let uv1 = uv(1)?;
-        let colors = read(Semantic::Colors(0), &COLOR)?;
-        Ok(WorldVertices {
-            positions,
-            normals,
-            tangents,
-            uv0,
-            uv1,
-            colors,
-            skinned,
-            warnings,
-        })
+        Ok((count, influence_sets))
     }
 
     /// Attribute `semantic` of `primitive` as `count` elements of `N` components (its
@@ -317,4 +296,64 @@ impl VertexReader<'_> {
         }
         Ok(())
     }
+}
+
+/// Places a primitive's vertices in world space: by the joints of the node's skin (§3.7.3) when
+/// the primitive has influences for it, else by the node's transform `world`. Returns whether
+/// they were skinned, and the problems met (a skin without influences, unweighted vertices).
+fn place(
+    world: Mat4,
+    skin: Option<(usize, &Skinning)>,
+    influences: &[(Vec<Vec4>, Vec<Vec4>)],
+    at: PrimitiveAt,
+    positions: &mut [Vec3],
+    mut normals: Option<&mut [Vec3]>,
+    mut tangents: Option<&mut [Vec4]>,
+) -> Result<(bool, Vec<String>), LoadErrorKind> {
+    let mut warnings = Vec::new();
+    let skinned = match skin {
+        Some((skin, skinning)) if !influences.is_empty() => {
+            let unweighted = skin_vertices(
+                skinning,
+                influences,
+                world,
+                positions,
+                normals.as_deref_mut(),
+                tangents.as_deref_mut(),
+            )
+            .map_err(|problem| LoadErrorKind::Skin {
+                skin,
+                problem: format!("{at}: {problem}"),
+            })?;
+            if unweighted > 0 {
+                warnings.push(format!(
+                    "{at}: {unweighted} skinned vertices have no joint weight; they are placed by their node's transform"
+                ));
+            }
+            true
+        }
+        Some((skin, _)) => {
+            warnings.push(format!(
+                "{at}: the node's skin {skin} has no JOINTS_0/WEIGHTS_0 to apply; drawn by the node's transform"
+            ));
+            false
+        }
+        None => false,
+    };
+    if !skinned {
+        let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
+        let linear = Mat3::from_mat4(world);
+        let mirror = if world.determinant() < 0.0 { -1.0 } else { 1.0 };
+        for p in positions.iter_mut() {
+            *p = world.transform_point3(*p);
+        }
+        for n in normals.into_iter().flatten() {
+            *n = normal_matrix * *n;
+        }
+        for t in tangents.into_iter().flatten() {
+            let xyz = (linear * t.truncate()).normalize_or_zero();
+            *t = xyz.extend(t.w * mirror);
+        }
+    }
+    Ok((skinned, warnings))
 }
