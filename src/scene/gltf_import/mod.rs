@@ -31,6 +31,7 @@ pub(crate) use container::{read_glb_deferring_images, DeferredImages};
 
 use super::extensions::{known, ExtensionUse};
 use super::{Bounds, FileAccess, Format, LoadError, LoadErrorKind, LoadOptions, LoadedFile, Scene};
+use buffer::Buffer;
 use container::{check_glb_header, load_buffers, parse};
 use std::path::Path;
 use textures::{choose_texture_sources, images, textures};
@@ -47,37 +48,13 @@ pub(crate) fn load(
 ) -> Result<Scene, LoadError> {
     let err = |kind| LoadError::new(path, kind);
     let mut steps = crate::measure::Steps::new();
-    check_glb_header(bytes).map_err(err)?;
-    let format = if bytes.starts_with(b"glTF") {
-        Format::Glb
-    } else {
-        Format::Gltf
-    };
-    let (document, blob) = parse(bytes, format).map_err(|e| err(convert(e)))?;
-    let required: Vec<&str> = document.extensions_required().collect();
-    for name in &required {
-        if known(name).is_none_or(|e| e.refused_when_required) {
-            return Err(err(unsupported_extension(name)));
-        }
-    }
-    // extensionsUsed should list every required one; a file that forgets is still reported.
-    let mut extensions: Vec<ExtensionUse> = document
-        .extensions_used()
-        .map(|name| ExtensionUse::new(name, required.contains(&name)))
-        .collect();
-    for name in &required {
-        if !extensions.iter().any(|e| e.name == *name) {
-            extensions.push(ExtensionUse::new(name, true));
-        }
-    }
-    let mut root = document.into_json();
-    // Checked above; gltf-json's validation refuses required extensions it does not know
-    // itself (KHR_mesh_quantization, the meshopt ones, EXT_texture_webp), which we decode here.
-    root.extensions_required.clear();
-    let webp_fallbacks = choose_texture_sources(&mut root);
-    check_attribute_indices(&root).map_err(err)?;
-    pose::check_channel_targets(&root).map_err(|p| err(LoadErrorKind::Gltf(p)))?;
-    let document = validate(root).map_err(|e| err(convert(e)))?;
+    let Parsed {
+        format,
+        document,
+        blob,
+        extensions,
+        webp_fallbacks,
+    } = read_document(bytes).map_err(err)?;
     let access = FileAccess::new(
         path,
         options.allow_external_files,
@@ -179,6 +156,65 @@ pub(crate) fn load(
             steps.mark("materials and images");
             steps.list().to_vec()
         },
+    })
+}
+
+/// The document of a glTF or GLB file, validated, and what its JSON told before validation.
+struct Parsed<'a> {
+    /// GLB or JSON, by the first bytes.
+    format: Format,
+    /// The document, validated.
+    document: gltf::Document,
+    /// A GLB's binary chunk, borrowed from the file's bytes.
+    blob: Option<Buffer<'a>>,
+    /// Every extension the file uses, with how it is honoured.
+    extensions: Vec<ExtensionUse>,
+    /// Each texture's fallback image (see [`choose_texture_sources`]).
+    webp_fallbacks: Vec<Option<usize>>,
+}
+
+/// Parses the GLB container or JSON, refuses required extensions that are not supported,
+/// lists the extensions used, and checks the JSON for what the `gltf` crate would index
+/// blindly before its validation (which lets `KHR_draco_mesh_compression` accessors go
+/// without a bufferView).
+fn read_document(bytes: &[u8]) -> Result<Parsed<'_>, LoadErrorKind> {
+    check_glb_header(bytes)?;
+    let format = if bytes.starts_with(b"glTF") {
+        Format::Glb
+    } else {
+        Format::Gltf
+    };
+    let (document, blob) = parse(bytes, format).map_err(convert)?;
+    let required: Vec<&str> = document.extensions_required().collect();
+    for name in &required {
+        if known(name).is_none_or(|e| e.refused_when_required) {
+            return Err(unsupported_extension(name));
+        }
+    }
+    // extensionsUsed should list every required one; a file that forgets is still reported.
+    let mut extensions: Vec<ExtensionUse> = document
+        .extensions_used()
+        .map(|name| ExtensionUse::new(name, required.contains(&name)))
+        .collect();
+    for name in &required {
+        if !extensions.iter().any(|e| e.name == *name) {
+            extensions.push(ExtensionUse::new(name, true));
+        }
+    }
+    let mut root = document.into_json();
+    // Checked above; gltf-json's validation refuses required extensions it does not know
+    // itself (KHR_mesh_quantization, the meshopt ones, EXT_texture_webp), which we decode here.
+    root.extensions_required.clear();
+    let webp_fallbacks = choose_texture_sources(&mut root);
+    check_attribute_indices(&root)?;
+    pose::check_channel_targets(&root).map_err(LoadErrorKind::Gltf)?;
+    let document = validate(root).map_err(convert)?;
+    Ok(Parsed {
+        format,
+        document,
+        blob,
+        extensions,
+        webp_fallbacks,
     })
 }
 
