@@ -3,15 +3,12 @@
 //! Importers ([`gltf_import`] and [`obj`]) turn a file into a [`Scene`]; nothing here knows
 //! about rays. Units are the glTF ones (glTF 2.0 §3.4): metres, radians, right-handed, +Y up.
 
-mod attributes;
 mod builder;
-mod draco;
 mod error;
 pub mod extensions;
 pub mod gltf_import;
+mod image_header;
 pub(crate) mod ktx2;
-mod meshopt;
-mod mikktspace;
 pub mod obj;
 mod paths;
 pub mod pose;

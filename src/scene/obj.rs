@@ -28,131 +28,23 @@ use std::path::Path;
 /// Loads an OBJ file whose bytes are already read.
 pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<Scene, LoadError> {
     let err = |kind| LoadError::new(path, kind);
-    if let Some(name) = &options.variant {
-        return Err(err(LoadErrorKind::Variant(format!(
-            "no variant '{name}': OBJ files have no material variants"
-        ))));
-    }
-    if options.pose.animates() {
-        return Err(err(LoadErrorKind::Animation(
-            "--animation/--time: OBJ files have no animations".into(),
-        )));
-    }
+    refuse_gltf_options(options).map_err(err)?;
     let mut steps = crate::measure::Steps::new();
-    let Ok(text) = std::str::from_utf8(bytes) else {
-        // Latin-1 files exist, but tobj reads lines as UTF-8; say so instead of "read error".
-        return Err(err(LoadErrorKind::Obj(
-            "the file is not UTF-8 text (is it really an OBJ file?)".into(),
-        )));
-    };
-    check_face_indices(text).map_err(|problem| err(LoadErrorKind::Obj(problem)))?;
+    let text = checked_text(bytes).map_err(err)?;
     let access = FileAccess::new(
         path,
         options.allow_external_files,
         options.limits.max_file_bytes,
     );
-    let mtl_error: RefCell<Option<LoadError>> = RefCell::new(None);
-    let load_options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: false,
-        ignore_points: true,
-        ignore_lines: true,
-    };
-    let text = carry_materials_across_objects(text);
-    // A byte slice is already a `BufRead`: a `BufReader` around it would copy every byte
-    // once more into its 8 KiB buffer (4.5% of the Stanford bunny's load in `perf`).
-    let (models, materials) =
-        tobj::load_obj_buf(&mut text.as_bytes(), &load_options, |mtl_path: &Path| {
-            let name = mtl_path.to_string_lossy().into_owned();
-            let read = access
-                .resolve("mtllib", &name)
-                .and_then(|p| access.read(&p).map(|b| (p, b)));
-            match read {
-                Ok((_, bytes)) => tobj::load_mtl_buf(&mut &bytes[..]).inspect_err(|e| {
-                    *mtl_error.borrow_mut() = Some(err(LoadErrorKind::Mtl {
-                        mtl: name.clone(),
-                        problem: format!("{e}"),
-                    }));
-                }),
-                Err(e) => {
-                    let problem = match e.kind {
-                        LoadErrorKind::Io(io) => format!("cannot read it: {io}"),
-                        other => other.to_string(),
-                    };
-                    *mtl_error.borrow_mut() = Some(err(LoadErrorKind::Mtl { mtl: name, problem }));
-                    Err(tobj::LoadError::OpenFileFailed)
-                }
-            }
-        })
-        .map_err(|e| err(obj_error(e)))?;
-    if let Some(e) = mtl_error.into_inner() {
-        return Err(e);
-    }
-    let mtl_materials = materials.unwrap_or_default();
+    let (models, mtl_materials) = parse(path, text, &access)?;
     steps.mark("parse");
 
-    let mut textures: Vec<Texture> = Vec::new();
-    let mut images: Vec<ImageSource> = Vec::new();
-    let mut image_index: HashMap<String, usize> = HashMap::new();
-    let mut unusable = Vec::new();
-    let mut texture =
-        |what: &str, name: &Option<String>| -> Result<Option<TextureRef>, LoadError> {
-            let Some(name) = name.as_deref().map(str::trim).filter(|n| !n.is_empty()) else {
-                return Ok(None);
-            };
-            // MTL texture statements may carry options ("-bm 1.0 file.png"): the file is last.
-            let file = name.split_whitespace().last().unwrap_or(name);
-            let index = match image_index.get(file) {
-                Some(&i) => i,
-                None => {
-                    let resolved = access.resolve(what, file)?;
-                    let source = ImageSource {
-                        origin: file.to_string(),
-                        mime_type: None,
-                        path: Some(resolved),
-                        bytes: None,
-                        in_file: None,
-                    };
-                    let checked = match &source.path {
-                        Some(path) if !path.is_file() => {
-                            Err(format!("{what} texture '{}' not found", path.display()))
-                        }
-                        _ => super::gltf_import::check_image_header(
-                            &source,
-                            options.limits.max_image_pixels,
-                        ),
-                    };
-                    if let Err(problem) = checked {
-                        unusable.push(UnusableImage {
-                            image: images.len(),
-                            origin: file.to_string(),
-                            problem,
-                        });
-                    }
-                    images.push(source);
-                    textures.push(Texture {
-                        name: Some(file.to_string()),
-                        image: images.len() - 1,
-                        fallback_image: None,
-                        sampler: Sampler::default(),
-                    });
-                    image_index.insert(file.to_string(), textures.len() - 1);
-                    textures.len() - 1
-                }
-            };
-            Ok(Some(TextureRef {
-                texture: index,
-                tex_coord: 0,
-                transform: None,
-            }))
-        };
-    let mut materials = Vec::with_capacity(mtl_materials.len() + 1);
-    for m in &mtl_materials {
-        let mut mat = mtl_material(m);
-        mat.base_color_texture = texture("map_Kd", &m.diffuse_texture)?;
-        mat.normal_texture = texture("map_Bump", &m.normal_texture)?;
-        materials.push(mat);
-    }
+    let MtlMaterials {
+        mut materials,
+        textures,
+        images,
+        unusable,
+    } = map_materials(&mtl_materials, &access, options)?;
     let image_warnings =
         super::draw_without(&mut materials, &textures, &unusable, options.strict).map_err(err)?;
     let default_material = materials.len() as u32;
@@ -164,43 +56,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     steps.mark("materials and images");
     for (model_index, model) in models.iter().enumerate() {
         let mesh = &model.mesh;
-        let positions: Vec<Vec3> = mesh
-            .positions
-            .chunks_exact(3)
-            .map(|p| Vec3::new(p[0], p[1], p[2]))
-            .collect();
-        let normals: Vec<Vec3> = mesh
-            .normals
-            .chunks_exact(3)
-            .map(|n| Vec3::new(n[0], n[1], n[2]))
-            .collect();
-        let texcoords: Vec<Vec2> = mesh
-            .texcoords
-            .chunks_exact(2)
-            .map(|t| Vec2::new(t[0], 1.0 - t[1]))
-            .collect();
-        let check = |what: &'static str, indices: &[u32], count: usize| match indices
-            .iter()
-            .find(|&&i| i as usize >= count)
-        {
-            Some(&index) => Err(err(LoadErrorKind::ObjIndexOutOfRange {
-                model: model_index,
-                name: model.name.clone(),
-                what,
-                index,
-                count,
-            })),
-            None => Ok(()),
-        };
-        check("position", &mesh.indices, positions.len())?;
-        let has_normals = mesh.normal_indices.len() == mesh.indices.len() && !normals.is_empty();
-        let has_uvs = mesh.texcoord_indices.len() == mesh.indices.len() && !texcoords.is_empty();
-        if has_normals {
-            check("normal", &mesh.normal_indices, normals.len())?;
-        }
-        if has_uvs {
-            check("texcoord", &mesh.texcoord_indices, texcoords.len())?;
-        }
+        let geometry = read_geometry(model_index, model).map_err(err)?;
         let material = match mesh.material_id {
             Some(id) if id < materials.len() => id as u32,
             // A `usemtl` naming nothing in the MTL (VikingRoom says `usemtl Texture1`, its MTL
@@ -220,60 +76,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
             mesh: model_index,
             name: Some(model.name.clone()),
         });
-        let triangles = mesh.indices.len() / 3;
-        builder.reserve(triangles).map_err(err)?;
-        if !has_normals {
-            // Flat shading: every triangle gets its own vertices with its face normal anyway,
-            // so there is nothing to weld.
-            for t in 0..triangles {
-                let corner = [3 * t, 3 * t + 1, 3 * t + 2];
-                let tri = TriangleIn {
-                    positions: corner.map(|k| positions[mesh.indices[k] as usize]),
-                    uv0: has_uvs
-                        .then(|| corner.map(|k| texcoords[mesh.texcoord_indices[k] as usize])),
-                    ..Default::default()
-                };
-                builder.push(&tri, material, instance);
-            }
-            continue;
-        }
-        // OBJ indexes positions, normals and texture coordinates separately; a vertex is one
-        // distinct (position, normal, uv) triple, stored once however many faces share it.
-        let mut vertex_of = std::collections::HashMap::with_capacity(positions.len());
-        let mut vertices = ObjVertices::default();
-        let mut corners = Vec::with_capacity(mesh.indices.len());
-        for k in 0..triangles * 3 {
-            let p = mesh.indices[k];
-            let n = if has_normals {
-                mesh.normal_indices[k]
-            } else {
-                0
-            };
-            let t = if has_uvs { mesh.texcoord_indices[k] } else { 0 };
-            let next = vertices.positions.len();
-            let v = *vertex_of.entry((p, n, t)).or_insert_with(|| {
-                vertices.positions.push(positions[p as usize]);
-                vertices.normals.push(normals[n as usize]);
-                if has_uvs {
-                    vertices.uv0.push(texcoords[t as usize]);
-                }
-                next
-            });
-            corners.push(v);
-        }
-        let vertices_in = VerticesIn {
-            positions: &vertices.positions,
-            normals: Some(vertices.normals.as_slice()),
-            uv0: has_uvs.then_some(vertices.uv0.as_slice()),
-            ..Default::default()
-        };
-        builder.push_primitive(
-            &vertices_in,
-            corners.len() / 3,
-            |t| [corners[3 * t], corners[3 * t + 1], corners[3 * t + 2]],
-            material,
-            instance,
-        );
+        push_model(&mut builder, mesh, geometry, material, instance).map_err(err)?;
     }
     if uses_default {
         materials.push(obj_default_material());
@@ -314,6 +117,292 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         pose: None,
         load_steps: steps.list().to_vec(),
     })
+}
+
+/// Refuses the options only glTF files can honour: a material variant, a pose.
+fn refuse_gltf_options(options: &LoadOptions) -> Result<(), LoadErrorKind> {
+    if let Some(name) = &options.variant {
+        return Err(LoadErrorKind::Variant(format!(
+            "no variant '{name}': OBJ files have no material variants"
+        )));
+    }
+    if options.pose.animates() {
+        return Err(LoadErrorKind::Animation(
+            "--animation/--time: OBJ files have no animations".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The file as text: UTF-8, with face indices that tobj can resolve (see
+/// [`check_face_indices`]).
+fn checked_text(bytes: &[u8]) -> Result<&str, LoadErrorKind> {
+    let Ok(text) = std::str::from_utf8(bytes) else {
+        // Latin-1 files exist, but tobj reads lines as UTF-8; say so instead of "read error".
+        return Err(LoadErrorKind::Obj(
+            "the file is not UTF-8 text (is it really an OBJ file?)".into(),
+        ));
+    };
+    check_face_indices(text).map_err(LoadErrorKind::Obj)?;
+    Ok(text)
+}
+
+/// Parses the OBJ text with tobj (fan-triangulated), reading the MTL libraries it names through
+/// `access`: the models, and the MTL materials (none without a library).
+fn parse(
+    path: &Path,
+    text: &str,
+    access: &FileAccess,
+) -> Result<(Vec<tobj::Model>, Vec<tobj::Material>), LoadError> {
+    let err = |kind| LoadError::new(path, kind);
+    let mtl_error: RefCell<Option<LoadError>> = RefCell::new(None);
+    let load_options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let text = carry_materials_across_objects(text);
+    // A byte slice is already a `BufRead`: a `BufReader` around it would copy every byte
+    // once more into its 8 KiB buffer (4.5% of the Stanford bunny's load in `perf`).
+    let (models, materials) =
+        tobj::load_obj_buf(&mut text.as_bytes(), &load_options, |mtl_path: &Path| {
+            let name = mtl_path.to_string_lossy().into_owned();
+            let read = access
+                .resolve("mtllib", &name)
+                .and_then(|p| access.read(&p).map(|b| (p, b)));
+            match read {
+                Ok((_, bytes)) => tobj::load_mtl_buf(&mut &bytes[..]).inspect_err(|e| {
+                    *mtl_error.borrow_mut() = Some(err(LoadErrorKind::Mtl {
+                        mtl: name.clone(),
+                        problem: format!("{e}"),
+                    }));
+                }),
+                Err(e) => {
+                    let problem = match e.kind {
+                        LoadErrorKind::Io(io) => format!("cannot read it: {io}"),
+                        other => other.to_string(),
+                    };
+                    *mtl_error.borrow_mut() = Some(err(LoadErrorKind::Mtl { mtl: name, problem }));
+                    Err(tobj::LoadError::OpenFileFailed)
+                }
+            }
+        })
+        .map_err(|e| err(obj_error(e)))?;
+    if let Some(e) = mtl_error.into_inner() {
+        return Err(e);
+    }
+    Ok((models, materials.unwrap_or_default()))
+}
+
+/// The MTL materials mapped onto ours (see the module docs), with the textures and images
+/// they use (one for each distinct file), each image's header checked; those that fail are
+/// listed as unusable.
+fn map_materials(
+    mtl_materials: &[tobj::Material],
+    access: &FileAccess,
+    options: &LoadOptions,
+) -> Result<MtlMaterials, LoadError> {
+    let mut textures: Vec<Texture> = Vec::new();
+    let mut images: Vec<ImageSource> = Vec::new();
+    let mut image_index: HashMap<String, usize> = HashMap::new();
+    let mut unusable = Vec::new();
+    let mut texture =
+        |what: &str, name: &Option<String>| -> Result<Option<TextureRef>, LoadError> {
+            let Some(name) = name.as_deref().map(str::trim).filter(|n| !n.is_empty()) else {
+                return Ok(None);
+            };
+            // MTL texture statements may carry options ("-bm 1.0 file.png"): the file is last.
+            let file = name.split_whitespace().last().unwrap_or(name);
+            let index = match image_index.get(file) {
+                Some(&i) => i,
+                None => {
+                    let resolved = access.resolve(what, file)?;
+                    let source = ImageSource {
+                        origin: file.to_string(),
+                        mime_type: None,
+                        path: Some(resolved),
+                        bytes: None,
+                        in_file: None,
+                    };
+                    let checked = match &source.path {
+                        Some(path) if !path.is_file() => {
+                            Err(format!("{what} texture '{}' not found", path.display()))
+                        }
+                        _ => super::image_header::check_image_header(
+                            &source,
+                            options.limits.max_image_pixels,
+                        ),
+                    };
+                    if let Err(problem) = checked {
+                        unusable.push(UnusableImage {
+                            image: images.len(),
+                            origin: file.to_string(),
+                            problem,
+                        });
+                    }
+                    images.push(source);
+                    textures.push(Texture {
+                        name: Some(file.to_string()),
+                        image: images.len() - 1,
+                        fallback_image: None,
+                        sampler: Sampler::default(),
+                    });
+                    image_index.insert(file.to_string(), textures.len() - 1);
+                    textures.len() - 1
+                }
+            };
+            Ok(Some(TextureRef {
+                texture: index,
+                tex_coord: 0,
+                transform: None,
+            }))
+        };
+    let mut materials = Vec::with_capacity(mtl_materials.len() + 1);
+    for m in mtl_materials {
+        let mut mat = mtl_material(m);
+        mat.base_color_texture = texture("map_Kd", &m.diffuse_texture)?;
+        mat.normal_texture = texture("map_Bump", &m.normal_texture)?;
+        materials.push(mat);
+    }
+    Ok(MtlMaterials {
+        materials,
+        textures,
+        images,
+        unusable,
+    })
+}
+
+/// What [`map_materials`] maps: materials, textures, images, and the images it cannot use.
+struct MtlMaterials {
+    materials: Vec<Material>,
+    textures: Vec<Texture>,
+    images: Vec<ImageSource>,
+    unusable: Vec<UnusableImage>,
+}
+
+/// One OBJ model's positions, normals and texture coordinates (v flipped to glTF's top-left
+/// origin), its face indices checked against them; normals and texture coordinates count only
+/// when every face corner has one.
+fn read_geometry(model_index: usize, model: &tobj::Model) -> Result<ObjGeometry, LoadErrorKind> {
+    let mesh = &model.mesh;
+    let positions: Vec<Vec3> = mesh
+        .positions
+        .chunks_exact(3)
+        .map(|p| Vec3::new(p[0], p[1], p[2]))
+        .collect();
+    let normals: Vec<Vec3> = mesh
+        .normals
+        .chunks_exact(3)
+        .map(|n| Vec3::new(n[0], n[1], n[2]))
+        .collect();
+    let texcoords: Vec<Vec2> = mesh
+        .texcoords
+        .chunks_exact(2)
+        .map(|t| Vec2::new(t[0], 1.0 - t[1]))
+        .collect();
+    let check = |what: &'static str, indices: &[u32], count: usize| match indices
+        .iter()
+        .find(|&&i| i as usize >= count)
+    {
+        Some(&index) => Err(LoadErrorKind::ObjIndexOutOfRange {
+            model: model_index,
+            name: model.name.clone(),
+            what,
+            index,
+            count,
+        }),
+        None => Ok(()),
+    };
+    check("position", &mesh.indices, positions.len())?;
+    let has_normals = mesh.normal_indices.len() == mesh.indices.len() && !normals.is_empty();
+    let has_uvs = mesh.texcoord_indices.len() == mesh.indices.len() && !texcoords.is_empty();
+    if has_normals {
+        check("normal", &mesh.normal_indices, normals.len())?;
+    }
+    if has_uvs {
+        check("texcoord", &mesh.texcoord_indices, texcoords.len())?;
+    }
+    Ok(ObjGeometry {
+        positions,
+        normals,
+        texcoords,
+        has_normals,
+        has_uvs,
+    })
+}
+
+/// Adds one OBJ model's triangles to the soup: each with vertices of its own and its flat
+/// normal when the model has no normals, else indexed, a vertex for each distinct (position,
+/// normal, uv) triple.
+fn push_model(
+    builder: &mut SoupBuilder,
+    mesh: &tobj::Mesh,
+    geometry: ObjGeometry,
+    material: u32,
+    instance: u32,
+) -> Result<(), LoadErrorKind> {
+    let ObjGeometry {
+        positions,
+        normals,
+        texcoords,
+        has_normals,
+        has_uvs,
+    } = geometry;
+    let triangles = mesh.indices.len() / 3;
+    builder.reserve(triangles)?;
+    if !has_normals {
+        // Flat shading: every triangle gets its own vertices with its face normal anyway,
+        // so there is nothing to weld.
+        for t in 0..triangles {
+            let corner = [3 * t, 3 * t + 1, 3 * t + 2];
+            let tri = TriangleIn {
+                positions: corner.map(|k| positions[mesh.indices[k] as usize]),
+                uv0: has_uvs.then(|| corner.map(|k| texcoords[mesh.texcoord_indices[k] as usize])),
+                ..Default::default()
+            };
+            builder.push(&tri, material, instance);
+        }
+        return Ok(());
+    }
+    // OBJ indexes positions, normals and texture coordinates separately; a vertex is one
+    // distinct (position, normal, uv) triple, stored once however many faces share it.
+    let mut vertex_of = std::collections::HashMap::with_capacity(positions.len());
+    let mut vertices = ObjVertices::default();
+    let mut corners = Vec::with_capacity(mesh.indices.len());
+    for k in 0..triangles * 3 {
+        let p = mesh.indices[k];
+        let n = if has_normals {
+            mesh.normal_indices[k]
+        } else {
+            0
+        };
+        let t = if has_uvs { mesh.texcoord_indices[k] } else { 0 };
+        let next = vertices.positions.len();
+        let v = *vertex_of.entry((p, n, t)).or_insert_with(|| {
+            vertices.positions.push(positions[p as usize]);
+            vertices.normals.push(normals[n as usize]);
+            if has_uvs {
+                vertices.uv0.push(texcoords[t as usize]);
+            }
+            next
+        });
+        corners.push(v);
+    }
+    let vertices_in = VerticesIn {
+        positions: &vertices.positions,
+        normals: Some(vertices.normals.as_slice()),
+        uv0: has_uvs.then_some(vertices.uv0.as_slice()),
+        ..Default::default()
+    };
+    builder.push_primitive(
+        &vertices_in,
+        corners.len() / 3,
+        |t| [corners[3 * t], corners[3 * t + 1], corners[3 * t + 2]],
+        material,
+        instance,
+    );
+    Ok(())
 }
 
 /// OBJ material state persists across `o` and `g` statements (as in Blender and
@@ -668,4 +757,15 @@ struct ObjVertices {
     positions: Vec<Vec3>,
     normals: Vec<Vec3>,
     uv0: Vec<Vec2>,
+}
+
+/// One OBJ model's vertex attributes as read, before they are welded into vertices.
+struct ObjGeometry {
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    texcoords: Vec<Vec2>,
+    /// Every face corner has a normal.
+    has_normals: bool,
+    /// Every face corner has texture coordinates.
+    has_uvs: bool,
 }

@@ -16,8 +16,8 @@
 //! points is refused before anything is allocated for them.
 
 use super::attributes;
-use super::gltf_import::Buffer;
-use super::LoadLimits;
+use super::buffer::Buffer;
+use crate::scene::LoadLimits;
 use draco_core::{DataType as DracoType, DecodeLimits, DecoderBuffer, Mesh, MeshDecoder};
 use gltf::accessor::{DataType, Dimensions};
 use serde_json::Value;

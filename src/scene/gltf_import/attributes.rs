@@ -11,7 +11,7 @@
 //! NORMAL, and reads TEXCOORD integers as normalized whatever the `normalized` flag says, so
 //! attributes are read here, from bytes that `check_accessor` has already bounded.
 
-use super::gltf_import::Buffer;
+use super::buffer::Buffer;
 use gltf::accessor::{DataType, Dimensions};
 
 /// Why an accessor could not be read (a hostile file that passed the range checks cannot

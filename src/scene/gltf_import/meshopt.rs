@@ -16,8 +16,8 @@
 //! Both extensions share one bitstream; version 1 of the vertex codec is KHR's, but a stream
 //! that says it is version 1 is decoded under either name (the decoder checks the stream).
 
-use super::gltf_import::Buffer;
-use super::LoadErrorKind;
+use super::buffer::Buffer;
+use crate::scene::LoadErrorKind;
 use meshoptimizer_rs::codec::{self, Mode};
 use meshoptimizer_rs::{Limits, Workspace};
 use serde_json::Value;

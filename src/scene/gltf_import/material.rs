@@ -1,0 +1,221 @@
+//! glTF materials (§3.9, metallic-roughness) and their extensions -> [`Material`], with the
+//! texture references they hold (`KHR_texture_transform` included).
+
+use crate::scene::{
+    AlphaMode, ClearcoatLayer, IridescenceLayer, Material, SheenLayer, SpecularLayer, TextureRef,
+    TextureTransform,
+};
+use glam::{Vec3, Vec4};
+
+fn texture_ref(info: Option<gltf::texture::Info>) -> Option<TextureRef> {
+    info.map(|info| {
+        let transform = info.texture_transform();
+        TextureRef {
+            texture: info.texture().index(),
+            tex_coord: transform
+                .as_ref()
+                .and_then(|t| t.tex_coord())
+                .unwrap_or(info.tex_coord()),
+            transform: transform.map(|t| TextureTransform {
+                offset: t.offset(),
+                rotation: t.rotation(),
+                scale: t.scale(),
+            }),
+        }
+    })
+}
+
+/// A normal or occlusion texture reference: the `gltf` crate parses `KHR_texture_transform`
+/// only on plain texture infos, so it is read from the extension's JSON here (same defaults:
+/// offset 0, rotation 0, scale 1; `texCoord` overrides the info's). Malformed fields keep
+/// their defaults.
+fn extension_texture_ref(
+    texture: usize,
+    tex_coord: u32,
+    transform: Option<&serde_json::Value>,
+) -> TextureRef {
+    let pair = |v: Option<&serde_json::Value>, default: [f32; 2]| -> [f32; 2] {
+        match v.and_then(|v| v.as_array()).map(|a| a.as_slice()) {
+            Some([x, y]) => match (x.as_f64(), y.as_f64()) {
+                (Some(x), Some(y)) => [x as f32, y as f32],
+                _ => default,
+            },
+            _ => default,
+        }
+    };
+    let Some(t) = transform.filter(|t| t.is_object()) else {
+        return TextureRef {
+            texture,
+            tex_coord,
+            transform: None,
+        };
+    };
+    TextureRef {
+        texture,
+        tex_coord: t
+            .get("texCoord")
+            .and_then(serde_json::Value::as_u64)
+            .and_then(|c| u32::try_from(c).ok())
+            .unwrap_or(tex_coord),
+        transform: Some(TextureTransform {
+            offset: pair(t.get("offset"), [0.0, 0.0]),
+            rotation: t
+                .get("rotation")
+                .and_then(serde_json::Value::as_f64)
+                .map_or(0.0, |r| r as f32),
+            scale: pair(t.get("scale"), [1.0, 1.0]),
+        }),
+    }
+}
+
+pub(super) fn material(m: &gltf::Material) -> Material {
+    let pbr = m.pbr_metallic_roughness();
+    let normal = m.normal_texture();
+    let occlusion = m.occlusion_texture();
+    Material {
+        name: m.name().map(str::to_string),
+        base_color: Vec4::from(pbr.base_color_factor()),
+        base_color_texture: texture_ref(pbr.base_color_texture()),
+        metallic: pbr.metallic_factor(),
+        roughness: pbr.roughness_factor(),
+        metallic_roughness_texture: texture_ref(pbr.metallic_roughness_texture()),
+        normal_texture: normal.as_ref().map(|n| {
+            extension_texture_ref(
+                n.texture().index(),
+                n.tex_coord(),
+                n.extension_value("KHR_texture_transform"),
+            )
+        }),
+        normal_scale: normal.as_ref().map_or(1.0, |n| n.scale()),
+        occlusion_texture: occlusion.as_ref().map(|o| {
+            extension_texture_ref(
+                o.texture().index(),
+                o.tex_coord(),
+                o.extension_value("KHR_texture_transform"),
+            )
+        }),
+        occlusion_strength: occlusion.as_ref().map_or(1.0, |o| o.strength()),
+        emissive: Vec3::from(m.emissive_factor()),
+        emissive_strength: m.emissive_strength().unwrap_or(1.0),
+        emissive_texture: texture_ref(m.emissive_texture()),
+        alpha_mode: match m.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
+            gltf::material::AlphaMode::Mask => AlphaMode::Mask,
+            gltf::material::AlphaMode::Blend => AlphaMode::Blend,
+        },
+        alpha_cutoff: m.alpha_cutoff().unwrap_or(0.5),
+        double_sided: m.double_sided(),
+        specular: None,
+        // KHR_materials_transmission, _ior, _volume (their defaults when absent). Of the
+        // thickness only whether it is 0 matters (thin-walled): the path tracer measures path
+        // lengths in the geometry.
+        transmission: m
+            .transmission()
+            .map_or(0.0, |t| t.transmission_factor().clamp(0.0, 1.0)),
+        transmission_texture: m
+            .transmission()
+            .and_then(|t| texture_ref(t.transmission_texture())),
+        ior: m
+            .ior()
+            .filter(|i| i.is_finite() && *i >= 1.0)
+            .unwrap_or(1.5),
+        thin_walled: m.volume().is_none_or(|v| v.thickness_factor() <= 0.0),
+        thickness_texture: m
+            .volume()
+            .filter(|v| v.thickness_factor() > 0.0)
+            .and_then(|v| texture_ref(v.thickness_texture())),
+        attenuation_color: m
+            .volume()
+            .map_or(Vec3::ONE, |v| Vec3::from(v.attenuation_color())),
+        attenuation_distance: m
+            .volume()
+            .map_or(f32::INFINITY, |v| v.attenuation_distance()),
+        unlit: m.unlit(),
+        specular_layer: m.specular().map(|sp| SpecularLayer {
+            factor: finite_or(sp.specular_factor(), 1.0).max(0.0),
+            texture: texture_ref(sp.specular_texture()),
+            color: Vec3::from(sp.specular_color_factor()).max(Vec3::ZERO),
+            color_texture: texture_ref(sp.specular_color_texture()),
+        }),
+        sheen: m
+            .extension_value("KHR_materials_sheen")
+            .map(|e| SheenLayer {
+                color: json_vec3(e.get("sheenColorFactor"), Vec3::ZERO).max(Vec3::ZERO),
+                color_texture: json_texture_ref(e.get("sheenColorTexture")),
+                roughness: json_f32(e.get("sheenRoughnessFactor"), 0.0).clamp(0.0, 1.0),
+                roughness_texture: json_texture_ref(e.get("sheenRoughnessTexture")),
+            }),
+        clearcoat: m
+            .extension_value("KHR_materials_clearcoat")
+            .map(|e| ClearcoatLayer {
+                factor: json_f32(e.get("clearcoatFactor"), 0.0).clamp(0.0, 1.0),
+                texture: json_texture_ref(e.get("clearcoatTexture")),
+                roughness: json_f32(e.get("clearcoatRoughnessFactor"), 0.0).clamp(0.0, 1.0),
+                roughness_texture: json_texture_ref(e.get("clearcoatRoughnessTexture")),
+                normal_texture: json_texture_ref(e.get("clearcoatNormalTexture")),
+                normal_scale: e
+                    .get("clearcoatNormalTexture")
+                    .map_or(1.0, |t| json_f32(t.get("scale"), 1.0)),
+            }),
+        iridescence: m
+            .extension_value("KHR_materials_iridescence")
+            .map(|e| IridescenceLayer {
+                factor: json_f32(e.get("iridescenceFactor"), 0.0).clamp(0.0, 1.0),
+                texture: json_texture_ref(e.get("iridescenceTexture")),
+                ior: json_f32(e.get("iridescenceIor"), 1.3).max(1.0),
+                thickness_min: json_f32(e.get("iridescenceThicknessMinimum"), 100.0).max(0.0),
+                thickness_max: json_f32(e.get("iridescenceThicknessMaximum"), 400.0).max(0.0),
+                thickness_texture: json_texture_ref(e.get("iridescenceThicknessTexture")),
+            }),
+    }
+}
+
+fn finite_or(v: f32, default: f32) -> f32 {
+    if v.is_finite() {
+        v
+    } else {
+        default
+    }
+}
+
+/// A number of an extension's JSON, or `default` when absent, not a number or not finite.
+fn json_f32(v: Option<&serde_json::Value>, default: f32) -> f32 {
+    v.and_then(serde_json::Value::as_f64)
+        .map_or(default, |x| finite_or(x as f32, default))
+}
+
+/// A 3-vector of an extension's JSON, or `default` unless it is three finite numbers.
+fn json_vec3(v: Option<&serde_json::Value>, default: Vec3) -> Vec3 {
+    match v.and_then(serde_json::Value::as_array).map(Vec::as_slice) {
+        Some([x, y, z]) => match (x.as_f64(), y.as_f64(), z.as_f64()) {
+            (Some(x), Some(y), Some(z)) => {
+                let v = Vec3::new(x as f32, y as f32, z as f32);
+                if v.is_finite() {
+                    v
+                } else {
+                    default
+                }
+            }
+            _ => default,
+        },
+        _ => default,
+    }
+}
+
+/// A texture info of an extension the `gltf` crate does not parse (`KHR_materials_sheen`,
+/// `KHR_materials_clearcoat`): `index`, `texCoord` and `KHR_texture_transform`. One without a
+/// usable index is ignored; an index past the file's textures is refused by the scene's
+/// reference check, like any other.
+fn json_texture_ref(v: Option<&serde_json::Value>) -> Option<TextureRef> {
+    let v = v?;
+    let texture = usize::try_from(v.get("index")?.as_u64()?).ok()?;
+    let tex_coord = v
+        .get("texCoord")
+        .and_then(serde_json::Value::as_u64)
+        .and_then(|c| u32::try_from(c).ok())
+        .unwrap_or(0);
+    let transform = v
+        .get("extensions")
+        .and_then(|e| e.get("KHR_texture_transform"));
+    Some(extension_texture_ref(texture, tex_coord, transform))
+}

@@ -1,0 +1,468 @@
+//! The node walk: the default scene's node tree from its roots, each node's world transform
+//! (parent · child, §3.5.3), and what its nodes place in the world: cameras (§3.10), lights
+//! (`KHR_lights_punctual`) and mesh instances, whose triangles go into the soup.
+
+use super::attributes;
+use super::buffer::Buffer;
+use super::draco;
+use super::material::material;
+use super::pose::{self, Pose, Skinning};
+use super::validate::{check_accessor, check_accessor_type, INDICES};
+use super::vertices::{Deform, VertexReader};
+use crate::scene::builder::VerticesIn;
+use crate::scene::error::PrimitiveAt;
+use crate::scene::{
+    Camera, Instance, Light, LightKind, LoadErrorKind, LoadLimits, Material, Projection,
+    SoupBuilder,
+};
+use glam::{Mat4, Vec3};
+use gltf::mesh::Mode;
+use std::collections::HashMap;
+use std::rc::Rc;
+
+/// Most node visits a hierarchy may expand to. A node shared by two parents is instanced twice,
+/// so 30 levels of sharing would be 2^30 visits: refuse such files instead of hanging.
+const MAX_NODE_VISITS: usize = 1_000_000;
+
+/// The node walk's state.
+pub(super) struct Importer<'a> {
+    document: &'a gltf::Document,
+    buffers: &'a [Buffer<'a>],
+    pub(super) builder: SoupBuilder,
+    pub(super) warnings: Vec<String>,
+    pub(super) instances: Vec<Instance>,
+    pub(super) cameras: Vec<Camera>,
+    pub(super) lights: Vec<Light>,
+    default_material: u32,
+    uses_default_material: bool,
+    pub(super) primitive_count: usize,
+    pub(super) skipped_non_triangle: usize,
+    pub(super) singular_instances: usize,
+    /// Every node's local transform and morph weights in the pose drawn.
+    pose: Pose,
+    /// World transforms of every node in that pose, computed for the first skin.
+    world: Option<Vec<Mat4>>,
+    /// Joint matrices by skin index, computed on the skin's first use.
+    skins: HashMap<usize, Rc<Skinning>>,
+    /// The chosen `KHR_materials_variants` variant (index, name).
+    variant: Option<(u32, String)>,
+    /// The file declares `KHR_mesh_quantization`: integer attribute types are allowed.
+    quantization: bool,
+    /// Bounds for decoders (Draco).
+    limits: LoadLimits,
+    /// Draco primitives decoded so far, by (mesh, primitive): instanced meshes decode once.
+    draco: HashMap<(usize, usize), Rc<draco::Decoded>>,
+}
+
+impl<'a> Importer<'a> {
+    /// The walk of `document`'s nodes, nothing placed yet: in `pose`, whose problems start the
+    /// `warnings`, with the `variant` chosen, within `limits`.
+    pub(super) fn new(
+        document: &'a gltf::Document,
+        buffers: &'a [Buffer<'a>],
+        limits: LoadLimits,
+        pose: Pose,
+        warnings: Vec<String>,
+        variant: Option<(u32, String)>,
+    ) -> Self {
+        Importer {
+            document,
+            buffers,
+            builder: SoupBuilder::new(limits.max_triangles),
+            warnings,
+            instances: Vec::new(),
+            cameras: Vec::new(),
+            lights: Vec::new(),
+            default_material: document.materials().len() as u32,
+            uses_default_material: false,
+            primitive_count: 0,
+            skipped_non_triangle: 0,
+            singular_instances: 0,
+            pose,
+            world: None,
+            skins: HashMap::new(),
+            variant,
+            quantization: document
+                .extensions_used()
+                .any(|name| name == "KHR_mesh_quantization"),
+            limits,
+            draco: HashMap::new(),
+        }
+    }
+
+    pub(super) fn walk_default_scene(&mut self) -> Result<(), LoadErrorKind> {
+        // glTF 2.0 §3.5.1: `scene` names the default; without it, scene 0 is a reasonable choice.
+        let scene = self
+            .document
+            .default_scene()
+            .or_else(|| self.document.scenes().next())
+            .ok_or(LoadErrorKind::NoScene)?;
+        let nodes: Vec<gltf::Node> = self.document.nodes().collect();
+        let mut on_path = vec![false; nodes.len()];
+        let mut visits = 0usize;
+        // An explicit stack: a hostile hierarchy a million levels deep must not overflow ours.
+        enum Step {
+            Enter(usize, Mat4),
+            Leave(usize),
+        }
+        let mut stack: Vec<Step> = scene
+            .nodes()
+            .map(|n| Step::Enter(n.index(), Mat4::IDENTITY))
+            .collect();
+        stack.reverse();
+        while let Some(step) = stack.pop() {
+            let (index, parent) = match step {
+                Step::Leave(index) => {
+                    on_path[index] = false;
+                    continue;
+                }
+                Step::Enter(index, parent) => (index, parent),
+            };
+            let Some(node) = nodes.get(index) else {
+                continue;
+            };
+            if on_path[index] {
+                return Err(LoadErrorKind::NodeCycle { node: index });
+            }
+            visits += 1;
+            if visits > MAX_NODE_VISITS {
+                return Err(LoadErrorKind::Gltf(format!(
+                    "the node hierarchy expands to more than {MAX_NODE_VISITS} node instances (nodes shared by several parents)"
+                )));
+            }
+            let local = self
+                .pose
+                .local
+                .get(index)
+                .copied()
+                .unwrap_or(Mat4::IDENTITY);
+            let world = parent * local;
+            self.visit(node, world)?;
+            on_path[index] = true;
+            stack.push(Step::Leave(index));
+            let children: Vec<usize> = node.children().map(|c| c.index()).collect();
+            for child in children.into_iter().rev() {
+                stack.push(Step::Enter(child, world));
+            }
+        }
+        Ok(())
+    }
+
+    fn visit(&mut self, node: &gltf::Node, world: Mat4) -> Result<(), LoadErrorKind> {
+        let name = node.name().map(str::to_string);
+        if let Some(camera) = node.camera() {
+            match place_camera(&camera, world, name.clone()) {
+                Some(c) => self.cameras.push(c),
+                None => self.warnings.push(format!(
+                    "camera on node {} skipped: its transform is not finite or is singular",
+                    node.index()
+                )),
+            }
+        }
+        if let Some(light) = node.light() {
+            match place_light(&light, world) {
+                Some(l) => self.lights.push(l),
+                None => self.warnings.push(format!(
+                    "light on node {} skipped: bad transform or parameters",
+                    node.index()
+                )),
+            }
+        }
+        if let Some(mesh) = node.mesh() {
+            let skinning = match node.skin() {
+                Some(skin) => Some(self.skinning(&skin)?),
+                None => None,
+            };
+            let targets = mesh
+                .primitives()
+                .map(|p| p.morph_targets().len())
+                .max()
+                .unwrap_or(0);
+            let weights = self
+                .pose
+                .morph_weights(node, &mesh, targets, &mut self.warnings);
+            let instance = self.instances.len() as u32;
+            self.instances.push(Instance {
+                node: Some(node.index()),
+                mesh: mesh.index(),
+                name: name.or_else(|| mesh.name().map(str::to_string)),
+            });
+            let det = world.determinant();
+            // §3.7.3: a skinned mesh is placed by its joints alone, whatever its node's transform.
+            if skinning.is_none() && (!world.is_finite() || det == 0.0 || !det.is_finite()) {
+                self.singular_instances += 1;
+                return Ok(());
+            }
+            let deform = Deform {
+                weights: &weights,
+                skin: node.skin().map(|s| s.index()).zip(skinning.as_deref()),
+            };
+            for primitive in mesh.primitives() {
+                let at = PrimitiveAt {
+                    mesh: mesh.index(),
+                    primitive: primitive.index(),
+                };
+                self.add_primitive(&primitive, at, world, instance, &deform)?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The joint matrices of `skin` in the pose drawn (computed once per skin).
+    fn skinning(&mut self, skin: &gltf::Skin) -> Result<Rc<Skinning>, LoadErrorKind> {
+        if let Some(done) = self.skins.get(&skin.index()) {
+            return Ok(Rc::clone(done));
+        }
+        if self.world.is_none() {
+            let world = self
+                .pose
+                .world(self.document)
+                .map_err(|node| LoadErrorKind::NodeCycle { node })?;
+            self.world = Some(world);
+        }
+        let world = self.world.as_deref().unwrap_or(&[]);
+        let inverse_bind = pose::inverse_bind_matrices(skin, self.buffers).map_err(|problem| {
+            LoadErrorKind::Skin {
+                skin: skin.index(),
+                problem,
+            }
+        })?;
+        let joints: Vec<Mat4> = skin
+            .joints()
+            .map(|j| world.get(j.index()).copied().unwrap_or(Mat4::IDENTITY))
+            .collect();
+        let skinning = Rc::new(Skinning::new(&joints, &inverse_bind));
+        self.skins.insert(skin.index(), Rc::clone(&skinning));
+        Ok(skinning)
+    }
+
+    fn add_primitive(
+        &mut self,
+        primitive: &gltf::Primitive,
+        at: PrimitiveAt,
+        world: Mat4,
+        instance: u32,
+        deform: &Deform,
+    ) -> Result<(), LoadErrorKind> {
+        let mode = primitive.mode();
+        if !matches!(
+            mode,
+            Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+        ) {
+            self.skipped_non_triangle += 1;
+            return Ok(());
+        }
+        self.primitive_count += 1;
+        let draco = self.decode_draco(primitive, at)?;
+        let reader = VertexReader {
+            buffers: self.buffers,
+            quantization: self.quantization,
+        };
+        let mut vertices = reader.read_vertices(primitive, at, world, draco.as_deref(), deform)?;
+        self.warnings.append(&mut vertices.warnings);
+        let vertex_count = vertices.positions.len();
+        let indices: Vec<u32> = match (&draco, primitive.indices()) {
+            // Checked against the point count and the indices accessor by draco::decode.
+            (Some(decoded), indices) => {
+                if let Some(accessor) = indices {
+                    check_accessor_type(&accessor, at, &INDICES, self.quantization)?;
+                }
+                decoded.indices.clone()
+            }
+            (None, Some(accessor)) => {
+                check_accessor(&accessor, at, &INDICES, self.quantization)?;
+                let indices: Vec<u32> = attributes::read_indices(&accessor, self.buffers)
+                    .unwrap_or_else(|| {
+                        primitive
+                            .reader(|b| self.buffers.get(b.index()).map(|b| &b[..]))
+                            .read_indices()
+                            .map(|r| r.into_u32().collect())
+                            .unwrap_or_default()
+                    });
+                if let Some(&bad) = indices.iter().find(|&&i| i as usize >= vertex_count) {
+                    return Err(LoadErrorKind::IndexOutOfRange {
+                        at,
+                        index: bad,
+                        vertex_count,
+                    });
+                }
+                indices
+            }
+            (None, None) => (0..vertex_count as u32).collect(),
+        };
+        // Draco decodes to a triangle list whatever the mode says (the extension allows
+        // TRIANGLES and TRIANGLE_STRIP; a strip's triangles are already unrolled).
+        let mode = if draco.is_some() {
+            Mode::Triangles
+        } else {
+            mode
+        };
+        let n = indices.len();
+        let triangle_count = match mode {
+            Mode::Triangles => n / 3,
+            _ => n.saturating_sub(2),
+        };
+        self.builder.reserve(triangle_count)?;
+        // glTF 2.0 §3.7.2.1: a mirroring transform turns counter-clockwise into clockwise.
+        // Skinned vertices are placed by their joints, not by `world`; joint matrices that
+        // mirror are not looked for (no sample model has one).
+        let flip = !vertices.skinned && world.determinant() < 0.0;
+        let mut chosen = primitive.material();
+        if let Some((variant, name)) = &self.variant {
+            // KHR_materials_variants: the mapping that lists the variant replaces the material;
+            // a primitive without one keeps its default.
+            if let Some(mapping) = primitive
+                .mappings()
+                .find(|m| m.variants().contains(variant))
+            {
+                chosen = mapping.material();
+                if chosen.index().is_none() {
+                    return Err(LoadErrorKind::Variant(format!(
+                        "{at}: the mapping for variant '{name}' names a material the file does not have"
+                    )));
+                }
+            }
+        }
+        let material = match chosen.index() {
+            Some(i) => i as u32,
+            None => {
+                self.uses_default_material = true;
+                self.default_material
+            }
+        };
+        let corners = |t: usize| {
+            let [a, b, c] = match mode {
+                Mode::Triangles => [3 * t, 3 * t + 1, 3 * t + 2],
+                Mode::TriangleStrip => [t, t + 1 + t % 2, t + 2 - t % 2],
+                _ => [t + 1, t + 2, 0],
+            };
+            let corners = if flip { [a, c, b] } else { [a, b, c] };
+            corners.map(|k| indices[k] as usize)
+        };
+        let vertices_in = VerticesIn {
+            positions: &vertices.positions,
+            normals: vertices.normals.as_deref(),
+            uv0: vertices.uv0.as_deref(),
+            uv1: vertices.uv1.as_deref(),
+            colors: vertices.colors.as_deref(),
+            tangents: vertices.tangents.as_deref(),
+        };
+        self.builder
+            .push_primitive(&vertices_in, triangle_count, corners, material, instance);
+        Ok(())
+    }
+
+    /// The primitive's Draco stream decoded, if it has `KHR_draco_mesh_compression` (decoded
+    /// on its first instance, shared by the others).
+    fn decode_draco(
+        &mut self,
+        primitive: &gltf::Primitive,
+        at: PrimitiveAt,
+    ) -> Result<Option<Rc<draco::Decoded>>, LoadErrorKind> {
+        let Some(ext) = draco::extension(primitive) else {
+            return Ok(None);
+        };
+        let key = (at.mesh, at.primitive);
+        if let Some(decoded) = self.draco.get(&key) {
+            return Ok(Some(Rc::clone(decoded)));
+        }
+        let decoded = draco::decode(primitive, ext, self.document, self.buffers, &self.limits)
+            .map_err(|problem| LoadErrorKind::Draco { at, problem })?;
+        let decoded = Rc::new(decoded);
+        self.draco.insert(key, Rc::clone(&decoded));
+        Ok(Some(decoded))
+    }
+
+    pub(super) fn materials(&self) -> Vec<Material> {
+        let mut out: Vec<Material> = self.document.materials().map(|m| material(&m)).collect();
+        if self.uses_default_material {
+            out.push(Material::default());
+        }
+        out
+    }
+}
+
+fn place_camera(camera: &gltf::Camera, world: Mat4, node_name: Option<String>) -> Option<Camera> {
+    let (position, forward, up) = frame(world)?;
+    let projection = match camera.projection() {
+        gltf::camera::Projection::Perspective(p) => Projection::Perspective {
+            yfov: p.yfov(),
+            aspect_ratio: p.aspect_ratio(),
+            znear: p.znear(),
+            zfar: p.zfar(),
+        },
+        gltf::camera::Projection::Orthographic(o) => Projection::Orthographic {
+            xmag: o.xmag(),
+            ymag: o.ymag(),
+            znear: o.znear(),
+            zfar: o.zfar(),
+        },
+    };
+    Some(Camera {
+        name: camera.name().map(str::to_string).or(node_name),
+        position,
+        forward,
+        up,
+        projection,
+    })
+}
+
+/// Position, forward (local -Z) and up (local +Y) of a node, with scale removed and up made
+/// orthogonal to forward. `None` when the transform is degenerate.
+fn frame(world: Mat4) -> Option<(Vec3, Vec3, Vec3)> {
+    let position = world.transform_point3(Vec3::ZERO);
+    let forward = world.transform_vector3(Vec3::NEG_Z).try_normalize()?;
+    let up_raw = world.transform_vector3(Vec3::Y);
+    let up = (up_raw - forward * up_raw.dot(forward)).try_normalize()?;
+    position.is_finite().then_some((position, forward, up))
+}
+
+fn place_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Option<Light> {
+    use gltf::khr_lights_punctual::Kind;
+    let position = world.transform_point3(Vec3::ZERO);
+    let direction = world.transform_vector3(Vec3::NEG_Z).try_normalize()?;
+    let intensity = light.intensity();
+    if !position.is_finite() || !intensity.is_finite() || intensity < 0.0 {
+        return None;
+    }
+    let kind = match light.kind() {
+        Kind::Directional => LightKind::Directional,
+        Kind::Point => LightKind::Point,
+        Kind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        } => LightKind::Spot {
+            inner_cone_angle,
+            outer_cone_angle,
+        },
+    };
+    Some(Light {
+        name: light.name().map(str::to_string),
+        kind,
+        color: Vec3::from(light.color()),
+        intensity,
+        range: light.range().filter(|r| *r > 0.0 && r.is_finite()),
+        position,
+        direction,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn camera_frame_removes_scale_and_keeps_minus_z() {
+        let world = Mat4::from_scale_rotation_translation(
+            Vec3::splat(3.0),
+            glam::Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
+            Vec3::new(1.0, 2.0, 3.0),
+        );
+        let (p, f, u) = frame(world).unwrap();
+        assert!((p - Vec3::new(1.0, 2.0, 3.0)).length() < 1e-6);
+        // Rotating -Z by +90° about Y gives -X.
+        assert!((f - Vec3::NEG_X).length() < 1e-6);
+        assert!((u - Vec3::Y).length() < 1e-6);
+        assert!(frame(Mat4::ZERO).is_none());
+    }
+}
