@@ -6,8 +6,8 @@
 //! animated GIF ([`meshtracer::output::turntable`]) and `--contact-sheet` lays any views out in a grid
 //! ([`meshtracer::output::sheet`]), both from the images in memory as the views finish.
 //!
-//! Kept apart from the single-view flow in `commands/mod.rs`, which hands over after checking the
-//! options they share.
+//! Kept apart from the single-view flow in `commands/render.rs`, which hands over after checking
+//! the options they share.
 
 use super::{check_size, image_size, interrupt_flag, load, worker_pool, Interrupted, RenderReport};
 use crate::cli::RenderArgs;
