@@ -4,9 +4,11 @@ use crate::cli::{Command, InfoArgs, LoadArgs, RenderArgs};
 use anyhow::{bail, Context, Result};
 use meshtracer::defaults::{DEFAULT_HEIGHT, DEFAULT_WIDTH};
 use meshtracer::light::environment::Environment;
+use meshtracer::output::view_file::{SegmentId, ViewEnvironment};
 use meshtracer::prepare::Prepared;
 use meshtracer::scene::{Camera, LightKind, LoadOptions, Projection, Scene};
 use meshtracer::setup::LightingOptions;
+use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -216,6 +218,56 @@ pub(crate) fn check_lighting(
             "warning: no lights (--no-default-lights): only ambient and emissive light the scene"
         );
     }
+    Ok(())
+}
+
+/// The segmentation ids of a scene's mesh instances, as view files list them: id `i + 1` for
+/// instance `i` (0 is the background of the segmentation image); shared by single- and
+/// multi-view renders.
+pub(crate) fn segmentation_ids(scene: &Scene) -> Vec<SegmentId> {
+    scene
+        .instances
+        .iter()
+        .enumerate()
+        .map(|(i, inst)| SegmentId {
+            id: i as u32 + 1,
+            node: inst.node,
+            mesh: inst.mesh,
+            name: inst.name.clone(),
+        })
+        .collect()
+}
+
+/// How a view file records the environment `env` that lit a path-traced render: its source,
+/// turn and scale, whether the camera sees it (`--env-visible`), and the `--env-out` panorama,
+/// made absolute when the path resolves; shared by single- and multi-view renders.
+pub(crate) fn view_environment(args: &RenderArgs, env: &Environment) -> ViewEnvironment {
+    ViewEnvironment {
+        source: env.source.clone(),
+        rotation_degrees: env.rotation_degrees(),
+        intensity: env.intensity(),
+        visible: args.env_visible,
+        panorama: args
+            .env_out
+            .as_ref()
+            .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())),
+    }
+}
+
+/// Writes the environment that lit a render as a Radiance .hdr panorama (`--env-out`); shared
+/// by single- and multi-view renders.
+pub(crate) fn write_panorama(path: &Path, env: &Environment) -> Result<()> {
+    let panorama = env.to_rgb32f();
+    let pixels: Vec<image::Rgb<f32>> = panorama.pixels().map(|p| image::Rgb(p.0)).collect();
+    let mut bytes = Vec::new();
+    image::codecs::hdr::HdrEncoder::new(&mut bytes)
+        .encode(
+            &pixels,
+            panorama.width() as usize,
+            panorama.height() as usize,
+        )
+        .with_context(|| format!("{}: cannot encode the panorama", path.display()))?;
+    meshtracer::output::write_atomic(path, &bytes)?;
     Ok(())
 }
 

@@ -7,7 +7,8 @@
 use super::{
     check_lighting, check_size, image_size, interrupt_flag, lighting_options, load,
     peak_memory_bytes, prepare_scene, preset_label, render_load_options, report_load,
-    start_load_threads, tiles, views, worker_pool, Phases, PreparedModel, RenderReport,
+    segmentation_ids, start_load_threads, tiles, view_environment, views, worker_pool,
+    write_panorama, Phases, PreparedModel, RenderReport,
 };
 use crate::cli::RenderArgs;
 use anyhow::{bail, Context, Result};
@@ -577,25 +578,6 @@ fn write_outputs(args: &RenderArgs, output: PendingOutput, done: &Finished) -> R
     )
 }
 
-/// Writes the environment that lit the render as a Radiance .hdr panorama (`--env-out`).
-fn write_panorama(path: &Path, env: &Environment) -> Result<()> {
-    let panorama = env.to_rgb32f();
-    let mut bytes = Vec::new();
-    image::codecs::hdr::HdrEncoder::new(&mut bytes)
-        .encode(
-            panorama
-                .pixels()
-                .map(|p| image::Rgb(p.0))
-                .collect::<Vec<_>>()
-                .as_slice(),
-            panorama.width() as usize,
-            panorama.height() as usize,
-        )
-        .with_context(|| format!("{}: cannot encode the panorama", path.display()))?;
-    meshtracer::output::write_atomic(path, &bytes)?;
-    Ok(())
-}
-
 /// Writes the AOV files asked for, in this order: depth, normals, segmentation (from `aovs`,
 /// rendered when any of them is asked for), then the mask (from `image`'s coverage).
 fn write_aovs(args: &RenderArgs, image: &Image, aovs: Option<&Aovs>) -> Result<()> {
@@ -636,36 +618,15 @@ fn view_record(args: &RenderArgs, done: &Finished) -> ViewFile {
         settings.ambient,
         done.using_rig,
     );
-    view.segmentation = done
-        .rendered
-        .prepared
-        .scene
-        .instances
-        .iter()
-        .enumerate()
-        .map(|(i, inst)| meshtracer::output::view_file::SegmentId {
-            id: i as u32 + 1,
-            node: inst.node,
-            mesh: inst.mesh,
-            name: inst.name.clone(),
-        })
-        .collect();
+    view.segmentation = segmentation_ids(&done.rendered.prepared.scene);
     view.depth_png_scale = args.depth_scale;
     view.integrator = settings.integrator;
     if settings.integrator == IntegratorKind::Path {
         view.bounces = Some(settings.bounces);
-        view.environment = settings.environment.as_ref().map(|env| {
-            meshtracer::output::view_file::ViewEnvironment {
-                source: env.source.clone(),
-                rotation_degrees: env.rotation_degrees(),
-                intensity: env.intensity(),
-                visible: settings.environment_visible,
-                panorama: args
-                    .env_out
-                    .as_ref()
-                    .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())),
-            }
-        });
+        view.environment = settings
+            .environment
+            .as_ref()
+            .map(|env| view_environment(args, env));
     }
     view.denoise =
         done.rendered

@@ -9,7 +9,10 @@
 //! Kept apart from the single-view flow in `commands/render.rs`, which hands over after checking
 //! the options they share.
 
-use super::{check_size, image_size, interrupt_flag, load, worker_pool, Interrupted, RenderReport};
+use super::{
+    check_size, image_size, interrupt_flag, load, segmentation_ids, view_environment, worker_pool,
+    write_panorama, Interrupted, RenderReport,
+};
 use crate::cli::RenderArgs;
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
@@ -25,7 +28,7 @@ use meshtracer::light::environment::Environment;
 use meshtracer::output::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
 use meshtracer::output::sheet::{ContactSheet, SheetLayout};
 use meshtracer::output::turntable::{check_fps, frame_delay_centiseconds, GifWriter};
-use meshtracer::output::view_file::{SegmentId, ViewEnvironment, ViewFile};
+use meshtracer::output::view_file::ViewFile;
 use meshtracer::output::{OutputFormat, PendingFile, PendingOutput, SaveError};
 use meshtracer::prepare::Prepared;
 use meshtracer::render::{render, RenderSettings, RenderStats};
@@ -692,16 +695,10 @@ impl ViewRun<'_> {
         record.integrator = args.integrator;
         if path_tracing {
             record.bounces = Some(args.bounces);
-            record.environment = self.environment.as_ref().map(|env| ViewEnvironment {
-                source: env.source.clone(),
-                rotation_degrees: env.rotation_degrees(),
-                intensity: env.intensity(),
-                visible: args.env_visible,
-                panorama: args
-                    .env_out
-                    .as_ref()
-                    .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())),
-            });
+            record.environment = self
+                .environment
+                .as_ref()
+                .map(|env| view_environment(args, env));
         }
         // Render what `render --view` reads back from the view file, number for number, so
         // that the view rendered alone from its file gives the same bytes.
@@ -784,21 +781,6 @@ impl ViewRun<'_> {
     }
 }
 
-/// The segmentation ids of a scene's mesh instances, as view files list them.
-fn segmentation_ids(scene: &Scene) -> Vec<SegmentId> {
-    scene
-        .instances
-        .iter()
-        .enumerate()
-        .map(|(i, inst)| SegmentId {
-            id: i as u32 + 1,
-            node: inst.node,
-            mesh: inst.mesh,
-            name: inst.name.clone(),
-        })
-        .collect()
-}
-
 /// What the summary line reports.
 struct Summary {
     triangles: usize,
@@ -844,22 +826,6 @@ impl Summary {
             args.output.join(TRANSFORMS_FILE).display()
         );
     }
-}
-
-/// Writes the environment that lit the views as a Radiance .hdr panorama (`--env-out`).
-fn write_panorama(path: &Path, env: &Environment) -> Result<()> {
-    let panorama = env.to_rgb32f();
-    let pixels: Vec<image::Rgb<f32>> = panorama.pixels().map(|p| image::Rgb(p.0)).collect();
-    let mut bytes = Vec::new();
-    image::codecs::hdr::HdrEncoder::new(&mut bytes)
-        .encode(
-            &pixels,
-            panorama.width() as usize,
-            panorama.height() as usize,
-        )
-        .with_context(|| format!("{}: cannot encode the panorama", path.display()))?;
-    meshtracer::output::write_atomic(path, &bytes)?;
-    Ok(())
 }
 
 /// The outputs of a run beyond each view's files: the turntable's GIF and the contact sheet,
