@@ -6,10 +6,13 @@
 //! animated GIF ([`meshtracer::output::turntable`]) and `--contact-sheet` lays any views out in a grid
 //! ([`meshtracer::output::sheet`]), both from the images in memory as the views finish.
 //!
-//! Kept apart from the single-view flow in `commands/mod.rs`, which hands over after checking the
-//! options they share.
+//! Kept apart from the single-view flow in `commands/render.rs`, which hands over after checking
+//! the options they share.
 
-use super::{check_size, image_size, interrupt_flag, load, worker_pool, Interrupted, RenderReport};
+use super::{
+    check_size, image_size, interrupt_flag, load, segmentation_ids, view_environment, worker_pool,
+    write_panorama, Interrupted, RenderReport,
+};
 use crate::cli::RenderArgs;
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
@@ -25,7 +28,7 @@ use meshtracer::light::environment::Environment;
 use meshtracer::output::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
 use meshtracer::output::sheet::{ContactSheet, SheetLayout};
 use meshtracer::output::turntable::{check_fps, frame_delay_centiseconds, GifWriter};
-use meshtracer::output::view_file::{SegmentId, ViewEnvironment, ViewFile};
+use meshtracer::output::view_file::ViewFile;
 use meshtracer::output::{OutputFormat, PendingFile, PendingOutput, SaveError};
 use meshtracer::prepare::Prepared;
 use meshtracer::render::{render, RenderSettings, RenderStats};
@@ -226,11 +229,76 @@ pub(super) fn render_views(
 ) -> Result<RenderReport> {
     let run_start = Instant::now();
     // Everything that can be refused without the model is refused before loading it.
+    let (spec, explicit) = read_spec(spec_text)?;
+    check_orbit_options(args, &spec)?;
+    let dir = args.output.as_path();
+    check_output_folder(dir)?;
+    let known_count = match spec {
+        ViewSpec::File(_) => Some(explicit.len()),
+        _ => spec.count(),
+    };
+    let mut outputs = Outputs::reserve(args, dir, known_count)?;
+    let (threads, pool) = worker_pool(args.threads)?;
+
+    let load_start = Instant::now();
+    let scene = load(&args.model, &super::render_load_options(args))?;
+    let load_time = load_start.elapsed();
+    super::report_load(args, &scene);
+
+    let (width, height) = views_size(args, &spec, &scene)?;
+    let cameras = view_cameras(args, &spec, &explicit, &scene, width, height)?;
+    let names = outputs.names(args, dir, cameras.len(), (width, height))?;
+    let plan = Plan {
+        width,
+        height,
+        cameras,
+        names,
+        load_time,
+        threads,
+    };
+    let lit = fixed_lighting(args, &scene, width, height, env_file)?;
+    let cancel = interrupt_flag();
+    let (summary, frames, warnings) = pool.install(|| {
+        render_all(
+            args,
+            scene,
+            &plan,
+            &lit,
+            &mut outputs.extras,
+            &cancel,
+            on_view,
+        )
+    })?;
+    write_transforms(args, dir, width, height, frames)?;
+    let extra_outputs = outputs.extras.finish(args.quiet, args.preview)?;
+    if !args.quiet {
+        summary.print(args, run_start.elapsed());
+    }
+    Ok(RenderReport {
+        triangles: summary.triangles,
+        load: summary.load_time,
+        bvh: summary.bvh_time,
+        render: summary.totals.time,
+        outputs: written(args, dir, &plan.names, extra_outputs),
+        warnings,
+    })
+}
+
+/// Parses `--views` and reads a views file; a spec that is neither a kind of views nor a
+/// readable file of them is refused here, before the model loads. The views of a file come
+/// with it (none for the other kinds).
+fn read_spec(spec_text: &str) -> Result<(ViewSpec, Vec<ExplicitView>)> {
     let spec = ViewSpec::parse(spec_text)?;
     let explicit = match &spec {
         ViewSpec::File(path) => read_views_file(path)?,
         _ => Vec::new(),
     };
+    Ok((spec, explicit))
+}
+
+/// Refuses, in this order, `--orbit-elevation` outside -90..=90, a `--orbit-radius` that is not
+/// a positive distance, and an `--orbit-azimuth` that is not finite or not for an orbit.
+fn check_orbit_options(args: &RenderArgs, spec: &ViewSpec) -> Result<()> {
     if let Some(e) = args.orbit_elevation {
         if !(-90.0..=90.0).contains(&e) {
             bail!("--orbit-elevation {e}: must be between -90 and 90 degrees");
@@ -249,7 +317,12 @@ pub(super) fn render_views(
             bail!("--orbit-azimuth: only orbits (--views orbit:N, --turntable N) have a starting azimuth");
         }
     }
-    let dir = args.output.as_path();
+    Ok(())
+}
+
+/// Refuses an `-o` that names a GIF, an existing file or (not existing yet) an image: with
+/// `--views`, `-o` is the folder the views are written to.
+fn check_output_folder(dir: &Path) -> Result<()> {
     if has_extension(dir, "gif") {
         bail!(
             "-o {}: with --views or --turntable, -o names the folder of the frames; write the GIF with --turntable N --gif {}",
@@ -263,127 +336,204 @@ pub(super) fn render_views(
             dir.display()
         );
     }
-    let layout = Layout::from_args(args)?;
-    let known_count = match spec {
-        ViewSpec::File(_) => Some(explicit.len()),
-        _ => spec.count(),
-    };
-    Extras::check(args, known_count)?;
-    let others = Extras::paths(args);
-    let mut planned = match known_count {
-        Some(n) => Some(layout.plan(n, dir, args.no_clobber, &others)?),
-        None => None,
-    };
-    // The GIF or the sheet may go into the -o folder, which the plan creates (not yet for
-    // `cameras`, whose count needs the model): made now for them, else left for the plan.
-    let into_dir = others
-        .iter()
-        .any(|(_, p)| p.parent().is_some_and(|f| f.starts_with(dir)));
-    if into_dir {
-        std::fs::create_dir_all(dir)
-            .with_context(|| format!("cannot create the folder {}", dir.display()))?;
+    Ok(())
+}
+
+/// The files of a run, planned and reserved before the model loads, so that a clashing or
+/// unwritable name fails before any work.
+struct Outputs {
+    layout: Layout,
+    /// The outputs named on their own (`--gif`, `--contact-sheet`), which no view's file may
+    /// overwrite.
+    others: Vec<(&'static str, PathBuf)>,
+    /// Every view's file names, when the spec alone gives the number of views (all but
+    /// `cameras`).
+    names: Option<Vec<ViewNames>>,
+    /// The GIF and the sheet, reserved.
+    extras: Extras,
+}
+
+impl Outputs {
+    /// Checks the name patterns and the options of the GIF and the sheet, plans every view's
+    /// file names when `known_count` gives their number ([`Layout::plan`]: folders created,
+    /// clashes and `--no-clobber` refused), and reserves the GIF and the sheet.
+    fn reserve(args: &RenderArgs, dir: &Path, known_count: Option<usize>) -> Result<Outputs> {
+        let layout = Layout::from_args(args)?;
+        Extras::check(args, known_count)?;
+        let others = Extras::paths(args);
+        let names = match known_count {
+            Some(n) => Some(layout.plan(n, dir, args.no_clobber, &others)?),
+            None => None,
+        };
+        // The GIF or the sheet may go into the -o folder, which the plan creates (not yet for
+        // `cameras`, whose count needs the model): made now for them, else left for the plan.
+        let into_dir = others
+            .iter()
+            .any(|(_, p)| p.parent().is_some_and(|f| f.starts_with(dir)));
+        if into_dir {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create the folder {}", dir.display()))?;
+        }
+        let extras = Extras::reserve(args, known_count)?;
+        Ok(Outputs {
+            layout,
+            others,
+            names,
+            extras,
+        })
     }
-    let mut extras = Extras::reserve(args, known_count)?;
-    let (threads, pool) = worker_pool(args.threads)?;
 
-    let load_start = Instant::now();
-    let load_options = super::render_load_options(args);
-    let scene = load(&args.model, &load_options)?;
-    let load_time = load_start.elapsed();
-    super::report_load(args, &scene);
+    /// The file names of the `count` views, planned now when their number needed the model,
+    /// and the sheet laid out for views of `size` (refused over `--max-pixels`).
+    fn names(
+        &mut self,
+        args: &RenderArgs,
+        dir: &Path,
+        count: usize,
+        size: (u32, u32),
+    ) -> Result<Vec<ViewNames>> {
+        let names = match self.names.take() {
+            Some(names) => names,
+            None => self
+                .layout
+                .plan(count, dir, args.no_clobber, &self.others)?,
+        };
+        self.extras.lay_out(args, count, size)?;
+        Ok(names)
+    }
+}
 
-    // One image size for all views (transforms.json shares w and h).
+/// The one image size of every view (transforms.json shares `w` and `h`): from the options
+/// and, for `--views cameras`, the file's first camera ([`image_size`]); refused over the
+/// limits.
+fn views_size(args: &RenderArgs, spec: &ViewSpec, scene: &Scene) -> Result<(u32, u32)> {
     let first_file_camera = match spec {
         ViewSpec::Cameras => scene.cameras.first(),
         _ => None,
     };
     let (width, height) = image_size(args, first_file_camera);
     check_size(args, width, height)?;
-    let cameras = view_cameras(args, &spec, &explicit, &scene, width, height)?;
-    let names = match planned.take() {
-        Some(names) => names,
-        None => layout.plan(cameras.len(), dir, args.no_clobber, &others)?,
-    };
-    extras.lay_out(args, cameras.len(), (width, height))?;
+    Ok((width, height))
+}
 
-    // Lights stay put in the world from view to view, as multi-view reconstruction expects of
-    // its photographs: the file's, or the default rig placed for the automatic camera.
+/// The lighting of every view. Lights stay put in the world from view to view, as multi-view
+/// reconstruction expects of its photographs: the file's, or the default rig placed for the
+/// automatic camera. Refuses what [`super::check_lighting`] refuses.
+fn fixed_lighting(
+    args: &RenderArgs,
+    scene: &Scene,
+    width: u32,
+    height: u32,
+    env_file: Option<Environment>,
+) -> Result<Lighting> {
     let front = auto_camera(&scene.bounds, width as f32 / height as f32);
-    let Lighting {
-        lights,
-        ambient: default_ambient,
-        environment,
-        default_rig: using_rig,
-    } = lighting(
+    let lit = lighting(
         &scene.lights,
         None,
         &View::from_camera(&front, width, height),
         super::lighting_options(args, env_file),
     );
-    super::check_lighting(args, &lights, environment.as_deref())?;
-    let cancel = interrupt_flag();
+    super::check_lighting(args, &lit.lights, lit.environment.as_deref())?;
+    Ok(lit)
+}
 
-    let (summary, frames, warnings) = pool.install(|| -> Result<_> {
-        // Every view's rays count toward the choice of preset: the tree is built once.
-        let rays = meshtracer::setup::expected_rays(
-            u64::from(width) * u64::from(height),
-            args.spp,
-            lights.len(),
-            args.integrator,
-            args.bounces,
-        ) * cameras.len() as f64;
-        let super::PreparedModel {
-            prepared,
-            warnings,
-            tangents,
-            ..
-        } = super::prepare_scene(args, scene, rays, &mut super::Phases::default())?;
-        let load_time = load_time + tangents;
-        let bvh_time = prepared.accel.build_time();
-        if let (Some(path), Some(env)) = (&args.env_out, &environment) {
-            write_panorama(path, env)?;
-        }
-        let run = ViewRun {
-            args,
-            dir,
-            prepared: &prepared,
-            width,
-            height,
-            lights: &lights,
-            ambient: args.ambient.unwrap_or(default_ambient),
-            using_rig,
-            environment: &environment,
-            cancel: &cancel,
-            count: cameras.len(),
-        };
-        let mut frames = Vec::with_capacity(cameras.len());
-        let mut totals = RenderStats::default();
-        on_view(0, cameras.len());
-        for (k, (camera, names)) in cameras.iter().zip(&names).enumerate() {
-            let (frame, stats, image) = run.render(k, camera, names)?;
-            extras.add(k, camera, &image, args.background)?;
-            on_view(k + 1, cameras.len());
-            frames.push(frame);
-            totals.primary_rays += stats.primary_rays;
-            totals.shadow_rays += stats.shadow_rays;
-            totals.indirect_rays += stats.indirect_rays;
-            totals.samples += stats.samples;
-            totals.time += stats.time;
-        }
-        let summary = Summary {
-            triangles: prepared.scene.soup.len(),
-            accel: prepared.accel.kind(),
-            preset: prepared.accel.preset(),
-            load_time,
-            bvh_time,
-            views: cameras.len(),
-            width,
-            height,
-            totals,
-            threads,
-        };
-        Ok((summary, frames, warnings))
-    })?;
+/// What a run settled before the scene is prepared: the views, their one size and their file
+/// names, and what the summary line reports of the load and the pool.
+struct Plan {
+    width: u32,
+    height: u32,
+    cameras: Vec<Camera>,
+    names: Vec<ViewNames>,
+    /// Wall time of the parse and flatten (the tangents come with the prepare).
+    load_time: Duration,
+    threads: usize,
+}
+
+/// Runs on the worker pool: prepares `scene` once (the BVH preset chosen for the rays of every
+/// view), writes the `--env-out` panorama, then renders and writes the views in order
+/// ([`ViewRun::render`]), adding each to the GIF and the sheet and calling
+/// `on_view(done, total)`. Returns the summary, each view's frame of transforms.json and the
+/// warnings of the load and the texture decoding.
+fn render_all(
+    args: &RenderArgs,
+    scene: Scene,
+    plan: &Plan,
+    lit: &Lighting,
+    extras: &mut Extras,
+    cancel: &AtomicBool,
+    on_view: &(dyn Fn(usize, usize) + Sync),
+) -> Result<(Summary, Vec<Frame>, Vec<String>)> {
+    let (width, height, cameras) = (plan.width, plan.height, &plan.cameras);
+    // Every view's rays count toward the choice of preset: the tree is built once.
+    let rays = meshtracer::setup::expected_rays(
+        u64::from(width) * u64::from(height),
+        args.spp,
+        lit.lights.len(),
+        args.integrator,
+        args.bounces,
+    ) * cameras.len() as f64;
+    let super::PreparedModel {
+        prepared,
+        warnings,
+        tangents,
+        ..
+    } = super::prepare_scene(args, scene, rays, &mut super::Phases::default())?;
+    let load_time = plan.load_time + tangents;
+    let bvh_time = prepared.accel.build_time();
+    if let (Some(path), Some(env)) = (&args.env_out, &lit.environment) {
+        write_panorama(path, env)?;
+    }
+    let run = ViewRun {
+        args,
+        dir: args.output.as_path(),
+        prepared: &prepared,
+        width,
+        height,
+        lights: &lit.lights,
+        ambient: args.ambient.unwrap_or(lit.ambient),
+        using_rig: lit.default_rig,
+        environment: &lit.environment,
+        cancel,
+        count: cameras.len(),
+    };
+    let mut frames = Vec::with_capacity(cameras.len());
+    let mut totals = RenderStats::default();
+    on_view(0, cameras.len());
+    for (k, (camera, names)) in cameras.iter().zip(&plan.names).enumerate() {
+        let (frame, stats, image) = run.render(k, camera, names)?;
+        extras.add(k, camera, &image, args.background)?;
+        on_view(k + 1, cameras.len());
+        frames.push(frame);
+        totals.primary_rays += stats.primary_rays;
+        totals.shadow_rays += stats.shadow_rays;
+        totals.indirect_rays += stats.indirect_rays;
+        totals.samples += stats.samples;
+        totals.time += stats.time;
+    }
+    let summary = Summary {
+        triangles: prepared.scene.soup.len(),
+        accel: prepared.accel.kind(),
+        preset: prepared.accel.preset(),
+        load_time,
+        bvh_time,
+        views: cameras.len(),
+        width,
+        height,
+        totals,
+        threads: plan.threads,
+    };
+    Ok((summary, frames, warnings))
+}
+
+/// Writes the folder's `transforms.json`: the views' `frames`, their one size and, with
+/// `--depth-out`, the unit of the depth files.
+fn write_transforms(
+    args: &RenderArgs,
+    dir: &Path,
+    width: u32,
+    height: u32,
+    frames: Vec<Frame>,
+) -> Result<()> {
     let depth_unit_scale_factor = args.depth_out.as_ref().map(|p| {
         let png = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("png"));
         // A 16-bit PNG stores depth in units of --depth-scale; .npy and .exr in metres.
@@ -400,14 +550,19 @@ pub(super) fn render_views(
         frames,
     };
     dataset.write(&dir.join(TRANSFORMS_FILE))?;
-    let extra_outputs = extras.finish(args.quiet, args.preview)?;
-    if !args.quiet {
-        summary.print(args, run_start.elapsed());
-    }
-    // In the order written: the panorama, each view's files as ViewRun::render writes them,
-    // transforms.json.
+    Ok(())
+}
+
+/// Every file a run wrote, in the order written: the panorama, each view's files as
+/// [`ViewRun::render`] writes them, transforms.json, then `extras` (the GIF and the sheet).
+fn written(
+    args: &RenderArgs,
+    dir: &Path,
+    names: &[ViewNames],
+    extras: Vec<PathBuf>,
+) -> Vec<PathBuf> {
     let mut outputs: Vec<PathBuf> = args.env_out.iter().cloned().collect();
-    for view in &names {
+    for view in names {
         let files = [
             Some(&view.image),
             view.depth.as_ref(),
@@ -419,15 +574,8 @@ pub(super) fn render_views(
         outputs.extend(files.into_iter().flatten().map(|name| dir.join(name)));
     }
     outputs.push(dir.join(TRANSFORMS_FILE));
-    outputs.extend(extra_outputs);
-    Ok(RenderReport {
-        triangles: summary.triangles,
-        load: summary.load_time,
-        bvh: summary.bvh_time,
-        render: summary.totals.time,
-        outputs,
-        warnings,
-    })
+    outputs.extend(extras);
+    outputs
 }
 
 /// The cameras of a spec, all perspective (transforms.json describes pinhole cameras only).
@@ -547,16 +695,10 @@ impl ViewRun<'_> {
         record.integrator = args.integrator;
         if path_tracing {
             record.bounces = Some(args.bounces);
-            record.environment = self.environment.as_ref().map(|env| ViewEnvironment {
-                source: env.source.clone(),
-                rotation_degrees: env.rotation_degrees(),
-                intensity: env.intensity(),
-                visible: args.env_visible,
-                panorama: args
-                    .env_out
-                    .as_ref()
-                    .map(|p| p.canonicalize().unwrap_or_else(|_| p.clone())),
-            });
+            record.environment = self
+                .environment
+                .as_ref()
+                .map(|env| view_environment(args, env));
         }
         // Render what `render --view` reads back from the view file, number for number, so
         // that the view rendered alone from its file gives the same bytes.
@@ -639,21 +781,6 @@ impl ViewRun<'_> {
     }
 }
 
-/// The segmentation ids of a scene's mesh instances, as view files list them.
-fn segmentation_ids(scene: &Scene) -> Vec<SegmentId> {
-    scene
-        .instances
-        .iter()
-        .enumerate()
-        .map(|(i, inst)| SegmentId {
-            id: i as u32 + 1,
-            node: inst.node,
-            mesh: inst.mesh,
-            name: inst.name.clone(),
-        })
-        .collect()
-}
-
 /// What the summary line reports.
 struct Summary {
     triangles: usize,
@@ -699,22 +826,6 @@ impl Summary {
             args.output.join(TRANSFORMS_FILE).display()
         );
     }
-}
-
-/// Writes the environment that lit the views as a Radiance .hdr panorama (`--env-out`).
-fn write_panorama(path: &Path, env: &Environment) -> Result<()> {
-    let panorama = env.to_rgb32f();
-    let pixels: Vec<image::Rgb<f32>> = panorama.pixels().map(|p| image::Rgb(p.0)).collect();
-    let mut bytes = Vec::new();
-    image::codecs::hdr::HdrEncoder::new(&mut bytes)
-        .encode(
-            &pixels,
-            panorama.width() as usize,
-            panorama.height() as usize,
-        )
-        .with_context(|| format!("{}: cannot encode the panorama", path.display()))?;
-    meshtracer::output::write_atomic(path, &bytes)?;
-    Ok(())
 }
 
 /// The outputs of a run beyond each view's files: the turntable's GIF and the contact sheet,

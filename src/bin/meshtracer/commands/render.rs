@@ -1,0 +1,728 @@
+//! `render MODEL -o IMAGE`: one view of one model. Every option that can be refused is refused
+//! before any work; then the image file is reserved, the model loaded, the view framed and lit,
+//! the scene prepared and rendered (and denoised with `--denoise`), and the image and its side
+//! outputs written. `--views` and `--turntable` hand over to commands/views.rs once the options
+//! both flows share are checked.
+
+use super::{
+    check_lighting, check_size, image_size, interrupt_flag, lighting_options, load,
+    peak_memory_bytes, prepare_scene, preset_label, render_load_options, report_load,
+    segmentation_ids, start_load_threads, tiles, view_environment, views, worker_pool,
+    write_panorama, Phases, PreparedModel, RenderReport,
+};
+use crate::cli::RenderArgs;
+use anyhow::{bail, Context, Result};
+use meshtracer::accel::AccelKind;
+use meshtracer::camera::{auto_camera, look_at, View};
+use meshtracer::defaults::DEFAULT_YFOV_DEGREES;
+use meshtracer::integrator::IntegratorKind;
+use meshtracer::light::environment::Environment;
+use meshtracer::output::view_file::ViewFile;
+use meshtracer::output::PendingOutput;
+use meshtracer::prepare::Prepared;
+use meshtracer::render::denoise::Denoised;
+use meshtracer::render::{render, render_region, Aovs, Image, Region, RenderSettings, RenderStats};
+use meshtracer::scene::{Camera, Light, Projection, Scene};
+use meshtracer::setup::{lighting, Lighting, RecordedLighting};
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+/// Most path bounces `--bounces` accepts: far beyond any visible difference.
+const MAX_BOUNCES: u32 = meshtracer::output::view_file::MAX_VIEW_BOUNCES;
+
+/// `meshtracer render`.
+pub(super) fn render_command(args: &RenderArgs) -> Result<()> {
+    render_model(args, &|_, _| {}).map(|_| ())
+}
+
+/// Renders one model as `render` does, calling `on_view(done, total)` as views finish.
+pub(super) fn render_model(
+    args: &RenderArgs,
+    on_view: &(dyn Fn(usize, usize) + Sync),
+) -> Result<RenderReport> {
+    let run_start = Instant::now();
+    start_load_threads(args.threads);
+    // Everything that can be refused is refused before any work: options, output, then model.
+    check_image_options(args)?;
+    let view_file = read_view_file(args)?;
+    check_output_and_lighting_options(args)?;
+    let env_file = load_environment(args)?;
+    if let Some(spec) = &args.views {
+        // Many views after one load and one BVH build: its own flow, in commands/views.rs.
+        return views::render_views(args, spec, env_file, on_view);
+    }
+    if let Some(frames) = args.turntable {
+        // A turntable is an orbit (starting where the plain render stands).
+        return views::render_views(args, &format!("orbit:{frames}"), env_file, on_view);
+    }
+    if args.contact_sheet.is_some() {
+        bail!("--contact-sheet lays out many views: add --views SPEC or --turntable N (or give it to batch, for a cell per job)");
+    }
+    let output = PendingOutput::reserve(&args.output, args.no_clobber)?;
+    let (threads, pool) = worker_pool(args.threads)?;
+
+    let mut phases = Phases::default();
+    let (scene, load_time) = load_model(args, &mut phases)?;
+    let shot = choose_view(args, &scene, view_file.as_ref())?;
+    let view = View::from_camera(&shot.camera, shot.width, shot.height);
+    let lit = light_view(args, &scene.lights, view_file.as_ref(), &view, env_file)?;
+    let using_rig = lit.default_rig;
+    let mut settings = render_settings(args, view, lit);
+    let cancel = interrupt_flag();
+    let rendered = pool
+        .install(|| prepare_and_render(args, scene, &mut settings, &shot, &cancel, &mut phases))?;
+    let done = Finished {
+        load_time: load_time + rendered.tangents,
+        shot,
+        settings,
+        using_rig,
+        rendered,
+        threads,
+    };
+
+    let write_start = Instant::now();
+    write_outputs(args, output, &done)?;
+    phases.mark("write", write_start);
+    if let Some(path) = &args.stats {
+        write_stats(path, args, &done, &phases, run_start)?;
+    }
+    if !args.quiet {
+        print_summary(args, &done);
+    }
+    on_view(1, 1);
+    Ok(done.report(args))
+}
+
+/// Refuses, in this order, the sampling and image options that are wrong on their own:
+/// `--spp` (1 to `--max-spp`), `--time-limit`, `--exposure`, `--denoise` (built in, and for a
+/// single image only), `--yfov`, and `--width`/`--height` (at least 1, and within
+/// `--max-pixels` when both are given).
+fn check_image_options(args: &RenderArgs) -> Result<()> {
+    if args.spp == 0 || args.spp > args.max_spp {
+        bail!(
+            "--spp {}: must be between 1 and {} (raise the limit with --max-spp)",
+            args.spp,
+            args.max_spp
+        );
+    }
+    if let Some(limit) = args.time_limit {
+        if !(limit > 0.0 && limit.is_finite()) {
+            bail!("--time-limit {limit}: must be a positive number of seconds");
+        }
+    }
+    if !args.exposure.is_finite() {
+        bail!("--exposure must be a finite number");
+    }
+    if args.denoise {
+        if !meshtracer::render::denoise::AVAILABLE {
+            bail!(meshtracer::render::denoise::NOT_BUILT);
+        }
+        // The command line refuses these combinations; a batch job's manifest can still ask.
+        if args.views.is_some() || args.turntable.is_some() {
+            bail!("--denoise denoises a single image: not with --views or --turntable (yet)");
+        }
+    }
+    if let Some(yfov) = args.yfov {
+        if !(yfov > 0.0 && yfov < 180.0) {
+            bail!("--yfov {yfov}: must be between 0 and 180 degrees");
+        }
+    }
+    if let (Some(w), Some(h)) = (args.width, args.height) {
+        check_size(args, w, h)?;
+    } else if args.width == Some(0) || args.height == Some(0) {
+        bail!("image width and height must be at least 1");
+    }
+    Ok(())
+}
+
+/// The `--view` file, read and its image size refused over the limits as `--width` and
+/// `--height` are; `None` without `--view`.
+fn read_view_file(args: &RenderArgs) -> Result<Option<ViewFile>> {
+    let Some(path) = &args.view else {
+        return Ok(None);
+    };
+    let view_file = ViewFile::read(path)?;
+    check_size(args, view_file.image.width, view_file.image.height)?;
+    Ok(Some(view_file))
+}
+
+/// Refuses, in this order: an AOV file whose format cannot hold it, `--depth-scale`, the
+/// environment options without the path tracer, `--env-intensity`, `--env-rotation`,
+/// `--bounces`, an `--env-out` that is not `.hdr`, a `--stats` that is not `.json`, and a tile
+/// the merge could not join exactly ([`tiles::check_render`]).
+fn check_output_and_lighting_options(args: &RenderArgs) -> Result<()> {
+    for (path, allowed) in [
+        (&args.depth_out, &["exr", "npy", "png"][..]),
+        (&args.normal_out, &["exr", "npy", "png"][..]),
+        (&args.mask_out, &["npy", "png"][..]),
+        (&args.segmentation_out, &["npy", "png"][..]),
+    ] {
+        if let Some(p) = path {
+            meshtracer::output::aov::check(p, allowed)?;
+        }
+    }
+    if !(args.depth_scale > 0.0 && args.depth_scale.is_finite()) {
+        bail!("--depth-scale must be a positive number");
+    }
+    let path_tracing = args.integrator == IntegratorKind::Path;
+    if !path_tracing && (args.env.is_some() || args.env_visible || args.env_out.is_some()) {
+        bail!("--env, --env-visible and --env-out light the path tracer: add --integrator path");
+    }
+    if !(args.env_intensity >= 0.0 && args.env_intensity.is_finite()) {
+        bail!("--env-intensity must be a finite number, 0 or more");
+    }
+    if !args.env_rotation.is_finite() {
+        bail!("--env-rotation must be a finite number of degrees");
+    }
+    if args.bounces > MAX_BOUNCES {
+        bail!("--bounces {}: at most {MAX_BOUNCES}", args.bounces);
+    }
+    if let Some(p) = &args.env_out {
+        meshtracer::output::aov::check(p, &["hdr"])?;
+    }
+    if let Some(p) = &args.stats {
+        meshtracer::output::aov::check(p, &["json"])?;
+    }
+    tiles::check_render(args)
+}
+
+/// The `--env` panorama, loaded, turned by `--env-rotation` and scaled by `--env-intensity`;
+/// `None` without `--env`. The last refusal before the flows part: a file that cannot be read
+/// fails one view and many alike.
+fn load_environment(args: &RenderArgs) -> Result<Option<Environment>> {
+    match &args.env {
+        Some(path) => Ok(Some(
+            Environment::load(path)?.with_transform(args.env_rotation, args.env_intensity),
+        )),
+        None => Ok(None),
+    }
+}
+
+/// Loads the model as `render` loads it ([`render_load_options`]), timing the parse and flatten
+/// (and its steps) into `phases`, and prints its warnings and pose unless `--quiet`. Returns
+/// the scene and the wall time of the load so far (the tangents come later, in the prepare).
+fn load_model(args: &RenderArgs, phases: &mut Phases) -> Result<(Scene, Duration)> {
+    let load_start = Instant::now();
+    let load_options = render_load_options(args);
+    let scene = load(&args.model, &load_options)?;
+    phases.mark("parse and flatten", load_start);
+    phases.sub_steps(&scene.load_steps);
+    let load_time = load_start.elapsed();
+    report_load(args, &scene);
+    Ok((scene, load_time))
+}
+
+/// The single view: its camera, its image size and the part of the image rendered.
+struct Shot {
+    camera: Camera,
+    width: u32,
+    height: u32,
+    /// The whole image, or the tile of `--tile` or `--crop`.
+    region: Region,
+}
+
+/// Frames the single view. The `--view` file gives the camera and size; else the size comes
+/// from the options and the camera that frames the view ([`image_size`]: not the file's camera
+/// under `--look-from`), and the camera from [`choose_camera`]. Refuses, in this order, a
+/// `--camera` the file lacks, a size over the limits, a view file's camera it cannot use and a
+/// tile that does not fit the image.
+fn choose_view(args: &RenderArgs, scene: &Scene, view_file: Option<&ViewFile>) -> Result<Shot> {
+    let file_camera = match args.camera {
+        Some(i) => Some(scene.cameras.get(i).with_context(|| {
+            format!(
+                "{}: --camera {i}: the file has {} camera(s)",
+                args.model.display(),
+                scene.cameras.len()
+            )
+        })?),
+        None => scene.cameras.first(),
+    };
+    let (width, height) = match view_file {
+        Some(v) => (v.image.width, v.image.height),
+        None => image_size(
+            args,
+            if args.look_from.is_some() {
+                None
+            } else {
+                file_camera
+            },
+        ),
+    };
+    check_size(args, width, height)?;
+    let aspect = width as f32 / height as f32;
+    let camera = match view_file {
+        Some(v) => v.camera()?,
+        None => choose_camera(args, scene, file_camera, aspect),
+    };
+    let region = tiles::region(args, width, height)?;
+    Ok(Shot {
+        camera,
+        width,
+        height,
+        region,
+    })
+}
+
+/// The camera of a single view without a view file: `--look-from` (towards `--look-at`, else
+/// the model's centre), else the file's camera, else the automatic one for `aspect`; `--yfov`
+/// overrides the field of view of a perspective camera.
+fn choose_camera(
+    args: &RenderArgs,
+    scene: &Scene,
+    file_camera: Option<&Camera>,
+    aspect: f32,
+) -> Camera {
+    let bounds = &scene.bounds;
+    if let Some(from) = args.look_from {
+        let at = args.look_at.unwrap_or(bounds.center());
+        let distance = (at - from).length();
+        let yfov = args.yfov.unwrap_or(DEFAULT_YFOV_DEGREES).to_radians();
+        let mut camera = look_at(
+            from,
+            at,
+            args.up.unwrap_or(glam::Vec3::Y),
+            yfov,
+            distance,
+            bounds.radius(),
+        );
+        // The scene may surround the eye: clip only very close to it.
+        if let Projection::Perspective { znear, .. } = &mut camera.projection {
+            let to_centre = (bounds.center() - from).length();
+            if to_centre <= bounds.radius() {
+                *znear = bounds.radius() * 1e-5;
+            }
+        }
+        return camera;
+    }
+    let mut camera = match file_camera {
+        Some(c) => c.clone(),
+        None => auto_camera(bounds, aspect),
+    };
+    if let (Some(deg), Projection::Perspective { yfov, .. }) = (args.yfov, &mut camera.projection) {
+        *yfov = deg.to_radians();
+    }
+    camera
+}
+
+/// The lighting of the single view ([`lighting`]): the lights, ambient and environment the
+/// `--view` file recorded, else the file's `scene_lights` or the default rig placed for `view`.
+/// A view file's environment lights the path tracer again unless `--env` replaces it. Refuses
+/// what [`check_lighting`] refuses.
+fn light_view(
+    args: &RenderArgs,
+    scene_lights: &[Light],
+    view_file: Option<&ViewFile>,
+    view: &View,
+    env_file: Option<Environment>,
+) -> Result<Lighting> {
+    let path_tracing = args.integrator == IntegratorKind::Path;
+    let recorded = match view_file {
+        Some(v) => Some(RecordedLighting {
+            lights: v.lights(),
+            ambient: glam::Vec3::from(v.ambient),
+            environment: match &v.environment {
+                Some(recorded) if path_tracing && env_file.is_none() => Some(recorded.load()?),
+                _ => None,
+            },
+        }),
+        None => None,
+    };
+    let lit = lighting(
+        scene_lights,
+        recorded,
+        view,
+        lighting_options(args, env_file),
+    );
+    check_lighting(args, &lit.lights, lit.environment.as_deref())?;
+    Ok(lit)
+}
+
+/// The settings of the single view's render: `view` lit by `lit` (`--ambient` overrides its
+/// ambient), the sampling and shading options, and AOVs when a depth, normal or segmentation
+/// file is asked for.
+fn render_settings(args: &RenderArgs, view: View, lit: Lighting) -> RenderSettings {
+    let Lighting {
+        lights,
+        ambient: default_ambient,
+        environment,
+        default_rig: _,
+    } = lit;
+    RenderSettings {
+        view,
+        spp: args.spp,
+        seed: args.seed,
+        lights,
+        ambient: args.ambient.unwrap_or(default_ambient),
+        exposure: args.exposure,
+        shading: args.shading,
+        aovs: args.depth_out.is_some()
+            || args.normal_out.is_some()
+            || args.segmentation_out.is_some(),
+        integrator: args.integrator,
+        bounces: args.bounces,
+        environment,
+        environment_visible: args.env_visible,
+    }
+}
+
+/// What [`prepare_and_render`] hands back.
+struct Rendered {
+    /// The scene as rendered.
+    prepared: Prepared,
+    /// The warnings of the load and the texture decoding.
+    warnings: Vec<String>,
+    /// Wall time of the tangent generation (part of the load, as the summary reports it).
+    tangents: Duration,
+    /// Wall time of the texture decoding.
+    textures: Duration,
+    image: Image,
+    stats: RenderStats,
+    /// The AOVs, when [`RenderSettings::aovs`] asked for them.
+    aovs: Option<Aovs>,
+    /// What `--denoise` did, when asked.
+    denoised: Option<Denoising>,
+}
+
+/// What `--denoise` did.
+struct Denoising {
+    /// The denoiser's own report (its version).
+    report: Denoised,
+    /// Guide rays per pixel.
+    guide_samples: u32,
+    /// Wall time of the guides and the filter together.
+    time: Duration,
+}
+
+/// Runs on the worker pool: prepares `scene` ([`prepare_scene`], the BVH preset chosen for the
+/// rays this render will trace), fits `settings.spp` to `--time-limit`, renders the shot's
+/// region with a progress bar (hidden under `--quiet`) and denoises it with `--denoise`; each
+/// phase is timed into `phases`. A Ctrl-C (`cancel`) ends it with
+/// [`meshtracer::render::Cancelled`].
+fn prepare_and_render(
+    args: &RenderArgs,
+    scene: Scene,
+    settings: &mut RenderSettings,
+    shot: &Shot,
+    cancel: &AtomicBool,
+    phases: &mut Phases,
+) -> Result<Rendered> {
+    let rays = meshtracer::setup::expected_rays(
+        u64::from(shot.width) * u64::from(shot.height),
+        settings.spp,
+        settings.lights.len(),
+        settings.integrator,
+        settings.bounces,
+    );
+    let PreparedModel {
+        prepared,
+        warnings,
+        tangents,
+        textures,
+    } = prepare_scene(args, scene, rays, phases)?;
+    let render_start = Instant::now();
+    if let Some(limit) = args.time_limit {
+        settings.spp = spp_for_time_limit(&prepared, settings, cancel, limit, args.max_spp)?;
+    }
+    let bar = progress_bar(args.quiet);
+    let result = render_region(&prepared, settings, shot.region, cancel, &|done, total| {
+        bar.set_length(total);
+        bar.set_position(done);
+    });
+    bar.finish_and_clear();
+    phases.mark("render", render_start);
+    let (mut image, stats, aovs) = result?;
+    let denoised = if args.denoise {
+        Some(denoise_image(
+            &prepared,
+            settings,
+            shot.region,
+            &mut image,
+            cancel,
+            phases,
+        )?)
+    } else {
+        None
+    };
+    Ok(Rendered {
+        prepared,
+        warnings,
+        tangents,
+        textures,
+        image,
+        stats,
+        aovs,
+        denoised,
+    })
+}
+
+/// The spp that fits `limit` seconds: one sample per pixel is rendered and timed, and the
+/// rest of the budget buys as many more passes of that cost as fit (at least 1, at most
+/// `max_spp`).
+fn spp_for_time_limit(
+    prepared: &Prepared,
+    settings: &RenderSettings,
+    cancel: &AtomicBool,
+    limit: f64,
+    max_spp: u32,
+) -> Result<u32> {
+    let calibration = RenderSettings {
+        spp: 1,
+        aovs: false,
+        ..settings.clone()
+    };
+    let (_, stats, _) = render(prepared, &calibration, cancel, &|_, _| {})?;
+    let per_sample = stats.time.as_secs_f64().max(1e-6);
+    let fit = ((limit - per_sample) / per_sample).floor();
+    Ok((fit.max(1.0) as u32).min(max_spp.max(1)))
+}
+
+/// The progress bar of a render: hidden under `--quiet`, else drawn while standard error is a
+/// terminal.
+fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
+    if quiet {
+        return indicatif::ProgressBar::hidden();
+    }
+    // indicatif draws only when stderr is a terminal.
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} rendering [{bar:40}] {percent}% tiles {pos}/{len} eta {eta}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    bar
+}
+
+/// Denoises `image` in place (`--denoise`) on the linear HDR film, before the output encodes
+/// it (sRGB PNG, EXR, HDR): the guides of `region` first, then the filter, each timed into
+/// `phases`. A Ctrl-C during either ends it with [`meshtracer::render::Cancelled`].
+fn denoise_image(
+    prepared: &Prepared,
+    settings: &RenderSettings,
+    region: Region,
+    image: &mut Image,
+    cancel: &AtomicBool,
+    phases: &mut Phases,
+) -> Result<Denoising> {
+    let guide_start = Instant::now();
+    let guides = meshtracer::render::denoise::guides(prepared, settings, region);
+    phases.mark("denoise guides", guide_start);
+    let denoise_start = Instant::now();
+    let report = meshtracer::render::denoise::denoise(image, &guides)?;
+    phases.mark("denoise", denoise_start);
+    if cancel.load(Ordering::SeqCst) {
+        return Err(meshtracer::render::Cancelled.into());
+    }
+    Ok(Denoising {
+        report,
+        guide_samples: guides.samples_per_pixel,
+        time: guide_start.elapsed(),
+    })
+}
+
+/// A rendered single view, for the steps that write and report it.
+struct Finished {
+    shot: Shot,
+    /// As rendered (`--time-limit` may have changed the spp).
+    settings: RenderSettings,
+    /// Whether the default light rig lit the view (the view file records it).
+    using_rig: bool,
+    rendered: Rendered,
+    /// Wall time of the load, tangents included.
+    load_time: Duration,
+    /// Worker threads of the render.
+    threads: usize,
+}
+
+impl Finished {
+    /// What the render did, for a caller that records it (batch). Every path given was
+    /// written (AOVs whenever one is asked for).
+    fn report(self, args: &RenderArgs) -> RenderReport {
+        let outputs = std::iter::once(Some(&args.output))
+            .chain(args.side_outputs().into_iter().map(|(_, path)| path));
+        RenderReport {
+            triangles: self.rendered.prepared.scene.soup.len(),
+            load: self.load_time,
+            bvh: self.rendered.prepared.accel.build_time(),
+            render: self.rendered.stats.time,
+            outputs: outputs.flatten().cloned().collect(),
+            warnings: self.rendered.warnings,
+        }
+    }
+}
+
+/// Writes the single view's files, in this order: the image (into the file reserved before the
+/// load), the terminal preview (`--preview`), the AOVs, the mask, the `--env-out` panorama, the
+/// `--view-out` view file and the tile's sidecar.
+fn write_outputs(args: &RenderArgs, output: PendingOutput, done: &Finished) -> Result<()> {
+    let image = &done.rendered.image;
+    let background = args.background;
+    output.commit(image, background)?;
+    if let Some(mode) = args.preview {
+        meshtracer::output::preview::show(image, background, mode).context("--preview")?;
+    }
+    write_aovs(args, image, done.rendered.aovs.as_ref())?;
+    if let (Some(path), Some(env)) = (&args.env_out, &done.settings.environment) {
+        write_panorama(path, env)?;
+    }
+    if let Some(path) = &args.view_out {
+        view_record(args, done).write(path)?;
+    }
+    tiles::write_sidecar(
+        args,
+        done.shot.region,
+        &done.settings,
+        &done.rendered.prepared.scene,
+    )
+}
+
+/// Writes the AOV files asked for, in this order: depth, normals, segmentation (from `aovs`,
+/// rendered when any of them is asked for), then the mask (from `image`'s coverage).
+fn write_aovs(args: &RenderArgs, image: &Image, aovs: Option<&Aovs>) -> Result<()> {
+    if let Some(a) = aovs {
+        if let Some(p) = &args.depth_out {
+            meshtracer::output::aov::write_depth(
+                p,
+                image.width,
+                image.height,
+                &a.depth,
+                args.depth_scale,
+            )?;
+        }
+        if let Some(p) = &args.normal_out {
+            meshtracer::output::aov::write_normals(p, image.width, image.height, &a.normal)?;
+        }
+        if let Some(p) = &args.segmentation_out {
+            meshtracer::output::aov::write_segmentation(p, image.width, image.height, &a.instance)?;
+        }
+    }
+    if let Some(p) = &args.mask_out {
+        let coverage: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();
+        meshtracer::output::aov::write_mask(p, image.width, image.height, &coverage)?;
+    }
+    Ok(())
+}
+
+/// The `--view-out` record of the single view: what `render --view` reads back to render it
+/// again (camera, size, lights, integrator and environment, depth scale), the segmentation ids
+/// of the mesh instances, and the denoiser's settings when `--denoise` ran.
+fn view_record(args: &RenderArgs, done: &Finished) -> ViewFile {
+    let settings = &done.settings;
+    let mut view = ViewFile::new(
+        &done.shot.camera,
+        done.shot.width,
+        done.shot.height,
+        &settings.lights,
+        settings.ambient,
+        done.using_rig,
+    );
+    view.segmentation = segmentation_ids(&done.rendered.prepared.scene);
+    view.depth_png_scale = args.depth_scale;
+    view.integrator = settings.integrator;
+    if settings.integrator == IntegratorKind::Path {
+        view.bounces = Some(settings.bounces);
+        view.environment = settings
+            .environment
+            .as_ref()
+            .map(|env| view_environment(args, env));
+    }
+    view.denoise =
+        done.rendered
+            .denoised
+            .as_ref()
+            .map(|d| meshtracer::output::view_file::ViewDenoise {
+                denoiser: "Intel Open Image Denoise".into(),
+                version: d.report.library_version.clone(),
+                filter: "RT".into(),
+                hdr: true,
+                guides: vec!["albedo".into(), "normal".into()],
+                guide_samples_per_pixel: d.guide_samples,
+                clean_aux: true,
+            });
+    view
+}
+
+/// Writes `--stats`: the image, the threads, each phase's time and peak memory (`phases`), the
+/// whole run's since `run_start`, and the ray counts.
+fn write_stats(
+    path: &Path,
+    args: &RenderArgs,
+    done: &Finished,
+    phases: &Phases,
+    run_start: Instant,
+) -> Result<()> {
+    let stats = &done.rendered.stats;
+    let json = serde_json::json!({
+        "model": args.model,
+        "triangles": done.rendered.prepared.scene.soup.len(),
+        "width": done.shot.width,
+        "height": done.shot.height,
+        "spp": done.settings.spp,
+        "threads": done.threads,
+        "phases": phases.to_json(),
+        "total_seconds": run_start.elapsed().as_secs_f64(),
+        "peak_memory_bytes": peak_memory_bytes(),
+        "rays": stats.rays(),
+        "mrays_per_second": stats.mrays_per_second(),
+        "denoised": done.rendered.denoised.is_some(),
+    });
+    meshtracer::output::write_atomic(path, serde_json::to_string_pretty(&json)?.as_bytes())?;
+    Ok(())
+}
+
+/// Prints the one summary line of a single-view render on standard error: the load, the
+/// textures, the acceleration structure, the render and its rays, the denoiser, peak memory.
+fn print_summary(args: &RenderArgs, done: &Finished) {
+    let Rendered {
+        prepared,
+        textures: texture_time,
+        stats,
+        denoised,
+        ..
+    } = &done.rendered;
+    let (scene, accel) = (&prepared.scene, &prepared.accel);
+    let (width, height, threads) = (done.shot.width, done.shot.height, done.threads);
+    let structure = match accel.kind() {
+        AccelKind::Bvh => format!(
+            "BVH ({}) built in {:.1} ms",
+            preset_label(args.bvh_preset, accel.preset()),
+            accel.build_time().as_secs_f64() * 1e3
+        ),
+        AccelKind::Linear => "linear scan (no BVH)".to_string(),
+    };
+    let denoise_note = match denoised {
+        Some(d) => format!(
+            ", denoised by Open Image Denoise {} in {:.3} s (guides and filter)",
+            d.report.library_version,
+            d.time.as_secs_f64()
+        ),
+        None => String::new(),
+    };
+    eprintln!(
+        "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {} spp rendered in {:.3} s ({:.0} samples/s{}){denoise_note}, peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {threads} threads -> {}",
+        args.model.display(),
+        scene.soup.len(),
+        done.load_time.as_secs_f64() * 1e3,
+        prepared.textures.bytes >> 20,
+        texture_time.as_secs_f64() * 1e3,
+        done.settings.spp,
+        stats.time.as_secs_f64(),
+        stats.samples_per_second(),
+        stats
+            .noise
+            .map_or(String::new(), |n| format!(", noise ±{n:.4}")),
+        peak_memory_bytes().map_or("unknown".to_string(), |b| format!("{} MB", b >> 20)),
+        stats.rays(),
+        stats.primary_rays,
+        stats.shadow_rays,
+        if stats.indirect_rays > 0 {
+            format!(", {} indirect", stats.indirect_rays)
+        } else {
+            String::new()
+        },
+        stats.mrays_per_second(),
+        args.output.display()
+    );
+}
