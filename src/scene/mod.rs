@@ -9,6 +9,7 @@ pub mod extensions;
 pub mod gltf_import;
 mod image_header;
 pub(crate) mod ktx2;
+mod model;
 pub mod obj;
 mod paths;
 pub mod pose;
@@ -16,6 +17,7 @@ pub mod tangents;
 
 pub use builder::{SoupBuilder, TriangleIn, VerticesIn};
 pub use error::{LoadError, LoadErrorKind};
+pub use model::Scene;
 pub use paths::{resolve_relative, FileAccess};
 pub use pose::{AnimationInfo, PoseOptions};
 
@@ -896,53 +898,6 @@ pub struct Instance {
     pub mesh: usize,
     /// Node or object name.
     pub name: Option<String>,
-}
-
-/// A scene ready to trace: plain data, printable and testable without rendering.
-#[derive(Clone, Debug)]
-pub struct Scene {
-    /// The file it was loaded from.
-    pub source: PathBuf,
-    /// Detected format.
-    pub format: Format,
-    /// The triangles.
-    pub soup: TriangleSoup,
-    /// Materials; the last one is the default material when some primitive had none.
-    pub materials: Vec<Material>,
-    /// Textures referenced by materials.
-    pub textures: Vec<Texture>,
-    /// Encoded image sources referenced by textures.
-    pub images: Vec<ImageSource>,
-    /// Cameras in node order.
-    pub cameras: Vec<Camera>,
-    /// Lights in node order.
-    pub lights: Vec<Light>,
-    /// Mesh instances in node order.
-    pub instances: Vec<Instance>,
-    /// Number of distinct meshes in the file.
-    pub mesh_count: usize,
-    /// Triangles in the file after instancing, by the counting rules of glTF primitives
-    /// (TRIANGLES: count/3, strips and fans: count - 2) and OBJ fan triangulation, before
-    /// degenerate and non-finite ones are dropped. `soup.len()` is what is traced.
-    pub file_triangles: usize,
-    /// Number of primitives flattened (over all instances).
-    pub primitive_count: usize,
-    /// Bounds of all triangles.
-    pub bounds: Bounds,
-    /// Problems that did not stop loading.
-    pub warnings: Vec<String>,
-    /// Names of the file's `KHR_materials_variants` variants, in file order.
-    pub variants: Vec<String>,
-    /// The variant drawn, if one was chosen.
-    pub variant: Option<String>,
-    /// Every glTF extension the file uses (`extensionsUsed`), with how it is honoured.
-    pub extensions: Vec<extensions::ExtensionUse>,
-    /// The file's animations (glTF), in file order.
-    pub animations: Vec<AnimationInfo>,
-    /// The animation and time drawn ("animation 1 'Walk' at 0.5 s"); `None`: the static pose.
-    pub pose: Option<String>,
-    /// How long each step of the load took ("read", "parse", "flatten", ...), for `--stats`.
-    pub load_steps: Vec<crate::measure::Step>,
 }
 
 impl Scene {

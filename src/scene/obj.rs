@@ -16,9 +16,10 @@
 //! - `map_Bump`/`bump`/`norm` -> normal map.
 
 use super::builder::{TriangleIn, VerticesIn};
+use super::model::Scene;
 use super::{
     AlphaMode, FileAccess, Format, ImageSource, Instance, LoadError, LoadErrorKind, LoadOptions,
-    Material, Sampler, Scene, SoupBuilder, Texture, TextureRef, UnusableImage,
+    Material, Sampler, SoupBuilder, Texture, TextureRef, UnusableImage,
 };
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::RefCell;

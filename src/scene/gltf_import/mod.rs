@@ -30,7 +30,8 @@ mod walk;
 pub(crate) use container::{read_glb_deferring_images, DeferredImages};
 
 use super::extensions::{known, ExtensionUse};
-use super::{Bounds, FileAccess, Format, LoadError, LoadErrorKind, LoadOptions, LoadedFile, Scene};
+use super::model::Scene;
+use super::{Bounds, FileAccess, Format, LoadError, LoadErrorKind, LoadOptions, LoadedFile};
 use buffer::Buffer;
 use container::{check_glb_header, load_buffers, parse};
 use std::path::Path;
