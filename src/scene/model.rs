@@ -1,10 +1,9 @@
 //! [`Scene`]: what an importer makes of a file, as plain data.
 
 use super::extensions;
+use super::options::Format;
 use super::pose::AnimationInfo;
-use super::{
-    Bounds, Camera, Format, ImageSource, Instance, Light, Material, Texture, TriangleSoup,
-};
+use super::{Bounds, Camera, ImageSource, Instance, Light, Material, Texture, TriangleSoup};
 use std::path::PathBuf;
 
 /// A scene ready to trace: plain data, printable and testable without rendering.

@@ -17,9 +17,10 @@
 
 use super::builder::{TriangleIn, VerticesIn};
 use super::model::Scene;
+use super::options::{Format, LoadOptions};
 use super::{
-    AlphaMode, FileAccess, Format, ImageSource, Instance, LoadError, LoadErrorKind, LoadOptions,
-    Material, Sampler, SoupBuilder, Texture, TextureRef, UnusableImage,
+    AlphaMode, FileAccess, ImageSource, Instance, LoadError, LoadErrorKind, Material, Sampler,
+    SoupBuilder, Texture, TextureRef, UnusableImage,
 };
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::RefCell;

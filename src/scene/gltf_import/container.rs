@@ -4,7 +4,8 @@
 
 use super::buffer::Buffer;
 use super::meshopt;
-use crate::scene::{FileAccess, Format, LoadError, LoadErrorKind};
+use crate::scene::options::Format;
+use crate::scene::{FileAccess, LoadError, LoadErrorKind};
 use base64::Engine;
 use std::borrow::Cow;
 

@@ -31,7 +31,8 @@ pub(crate) use container::{read_glb_deferring_images, DeferredImages};
 
 use super::extensions::{known, ExtensionUse};
 use super::model::Scene;
-use super::{Bounds, FileAccess, Format, LoadError, LoadErrorKind, LoadOptions, LoadedFile};
+use super::options::{Format, LoadOptions};
+use super::{Bounds, FileAccess, LoadError, LoadErrorKind, LoadedFile};
 use buffer::Buffer;
 use container::{check_glb_header, load_buffers, parse};
 use std::path::Path;

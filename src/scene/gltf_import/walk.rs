@@ -11,9 +11,9 @@ use super::validate::{check_accessor, check_accessor_type, INDICES};
 use super::vertices::{Deform, VertexReader};
 use crate::scene::builder::VerticesIn;
 use crate::scene::error::PrimitiveAt;
+use crate::scene::options::LoadLimits;
 use crate::scene::{
-    Camera, Instance, Light, LightKind, LoadErrorKind, LoadLimits, Material, Projection,
-    SoupBuilder,
+    Camera, Instance, Light, LightKind, LoadErrorKind, Material, Projection, SoupBuilder,
 };
 use glam::{Mat4, Vec3};
 use gltf::mesh::Mode;
