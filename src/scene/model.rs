@@ -3,7 +3,8 @@
 use super::extensions;
 use super::options::Format;
 use super::pose::AnimationInfo;
-use super::{Bounds, Camera, ImageSource, Instance, Light, Material, Texture, TriangleSoup};
+use super::soup::{Bounds, Instance, TriangleSoup};
+use super::{Camera, ImageSource, Light, Material, Texture};
 use std::path::PathBuf;
 
 /// A scene ready to trace: plain data, printable and testable without rendering.

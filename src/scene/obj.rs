@@ -18,9 +18,10 @@
 use super::builder::{TriangleIn, VerticesIn};
 use super::model::Scene;
 use super::options::{Format, LoadOptions};
+use super::soup::Instance;
 use super::{
-    AlphaMode, FileAccess, ImageSource, Instance, LoadError, LoadErrorKind, Material, Sampler,
-    SoupBuilder, Texture, TextureRef, UnusableImage,
+    AlphaMode, FileAccess, ImageSource, LoadError, LoadErrorKind, Material, Sampler, SoupBuilder,
+    Texture, TextureRef, UnusableImage,
 };
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::RefCell;

@@ -12,9 +12,8 @@ use super::vertices::{Deform, VertexReader};
 use crate::scene::builder::VerticesIn;
 use crate::scene::error::PrimitiveAt;
 use crate::scene::options::LoadLimits;
-use crate::scene::{
-    Camera, Instance, Light, LightKind, LoadErrorKind, Material, Projection, SoupBuilder,
-};
+use crate::scene::soup::Instance;
+use crate::scene::{Camera, Light, LightKind, LoadErrorKind, Material, Projection, SoupBuilder};
 use glam::{Mat4, Vec3};
 use gltf::mesh::Mode;
 use std::collections::HashMap;

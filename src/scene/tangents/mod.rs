@@ -7,7 +7,7 @@
 mod mikktspace;
 
 use super::model::Scene;
-use super::TriangleSoup;
+use super::soup::TriangleSoup;
 use glam::Vec4;
 use mikktspace::Corners;
 use std::borrow::Cow;
