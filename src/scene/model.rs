@@ -1,10 +1,11 @@
 //! [`Scene`]: what an importer makes of a file, as plain data.
 
 use super::extensions;
+use super::image_source::ImageSource;
 use super::options::Format;
 use super::pose::AnimationInfo;
 use super::soup::{Bounds, Instance, TriangleSoup};
-use super::{Camera, ImageSource, Light, Material, Texture};
+use super::{Camera, Light, Material, Texture};
 use std::path::PathBuf;
 
 /// A scene ready to trace: plain data, printable and testable without rendering.

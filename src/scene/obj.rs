@@ -16,12 +16,13 @@
 //! - `map_Bump`/`bump`/`norm` -> normal map.
 
 use super::builder::{TriangleIn, VerticesIn};
+use super::image_source::ImageSource;
 use super::model::Scene;
 use super::options::{Format, LoadOptions};
 use super::soup::Instance;
 use super::{
-    AlphaMode, FileAccess, ImageSource, LoadError, LoadErrorKind, Material, Sampler, SoupBuilder,
-    Texture, TextureRef, UnusableImage,
+    AlphaMode, FileAccess, LoadError, LoadErrorKind, Material, Sampler, SoupBuilder, Texture,
+    TextureRef, UnusableImage,
 };
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::RefCell;

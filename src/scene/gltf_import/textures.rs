@@ -5,10 +5,10 @@
 use super::buffer::Buffer;
 use super::container::decode_data_uri;
 use crate::scene::image_header::check_image_header;
+use crate::scene::image_source::{FileRange, ImageSource, SharedBytes};
 use crate::scene::options::LoadOptions;
 use crate::scene::{
-    FileAccess, FileRange, Filter, ImageSource, LoadError, LoadErrorKind, LoadedFile, Sampler,
-    SharedBytes, Texture, UnusableImage, Wrap,
+    FileAccess, Filter, LoadError, LoadErrorKind, LoadedFile, Sampler, Texture, UnusableImage, Wrap,
 };
 
 /// EXT_texture_webp and KHR_texture_basisu: a texture whose extension names a WebP or KTX2
