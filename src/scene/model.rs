@@ -5,7 +5,8 @@ use super::image_source::ImageSource;
 use super::options::Format;
 use super::pose::AnimationInfo;
 use super::soup::{Bounds, Instance, TriangleSoup};
-use super::{Camera, Light, Material, Texture};
+use super::texture::Texture;
+use super::{Camera, Light, Material};
 use std::path::PathBuf;
 
 /// A scene ready to trace: plain data, printable and testable without rendering.

@@ -20,9 +20,10 @@ use super::image_source::ImageSource;
 use super::model::Scene;
 use super::options::{Format, LoadOptions};
 use super::soup::Instance;
+use super::texture::{Sampler, Texture};
 use super::{
-    AlphaMode, FileAccess, LoadError, LoadErrorKind, Material, Sampler, SoupBuilder, Texture,
-    TextureRef, UnusableImage,
+    AlphaMode, FileAccess, LoadError, LoadErrorKind, Material, SoupBuilder, TextureRef,
+    UnusableImage,
 };
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::RefCell;

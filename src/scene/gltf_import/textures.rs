@@ -7,9 +7,8 @@ use super::container::decode_data_uri;
 use crate::scene::image_header::check_image_header;
 use crate::scene::image_source::{FileRange, ImageSource, SharedBytes};
 use crate::scene::options::LoadOptions;
-use crate::scene::{
-    FileAccess, Filter, LoadError, LoadErrorKind, LoadedFile, Sampler, Texture, UnusableImage, Wrap,
-};
+use crate::scene::texture::{Filter, Sampler, Texture, Wrap};
+use crate::scene::{FileAccess, LoadError, LoadErrorKind, LoadedFile, UnusableImage};
 
 /// EXT_texture_webp and KHR_texture_basisu: a texture whose extension names a WebP or KTX2
 /// image uses it, and keeps its core `source` (if any) as the fallback for when that image
