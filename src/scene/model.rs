@@ -2,11 +2,12 @@
 
 use super::extensions;
 use super::image_source::ImageSource;
+use super::material::Material;
 use super::options::Format;
 use super::pose::AnimationInfo;
 use super::soup::{Bounds, Instance, TriangleSoup};
 use super::texture::Texture;
-use super::{Camera, Light, Material};
+use super::{Camera, Light};
 use std::path::PathBuf;
 
 /// A scene ready to trace: plain data, printable and testable without rendering.

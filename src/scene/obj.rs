@@ -17,14 +17,12 @@
 
 use super::builder::{TriangleIn, VerticesIn};
 use super::image_source::ImageSource;
+use super::material::{draw_without, AlphaMode, Material, TextureRef, UnusableImage};
 use super::model::Scene;
 use super::options::{Format, LoadOptions};
 use super::soup::Instance;
 use super::texture::{Sampler, Texture};
-use super::{
-    AlphaMode, FileAccess, LoadError, LoadErrorKind, Material, SoupBuilder, TextureRef,
-    UnusableImage,
-};
+use super::{FileAccess, LoadError, LoadErrorKind, SoupBuilder};
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -51,7 +49,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         unusable,
     } = map_materials(&mtl_materials, &access, options)?;
     let image_warnings =
-        super::draw_without(&mut materials, &textures, &unusable, options.strict).map_err(err)?;
+        draw_without(&mut materials, &textures, &unusable, options.strict).map_err(err)?;
     let default_material = materials.len() as u32;
     let mut uses_default = false;
     let mut lone_material_fallback = false;

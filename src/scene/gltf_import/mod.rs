@@ -34,6 +34,7 @@ use super::model::Scene;
 use super::options::{Format, LoadOptions};
 use super::soup::Bounds;
 use super::{FileAccess, LoadError, LoadErrorKind, LoadedFile};
+use crate::scene::material::draw_without;
 use buffer::Buffer;
 use container::{check_glb_header, load_buffers, parse};
 use std::path::Path;
@@ -102,9 +103,8 @@ pub(crate) fn load(
         &mut textures,
         &mut image_warnings,
     )?;
-    image_warnings.extend(
-        super::draw_without(&mut materials, &textures, &unusable, options.strict).map_err(err)?,
-    );
+    image_warnings
+        .extend(draw_without(&mut materials, &textures, &unusable, options.strict).map_err(err)?);
     let Importer {
         builder,
         mut warnings,
