@@ -16,9 +16,11 @@ pub mod obj;
 mod options;
 mod paths;
 pub mod pose;
+mod punctual;
 mod soup;
 pub mod tangents;
 mod texture;
+mod viewpoint;
 
 pub use builder::{SoupBuilder, TriangleIn, VerticesIn};
 pub use error::{LoadError, LoadErrorKind};
@@ -31,11 +33,11 @@ pub use model::Scene;
 pub use options::{Format, LoadLimits, LoadOptions};
 pub use paths::{resolve_relative, FileAccess};
 pub use pose::{AnimationInfo, PoseOptions};
+pub use punctual::{Light, LightKind};
 pub use soup::{Bounds, Instance, TriangleSoup};
 pub use texture::{Filter, Sampler, Texture, Wrap};
+pub use viewpoint::{Camera, Projection};
 
-use glam::Vec3;
-use serde::Serialize;
 use std::path::Path;
 
 /// The file [`Scene::load_with`] read: its bytes, and the images it left on disk.
@@ -43,86 +45,6 @@ use std::path::Path;
 pub(crate) struct LoadedFile<'a> {
     pub bytes: &'a std::sync::Arc<Vec<u8>>,
     pub deferred: Option<&'a gltf_import::DeferredImages>,
-}
-
-/// Camera projection (glTF 2.0 §3.10).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-#[serde(tag = "type", rename_all = "lowercase")]
-pub enum Projection {
-    /// Perspective: `yfov` is the vertical field of view in radians (glTF 2.0 §5.14).
-    Perspective {
-        /// Vertical field of view, radians.
-        yfov: f32,
-        /// Width / height, if the file sets it.
-        aspect_ratio: Option<f32>,
-        /// Near clip distance.
-        znear: f32,
-        /// Far clip distance; infinite when absent.
-        zfar: Option<f32>,
-    },
-    /// Orthographic: `xmag`/`ymag` are half the width/height of the view volume.
-    Orthographic {
-        /// Half width of the view, metres.
-        xmag: f32,
-        /// Half height of the view, metres.
-        ymag: f32,
-        /// Near clip distance.
-        znear: f32,
-        /// Far clip distance.
-        zfar: f32,
-    },
-}
-
-/// A camera placed in the world. glTF 2.0 §3.10.1: a camera looks down its node's local -Z with
-/// +Y up; node scale is removed.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Camera {
-    /// Name of the camera or its node.
-    pub name: Option<String>,
-    /// Eye position, world space.
-    pub position: Vec3,
-    /// Unit view direction (world-space image of local -Z).
-    pub forward: Vec3,
-    /// Unit up vector, orthogonal to `forward` (world-space image of local +Y).
-    pub up: Vec3,
-    /// Projection.
-    pub projection: Projection,
-}
-
-/// Type of a punctual light (`KHR_lights_punctual`).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-#[serde(tag = "type", rename_all = "lowercase")]
-pub enum LightKind {
-    /// Omnidirectional point light; intensity in candela.
-    Point,
-    /// Spot light; intensity in candela; cone angles in radians from the axis.
-    Spot {
-        /// Angle where falloff starts.
-        inner_cone_angle: f32,
-        /// Angle where the light reaches zero.
-        outer_cone_angle: f32,
-    },
-    /// Directional light; intensity in lux.
-    Directional,
-}
-
-/// A punctual light in world space (`KHR_lights_punctual`).
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Light {
-    /// Name from the file, if any.
-    pub name: Option<String>,
-    /// Type and cone.
-    pub kind: LightKind,
-    /// Linear RGB colour.
-    pub color: Vec3,
-    /// Candela for point and spot lights, lux for directional lights.
-    pub intensity: f32,
-    /// Distance beyond which the light has no effect (point and spot only).
-    pub range: Option<f32>,
-    /// World position (unused for directional lights).
-    pub position: Vec3,
-    /// Unit direction the light travels, world space (local -Z of its node).
-    pub direction: Vec3,
 }
 
 impl Scene {

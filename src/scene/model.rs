@@ -5,9 +5,10 @@ use super::image_source::ImageSource;
 use super::material::Material;
 use super::options::Format;
 use super::pose::AnimationInfo;
+use super::punctual::Light;
 use super::soup::{Bounds, Instance, TriangleSoup};
 use super::texture::Texture;
-use super::{Camera, Light};
+use super::viewpoint::Camera;
 use std::path::PathBuf;
 
 /// A scene ready to trace: plain data, printable and testable without rendering.
