@@ -38,14 +38,8 @@ pub use soup::{Bounds, Instance, TriangleSoup};
 pub use texture::{Filter, Sampler, Texture, Wrap};
 pub use viewpoint::{Camera, Projection};
 
+use gltf_import::LoadedFile;
 use std::path::Path;
-
-/// The file [`Scene::load_with`] read: its bytes, and the images it left on disk.
-#[derive(Clone, Copy)]
-pub(crate) struct LoadedFile<'a> {
-    pub bytes: &'a std::sync::Arc<Vec<u8>>,
-    pub deferred: Option<&'a gltf_import::DeferredImages>,
-}
 
 impl Scene {
     /// Loads a glTF (.gltf/.glb) or OBJ file with default options.

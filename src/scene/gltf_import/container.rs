@@ -80,6 +80,15 @@ impl DeferredImages {
     }
 }
 
+/// The file [`Scene::load_with`] read: its bytes, and the images it left on disk.
+///
+/// [`Scene::load_with`]: crate::scene::model::Scene::load_with
+#[derive(Clone, Copy)]
+pub(crate) struct LoadedFile<'a> {
+    pub bytes: &'a std::sync::Arc<Vec<u8>>,
+    pub deferred: Option<&'a DeferredImages>,
+}
+
 /// Reads a GLB of `len` bytes from `file` except the buffer views that only images use, when
 /// those are at least [`MIN_DEFERRED_IMAGE_BYTES`]: a textured GLB is mostly its JPEGs and PNGs
 /// (DamagedHelmet's meshopt GLB: 3.1 of 3.35 MB), and the load needs none of their bytes but

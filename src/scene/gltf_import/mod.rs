@@ -27,13 +27,13 @@ mod validate;
 mod vertices;
 mod walk;
 
-pub(crate) use container::{read_glb_deferring_images, DeferredImages};
+pub(crate) use container::{read_glb_deferring_images, LoadedFile};
 
 use super::extensions::{known, ExtensionUse};
 use super::model::Scene;
 use super::options::{Format, LoadOptions};
 use super::soup::Bounds;
-use super::{FileAccess, LoadError, LoadErrorKind, LoadedFile};
+use super::{FileAccess, LoadError, LoadErrorKind};
 use crate::scene::material::draw_without;
 use buffer::Buffer;
 use container::{check_glb_header, load_buffers, parse};
