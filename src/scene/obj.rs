@@ -15,14 +15,15 @@
 //!   specular term off: Blinn-Phong specular 0 and roughness 1.
 //! - `map_Bump`/`bump`/`norm` -> normal map.
 
-use super::builder::{TriangleIn, VerticesIn};
+use super::builder::{SoupBuilder, TriangleIn, VerticesIn};
+use super::error::{LoadError, LoadErrorKind};
 use super::image_source::ImageSource;
 use super::material::{draw_without, AlphaMode, Material, TextureRef, UnusableImage};
 use super::model::Scene;
 use super::options::{Format, LoadOptions};
+use super::paths::FileAccess;
 use super::soup::Instance;
 use super::texture::{Sampler, Texture};
-use super::{FileAccess, LoadError, LoadErrorKind, SoupBuilder};
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::RefCell;
 use std::collections::HashMap;

@@ -4,8 +4,9 @@
 
 use super::buffer::Buffer;
 use super::meshopt;
+use crate::scene::error::{LoadError, LoadErrorKind};
 use crate::scene::options::Format;
-use crate::scene::{FileAccess, LoadError, LoadErrorKind};
+use crate::scene::paths::FileAccess;
 use base64::Engine;
 use std::borrow::Cow;
 

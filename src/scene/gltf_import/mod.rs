@@ -29,11 +29,12 @@ mod walk;
 
 pub(crate) use container::{read_glb_deferring_images, LoadedFile};
 
+use super::error::{LoadError, LoadErrorKind};
 use super::extensions::{known, ExtensionUse};
 use super::model::Scene;
 use super::options::{Format, LoadOptions};
+use super::paths::FileAccess;
 use super::soup::Bounds;
-use super::{FileAccess, LoadError, LoadErrorKind};
 use crate::scene::material::draw_without;
 use buffer::Buffer;
 use container::{check_glb_header, load_buffers, parse};

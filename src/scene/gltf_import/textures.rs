@@ -4,12 +4,13 @@
 
 use super::buffer::Buffer;
 use super::container::{decode_data_uri, LoadedFile};
+use crate::scene::error::{LoadError, LoadErrorKind};
 use crate::scene::image_header::check_image_header;
 use crate::scene::image_source::{FileRange, ImageSource, SharedBytes};
 use crate::scene::material::UnusableImage;
 use crate::scene::options::LoadOptions;
+use crate::scene::paths::FileAccess;
 use crate::scene::texture::{Filter, Sampler, Texture, Wrap};
-use crate::scene::{FileAccess, LoadError, LoadErrorKind};
 
 /// EXT_texture_webp and KHR_texture_basisu: a texture whose extension names a WebP or KTX2
 /// image uses it, and keeps its core `source` (if any) as the fallback for when that image
