@@ -1,7 +1,8 @@
 //! Accumulates world-space triangles from any importer into a [`TriangleSoup`], dropping the
 //! ones a ray tracer must never see.
 
-use super::{Bounds, LoadErrorKind, TriangleSoup};
+use super::error::LoadErrorKind;
+use super::soup::{Bounds, TriangleSoup};
 use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 

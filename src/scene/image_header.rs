@@ -2,7 +2,8 @@
 //! every image source (glTF images, OBJ/MTL texture files), so that a file that is not an
 //! image, or one whose declared size is over the pixel budget, is known at load time.
 
-use super::{ktx2, Encoded, ImageSource};
+use super::image_source::{Encoded, ImageSource};
+use super::ktx2;
 use std::path::Path;
 
 /// Bytes of a JPEG read to learn its size. `image`'s JPEG decoder reads the whole file before

@@ -19,18 +19,18 @@ pub(crate) fn is_ktx2(bytes: &[u8]) -> bool {
 
 /// Whether an image source is KTX2: embedded bytes by their identifier, a file by its MIME
 /// type or its `.ktx2` extension (its bytes are read only when decoded).
-pub(crate) fn is_ktx2_source(source: &super::ImageSource) -> bool {
+pub(crate) fn is_ktx2_source(source: &super::image_source::ImageSource) -> bool {
     let ktx2_mime = source.mime_type.as_deref() == Some("image/ktx2");
     match source.encoded() {
-        super::Encoded::Bytes(bytes) => is_ktx2(bytes),
-        super::Encoded::File(path) => {
+        super::image_source::Encoded::Bytes(bytes) => is_ktx2(bytes),
+        super::image_source::Encoded::File(path) => {
             ktx2_mime
                 || path
                     .extension()
                     .is_some_and(|e| e.eq_ignore_ascii_case("ktx2"))
         }
-        super::Encoded::InFile(_) => ktx2_mime,
-        super::Encoded::Missing => false,
+        super::image_source::Encoded::InFile(_) => ktx2_mime,
+        super::image_source::Encoded::Missing => false,
     }
 }
 

@@ -15,11 +15,15 @@
 //!   specular term off: Blinn-Phong specular 0 and roughness 1.
 //! - `map_Bump`/`bump`/`norm` -> normal map.
 
-use super::builder::{TriangleIn, VerticesIn};
-use super::{
-    AlphaMode, FileAccess, Format, ImageSource, Instance, LoadError, LoadErrorKind, LoadOptions,
-    Material, Sampler, Scene, SoupBuilder, Texture, TextureRef, UnusableImage,
-};
+use super::builder::{SoupBuilder, TriangleIn, VerticesIn};
+use super::error::{LoadError, LoadErrorKind};
+use super::image_source::ImageSource;
+use super::material::{draw_without, AlphaMode, Material, TextureRef, UnusableImage};
+use super::model::Scene;
+use super::options::{Format, LoadOptions};
+use super::paths::FileAccess;
+use super::soup::Instance;
+use super::texture::{Sampler, Texture};
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -46,7 +50,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         unusable,
     } = map_materials(&mtl_materials, &access, options)?;
     let image_warnings =
-        super::draw_without(&mut materials, &textures, &unusable, options.strict).map_err(err)?;
+        draw_without(&mut materials, &textures, &unusable, options.strict).map_err(err)?;
     let default_material = materials.len() as u32;
     let mut uses_default = false;
     let mut lone_material_fallback = false;

@@ -4,7 +4,7 @@
 //! read unless the user allows it. Symlinks are resolved before the check, so a link inside the
 //! folder that points outside is refused too.
 
-use super::{LoadError, LoadErrorKind};
+use super::error::{LoadError, LoadErrorKind};
 use std::path::{Path, PathBuf};
 
 /// Reads files referenced by a model, confined to the model's folder unless allowed otherwise.

@@ -4,7 +4,9 @@
 
 use super::buffer::Buffer;
 use super::meshopt;
-use crate::scene::{FileAccess, Format, LoadError, LoadErrorKind};
+use crate::scene::error::{LoadError, LoadErrorKind};
+use crate::scene::options::Format;
+use crate::scene::paths::FileAccess;
 use base64::Engine;
 use std::borrow::Cow;
 
@@ -77,6 +79,15 @@ impl DeferredImages {
             .binary_search_by_key(&start, |r| r.start)
             .is_ok_and(|i| self.ranges[i].end - start == length as u64)
     }
+}
+
+/// The file [`Scene::load_with`] read: its bytes, and the images it left on disk.
+///
+/// [`Scene::load_with`]: crate::scene::model::Scene::load_with
+#[derive(Clone, Copy)]
+pub(crate) struct LoadedFile<'a> {
+    pub bytes: &'a std::sync::Arc<Vec<u8>>,
+    pub deferred: Option<&'a DeferredImages>,
 }
 
 /// Reads a GLB of `len` bytes from `file` except the buffer views that only images use, when

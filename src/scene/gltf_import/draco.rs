@@ -17,7 +17,7 @@
 
 use super::attributes;
 use super::buffer::Buffer;
-use crate::scene::LoadLimits;
+use crate::scene::options::LoadLimits;
 use draco_core::{DataType as DracoType, DecodeLimits, DecoderBuffer, Mesh, MeshDecoder};
 use gltf::accessor::{DataType, Dimensions};
 use serde_json::Value;

@@ -1,7 +1,7 @@
 //! glTF materials (§3.9, metallic-roughness) and their extensions -> [`Material`], with the
 //! texture references they hold (`KHR_texture_transform` included).
 
-use crate::scene::{
+use crate::scene::material::{
     AlphaMode, ClearcoatLayer, IridescenceLayer, Material, SheenLayer, SpecularLayer, TextureRef,
     TextureTransform,
 };

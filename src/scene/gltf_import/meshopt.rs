@@ -17,7 +17,7 @@
 //! that says it is version 1 is decoded under either name (the decoder checks the stream).
 
 use super::buffer::Buffer;
-use crate::scene::LoadErrorKind;
+use crate::scene::error::LoadErrorKind;
 use meshoptimizer_rs::codec::{self, Mode};
 use meshoptimizer_rs::{Limits, Workspace};
 use serde_json::Value;

@@ -27,10 +27,15 @@ mod validate;
 mod vertices;
 mod walk;
 
-pub(crate) use container::{read_glb_deferring_images, DeferredImages};
+pub(crate) use container::{read_glb_deferring_images, LoadedFile};
 
+use super::error::{LoadError, LoadErrorKind};
 use super::extensions::{known, ExtensionUse};
-use super::{Bounds, FileAccess, Format, LoadError, LoadErrorKind, LoadOptions, LoadedFile, Scene};
+use super::model::Scene;
+use super::options::{Format, LoadOptions};
+use super::paths::FileAccess;
+use super::soup::Bounds;
+use crate::scene::material::draw_without;
 use buffer::Buffer;
 use container::{check_glb_header, load_buffers, parse};
 use std::path::Path;
@@ -99,9 +104,8 @@ pub(crate) fn load(
         &mut textures,
         &mut image_warnings,
     )?;
-    image_warnings.extend(
-        super::draw_without(&mut materials, &textures, &unusable, options.strict).map_err(err)?,
-    );
+    image_warnings
+        .extend(draw_without(&mut materials, &textures, &unusable, options.strict).map_err(err)?);
     let Importer {
         builder,
         mut warnings,

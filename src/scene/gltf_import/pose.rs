@@ -21,7 +21,7 @@
 
 use super::attributes;
 use super::buffer::Buffer;
-use crate::scene::{AnimationInfo, PoseOptions};
+use crate::scene::pose::{AnimationInfo, PoseOptions};
 use glam::{Mat3, Mat4, Quat, Vec3, Vec4};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::animation::{Interpolation, Property};

@@ -3,12 +3,14 @@
 //! checked.
 
 use super::buffer::Buffer;
-use super::container::decode_data_uri;
+use super::container::{decode_data_uri, LoadedFile};
+use crate::scene::error::{LoadError, LoadErrorKind};
 use crate::scene::image_header::check_image_header;
-use crate::scene::{
-    FileAccess, FileRange, Filter, ImageSource, LoadError, LoadErrorKind, LoadOptions, LoadedFile,
-    Sampler, SharedBytes, Texture, UnusableImage, Wrap,
-};
+use crate::scene::image_source::{FileRange, ImageSource, SharedBytes};
+use crate::scene::material::UnusableImage;
+use crate::scene::options::LoadOptions;
+use crate::scene::paths::FileAccess;
+use crate::scene::texture::{Filter, Sampler, Texture, Wrap};
 
 /// EXT_texture_webp and KHR_texture_basisu: a texture whose extension names a WebP or KTX2
 /// image uses it, and keeps its core `source` (if any) as the fallback for when that image
@@ -79,8 +81,8 @@ pub(super) fn textures(
 /// Every image's source, its header checked. An image that fails the check (absent, not an
 /// image, too large) switches the textures that have a fallback image (EXT_texture_webp) to it,
 /// with a warning; any other texture using it is reported in the returned list, for
-/// [`draw_without`](crate::scene::draw_without). A malformed `data:` URI or a URI leaving the
-/// folder stays an error.
+/// [`draw_without`](crate::scene::material::draw_without). A malformed `data:` URI or a URI
+/// leaving the folder stays an error.
 pub(super) fn images(
     document: &gltf::Document,
     buffers: &[Buffer],

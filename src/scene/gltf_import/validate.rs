@@ -5,8 +5,7 @@
 
 use super::buffer::Buffer;
 use super::draco;
-use crate::scene::error::PrimitiveAt;
-use crate::scene::LoadErrorKind;
+use crate::scene::error::{LoadErrorKind, PrimitiveAt};
 use gltf::accessor::{DataType, Dimensions};
 
 /// What the `gltf` crate assumes but does not validate (both found by fuzzing): gltf-json 1.4's

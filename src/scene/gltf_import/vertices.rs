@@ -10,8 +10,7 @@ use super::validate::{
     accessor_error, check_accessor, check_accessor_type, Expect, COLOR, JOINTS, MORPH_NORMAL,
     MORPH_POSITION, MORPH_TANGENT, NORMAL, POSITION, TANGENT, TEXCOORD, WEIGHTS,
 };
-use crate::scene::error::PrimitiveAt;
-use crate::scene::LoadErrorKind;
+use crate::scene::error::{LoadErrorKind, PrimitiveAt};
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use gltf::accessor::Dimensions;
 

@@ -9,12 +9,13 @@ use super::material::material;
 use super::pose::{self, Pose, Skinning};
 use super::validate::{check_accessor, check_accessor_type, INDICES};
 use super::vertices::{Deform, VertexReader};
-use crate::scene::builder::VerticesIn;
-use crate::scene::error::PrimitiveAt;
-use crate::scene::{
-    Camera, Instance, Light, LightKind, LoadErrorKind, LoadLimits, Material, Projection,
-    SoupBuilder,
-};
+use crate::scene::builder::{SoupBuilder, VerticesIn};
+use crate::scene::error::{LoadErrorKind, PrimitiveAt};
+use crate::scene::material::Material;
+use crate::scene::options::LoadLimits;
+use crate::scene::punctual::{Light, LightKind};
+use crate::scene::soup::Instance;
+use crate::scene::viewpoint::{Camera, Projection};
 use glam::{Mat4, Vec3};
 use gltf::mesh::Mode;
 use std::collections::HashMap;

@@ -6,7 +6,8 @@
 
 mod mikktspace;
 
-use super::{Scene, TriangleSoup};
+use super::model::Scene;
+use super::soup::TriangleSoup;
 use glam::Vec4;
 use mikktspace::Corners;
 use std::borrow::Cow;
