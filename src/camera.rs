@@ -165,6 +165,20 @@ pub fn framing_distance(radius: f32, yfov: f32, aspect: f32) -> f32 {
     radius / half_fov.sin() * 1.05
 }
 
+/// The near clip distance for an eye at `eye` and a scene inside the sphere of `radius` about
+/// `centre`: half the way to the sphere (never below 1e-4 of the distance to its centre, which
+/// keeps depth precision), or, for an eye inside the sphere, a hundred-thousandth of its
+/// radius. It follows the scene, not the point looked at: a camera close to a model and
+/// looking at a point far beyond it still sees the model.
+pub fn near_plane(eye: Vec3, centre: Vec3, radius: f32) -> f32 {
+    let to_centre = (centre - eye).length();
+    if to_centre <= radius {
+        radius * 1e-5
+    } else {
+        ((to_centre - radius) * 0.5).max(to_centre * 1e-4)
+    }
+}
+
 /// A perspective camera at `from` looking at `at` with `up`; near and far planes bracket a
 /// sphere of `radius` at `distance`.
 pub fn look_at(from: Vec3, at: Vec3, up: Vec3, yfov: f32, distance: f32, radius: f32) -> Camera {

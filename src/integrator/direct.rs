@@ -96,7 +96,7 @@ impl Direct {
             else {
                 continue;
             };
-            let Some(shadow) = s.shadow_ray(incoming.to_light, incoming.distance) else {
+            let Some(shadow) = s.shadow_ray_for(&incoming) else {
                 continue;
             };
             *shadow_rays += 1;

@@ -338,7 +338,7 @@ impl PathTracer {
         radiance: &mut Vec3,
         counts: &mut RayCounts,
     ) {
-        let Some(shadow) = vertex.surface.shadow_ray(sample.to_light, sample.distance) else {
+        let Some(shadow) = vertex.surface.shadow_ray_for(sample) else {
             return;
         };
         counts.shadow += 1;

@@ -13,7 +13,7 @@
 //! Generated cameras look at the target with +Y up and stand at one distance from it (by
 //! default the automatic camera's, which frames the model).
 
-use crate::camera::look_at;
+use crate::camera::{look_at, near_plane};
 use crate::defaults::MAX_VIEWS;
 use crate::output::view_file::ViewCamera;
 use crate::sampling::Rng;
@@ -263,12 +263,10 @@ impl ExplicitView {
                     scene_radius,
                 );
                 camera.name = None;
-                // As `--look-from` does: an eye inside the model clips only very close to it.
+                // As `--look-from` does: the near plane follows the scene, not the look-at point.
                 if let crate::scene::Projection::Perspective { znear, .. } = &mut camera.projection
                 {
-                    if (scene_centre - *from).length() <= scene_radius {
-                        *znear = scene_radius * 1e-5;
-                    }
+                    *znear = near_plane(*from, scene_centre, scene_radius);
                 }
                 camera
             }

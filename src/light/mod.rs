@@ -76,6 +76,11 @@ impl PunctualLight {
         }
     }
 
+    /// Where the light is: `None` for a directional light (at infinity).
+    pub fn position(&self) -> Option<Vec3> {
+        (!self.directional).then_some(self.position)
+    }
+
     /// The irradiance this light delivers at `point` (see [`incident`]).
     #[inline]
     pub fn incident(&self, point: Vec3) -> Option<Incident> {

@@ -8,6 +8,7 @@
 //! Units (glTF 2.0 `KHR_lights_punctual`): a punctual light delivers irradiance (candela / d²
 //! for point and spot, lux for directional); emissive triangles and the environment radiance.
 
+use crate::geometry::SpawnPoint;
 use crate::light::environment::Environment;
 use crate::light::PunctualLight;
 use crate::prepare::Prepared;
@@ -33,6 +34,10 @@ pub struct LightSample {
     pub to_light: Vec3,
     /// Distance to the sampled point; infinite for the environment and directional lights.
     pub distance: f32,
+    /// The sampled point itself, where there is one (a point or spot light's position; a
+    /// point of an emissive triangle, moved off it toward the shading point by its error
+    /// bound): shadow rays are aimed at it.
+    pub target: Option<Vec3>,
     /// Density per solid angle with which the direction was drawn; `None` for a delta light
     /// (a punctual one), which no BSDF sample can find.
     pub pdf: Option<f32>,
@@ -95,6 +100,7 @@ impl SceneLight<'_> {
                 Some(LightSample {
                     to_light: incident.to_light,
                     distance: incident.distance,
+                    target: light.position(),
                     pdf: None,
                     emitter: Emitter::Known(incident.irradiance),
                 })
@@ -106,6 +112,12 @@ impl SceneLight<'_> {
                 let barycentric = sample.barycentric;
                 let on_light = a * barycentric.x + b * barycentric.y + c * barycentric.z;
                 let offset = on_light - point;
+                // Off the light by its error bound, toward the shading point (pbrt-v4's
+                // SpawnRayTo between two surfaces): the shadow ray then stops before the light.
+                let target = match SpawnPoint::on_triangle([a, b, c], barycentric) {
+                    Some(spawn) => spawn.origin(-offset),
+                    None => on_light,
+                };
                 let distance = offset.length();
                 let to_light = offset / distance.max(f32::MIN_POSITIVE);
                 // The triangle emits from both faces.
@@ -116,6 +128,7 @@ impl SceneLight<'_> {
                 Some(LightSample {
                     to_light,
                     distance,
+                    target: Some(target),
                     // Area density to solid angle: p_ω = p_A · d² / |cos θ_light|.
                     pdf: Some(sample.pdf_area * distance * distance / cos_light),
                     emitter: Emitter::Triangle {
@@ -129,6 +142,7 @@ impl SceneLight<'_> {
                 Some(LightSample {
                     to_light,
                     distance: f32::INFINITY,
+                    target: None,
                     pdf: Some(pdf),
                     emitter: Emitter::Known(radiance),
                 })

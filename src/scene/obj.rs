@@ -8,9 +8,13 @@
 //! MTL mapping onto the glTF metallic-roughness [`Material`]:
 //! - `Kd` -> base colour, `map_Kd` -> base colour texture, `d` (or `1 - Tr`) -> alpha
 //!   (BLEND when below 1), `Ke` -> emissive.
-//! - `Ks` is kept as the Blinn-Phong specular colour; `Ns` (a Phong exponent) becomes roughness
-//!   through the usual exponent <-> GGX match `alpha² = 2 / (Ns + 2)`, roughness = sqrt(alpha).
+//! - `Ks` is kept as the Blinn-Phong specular colour; `Ns` (a Phong exponent, 0 to 1000)
+//!   becomes roughness as Blender's MTL importer maps it, `1 - sqrt(Ns / 1000)` (Ns clamped to
+//!   0..1000), so an OBJ looks here as it does in Blender (the exponent <-> GGX match
+//!   `alpha² = 2 / (Ns + 2)` made most exporters' Ns 250 a roughness of 0.3 instead of 0.5).
 //! - metallic is 0: MTL has no metalness (mirrors, `illum 5`, are left to the specular term).
+//! - `illum` 4, 6, 7 and 9 are glass: transmission 1, `Ni` the index of refraction, `Tf` (not
+//!   `Kd`) the tint of what passes.
 //! - `illum 0` and `illum 1` (colour, or colour and ambient, without highlights) turn the
 //!   specular term off: Blinn-Phong specular 0 and roughness 1.
 //! - `map_Bump`/`bump`/`norm` -> normal map.
@@ -613,9 +617,11 @@ fn mtl_material(m: &tobj::Material) -> Material {
     let roughness = m
         .shininess
         .filter(|ns| ns.is_finite() && *ns >= 0.0)
-        .map_or(1.0, |ns| (2.0 / (ns + 2.0)).sqrt().sqrt());
+        .map_or(1.0, |ns| 1.0 - (ns.min(1000.0) / 1000.0).sqrt());
     let no_highlights = matches!(m.illumination_model, Some(0 | 1));
-    let glass = matches!(m.illumination_model, Some(4 | 6 | 7));
+    // illum 4 and 9 are glass, 6 and 7 refraction (Blender's MTL importer reads all four as
+    // transparent).
+    let glass = matches!(m.illumination_model, Some(4 | 6 | 7 | 9));
     // Glass passes light through its transmission filter Tf (white when absent), not Kd: that is
     // what tints the transmission lobe, as base colour does in glTF.
     let tint = if glass {
@@ -654,7 +660,7 @@ fn mtl_material(m: &tobj::Material) -> Material {
         } else {
             AlphaMode::Opaque
         },
-        // illum 4, 6 and 7 are glass (refraction, with Ni as the index); Tf tints what passes.
+        // illum 4, 6, 7 and 9 are glass (refraction, with Ni as the index); Tf tints what passes.
         // Other illumination models do not use Ni (exporters write Ni 1.0 for plain diffuse
         // materials), so their reflectance stays the core material's (F0 4%, ior 1.5).
         transmission: if glass { 1.0 } else { 0.0 },
@@ -709,6 +715,36 @@ mod tests {
         }
     }
 
+    /// Every glass `illum` refracts with `Ni` (water: 1.33) and is tinted by `Tf`, not `Kd`;
+    /// other models keep the core material's index.
+    #[test]
+    fn glass_illumination_models_refract_with_ni() {
+        for illum in [4, 6, 7, 9] {
+            let m = tobj::Material {
+                illumination_model: Some(illum),
+                optical_density: Some(1.33),
+                diffuse: Some([0.2, 0.3, 0.4]),
+                ..Default::default()
+            };
+            let mat = mtl_material(&m);
+            assert_eq!((mat.transmission, mat.ior), (1.0, 1.33), "illum {illum}");
+            assert_eq!(
+                mat.base_color,
+                Vec4::ONE,
+                "illum {illum}: Tf (absent) tints, not Kd"
+            );
+        }
+        let plain = tobj::Material {
+            illumination_model: Some(2),
+            optical_density: Some(1.0),
+            ..Default::default()
+        };
+        assert_eq!(
+            (mtl_material(&plain).transmission, mtl_material(&plain).ior),
+            (0.0, 1.5)
+        );
+    }
+
     #[test]
     fn phong_exponent_maps_to_roughness() {
         let mut m = tobj::Material {
@@ -716,12 +752,15 @@ mod tests {
             ..Default::default()
         };
         assert!((mtl_material(&m).roughness - 1.0).abs() < 1e-6);
-        m.shininess = Some(1000.0);
-        let r = mtl_material(&m).roughness;
-        assert!(
-            r > 0.2 && r < 0.25,
-            "Ns 1000 is a mirror-like lobe, got {r}"
-        );
+        // Blender's importer: 1 - sqrt(Ns / 1000).
+        for (ns, roughness) in [(1000.0, 0.0), (250.0, 0.5), (90.0, 0.7), (5000.0, 0.0)] {
+            m.shininess = Some(ns);
+            let r = mtl_material(&m).roughness;
+            assert!(
+                (r - roughness).abs() < 1e-6,
+                "Ns {ns}: {r}, not {roughness}"
+            );
+        }
     }
 
     #[test]

@@ -1146,3 +1146,56 @@ fn metal_rough_spheres_have_no_shadow_acne_at_any_scale() {
         }
     }
 }
+
+/// The near clip plane follows the scene, not the point looked at: a camera 1.0 in front of a
+/// unit quad looking through it at a point 100 away covers exactly the pixels it covers
+/// looking at a point just behind the quad (the same direction). It once covered none: the
+/// near plane was put half way to the look-at point.
+#[test]
+fn a_far_look_at_point_does_not_clip_a_near_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let quad = crate::common::square(0.5, 0.0);
+    let (json, bin) = quads_gltf(&[(quad, 0)], json!({"materials": [{}]}));
+    let model = write_gltf(dir.path(), "quad.gltf", json, &bin);
+    let mask = |at: &str| {
+        let image = dir.path().join("image.png");
+        let mask = dir.path().join(format!("mask-{at}.png"));
+        run(
+            &[
+                "render",
+                s(&model),
+                "-o",
+                s(&image),
+                "--width",
+                "64",
+                "--height",
+                "48",
+                "--spp",
+                "1",
+                "-q",
+                "--look-from",
+                "0.1,0.05,1.0",
+                "--look-at",
+                at,
+                "--mask-out",
+                s(&mask),
+            ],
+            true,
+        );
+        let (_, _, pixels) = read_rgba(&mask);
+        pixels.iter().map(|p| p[0] > 0.5).collect::<Vec<bool>>()
+    };
+    let near = mask("0.1,0.05,-0.1");
+    let far = mask("0.1,0.05,-100");
+    let covered = near.iter().filter(|&&c| c).count();
+    assert!(
+        covered > 64 * 48 / 2,
+        "the quad fills most of the frame: {covered}"
+    );
+    let differing = near.iter().zip(&far).filter(|(a, b)| a != b).count();
+    let far_covered = far.iter().filter(|&&c| c).count();
+    assert_eq!(
+        differing, 0,
+        "the same pixels are covered: {covered} looking near, {far_covered} looking far"
+    );
+}

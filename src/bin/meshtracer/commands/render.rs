@@ -286,12 +286,10 @@ fn choose_camera(
             distance,
             bounds.radius(),
         );
-        // The scene may surround the eye: clip only very close to it.
+        // The near plane follows the scene, not the look-at point (which may lie far beyond
+        // the model, or the scene may surround the eye).
         if let Projection::Perspective { znear, .. } = &mut camera.projection {
-            let to_centre = (bounds.center() - from).length();
-            if to_centre <= bounds.radius() {
-                *znear = bounds.radius() * 1e-5;
-            }
+            *znear = meshtracer::camera::near_plane(from, bounds.center(), bounds.radius());
         }
         return camera;
     }
