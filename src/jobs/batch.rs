@@ -328,6 +328,13 @@ pub fn read_manifest(path: &Path) -> Result<Vec<Entry>, ManifestError> {
                 "is a model: a batch takes a folder of models or a JSONL file of jobs (render one model with `meshtracer render`)",
             ));
         }
+        let meta = std::fs::metadata(path).map_err(|e| manifest_error(path, e.to_string()))?;
+        if let Some(kind) = crate::scene::irregular_kind(&meta) {
+            return Err(manifest_error(
+                path,
+                format!("is {kind}, not a regular file"),
+            ));
+        }
         let bytes = std::fs::read(path).map_err(|e| manifest_error(path, e.to_string()))?;
         let folder = match path.parent() {
             Some(p) if !p.as_os_str().is_empty() => p,
@@ -750,6 +757,12 @@ pub fn read_results(path: &Path) -> Result<Vec<JobRecord>, ManifestError> {
 /// SHA-256 of a file, lower-case hex.
 pub fn sha256_file(path: &Path) -> std::io::Result<String> {
     use sha2::Digest;
+    // A FIFO or a device would block or never end: refused before it is opened.
+    if let Some(kind) = crate::scene::irregular_kind(&std::fs::metadata(path)?) {
+        return Err(std::io::Error::other(format!(
+            "is {kind}, not a regular file"
+        )));
+    }
     let mut file = std::fs::File::open(path)?;
     let mut hasher = sha2::Sha256::new();
     let mut buffer = vec![0u8; 1 << 16];

@@ -47,6 +47,14 @@ pub enum LoadErrorKind {
     /// A directory was given where a file was expected.
     #[error("is a directory, not a model file")]
     IsDirectory,
+    /// Something other than a regular file (a FIFO, a device, a socket) where a file was
+    /// expected: refused before it is opened, since reading one may never end (a FIFO) or
+    /// never stop (`/dev/zero`).
+    #[error("is {kind}, not a regular file")]
+    NotARegularFile {
+        /// What it is: "a FIFO", "a character device"...
+        kind: &'static str,
+    },
     /// The file is empty.
     #[error("file is empty (0 bytes)")]
     EmptyFile,

@@ -31,7 +31,7 @@ pub use material::{
 };
 pub use model::Scene;
 pub use options::{Format, LoadLimits, LoadOptions};
-pub use paths::{resolve_relative, FileAccess};
+pub use paths::{irregular_kind, resolve_relative, FileAccess};
 pub use pose::{AnimationInfo, PoseOptions};
 pub use punctual::{Light, LightKind};
 pub use soup::{Bounds, Instance, TriangleSoup};
@@ -52,10 +52,7 @@ impl Scene {
     pub fn load_with(path: impl AsRef<Path>, options: &LoadOptions) -> Result<Scene, LoadError> {
         let path = path.as_ref();
         let err = |kind| LoadError::new(path, kind);
-        let meta = std::fs::metadata(path).map_err(|e| err(LoadErrorKind::Io(e)))?;
-        if meta.is_dir() {
-            return Err(err(LoadErrorKind::IsDirectory));
-        }
+        let meta = paths::regular_file(path).map_err(err)?;
         if meta.len() > options.limits.max_file_bytes {
             return Err(err(LoadErrorKind::FileTooLarge {
                 bytes: meta.len(),

@@ -72,16 +72,23 @@ impl FileAccess {
                 }
             }
         }
+        // A FIFO or a device is refused here, before anything opens it (the image header check
+        // and the decoders open image files by path). A missing file is reported by the read.
+        if let Ok(meta) = std::fs::metadata(&path) {
+            if let Some(kind) = irregular_kind(&meta) {
+                return Err(LoadError::new(
+                    &path,
+                    LoadErrorKind::NotARegularFile { kind },
+                ));
+            }
+        }
         Ok(path)
     }
 
     /// Reads a resolved file, with the size limit applied before reading.
     pub fn read(&self, path: &Path) -> Result<Vec<u8>, LoadError> {
         let err = |kind| LoadError::new(path, kind);
-        let meta = std::fs::metadata(path).map_err(|e| err(LoadErrorKind::Io(e)))?;
-        if meta.is_dir() {
-            return Err(err(LoadErrorKind::IsDirectory));
-        }
+        let meta = regular_file(path).map_err(err)?;
         if meta.len() > self.max_bytes {
             return Err(err(LoadErrorKind::FileTooLarge {
                 bytes: meta.len(),
@@ -89,6 +96,47 @@ impl FileAccess {
             }));
         }
         std::fs::read(path).map_err(|e| err(LoadErrorKind::Io(e)))
+    }
+}
+
+/// What kind of file `meta` describes, when it is not a regular file or a directory: "a FIFO",
+/// "a character device", "a block device", "a socket". `None` for regular files and
+/// directories.
+pub fn irregular_kind(meta: &std::fs::Metadata) -> Option<&'static str> {
+    let file_type = meta.file_type();
+    if file_type.is_file() || file_type.is_dir() {
+        return None;
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if file_type.is_fifo() {
+            return Some("a FIFO");
+        }
+        if file_type.is_char_device() {
+            return Some("a character device");
+        }
+        if file_type.is_block_device() {
+            return Some("a block device");
+        }
+        if file_type.is_socket() {
+            return Some("a socket");
+        }
+    }
+    Some("not a file")
+}
+
+/// The metadata of `path` if it is a regular file (following symbolic links): a directory or
+/// anything that is not a file (a FIFO would block the read forever, `/dev/zero` never ends)
+/// is refused before it is opened.
+pub fn regular_file(path: &Path) -> Result<std::fs::Metadata, LoadErrorKind> {
+    let meta = std::fs::metadata(path).map_err(LoadErrorKind::Io)?;
+    if meta.is_dir() {
+        return Err(LoadErrorKind::IsDirectory);
+    }
+    match irregular_kind(&meta) {
+        Some(kind) => Err(LoadErrorKind::NotARegularFile { kind }),
+        None => Ok(meta),
     }
 }
 

@@ -215,3 +215,141 @@ fn interrupt(child: &std::process::Child) {
         .unwrap();
     assert!(kill.success());
 }
+
+/// Runs the binary with `args`, and fails the test if it is still running after 20 s (what a
+/// FIFO read used to do forever): returns its exit code and standard error.
+fn run_bounded(args: &[&str]) -> (Option<i32>, String) {
+    use std::io::Read;
+    let mut child = crate::common::bin()
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("the binary starts");
+    let start = std::time::Instant::now();
+    loop {
+        if let Some(status) = child.try_wait().expect("wait") {
+            let mut err = String::new();
+            let _ = child.stderr.take().map(|mut e| e.read_to_string(&mut err));
+            return (status.code(), err);
+        }
+        if start.elapsed() > std::time::Duration::from_secs(20) {
+            let _ = child.kill();
+            panic!("meshtracer {} did not finish in 20 s", args.join(" "));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
+
+/// A named pipe at `path` (nothing ever writes to it: opening it for reading blocks).
+fn fifo(path: &std::path::Path) {
+    let name = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
+    // SAFETY: a valid NUL-terminated path; mkfifo only creates a file system entry.
+    assert_eq!(unsafe { libc::mkfifo(name.as_ptr(), 0o600) }, 0, "mkfifo");
+}
+
+/// A FIFO or a character device as the model, as a buffer or as an image is refused at once
+/// with one message that names it and what it is (a FIFO once hung forever, `/dev/zero` took
+/// 2 GiB to say "out of memory"); `info` and `render` alike, and a batch fails that job only.
+#[test]
+fn fifos_and_devices_are_refused_before_they_are_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.png");
+    let pipe = dir.path().join("pipe.glb");
+    fifo(&pipe);
+    for (model, kind) in [
+        (pipe.as_path(), "a FIFO"),
+        (std::path::Path::new("/dev/zero"), "a character device"),
+    ] {
+        for command in ["info", "render"] {
+            let mut args = vec![command, s(model)];
+            if command == "render" {
+                args.extend(["-o", s(&out), "-q"]);
+            }
+            let (code, err) = run_bounded(&args);
+            assert_eq!(code, Some(1), "{args:?}: {err}");
+            assert!(
+                err.contains(s(model)) && err.contains(kind),
+                "{args:?}: {err}"
+            );
+            assert_eq!(err.lines().count(), 1, "one message: {err}");
+        }
+    }
+    assert!(!out.exists(), "nothing written");
+
+    // A buffer and an image that are FIFOs, in the model's own folder.
+    let buffer = dir.path().join("tri.bin");
+    fifo(&buffer);
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "buffers": [{"byteLength": 36, "uri": "tri.bin"}]
+    });
+    let model = dir.path().join("buffer-fifo.gltf");
+    std::fs::write(&model, serde_json::to_vec(&json).unwrap()).unwrap();
+    let (code, err) = run_bounded(&["render", s(&model), "-o", s(&out), "-q"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(err.contains("tri.bin") && err.contains("a FIFO"), "{err}");
+
+    let image = dir.path().join("texture.png");
+    fifo(&image);
+    let (json, bin) = crate::common::quads_gltf(
+        &[(crate::common::square(0.5, 0.0), 0)],
+        serde_json::json!({
+            "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+            "textures": [{"source": 0}],
+            "images": [{"uri": "texture.png"}]
+        }),
+    );
+    let model = crate::common::write_gltf(dir.path(), "image-fifo.gltf", json, &bin);
+    let (code, err) = run_bounded(&["render", s(&model), "-o", s(&out), "-q", "--strict"]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains("texture.png") && err.contains("a FIFO"),
+        "{err}"
+    );
+
+    // A batch naming the FIFO as a job's model: that job fails, the other is rendered.
+    let (json, bin) = crate::common::quads_gltf(
+        &[(crate::common::square(0.5, 0.0), 0)],
+        serde_json::json!({"materials": [{}]}),
+    );
+    crate::common::write_gltf(dir.path(), "ok.gltf", json, &bin);
+    let manifest = dir.path().join("jobs.jsonl");
+    std::fs::write(
+        &manifest,
+        "{\"id\": \"pipe\", \"model\": \"pipe.glb\"}\n{\"id\": \"ok\", \"model\": \"ok.gltf\"}\n",
+    )
+    .unwrap();
+    let batch_out = dir.path().join("batch");
+    let (code, err) = run_bounded(&[
+        "batch",
+        s(&manifest),
+        "-o",
+        s(&batch_out),
+        "-q",
+        "--width",
+        "16",
+        "--height",
+        "12",
+    ]);
+    assert_eq!(code, Some(1), "{err}");
+    let results = std::fs::read_to_string(batch_out.join("results.jsonl")).unwrap();
+    let job = |id: &str| {
+        results
+            .lines()
+            .find(|l| l.contains(&format!("\"id\":\"{id}\"")))
+            .unwrap_or_else(|| panic!("job {id} in {results}"))
+            .to_string()
+    };
+    let pipe_job = job("pipe");
+    assert!(
+        pipe_job.contains("\"failed\"") && pipe_job.contains("a FIFO"),
+        "{pipe_job}"
+    );
+    assert!(job("ok").contains("\"ok\""), "{results}");
+}
