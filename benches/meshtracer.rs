@@ -471,7 +471,7 @@ fn path_tracer(c: &mut Criterion) {
 }
 
 /// Loading (parse, decode, flatten, tangents; textures are decoded later) of each encoded sample
-/// beside its plain sibling: Draco and meshopt should stay within 1.5x of plain (issue 14).
+/// beside its plain sibling: Draco and meshopt should stay within 1.5x of plain.
 /// Needs `MESHTRACER_SAMPLES`; skipped without it.
 fn load(c: &mut Criterion) {
     let Some(dir) = std::env::var_os("MESHTRACER_SAMPLES") else {

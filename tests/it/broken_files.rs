@@ -732,7 +732,7 @@ fn cases() -> Vec<Case> {
             |k| matches!(k, K::NoTriangles(d) if d.contains("NaN")),
         ),
     ];
-    // Draco-compressed primitives (issue 14): a truncated or corrupt stream, an attribute id the
+    // Draco-compressed primitives: a truncated or corrupt stream, an attribute id the
     // stream does not have, accessors that disagree with the decoded data.
     let draco_primitive_0 =
         |k: &K| matches!(k, K::Draco { at, .. } if at.mesh == 0 && at.primitive == 0);
@@ -796,7 +796,7 @@ fn cases() -> Vec<Case> {
             draco_primitive_0,
         ),
     ]);
-    // Meshopt-compressed views (issue 14): a wrong count, a truncated or lying stream, a
+    // Meshopt-compressed views: a wrong count, a truncated or lying stream, a
     // stream outside its buffer, a fallback buffer too large to allocate.
     let meshopt_view_0 = |k: &K| matches!(k, K::Meshopt { view: 0, .. });
     cases.extend([
@@ -1148,7 +1148,7 @@ fn an_unusable_image_is_a_warning_without_strict() {
     }
 }
 
-/// The end-to-end promise of issue 14: a glTF whose PNG is absent renders, warning once with the
+/// The end-to-end promise: a glTF whose PNG is absent renders, warning once with the
 /// image, the file and the material; `--strict` refuses it and writes nothing.
 #[test]
 fn a_missing_png_renders_with_a_warning_and_strict_refuses_it() {

@@ -1,4 +1,4 @@
-//! Encoded sample variants (issue 14) render like their plain sibling from the same view: the
+//! Encoded sample variants render like their plain sibling from the same view: the
 //! plain file is rendered with `--view-out`, the encoded one with `--view`, and `meshtracer
 //! compare` measures coverage IoU and mean FLIP. Needs `MESHTRACER_SAMPLES`.
 

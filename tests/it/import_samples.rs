@@ -94,7 +94,7 @@ pub const MODELS: &[(&str, usize)] = &[
 ];
 
 /// Encoded variants the importer does not decode yet, with the extension its refusal must name.
-/// A file moves to [`MODELS`] when its decoder lands (issue 14); until then the refusal itself is
+/// A file moves to [`MODELS`] when its decoder lands; until then the refusal itself is
 /// the tested behaviour: one clear error naming the file and the extension, never a panic.
 /// Empty since the Draco files moved to [`MODELS`]; kept for the next encoding to arrive.
 pub const REFUSED: &[(&str, &str)] = &[];
@@ -252,7 +252,7 @@ fn primitive_modes_skip_points_and_lines_with_a_warning() {
     );
 }
 
-/// The skinned and morphed samples are drawn posed (issue 14): they load without the old
+/// The skinned and morphed samples are drawn posed: they load without the old
 /// "drawn in their bind pose" / "morph targets are ignored" warnings, or any other, and list
 /// their animations.
 #[test]

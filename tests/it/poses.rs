@@ -1,4 +1,4 @@
-//! Poses (issue 14): `--animation` / `--time` and the static pose, on small glTF files written
+//! Poses: `--animation` / `--time` and the static pose, on small glTF files written
 //! here whose posed geometry is known in closed form (checked through `info --json` bounds,
 //! camera and light placement, and a rendered mask), and on the sample models (skipped when
 //! `MESHTRACER_SAMPLES` is unset).
