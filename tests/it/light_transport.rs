@@ -269,7 +269,7 @@ fn a_square_area_light_gives_the_closed_form_irradiance() {
 #[test]
 fn mis_light_only_and_bsdf_only_estimators_agree() {
     use glam::Vec3;
-    use meshtracer::integrator::{CameraRay, Estimator, Integrator, PathTracer, RayCounts};
+    use meshtracer::integrator::{CameraRay, Estimator, PathTracer};
     use meshtracer::prepare::{PrepareOptions, Prepared};
     let dir = tempfile::tempdir().unwrap();
     let glossy = json!({
@@ -293,25 +293,7 @@ fn mis_light_only_and_bsdf_only_estimators_agree() {
             max_bounces: 8,
             estimator,
         };
-        let (mut sum, mut squares) = (0.0f64, 0.0f64);
-        for i in 0..PATHS {
-            let mut rng = meshtracer::sampling::Rng::for_pixel(11, i, 0);
-            let (radiance, coverage) = tracer.radiance(
-                &prepared,
-                &camera,
-                &mut rng,
-                &mut RayCounts::default(),
-                &mut None,
-            );
-            assert_eq!(coverage, 1.0, "the camera ray must meet the ground");
-            let x = f64::from(radiance.y);
-            sum += x;
-            squares += x * x;
-        }
-        let n = f64::from(PATHS);
-        let mean = sum / n;
-        let standard_error = ((squares / n - mean * mean).max(0.0) / (n - 1.0)).sqrt();
-        (mean, standard_error)
+        path_estimate(&tracer, &prepared, &camera, PATHS, (11, 0))
     };
     let estimates = [Estimator::Mis, Estimator::LightOnly, Estimator::BsdfOnly].map(estimate);
     let names = ["MIS", "light sampling", "BSDF sampling"];
@@ -1079,7 +1061,7 @@ fn rectangle_form_factor(x0: f64, x1: f64, y0: f64, y1: f64, height: f64) -> f64
 #[test]
 fn a_panel_beside_a_plane_lights_it_at_grazing_incidence() {
     use glam::Vec3;
-    use meshtracer::integrator::{CameraRay, Estimator, Integrator, PathTracer, RayCounts};
+    use meshtracer::integrator::{CameraRay, Estimator, PathTracer};
     use meshtracer::prepare::{PrepareOptions, Prepared};
     const GAP: f32 = 0.01;
     const PATHS: u32 = 40_000;
@@ -1110,23 +1092,7 @@ fn a_panel_beside_a_plane_lights_it_at_grazing_incidence() {
             spread_base: 0.0,
             spread_per_distance: 0.0,
         };
-        let (mut sum, mut squares) = (0.0f64, 0.0f64);
-        for i in 0..PATHS {
-            let mut rng = meshtracer::sampling::Rng::for_pixel(5, i, k);
-            let (radiance, _) = tracer.radiance(
-                &prepared,
-                &camera,
-                &mut rng,
-                &mut RayCounts::default(),
-                &mut None,
-            );
-            let value = f64::from(radiance.y);
-            sum += value;
-            squares += value * value;
-        }
-        let n = f64::from(PATHS);
-        let mean = sum / n;
-        let standard_error = ((squares / n - mean * mean).max(0.0) / (n - 1.0)).sqrt();
+        let (mean, standard_error) = path_estimate(&tracer, &prepared, &camera, PATHS, (5, k));
         let (px, py) = (f64::from(x), 0.013);
         let expected =
             rectangle_form_factor(-0.5 - px, 0.5 - px, -0.5 - py, 0.5 - py, f64::from(GAP));
@@ -1138,4 +1104,38 @@ fn a_panel_beside_a_plane_lights_it_at_grazing_incidence() {
         }
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// The mean and standard error of the green radiance `tracer` brings back along `camera` over
+/// `paths` paths, path i drawing from pixel stream (i, `stream.1`) of seed `stream.0`. Every
+/// path's camera ray must meet the scene.
+fn path_estimate(
+    tracer: &meshtracer::integrator::PathTracer,
+    prepared: &meshtracer::prepare::Prepared,
+    camera: &meshtracer::integrator::CameraRay,
+    paths: u32,
+    (seed, stream): (u64, u32),
+) -> (f64, f64) {
+    use meshtracer::integrator::{Integrator, RayCounts};
+    let (mut sum, mut squares) = (0.0f64, 0.0f64);
+    for i in 0..paths {
+        let mut rng = meshtracer::sampling::Rng::for_pixel(seed, i, stream);
+        let (radiance, coverage) = tracer.radiance(
+            prepared,
+            camera,
+            &mut rng,
+            &mut RayCounts::default(),
+            &mut None,
+        );
+        assert_eq!(coverage, 1.0, "the camera ray must meet the scene");
+        let x = f64::from(radiance.y);
+        sum += x;
+        squares += x * x;
+    }
+    let n = f64::from(paths);
+    let mean = sum / n;
+    (
+        mean,
+        ((squares / n - mean * mean).max(0.0) / (n - 1.0)).sqrt(),
+    )
 }
