@@ -84,16 +84,24 @@ impl Surface<'_> {
     /// Avocado's seed its shadow). The same idea as Cycles' "shadow terminator geometry offset".
     #[inline]
     pub fn shadow_ray(&self, to_light: Vec3, distance: f32) -> Option<Ray> {
+        let origin = self.shadow_origin(to_light)?;
+        Some(Ray::new(origin, to_light, 0.0, spawn::ray_extent(distance)))
+    }
+
+    /// Where a shadow ray toward `to_light` leaves from ([`Surface::shadow_ray`] says which
+    /// point and why), or `None` where the light cannot reach this point of the surface.
+    #[inline]
+    fn shadow_origin(&self, to_light: Vec3) -> Option<Vec3> {
         if to_light.dot(self.smooth) <= 0.0 || to_light.dot(self.normal) <= 0.0 {
             return None;
         }
         let toward = to_light.dot(self.geometric);
         let amount = (1.0 - toward / TERMINATOR_BAND).clamp(0.0, 1.0);
         if amount > 0.0 {
-            Some(self.lifted_ray(to_light, distance, amount))
+            Some(self.lifted_origin(to_light, amount))
         } else {
             // toward ≥ TERMINATOR_BAND > 0: the geometric side.
-            Some(self.exit_ray(to_light, distance))
+            Some(self.exit)
         }
     }
 
@@ -118,17 +126,7 @@ impl Surface<'_> {
     /// [`Surface::shadow_ray`], or when `target` is at the origin.
     #[inline]
     pub fn shadow_ray_to(&self, to_light: Vec3, target: Vec3) -> Option<Ray> {
-        if to_light.dot(self.smooth) <= 0.0 || to_light.dot(self.normal) <= 0.0 {
-            return None;
-        }
-        let toward = to_light.dot(self.geometric);
-        let amount = (1.0 - toward / TERMINATOR_BAND).clamp(0.0, 1.0);
-        let origin = if amount > 0.0 {
-            self.lifted_origin(to_light, amount)
-        } else {
-            // toward ≥ TERMINATOR_BAND > 0: the geometric side.
-            self.exit
-        };
+        let origin = self.shadow_origin(to_light)?;
         let offset = target - origin;
         let distance = offset.length();
         (distance > 0.0 && distance.is_finite())
@@ -142,15 +140,6 @@ impl Surface<'_> {
         let (vertices, normals) = self.corners;
         let lift = terminator_lift(self.spawn.point, vertices, normals, self.barycentric);
         self.spawn.moved(lift * amount).origin(to_light)
-    }
-
-    /// The shadow ray from the point lifted toward the smooth surface by `amount` of
-    /// [`terminator_lift`]: the grazing case of [`Surface::shadow_ray`], out of line.
-    #[inline(never)]
-    fn lifted_ray(&self, to_light: Vec3, distance: f32, amount: f32) -> Ray {
-        let (vertices, normals) = self.corners;
-        let lift = terminator_lift(self.spawn.point, vertices, normals, self.barycentric);
-        self.spawn.moved(lift * amount).ray(to_light, distance)
     }
 
     /// The ray leaving the surface along `direction` (unit) as far as `distance`:
