@@ -52,6 +52,7 @@
 //! adds `emissive · emissiveStrength`.
 
 pub mod bsdf;
+pub mod ggx;
 pub mod surface;
 
 use glam::Vec3;
