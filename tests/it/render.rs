@@ -70,19 +70,31 @@ fn render_to(dir: &Path, model: &Path, name: &str, extra: &[&str]) -> PathBuf {
     out
 }
 
+/// The multiple-scattering scale k and the specular albedo E_s of a GGX lobe at roughness 1
+/// seen head-on (n·v = 1, as every pixel of the quads below sees it) for Schlick's (F0, F90):
+/// k = 1 + F0·(1 - a)/a and E_s = k·(F0·a + (F90 - F0)·b), with the lobe's albedo (a, b) from
+/// the renderer's table (held against a Monte Carlo estimate by its own unit test).
+fn multiple_scattering(f0: f32, f90: f32) -> (f32, f32) {
+    let (a, b) = meshtracer::shading::ggx::directional_albedo(1.0, 1.0);
+    let k = 1.0 + f0 * (1.0 - a) / a;
+    (k, k * (f0 * a + (f90 - f0) * b))
+}
+
 /// A white rough dielectric quad 2 m under a 4 cd point light, seen from straight above by an
 /// orthographic camera (v = +Z everywhere): every pixel must equal the closed form of each
 /// shading model with E = I/d², cosθ = h/d, h = normalize(l + v):
 /// - glTF BRDF, roughness 1 (α = 1, so D = 1/π and V = 1/(2(n·l + n·v))), metallic 0:
-///   L = ((1 - F)/π + F·D·V)·E·cosθ with F = 0.04 + 0.96·(1 - v·h)⁵;
+///   L = ((1 - E_s)/π + k·F·D·V)·E·cosθ with F = 0.04 + 0.96·(1 - v·h)⁵ and the multiple-
+///   scattering scale k and specular albedo E_s at n·v = 1 ([`multiple_scattering`]);
 /// - Blinn-Phong, exponent 1: L = (1/π + 0.04·9/(8π)·(n·h))·E·cosθ.
 #[test]
 fn quad_under_a_point_light_matches_the_closed_form() {
+    let (k, albedo) = multiple_scattering(0.04, 1.0);
     for shading in ["pbr", "phong"] {
         quad_matches(white(false), shading, |cos, half_z, _| {
             if shading == "pbr" {
                 let fresnel = 0.04 + 0.96 * (1.0 - half_z).powi(5);
-                (1.0 - fresnel) / PI + fresnel * (1.0 / PI) * 0.5 / (cos + 1.0)
+                (1.0 - albedo) / PI + k * fresnel * (1.0 / PI) * 0.5 / (cos + 1.0)
             } else {
                 1.0 / PI + 0.04 * 9.0 / (8.0 * PI) * half_z
             }
@@ -91,33 +103,38 @@ fn quad_under_a_point_light_matches_the_closed_form() {
 }
 
 /// The material extensions on the same quad (roughness 1, so D = 1/π and V = 1/(2(cosθ + 1))
-/// as above), each against its closed form:
+/// as above), each against its closed form, with k and E_s of each Fresnel:
 /// - `KHR_materials_specular` (0.5, colour (1, 0.5, 0.25)): per channel F0 = 0.04·colour·0.5,
-///   F90 = 0.5, F = F0 + (F90 - F0)(1 - v·h)⁵, f = (1 - F)/π + F·D·V;
+///   F90 = 0.5, F = F0 + (F90 - F0)(1 - v·h)⁵, f = (1 - E_s)/π + k·F·D·V;
 /// - `KHR_materials_ior` 2.0: F0 = (1/3)² instead of 0.04;
-/// - `KHR_materials_clearcoat` (1, roughness 1) with v = n: f = f_base·(1 - 0.04) + F_c(v·h)·D·V.
+/// - `KHR_materials_clearcoat` (1, roughness 1) with v = n: f = f_base·(1 - E_c) + k_c·F_c(v·h)·D·V,
+///   E_c and k_c those of the coat's F0 = 0.04.
 #[test]
 fn material_extensions_on_a_quad_match_their_closed_forms() {
     let schlick = |f0: f32, f90: f32, half_z: f32| f0 + (f90 - f0) * (1.0 - half_z).powi(5);
-    let layered = |fresnel: f32, cos: f32| (1.0 - fresnel) / PI + fresnel / PI * 0.5 / (cos + 1.0);
+    let layered = |f0: f32, f90: f32, half_z: f32, cos: f32| {
+        let (k, albedo) = multiple_scattering(f0, f90);
+        (1.0 - albedo) / PI + k * schlick(f0, f90, half_z) / PI * 0.5 / (cos + 1.0)
+    };
     let mut specular = white(false);
     specular["extensions"] = json!({"KHR_materials_specular": {
         "specularFactor": 0.5, "specularColorFactor": [1.0, 0.5, 0.25]}});
     quad_matches(specular, "pbr", |cos, half_z, channel| {
         let f0 = 0.04 * [1.0, 0.5, 0.25][channel] * 0.5;
-        layered(schlick(f0, 0.5, half_z), cos)
+        layered(f0, 0.5, half_z, cos)
     });
     let mut ior = white(false);
     ior["extensions"] = json!({"KHR_materials_ior": {"ior": 2.0}});
     quad_matches(ior, "pbr", |cos, half_z, _| {
-        layered(schlick(1.0 / 9.0, 1.0, half_z), cos)
+        layered(1.0 / 9.0, 1.0, half_z, cos)
     });
     let mut coat = white(false);
     coat["extensions"] = json!({"KHR_materials_clearcoat": {
         "clearcoatFactor": 1.0, "clearcoatRoughnessFactor": 1.0}});
+    let (k_coat, coat_albedo) = multiple_scattering(0.04, 1.0);
     quad_matches(coat, "pbr", |cos, half_z, _| {
-        let base = layered(schlick(0.04, 1.0, half_z), cos);
-        base * (1.0 - 0.04) + schlick(0.04, 1.0, half_z) / PI * 0.5 / (cos + 1.0)
+        let base = layered(0.04, 1.0, half_z, cos);
+        base * (1.0 - coat_albedo) + k_coat * schlick(0.04, 1.0, half_z) / PI * 0.5 / (cos + 1.0)
     });
 }
 
