@@ -9,9 +9,10 @@ model's own cameras and lights are removed. `--mode direct` (default) renders di
 by `meshtracer render --integrator path` selects `gi` with the same bounces, and its environment
 lights the world: the `--env-out` panorama when the view names one (rotation and intensity
 already applied), else the source panorama with the same rotation and intensity (the built-in
-studio needs `--env-out`). View transform
-'Standard' (the piecewise sRGB curve), transparent film, hard shadows (light radius and sun
-angle 0).
+studio needs `--env-out`). The view transform and exposure are the view's `display` record
+(`--tonemap`, `--exposure`; 'Standard' and 0 for views written before it): Standard, Khronos PBR
+Neutral and AgX are Blender's own view transforms; `aces` needs an ACES view (Blender 5's
+"ACES 1.3" or "ACES 2.0"). Transparent film, hard shadows (light radius and sun angle 0).
 
 Light units: Blender's glTF importer ("SPEC" mode) converts W = cd·4π/683 for point and spot
 lights and W/m² = lux/683 for suns, which makes 1 lux read 1/683 as bright as in meshtracer and
@@ -50,6 +51,32 @@ def pose(position, forward, up_hint):
 # glTF is +Y up; Blender is +Z up. The importer rotates the model by this matrix, so the view's
 # glTF-space camera and lights get the same rotation.
 GLTF_TO_BLENDER = Matrix(((1, 0, 0, 0), (0, 0, -1, 0), (0, 1, 0, 0), (0, 0, 0, 1)))
+
+
+# meshtracer's --tonemap names and the Blender view transforms that match them.
+VIEW_TRANSFORMS = {
+    "standard": ["Standard"],
+    "khronos-pbr-neutral": ["Khronos PBR Neutral"],
+    "agx": ["AgX"],
+    "aces": ["ACES 1.3", "ACES 2.0"],
+}
+
+
+def set_display(scene, display):
+    """Sets the view transform and exposure recorded in the view file."""
+    name = display.get("view_transform", "standard")
+    available = {
+        item.identifier
+        for item in scene.view_settings.bl_rna.properties["view_transform"].enum_items
+    }
+    choices = [c for c in VIEW_TRANSFORMS.get(name, []) if c in available]
+    if not choices:
+        sys.exit(f"view transform {name!r}: this Blender has none of {VIEW_TRANSFORMS.get(name)}"
+                 f" (it has {sorted(available)})")
+    scene.view_settings.view_transform = choices[0]
+    scene.view_settings.look = "None"
+    scene.view_settings.exposure = display.get("exposure", 0.0)
+    scene.view_settings.gamma = 1.0
 
 
 def main(argv):
@@ -157,7 +184,7 @@ def main(argv):
         for kind in ("diffuse", "glossy", "transmission", "volume", "transparent"):
             setattr(scene.cycles, f"{kind}_bounces", bounces)
     scene.render.film_transparent = not (environment and environment.get("visible"))
-    scene.view_settings.view_transform = "Standard"
+    set_display(scene, view.get("display") or {})
     scene.render.resolution_x = view["image"]["width"]
     scene.render.resolution_y = view["image"]["height"]
     scene.render.resolution_percentage = 100

@@ -820,6 +820,21 @@ impl FingerprintRecord {
         self
     }
 
+    /// Appends option `name` with `value` unless it is the type's default: an option added
+    /// after version 1 whose default renders what version 1 rendered leaves the record of a
+    /// job that does not use it unchanged.
+    pub fn field_unless_default<T: std::fmt::Debug + Default + PartialEq>(
+        self,
+        name: &'static str,
+        value: &T,
+    ) -> Self {
+        if *value == T::default() {
+            self
+        } else {
+            self.field(name, value)
+        }
+    }
+
     /// Appends a nested group under `name`.
     pub fn group_field(mut self, name: &'static str, group: &FingerprintRecord) -> Self {
         self.fields.push((name, group.text()));

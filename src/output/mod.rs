@@ -19,7 +19,7 @@ pub mod sheet;
 pub mod turntable;
 pub mod view_file;
 
-use crate::color::linear_to_srgb;
+use crate::color::{linear_to_srgb, ViewTransform};
 pub use crate::render::film::Image;
 use glam::{Vec3, Vec4};
 use std::io::{BufWriter, Write};
@@ -185,7 +185,12 @@ impl PendingOutput {
 
     /// Encodes `image`, flushes it to disk and renames it over the destination. `background`
     /// fills uncovered pixels (PNG and HDR) instead of leaving them transparent.
-    pub fn commit(self, image: &Image, background: Option<Vec3>) -> Result<(), SaveError> {
+    pub fn commit(
+        self,
+        image: &Image,
+        background: Option<Vec3>,
+        view: ViewTransform,
+    ) -> Result<(), SaveError> {
         let path = self.path().to_path_buf();
         let io_err = |source: std::io::Error| SaveError::Unwritable {
             path: path.clone(),
@@ -200,7 +205,7 @@ impl PendingOutput {
             let (w, h) = (image.width, image.height);
             match self.format {
                 OutputFormat::Png => {
-                    let bytes = image.to_srgb8(background);
+                    let bytes = image.to_srgb8(background, view);
                     image::ImageEncoder::write_image(
                         image::codecs::png::PngEncoder::new(&mut out),
                         &bytes,
@@ -311,22 +316,39 @@ pub(crate) fn exr_rgba(
 }
 
 impl Image {
-    /// 8-bit sRGB RGBA with straight alpha: colour is un-premultiplied before encoding, or
-    /// composited over `background` (then alpha is 255).
-    pub fn to_srgb8(&self, background: Option<Vec3>) -> Vec<u8> {
+    /// 8-bit sRGB RGBA with straight alpha: colour is un-premultiplied and passed through the
+    /// view transform `view` before encoding, or composited over `background` (then alpha is
+    /// 255). The background is a display colour: it is blended after the view transform, so
+    /// `--background 1,1,1` stays white under every transform. (With
+    /// [`ViewTransform::Standard`], a clip, the pixel is composited in linear light first,
+    /// as before view transforms existed: the bytes are the same.)
+    pub fn to_srgb8(&self, background: Option<Vec3>, view: ViewTransform) -> Vec<u8> {
         let mut out = Vec::with_capacity(self.pixels.len() * 4);
         for &p in &self.pixels {
-            let p = composite(p, background);
-            let rgb = if p.w > 0.0 {
-                p.truncate() / p.w
+            let (rgb, alpha) = if view == ViewTransform::Standard {
+                let p = composite(p, background);
+                let rgb = if p.w > 0.0 {
+                    p.truncate() / p.w
+                } else {
+                    Vec3::ZERO
+                };
+                (rgb.clamp(Vec3::ZERO, Vec3::ONE), p.w)
             } else {
-                Vec3::ZERO
+                let straight = if p.w > 0.0 {
+                    view.apply(p.truncate() / p.w)
+                } else {
+                    Vec3::ZERO
+                };
+                match background {
+                    Some(bg) => (straight * p.w + bg * (1.0 - p.w), 1.0),
+                    None => (straight, p.w),
+                }
             };
             out.extend(
                 rgb.to_array()
                     .map(|c| to_u8(linear_to_srgb(c.clamp(0.0, 1.0)))),
             );
-            out.push(to_u8(p.w));
+            out.push(to_u8(alpha));
         }
         out
     }
@@ -386,10 +408,10 @@ mod tests {
     fn png_alpha_is_straight_and_background_fills() {
         let mut img = Image::new(2, 1);
         img.pixels[0] = Vec4::new(0.5, 0.5, 0.5, 0.5);
-        let bytes = img.to_srgb8(None);
+        let bytes = img.to_srgb8(None, ViewTransform::Standard);
         assert_eq!(&bytes[..4], &[255, 255, 255, 128]);
         assert_eq!(&bytes[4..], &[0, 0, 0, 0]);
-        let filled = img.to_srgb8(Some(Vec3::ONE));
+        let filled = img.to_srgb8(Some(Vec3::ONE), ViewTransform::Standard);
         assert_eq!(&filled[4..], &[255, 255, 255, 255]);
     }
 

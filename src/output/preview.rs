@@ -15,6 +15,7 @@
 //! half covered, so transparent pixels (nothing hit) keep the terminal's own background and the
 //! model's silhouette stands on it with a sharp edge rather than `viuer`'s checkerboard.
 
+use crate::color::ViewTransform;
 use crate::output::Image;
 use glam::Vec3;
 use image::{DynamicImage, RgbaImage};
@@ -73,7 +74,7 @@ fn detect() -> Protocol {
 #[error("cannot show the image in the terminal: {0}")]
 pub struct PreviewError(String);
 
-/// Shows `image` on standard output. `Auto` shows it only when standard output is a terminal
+/// Shows `image` on standard output, through the view transform `view`. `Auto` shows it only when standard output is a terminal
 /// (a preview piped into a file or another program would be noise), in the best protocol the
 /// terminal speaks; `Blocks` always, as half blocks, without asking the terminal anything.
 /// Sized to the terminal, never enlarged beyond one pixel a half cell. Returns the protocol
@@ -81,9 +82,10 @@ pub struct PreviewError(String);
 pub fn show(
     image: &Image,
     background: Option<Vec3>,
+    view: ViewTransform,
     mode: PreviewMode,
 ) -> Result<Option<Protocol>, PreviewError> {
-    let rgba = RgbaImage::from_raw(image.width, image.height, image.to_srgb8(background))
+    let rgba = RgbaImage::from_raw(image.width, image.height, image.to_srgb8(background, view))
         .unwrap_or_default();
     show_rgba(&rgba, mode)
 }
@@ -191,7 +193,12 @@ mod tests {
     use glam::Vec4;
 
     fn rgba(image: &Image) -> RgbaImage {
-        RgbaImage::from_raw(image.width, image.height, image.to_srgb8(None)).unwrap()
+        RgbaImage::from_raw(
+            image.width,
+            image.height,
+            image.to_srgb8(None, ViewTransform::Standard),
+        )
+        .unwrap()
     }
 
     #[test]

@@ -115,6 +115,31 @@ pub struct ViewFile {
     /// denoise unless asked).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub denoise: Option<ViewDenoise>,
+    /// How the 8-bit image was encoded from linear radiance (files written before view
+    /// transforms: none, which is exposure 0 and `standard`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub display: Option<ViewDisplay>,
+}
+
+/// How a view's linear radiance became its 8-bit image: the exposure, then the view transform,
+/// then the sRGB transfer curve (EXR and HDR outputs stay linear, before both).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ViewDisplay {
+    /// Exposure in stops: radiance was multiplied by 2^exposure.
+    pub exposure: f32,
+    /// The view transform's name (`--tonemap`): "standard", "khronos-pbr-neutral", "agx" or
+    /// "aces" ([`crate::color::ViewTransform::name`]).
+    pub view_transform: String,
+}
+
+impl ViewDisplay {
+    /// The record of `exposure` and `view`.
+    pub fn new(exposure: f32, view: crate::color::ViewTransform) -> ViewDisplay {
+        ViewDisplay {
+            exposure,
+            view_transform: view.name().to_string(),
+        }
+    }
 }
 
 /// How a view's image was denoised (`--denoise`).
@@ -242,6 +267,7 @@ impl ViewFile {
             bounces: None,
             environment: None,
             denoise: None,
+            display: None,
         }
     }
 

@@ -10,6 +10,7 @@
 //! - Coverage IoU: pixels covered in both over pixels covered in either, where covered means
 //!   alpha above zero, or a colour different from `background` for images without alpha.
 
+use crate::color::ViewTransform;
 use crate::output::raster::{composite, draw_label, fill_rect};
 use image::{Rgb, RgbImage, RgbaImage};
 use serde::Serialize;
@@ -61,8 +62,9 @@ pub enum CompareError {
     },
 }
 
-/// Reads an image file as 8-bit RGBA (EXR/HDR are tone-clamped and sRGB-encoded first).
-pub fn read(path: &Path) -> Result<RgbaImage, CompareError> {
+/// Reads an image file as 8-bit RGBA. EXR and HDR (linear radiance) are encoded as `render`
+/// encodes a PNG: un-premultiplied, through the view transform `view`, sRGB.
+pub fn read(path: &Path, view: ViewTransform) -> Result<RgbaImage, CompareError> {
     let err = |problem: String| CompareError::Read {
         path: path.to_path_buf(),
         problem,
@@ -82,16 +84,12 @@ pub fn read(path: &Path) -> Result<RgbaImage, CompareError> {
         let mut out = RgbaImage::new(w, h);
         for (o, p) in out.pixels_mut().zip(linear.pixels()) {
             let a = p.0[3].clamp(0.0, 1.0);
-            let straight = |c: f32| if a > 0.0 { c / a } else { 0.0 };
-            let encode = |c: f32| {
-                (crate::color::linear_to_srgb(straight(c).clamp(0.0, 1.0)) * 255.0 + 0.5) as u8
-            };
-            *o = image::Rgba([
-                encode(p.0[0]),
-                encode(p.0[1]),
-                encode(p.0[2]),
-                (a * 255.0 + 0.5) as u8,
-            ]);
+            let rgb = glam::Vec3::new(p.0[0], p.0[1], p.0[2]);
+            let straight = if a > 0.0 { rgb / a } else { glam::Vec3::ZERO };
+            let encode =
+                |c: f32| (crate::color::linear_to_srgb(c.clamp(0.0, 1.0)) * 255.0 + 0.5) as u8;
+            let [r, g, b] = view.apply(straight).to_array().map(encode);
+            *o = image::Rgba([r, g, b, (a * 255.0 + 0.5) as u8]);
         }
         return Ok(out);
     }
@@ -166,8 +164,9 @@ pub fn compare_files(
     a: &Path,
     b: &Path,
     background: Option<[u8; 3]>,
+    view: ViewTransform,
 ) -> Result<(Metrics, RgbaImage, RgbaImage, RgbImage), CompareError> {
-    let (ia, ib) = (read(a)?, read(b)?);
+    let (ia, ib) = (read(a, view)?, read(b, view)?);
     if ia.dimensions() != ib.dimensions() {
         return Err(CompareError::SizeMismatch {
             a: a.to_path_buf(),

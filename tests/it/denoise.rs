@@ -58,9 +58,14 @@ mod with_the_feature {
     }
 
     fn against(reference: &Path, image: &Path) -> Metrics {
-        compare_files(reference, image, None)
-            .unwrap_or_else(|e| panic!("{e}"))
-            .0
+        compare_files(
+            reference,
+            image,
+            None,
+            meshtracer::color::ViewTransform::Standard,
+        )
+        .unwrap_or_else(|e| panic!("{e}"))
+        .0
     }
 
     /// The denoiser's whole point, with the margins it must clear: at 4 spp the denoised

@@ -1216,3 +1216,87 @@ fn a_far_look_at_point_does_not_clip_a_near_model() {
         "the same pixels are covered: {covered} looking near, {far_covered} looking far"
     );
 }
+
+/// `--tonemap`: a quad under a point light bright enough to burn out at its centre (radiance
+/// up to about 6), rendered with each view transform. The EXR is the same linear radiance
+/// whatever the transform; the PNG is that radiance through the transform (the library's
+/// curves, held to their published definitions by a unit test) and the sRGB curve, to within
+/// one 8-bit step; the view file records the transform and the exposure; and `compare
+/// --tonemap` encodes the EXR as the PNG was encoded (max_abs at most one step).
+#[test]
+fn tonemap_encodes_the_8_bit_image_and_nothing_else() {
+    use meshtracer::color::{linear_to_srgb, ViewTransform};
+    let dir = tempfile::tempdir().unwrap();
+    let extra = merge(
+        ortho_camera_from_above(5.0, 2.0),
+        json!({
+            "materials": [white(false)],
+            "extensionsUsed": ["KHR_lights_punctual"],
+            "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 80.0}]}},
+            "nodes": [{"translation": [0.0, 0.0, 2.0], "extensions": {"KHR_lights_punctual": {"light": 0}}}]
+        }),
+    );
+    let (json, bin) = quads_gltf(&[(crate::common::square(2.0, 0.0), 0)], extra);
+    let model = write_gltf(dir.path(), "quad.gltf", json, &bin);
+    let base = [
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--spp",
+        "1",
+        "--ambient",
+        "0",
+    ];
+    let linear = render_to(dir.path(), &model, "linear.exr", &base);
+    let (_, _, radiance) = read_rgba(&linear);
+    assert!(radiance.iter().any(|p| p[0] > 2.0), "the centre burns out");
+    for view in ViewTransform::ALL {
+        let mut args = base.to_vec();
+        args.extend(["--tonemap", view.name()]);
+        let exr = render_to(dir.path(), &model, &format!("{}.exr", view.name()), &args);
+        assert_eq!(
+            std::fs::read(&exr).unwrap(),
+            std::fs::read(&linear).unwrap(),
+            "{view:?}: the EXR stays linear"
+        );
+        let view_file = dir.path().join(format!("{}.view.json", view.name()));
+        let view_out = ["--view-out", s(&view_file)];
+        args.extend(view_out);
+        let png = render_to(dir.path(), &model, &format!("{}.png", view.name()), &args);
+        let bytes = image::open(&png).unwrap().to_rgba8();
+        for (p, l) in bytes.pixels().zip(&radiance) {
+            let expected = view
+                .apply(glam::Vec3::new(l[0], l[1], l[2]))
+                .to_array()
+                .map(|c| linear_to_srgb(c) * 255.0);
+            for (got, want) in p.0.iter().zip(expected) {
+                assert!(
+                    (f32::from(*got) - want).abs() <= 1.0,
+                    "{view:?}: {:?} for radiance {l:?}",
+                    p.0
+                );
+            }
+        }
+        let record: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&view_file).unwrap()).unwrap();
+        assert_eq!(record["display"]["view_transform"], view.name());
+        assert_eq!(record["display"]["exposure"], 0.0);
+        let out = run(
+            &[
+                "compare",
+                s(&exr),
+                s(&png),
+                "--tonemap",
+                view.name(),
+                "--json",
+            ],
+            true,
+        );
+        let metrics: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert!(
+            metrics["max_abs"].as_f64().unwrap() <= 1.0 / 255.0 + 1e-9,
+            "{view:?}: {metrics}"
+        );
+    }
+}

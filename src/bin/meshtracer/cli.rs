@@ -4,6 +4,7 @@ use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
 use glam::Vec3;
 use meshtracer::accel::{AccelKind, BvhPreset};
+use meshtracer::color::ViewTransform;
 use meshtracer::integrator::IntegratorKind;
 pub use meshtracer::output::preview::PreviewMode;
 use meshtracer::shading::ShadingModel;
@@ -65,6 +66,12 @@ value_enum!(ShadingModel {
 value_enum!(IntegratorKind {
     Direct => "direct": "Punctual lights through shadow rays, constant ambient, emission as seen; no bounces",
     Path => "path": "Path tracing: area lights, the environment, interreflection, MIS",
+});
+value_enum!(ViewTransform {
+    Standard => "standard": "Clip at 1 (radiance above it burns out)",
+    KhronosPbrNeutral => "khronos-pbr-neutral": "Khronos PBR Neutral: base colours kept, highlights rolled off",
+    Agx => "agx": "AgX as Blender's default view transform",
+    Aces => "aces": "ACES filmic (Hill's fit of the RRT and sRGB ODT)",
 });
 value_enum!(RayKind {
     Primary => "primary": "Camera rays in scanline order; closest hit",
@@ -336,6 +343,10 @@ pub struct RenderArgs {
         allow_hyphen_values = true
     )]
     pub exposure: f32,
+    /// View transform from linear radiance to the 8-bit image (PNG, preview; EXR and HDR stay
+    /// linear), after the exposure.
+    #[arg(long, value_parser = choice::<ViewTransform>(), default_value = "standard")]
+    pub tonemap: ViewTransform,
     /// Fill pixels where nothing was hit with this linear colour (R,G,B) instead of leaving
     /// them transparent.
     #[arg(long, value_name = "R,G,B", value_parser = parse_vec3)]
@@ -625,6 +636,10 @@ pub struct CompareArgs {
     /// for images without alpha it also marks uncovered pixels [default: black].
     #[arg(long, value_name = "R,G,B", value_parser = parse_vec3)]
     pub background: Option<Vec3>,
+    /// View transform for EXR and HDR inputs (linear radiance), as `render --tonemap` encodes
+    /// a PNG; 8-bit inputs are compared as they are.
+    #[arg(long, value_parser = choice::<ViewTransform>(), default_value = "standard")]
+    pub tonemap: ViewTransform,
     /// Exit with status 1 when an error metric exceeds a value: flip, rmse or max_abs
     /// (e.g. --fail-above flip=0.1); may be repeated.
     #[arg(long, value_name = "METRIC=VALUE", value_parser = parse_threshold)]

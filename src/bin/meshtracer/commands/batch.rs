@@ -418,7 +418,9 @@ fn job_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<(RenderArgs,
 /// The fingerprint record (version 1, [`FingerprintRecord`]) of a job's canonical options:
 /// every field of [`RenderArgs`] and [`LoadArgs`], in version 1's order. The destructuring
 /// names every field, so an option added to the command line does not compile until its place
-/// in the record is decided (appending it changes every fingerprint: a new record version).
+/// in the record is decided (appending it changes every fingerprint: a new record version;
+/// an option whose default draws what version 1 drew is appended only when it is not the
+/// default, so version 1's fingerprints stay as they were).
 fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
     let RenderArgs {
         model,
@@ -452,6 +454,7 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         bvh_preset,
         threads,
         exposure,
+        tonemap,
         background,
         ambient,
         shading,
@@ -549,6 +552,7 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         .field("quiet", quiet)
         .field("strict", strict)
         .field("variant", variant)
+        .field_unless_default("tonemap", tonemap)
         .group_field("load", &load_record)
 }
 
@@ -704,7 +708,9 @@ impl JobSheet {
             .outputs
             .iter()
             .find(|o| Some(&o.path) != panorama.as_ref())
-            .and_then(|o| meshtracer::tools::compare::read(&dir.join(&o.path)).ok());
+            .and_then(|o| {
+                meshtracer::tools::compare::read(&dir.join(&o.path), defaults.tonemap).ok()
+            });
         match image {
             Some(image) => self.sheet.place(k, &image, id),
             None => self.sheet.place_failed(k, id),

@@ -619,7 +619,7 @@ fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
             .to_array()
             .map(|v| v as u8)
     });
-    let (metrics, a, b, heat) = compare_files(&args.a, &args.b, background)?;
+    let (metrics, a, b, heat) = compare_files(&args.a, &args.b, background, args.tonemap)?;
     if let Some(path) = &args.diff_out {
         let mut png = Vec::new();
         heat.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)

@@ -557,9 +557,10 @@ impl Finished {
 fn write_outputs(args: &RenderArgs, output: PendingOutput, done: &Finished) -> Result<()> {
     let image = &done.rendered.image;
     let background = args.background;
-    output.commit(image, background)?;
+    output.commit(image, background, args.tonemap)?;
     if let Some(mode) = args.preview {
-        meshtracer::output::preview::show(image, background, mode).context("--preview")?;
+        meshtracer::output::preview::show(image, background, args.tonemap, mode)
+            .context("--preview")?;
     }
     write_aovs(args, image, done.rendered.aovs.as_ref())?;
     if let (Some(path), Some(env)) = (&args.env_out, &done.settings.environment) {
@@ -619,6 +620,10 @@ fn view_record(args: &RenderArgs, done: &Finished) -> ViewFile {
     view.segmentation = segmentation_ids(&done.rendered.prepared.scene);
     view.depth_png_scale = args.depth_scale;
     view.integrator = settings.integrator;
+    view.display = Some(meshtracer::output::view_file::ViewDisplay::new(
+        args.exposure,
+        args.tonemap,
+    ));
     if settings.integrator == IntegratorKind::Path {
         view.bounces = Some(settings.bounces);
         view.environment = settings

@@ -28,7 +28,7 @@ use meshtracer::light::environment::Environment;
 use meshtracer::output::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
 use meshtracer::output::sheet::{ContactSheet, SheetLayout};
 use meshtracer::output::turntable::{check_fps, frame_delay_centiseconds, GifWriter};
-use meshtracer::output::view_file::ViewFile;
+use meshtracer::output::view_file::{ViewDisplay, ViewFile};
 use meshtracer::output::{OutputFormat, PendingFile, PendingOutput, SaveError};
 use meshtracer::prepare::Prepared;
 use meshtracer::render::{render, RenderSettings, RenderStats};
@@ -501,7 +501,7 @@ fn render_all(
     on_view(0, cameras.len());
     for (k, (camera, names)) in cameras.iter().zip(&plan.names).enumerate() {
         let (frame, stats, image) = run.render(k, camera, names)?;
-        extras.add(k, camera, &image, args.background)?;
+        extras.add(k, camera, &image, (args.background, args.tonemap))?;
         on_view(k + 1, cameras.len());
         frames.push(frame);
         totals.primary_rays += stats.primary_rays;
@@ -693,6 +693,7 @@ impl ViewRun<'_> {
         record.segmentation = segmentation_ids(&self.prepared.scene);
         record.depth_png_scale = args.depth_scale;
         record.integrator = args.integrator;
+        record.display = Some(ViewDisplay::new(args.exposure, args.tonemap));
         if path_tracing {
             record.bounces = Some(args.bounces);
             record.environment = self
@@ -732,7 +733,7 @@ impl ViewRun<'_> {
                     dir.display()
                 ))
             })?;
-        output.commit(&image, args.background)?;
+        output.commit(&image, args.background, args.tonemap)?;
         if let Some(a) = &aovs {
             if let Some(name) = &names.depth {
                 let path = dir.join(name);
@@ -916,19 +917,19 @@ impl Extras {
         Ok(())
     }
 
-    /// Adds view `k` to the GIF and the sheet.
+    /// Adds view `k` to the GIF and the sheet, over `background` through the view transform.
     fn add(
         &mut self,
         k: usize,
         camera: &Camera,
         image: &meshtracer::output::Image,
-        background: Option<Vec3>,
+        (background, view): (Option<Vec3>, meshtracer::color::ViewTransform),
     ) -> Result<()> {
         if self.gif.is_none() && self.sheet.is_none() {
             return Ok(());
         }
         let rgba =
-            image::RgbaImage::from_raw(image.width, image.height, image.to_srgb8(background))
+            image::RgbaImage::from_raw(image.width, image.height, image.to_srgb8(background, view))
                 .context("an image of the wrong size (a bug)")?;
         if let Some(sheet) = self.sheet.as_mut().and_then(|s| s.sheet.as_mut()) {
             let label = match &camera.name {
