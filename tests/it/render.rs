@@ -1263,7 +1263,8 @@ fn the_exact_view_round_trips_for_matrix_trs_and_automatic_cameras() {
     }
     for (name, model, options) in &models {
         let view = dir.path().join(format!("{name}.view.json"));
-        let mut args = vec!["--width", "120", "--height", "90", "--spp", "2"];
+        // At 400x300 the Duck's view rebuilt from look_at (files without `forward`) differs.
+        let mut args = vec!["--width", "400", "--height", "300", "--spp", "2"];
         args.extend(options.iter().copied());
         let mut first_args = args.clone();
         first_args.extend(["--view-out", s(&view)]);
