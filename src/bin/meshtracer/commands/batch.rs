@@ -117,7 +117,7 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
         };
         match outcome {
             Outcome::Done(record, note) => {
-                progress.job_done(k, &record, note.as_deref());
+                progress.job_done(records.len(), &record, note.as_deref());
                 if let Some(sheet) = &mut sheet {
                     sheet.add(k, &record, dir, defaults);
                 }
@@ -128,13 +128,14 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
         }
     }
     for (k, entry, holder) in busy {
+        progress.waiting(entry, &holder, dir);
         let record = loop {
             if cancel.load(Ordering::SeqCst) {
                 return Err(interrupted(records.len()));
             }
             match run_job(args, dir, entry, &progress, started, Some(&holder)) {
                 Outcome::Done(record, note) => {
-                    progress.job_done(k, &record, note.as_deref());
+                    progress.job_done(records.len(), &record, note.as_deref());
                     break record;
                 }
                 Outcome::Busy(_) => std::thread::sleep(LOCK_POLL),
@@ -853,7 +854,24 @@ impl Progress {
         self.views.set_position(done as u64);
     }
 
-    /// Job `k` (from 0) is recorded: one line, with the ETA of the rest at the mean pace.
+    /// The job of `entry` is held by another batch, which this one now waits for: one line
+    /// naming the holder and the lock file (to delete if that batch is gone, on another host).
+    fn waiting(&self, entry: &Entry, holder: &Holder, dir: &Path) {
+        if self.quiet {
+            return;
+        }
+        let id = entry.id.as_deref().unwrap_or("(no id)");
+        let lock = dir.join(id).join(lock::LOCK_FILE);
+        self.multi.suspend(|| {
+            eprintln!(
+                "{id}: held by the batch of {holder}; waiting for its record (if that batch is gone, delete {})",
+                lock.display()
+            );
+        });
+    }
+
+    /// `k` jobs were recorded before this one: one line, with the ETA of the rest at the
+    /// mean pace.
     fn job_done(&self, k: usize, record: &JobRecord, note: Option<&str>) {
         self.jobs.inc(1);
         if self.quiet {
