@@ -54,3 +54,20 @@ pub const FILL_LIGHT_LUX: f32 = 0.8;
 /// Most BLEND surfaces a camera ray composites before it stops (both integrators, and the
 /// denoiser's guides, which follow the same rays).
 pub const MAX_BLEND_LAYERS: usize = 16;
+
+/// Largest model, buffer or image file read, in bytes (`LoadLimits::max_file_bytes`): 2 GiB,
+/// above every sample and scan we have met (the largest, a 1.04M-triangle model, is 60 MB).
+pub const MAX_FILE_BYTES: u64 = 2 << 30;
+
+/// Most triangles a scene may hold after instancing (`--max-triangles`): 50 million is about
+/// 9 GB of soup and BVH, more than a workstation renders comfortably.
+pub const MAX_TRIANGLES: u64 = 50_000_000;
+
+/// Vertices allowed a triangle of the limit: a primitive may declare at most
+/// `MAX_TRIANGLES × VERTICES_PER_TRIANGLE` vertices (150 million by default), as many as its
+/// triangles could use without sharing any. The limits are checked against the counts a file
+/// declares before anything of that size is allocated.
+pub const VERTICES_PER_TRIANGLE: u64 = 3;
+
+/// Largest decoded image, in pixels: 64 megapixels, e.g. 8192x8192.
+pub const MAX_IMAGE_PIXELS: u64 = 64 << 20;

@@ -3,5 +3,6 @@
 //! and what to write where; rendering itself is [`crate::render`]'s, writing [`crate::output`]'s.
 
 pub mod batch;
+pub mod lock;
 pub mod tiles;
 pub mod views;

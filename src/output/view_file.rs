@@ -34,8 +34,13 @@ pub struct ViewCamera {
     pub position: [f32; 3],
     /// A point on the view axis, one unit ahead.
     pub look_at: [f32; 3],
-    /// Up vector, orthogonal to the view axis.
+    /// Up vector, orthogonal to the view axis: the camera's own, exactly.
     pub up: [f32; 3],
+    /// The unit view direction exactly as rendered (`look_at - position` rounds it in f32).
+    /// Used when it agrees with `look_at` (see [`BASIS_AGREEMENT`]); files written before it
+    /// was recorded, and an edited `look_at`, give the direction from `look_at`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub forward: Option<[f32; 3]>,
     /// Vertical field of view in radians (perspective).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub yfov: Option<f32>,
@@ -251,6 +256,7 @@ impl ViewFile {
                 position: camera.position.to_array(),
                 look_at: (camera.position + camera.forward).to_array(),
                 up: camera.up.to_array(),
+                forward: Some(camera.forward.to_array()),
                 yfov,
                 xmag,
                 ymag,
@@ -374,13 +380,22 @@ impl ViewCamera {
             ));
         }
         let position = Vec3::from(c.position);
-        let forward = (Vec3::from(c.look_at) - position)
+        let aimed = (Vec3::from(c.look_at) - position)
             .try_normalize()
             .ok_or_else(|| err("look_at equals position"))?;
+        // `look_at` holds the direction only to the rounding of coordinates as large as the
+        // position's: a unit in the last place of each, over a distance of one.
+        let look_at_rounding = 4.0 * f32::EPSILON * position.abs().max_element();
+        let forward = exact_or(
+            c.forward.map(Vec3::from),
+            aimed,
+            BASIS_AGREEMENT + look_at_rounding,
+        );
         let up = Vec3::from(c.up);
-        let up = (up - forward * up.dot(forward))
+        let orthonormal = (up - forward * up.dot(forward))
             .try_normalize()
             .ok_or_else(|| err("up is parallel to the view direction"))?;
+        let up = exact_or(Some(up), orthonormal, BASIS_AGREEMENT);
         let projection = match c.kind.as_str() {
             "perspective" => Projection::Perspective {
                 yfov: c
@@ -410,6 +425,21 @@ impl ViewCamera {
             projection,
         })
     }
+}
+
+/// How far (in each component) a stored unit vector may be from the one rebuilt from the
+/// view's other fields and still be used as stored: rounding in f32 moves the rebuilt one by a
+/// few 1e-7 (a unit `up` against its re-orthonormalised copy, a light's direction against its
+/// normalised copy), while any edit a person makes moves it far more. The view direction
+/// against `look_at - position` is allowed the rounding of the position's coordinates too.
+pub const BASIS_AGREEMENT: f32 = 1e-5;
+
+/// `stored` when it is within `tolerance` of `rebuilt` in each component (so the camera that
+/// was rendered comes back bit for bit), else `rebuilt`.
+fn exact_or(stored: Option<Vec3>, rebuilt: Vec3, tolerance: f32) -> Vec3 {
+    stored
+        .filter(|v| v.abs_diff_eq(rebuilt, tolerance))
+        .unwrap_or(rebuilt)
 }
 
 fn view_light(l: &Light) -> ViewLight {
@@ -444,9 +474,11 @@ fn to_light(l: &ViewLight) -> Result<Light, String> {
         },
         other => return Err(format!("unknown light type '{other}'")),
     };
-    let direction = Vec3::from(l.direction)
+    let stored = Vec3::from(l.direction);
+    let unit = stored
         .try_normalize()
         .ok_or_else(|| "a light direction is zero or not finite".to_string())?;
+    let direction = exact_or(Some(stored), unit, BASIS_AGREEMENT);
     let valid = l.intensity.is_finite()
         && l.intensity >= 0.0
         && Vec3::from(l.position).is_finite()
@@ -470,6 +502,68 @@ fn to_light(l: &ViewLight) -> Result<Light, String> {
 mod tests {
     use super::*;
     use crate::scene::Bounds;
+
+    /// A camera written to a view file and read back is the same camera, bit for bit: from
+    /// quaternion rotations (as TRS nodes and matrices give) and from the automatic camera,
+    /// over many directions; so are the lights' directions. A file without `forward` (written
+    /// before it was recorded) still reads, and an edited `look_at` moves the camera.
+    #[test]
+    fn cameras_and_lights_come_back_exactly() {
+        use glam::Quat;
+        let path = Path::new("view.json");
+        let mut cameras = Vec::new();
+        for k in 0..200 {
+            let t = k as f32;
+            let rotation =
+                Quat::from_euler(glam::EulerRot::YXZ, t * 0.731, (t * 0.377).sin(), t * 0.013);
+            cameras.push(Camera {
+                name: None,
+                position: Vec3::new(t.sin() * 3.1, 0.7 + t * 0.01, t.cos() * 2.3),
+                forward: rotation * Vec3::NEG_Z,
+                up: rotation * Vec3::Y,
+                projection: Projection::Perspective {
+                    yfov: 0.6,
+                    aspect_ratio: None,
+                    znear: 0.01,
+                    zfar: None,
+                },
+            });
+            let bounds = Bounds {
+                min: Vec3::new(-t * 0.37, -1.3, -0.2 * t),
+                max: Vec3::new(1.0 + t, 2.9, 0.5 + t * 0.11),
+            };
+            cameras.push(crate::camera::auto_camera(&bounds, 4.0 / 3.0));
+        }
+        let light = |direction: Vec3| Light {
+            name: None,
+            kind: LightKind::Directional,
+            color: Vec3::ONE,
+            intensity: 2.0,
+            range: None,
+            position: Vec3::ZERO,
+            direction,
+        };
+        for camera in &cameras {
+            let lights = [light(-camera.forward), light(camera.up)];
+            let view = ViewFile::new(camera, 64, 48, &lights, Vec3::splat(0.1), true);
+            let read = ViewFile::from_json(&view.to_json(), path).unwrap();
+            let back = read.camera().unwrap();
+            assert_eq!(
+                (back.position, back.forward, back.up),
+                (camera.position, camera.forward, camera.up)
+            );
+            let directions: Vec<Vec3> = read.lights().iter().map(|l| l.direction).collect();
+            assert_eq!(directions, [lights[0].direction, lights[1].direction]);
+        }
+        let mut old = ViewFile::new(&cameras[0], 64, 48, &[], Vec3::ZERO, true);
+        old.camera.forward = None;
+        let back = ViewFile::from_json(&old.to_json(), path).unwrap();
+        let forward = back.camera().unwrap().forward;
+        assert!(forward.abs_diff_eq(cameras[0].forward, 1e-6), "{forward}");
+        let mut edited = ViewFile::new(&cameras[0], 64, 48, &[], Vec3::ZERO, true);
+        edited.camera.look_at = (cameras[0].position + Vec3::X).to_array();
+        assert_eq!(edited.camera().unwrap().forward, Vec3::X);
+    }
 
     /// A denoised view's record survives writing and reading; a view file without one (every
     /// file written before `--denoise`) reads as not denoised.

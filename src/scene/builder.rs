@@ -151,9 +151,22 @@ impl SoupBuilder {
                 limit: self.max_triangles,
             });
         }
-        self.soup.indices.reserve(additional);
-        self.soup.material.reserve(additional);
-        self.soup.instance.reserve(additional);
+        let out_of_memory = |_| LoadErrorKind::OutOfMemory {
+            what: format!("{count} triangles"),
+            bytes: additional as u64 * (std::mem::size_of::<[u32; 3]>() as u64 + 8),
+        };
+        self.soup
+            .indices
+            .try_reserve(additional)
+            .map_err(out_of_memory)?;
+        self.soup
+            .material
+            .try_reserve(additional)
+            .map_err(out_of_memory)?;
+        self.soup
+            .instance
+            .try_reserve(additional)
+            .map_err(out_of_memory)?;
         Ok(())
     }
 

@@ -234,6 +234,30 @@ pub enum LoadErrorKind {
         /// The limit.
         limit: u64,
     },
+    /// A count the file declares is over a limit: refused before anything of that size is
+    /// allocated or read.
+    #[error(
+        "{what} declares {count} {unit}, over the limit of {limit} (raise it with --max-triangles)"
+    )]
+    DeclaredTooMany {
+        /// Where: `mesh 0 primitive 1`.
+        what: String,
+        /// The declared count.
+        count: u64,
+        /// `vertices` or `triangles`.
+        unit: &'static str,
+        /// The limit.
+        limit: u64,
+    },
+    /// Memory for something the file needs could not be allocated: reported instead of
+    /// aborting the process.
+    #[error("not enough memory for {what} ({bytes} bytes)")]
+    OutOfMemory {
+        /// What the memory was for: `the file's bytes`, `the triangle soup`.
+        what: String,
+        /// Bytes asked for.
+        bytes: u64,
+    },
     /// OBJ parse failure.
     #[error("OBJ: {0}")]
     Obj(String),

@@ -17,6 +17,7 @@ mod options;
 mod paths;
 pub mod pose;
 mod punctual;
+mod read;
 mod soup;
 pub mod tangents;
 mod texture;
@@ -60,21 +61,7 @@ impl Scene {
             }));
         }
         let mut steps = crate::measure::Steps::new();
-        let io = |e| err(LoadErrorKind::Io(e));
-        let mut file = std::fs::File::open(path).map_err(io)?;
-        // A GLB's images stay on disk until the texture phase reads them.
-        let (bytes, deferred) =
-            match gltf_import::read_glb_deferring_images(&mut file, meta.len()).map_err(io)? {
-                Some((bytes, deferred)) => (bytes, Some(deferred)),
-                None => {
-                    // From the start again, whatever the GLB reader had read.
-                    std::io::Seek::rewind(&mut file).map_err(io)?;
-                    let mut bytes = Vec::with_capacity(meta.len() as usize);
-                    std::io::Read::read_to_end(&mut file, &mut bytes).map_err(io)?;
-                    (bytes, None)
-                }
-            };
-        drop(file);
+        let (bytes, deferred) = read::read_model(path, meta.len(), options)?;
         let bytes = std::sync::Arc::new(bytes);
         steps.mark("read");
         let file = LoadedFile {

@@ -19,10 +19,19 @@ pub struct LoadLimits {
 impl Default for LoadLimits {
     fn default() -> Self {
         Self {
-            max_file_bytes: 2 << 30,
-            max_triangles: 50_000_000,
-            max_image_pixels: 64 << 20,
+            max_file_bytes: crate::defaults::MAX_FILE_BYTES,
+            max_triangles: crate::defaults::MAX_TRIANGLES,
+            max_image_pixels: crate::defaults::MAX_IMAGE_PIXELS,
         }
+    }
+}
+
+impl LoadLimits {
+    /// Most vertices one primitive may declare: [`crate::defaults::VERTICES_PER_TRIANGLE`]
+    /// for each triangle of the limit, so raising `--max-triangles` raises it too.
+    pub fn max_vertices(&self) -> u64 {
+        self.max_triangles
+            .saturating_mul(crate::defaults::VERTICES_PER_TRIANGLE)
     }
 }
 

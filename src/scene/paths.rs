@@ -97,6 +97,27 @@ impl FileAccess {
         }
         std::fs::read(path).map_err(|e| err(LoadErrorKind::Io(e)))
     }
+
+    /// Reads the first `len` bytes of a resolved file (fewer if it is shorter), never the rest:
+    /// a buffer is read to its `byteLength`, not to the end of whatever file it names. The limit
+    /// applies to `len`, and too little memory for it is an error.
+    pub fn read_prefix(&self, path: &Path, len: u64) -> Result<Vec<u8>, LoadError> {
+        use std::io::Read;
+        let err = |kind| LoadError::new(path, kind);
+        regular_file(path).map_err(err)?;
+        if len > self.max_bytes {
+            return Err(err(LoadErrorKind::FileTooLarge {
+                bytes: len,
+                limit: self.max_bytes,
+            }));
+        }
+        let file = std::fs::File::open(path).map_err(|e| err(LoadErrorKind::Io(e)))?;
+        let mut bytes = super::read::allocate(len, "a buffer").map_err(err)?;
+        file.take(len)
+            .read_to_end(&mut bytes)
+            .map_err(|e| err(LoadErrorKind::Io(e)))?;
+        Ok(bytes)
+    }
 }
 
 /// What kind of file `meta` describes, when it is not a regular file or a directory: "a FIFO",

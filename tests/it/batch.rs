@@ -908,3 +908,62 @@ fn the_resume_fingerprint_of_fixed_jobs_is_pinned() {
         assert_eq!(records[id]["fingerprint"], fingerprint, "{id}");
     }
 }
+
+/// Two batches started together into one folder (a duplicate retried while the first still
+/// runs): each job rendered by one of them at a time (a lock file a job), the other adopting
+/// its record; both exit 0, every job has exactly one `ok` record in each results file (no
+/// false failure), the files equal those of a single run byte for byte and no lock is left.
+#[test]
+fn two_batches_sharing_a_folder_record_every_job_once_ok() {
+    let dir = tempfile::tempdir().unwrap();
+    let manifest = jsonl_manifest(dir.path(), "jobs.jsonl", &nine_jobs());
+    let single = dir.path().join("single");
+    batch(&manifest, &single, &[], &[], true);
+    let shared = dir.path().join("shared");
+    let start = || {
+        let mut args = vec!["batch", s(&manifest), "-o", s(&shared)];
+        args.extend_from_slice(&SMALL);
+        let mut cmd = command(env!("CARGO_BIN_EXE_meshtracer"), &args, &[]);
+        cmd.stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped());
+        cmd.spawn().unwrap()
+    };
+    let (first, second) = (start(), start());
+    for child in [first, second] {
+        let out = child.wait_with_output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let results = records(&shared.join("results.jsonl"));
+    let ids: Vec<&str> = results.iter().map(|r| r["id"].as_str().unwrap()).collect();
+    let expected: Vec<String> = (0..9).map(|k| format!("job-{k}")).collect();
+    assert_eq!(ids, expected, "each job once");
+    for record in &results {
+        assert_eq!(record["status"], "ok", "{record}");
+        assert_hashes_match(&shared, record);
+    }
+    assert_eq!(outputs_tree(&shared), outputs_tree(&single));
+}
+
+/// A job whose depth file cannot be written (the name is taken by a folder) fails alone and
+/// leaves none of its files: not its image without the depth; the other job renders.
+#[test]
+fn a_failed_auxiliary_output_leaves_none_of_the_jobs_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let lines = [
+        r#"{"id": "blocked", "model": "cornell-box.gltf"}"#.to_string(),
+        r#"{"id": "fine", "model": "sub/shapes.obj"}"#.to_string(),
+    ];
+    let manifest = jsonl_manifest(dir.path(), "jobs.jsonl", &lines);
+    let out = dir.path().join("out");
+    std::fs::create_dir_all(out.join("blocked/depth.npy")).unwrap();
+    batch(&manifest, &out, &["--depth-out", "depth.npy"], &[], false);
+    let results = by_id(&records(&out.join("results.jsonl")));
+    assert_eq!(results["blocked"]["status"], "failed");
+    assert_eq!(results["fine"]["status"], "ok");
+    assert!(!out.join("blocked/image.png").exists());
+    assert!(out.join("fine/image.png").is_file() && out.join("fine/depth.npy").is_file());
+}

@@ -219,8 +219,13 @@ fn interrupt(child: &std::process::Child) {
 /// Runs the binary with `args`, and fails the test if it is still running after 20 s (what a
 /// FIFO read used to do forever): returns its exit code and standard error.
 fn run_bounded(args: &[&str]) -> (Option<i32>, String) {
+    run_bounded_program(env!("CARGO_BIN_EXE_meshtracer"), args)
+}
+
+/// [`run_bounded`] for any program.
+fn run_bounded_program(program: &str, args: &[&str]) -> (Option<i32>, String) {
     use std::io::Read;
-    let mut child = crate::common::bin()
+    let mut child = std::process::Command::new(program)
         .args(args)
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::piped())
@@ -235,7 +240,7 @@ fn run_bounded(args: &[&str]) -> (Option<i32>, String) {
         }
         if start.elapsed() > std::time::Duration::from_secs(20) {
             let _ = child.kill();
-            panic!("meshtracer {} did not finish in 20 s", args.join(" "));
+            panic!("{program} {} did not finish in 20 s", args.join(" "));
         }
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
@@ -352,4 +357,97 @@ fn fifos_and_devices_are_refused_before_they_are_read() {
         "{pipe_job}"
     );
     assert!(job("ok").contains("\"ok\""), "{results}");
+}
+
+/// `run_bounded` under `ulimit -v` of 1 GiB (through `sh`): an allocation past it fails, so
+/// a command that would read or allocate a file's declared size aborts, or errors, there.
+fn run_under_1_gib(args: &[&str]) -> (Option<i32>, String) {
+    let script = "ulimit -v 1048576 && exec \"$0\" \"$@\"";
+    let bin = env!("CARGO_BIN_EXE_meshtracer");
+    run_bounded_program("sh", &[&["-c", script, bin], args].concat())
+}
+
+/// A GLB of `bin_len` bytes of binary chunk declaring `vertices` float positions in one
+/// primitive, written sparse (the file system stores none of the zeros).
+fn declared_glb(path: &std::path::Path, vertices: u64, bin_len: u64) {
+    use std::io::Write;
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": vertices, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 1.0]}],
+        "bufferViews": [{"buffer": 0, "byteLength": bin_len}],
+        "buffers": [{"byteLength": bin_len}]
+    });
+    let mut head = crate::common::glb_bytes(&json, &[]);
+    let total = head.len() as u64 + bin_len;
+    head[8..12].copy_from_slice(&(total as u32).to_le_bytes());
+    let at = head.len() - 8;
+    head[at..at + 4].copy_from_slice(&(bin_len as u32).to_le_bytes());
+    let mut file = std::fs::File::create(path).unwrap();
+    file.write_all(&head).unwrap();
+    file.set_len(total).unwrap();
+}
+
+/// Under a 1 GiB address-space limit every hostile size gives one clean error naming the file
+/// (never an abort on allocation, never a read of the whole file): a GLB of 2 GB declaring 170
+/// million vertices, from its JSON, for `info` and `render` alike; a 1.9 GB file of zeros, from
+/// its first bytes; a FIFO and `/dev/zero`. A buffer file far larger than its `byteLength` is
+/// read to the `byteLength` only, so the model it belongs to loads.
+#[test]
+fn declared_and_actual_sizes_are_checked_before_they_are_allocated() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.png");
+    let huge = dir.path().join("huge.glb");
+    declared_glb(&huge, 170_000_000, 2_040_000_000);
+    let zeros = dir.path().join("zeros.glb");
+    std::fs::File::create(&zeros)
+        .unwrap()
+        .set_len(1900 << 20)
+        .unwrap();
+    let pipe = dir.path().join("pipe.gltf");
+    fifo(&pipe);
+    let dev_zero = std::path::Path::new("/dev/zero");
+    let cases = [
+        (
+            huge.as_path(),
+            "declares 170000000 vertices, over the limit of 150000000",
+        ),
+        (zeros.as_path(), "unknown format"),
+        (pipe.as_path(), "a FIFO"),
+        (dev_zero, "a character device"),
+    ];
+    for (model, problem) in cases {
+        for command in ["info", "render"] {
+            let mut args = vec![command, s(model)];
+            if command == "render" {
+                args.extend(["-o", s(&out), "-q"]);
+            }
+            let (code, err) = run_under_1_gib(&args);
+            assert_eq!(code, Some(1), "{args:?}: {err}");
+            assert!(
+                err.contains(s(model)) && err.contains(problem),
+                "{args:?}: {err}"
+            );
+            assert_eq!(err.lines().count(), 1, "one message: {err}");
+        }
+    }
+    assert!(!out.exists(), "nothing written");
+
+    // A quad's bytes at the start of a 1.9 GB buffer file.
+    let (json, bin) = crate::common::quads_gltf(
+        &[(crate::common::square(0.5, 0.0), 0)],
+        serde_json::json!({"materials": [{}]}),
+    );
+    let mut json = json;
+    json["buffers"] = serde_json::json!([{"byteLength": bin.len(), "uri": "big.bin"}]);
+    let mut file = std::fs::File::create(dir.path().join("big.bin")).unwrap();
+    std::io::Write::write_all(&mut file, &bin).unwrap();
+    file.set_len(1900 << 20).unwrap();
+    let model = dir.path().join("big-buffer.gltf");
+    std::fs::write(&model, serde_json::to_vec(&json).unwrap()).unwrap();
+    let (code, err) = run_under_1_gib(&["render", s(&model), "-o", s(&out), "-q"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.exists());
 }

@@ -630,3 +630,55 @@ fn bad_specs_give_one_clear_error() {
     assert!(crate::common::stderr(&result).contains("already exists (--no-clobber)"));
     assert_eq!(std::fs::read(out.join("000.png")).unwrap(), before);
 }
+
+/// A view whose depth file cannot be written (its name is taken by a folder) fails the run
+/// after the views before it were written whole: exit 1 with one message naming the failed
+/// view and the views written, `transforms.json` listing exactly those, and none of the failed
+/// view's files left (no image without its depth).
+#[test]
+fn a_run_failing_part_way_records_the_views_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("views");
+    std::fs::create_dir_all(out.join("depth/002.npy")).unwrap();
+    let depth = out.join("depth/{view:03}.npy");
+    let model = cornell();
+    let args = [
+        "render",
+        s(&model),
+        "--views",
+        "orbit:4",
+        "-o",
+        s(&out),
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--spp",
+        "1",
+        "-q",
+        "--depth-out",
+        s(&depth),
+    ];
+    let result = run(&args, false);
+    let err = crate::common::stderr(&result);
+    assert!(
+        err.contains("view 2 failed; views 0 to 1 of 4 are written whole"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "{err}");
+    let frames = read_json(&out.join("transforms.json"))["frames"].clone();
+    let listed: Vec<&str> = frames
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["file_path"].as_str().unwrap())
+        .collect();
+    assert_eq!(listed, ["000.png", "001.png"]);
+    for k in 0..2 {
+        assert!(out.join(format!("{k:03}.png")).exists());
+        assert!(out.join(format!("depth/{k:03}.npy")).is_file());
+    }
+    for name in ["002.png", "002.view.json", "003.png"] {
+        assert!(!out.join(name).exists(), "{name}");
+    }
+}

@@ -121,7 +121,7 @@ pub struct LoadArgs {
     #[arg(long)]
     pub allow_external_files: bool,
     /// Refuse scenes with more triangles than this, after instancing.
-    #[arg(long, default_value_t = 50_000_000, value_name = "N")]
+    #[arg(long, default_value_t = meshtracer::defaults::MAX_TRIANGLES, value_name = "N")]
     pub max_triangles: u64,
     /// Pose the model by this glTF animation, by name or index (`info` lists them) [default
     /// with --time: animation 0]. Without --animation and --time the file's static pose is

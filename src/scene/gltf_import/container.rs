@@ -120,7 +120,7 @@ pub(crate) fn read_glb_deferring_images(
     if !head.starts_with(b"glTF") || &head[16..20] != b"JSON" || bin_header + 8 > len {
         return Ok(None);
     }
-    let mut json = vec![0u8; (bin_header + 8 - 20) as usize];
+    let mut json = zeroed_bytes(bin_header + 8 - 20)?;
     file.read_exact(&mut json)?;
     let bin_head = json.split_off(json.len() - 8);
     let bin_start = bin_header + 8;
@@ -138,10 +138,9 @@ pub(crate) fn read_glb_deferring_images(
     if ranges.iter().map(|r| r.end - r.start).sum::<u64>() < MIN_DEFERRED_IMAGE_BYTES {
         return Ok(None);
     }
-    let size = usize::try_from(len).map_err(std::io::Error::other)?;
     // Zeroed: the kernel maps a page of it when it is first written, so the ranges left unread
     // cost nothing.
-    let mut bytes = vec![0u8; size];
+    let mut bytes = zeroed_bytes(len)?;
     bytes[..20].copy_from_slice(&head);
     bytes[20..20 + json.len()].copy_from_slice(&json);
     bytes[20 + json.len()..bin_start as usize].copy_from_slice(&bin_head);
@@ -155,6 +154,32 @@ pub(crate) fn read_glb_deferring_images(
         at = end;
     }
     Ok(Some((bytes, DeferredImages { bin_start, ranges })))
+}
+
+/// `len` zero bytes, allocated zeroed (pages the kernel maps only when written), or an
+/// `OutOfMemory` error when the allocator refuses: never the process aborted.
+fn zeroed_bytes(len: u64) -> std::io::Result<Vec<u8>> {
+    let refused = || {
+        std::io::Error::new(
+            std::io::ErrorKind::OutOfMemory,
+            format!("not enough memory to read {len} bytes"),
+        )
+    };
+    let size = usize::try_from(len).map_err(|_| refused())?;
+    if size == 0 {
+        return Ok(Vec::new());
+    }
+    let layout = std::alloc::Layout::array::<u8>(size).map_err(|_| refused())?;
+    // SAFETY: `layout` has a non-zero size. A non-null pointer is a block of the global
+    // allocator of exactly `layout`, every byte initialised (zero), so it is a valid Vec<u8> of
+    // length and capacity `size`, which the Vec frees with the same layout.
+    unsafe {
+        let ptr = std::alloc::alloc_zeroed(layout);
+        if ptr.is_null() {
+            return Err(refused());
+        }
+        Ok(Vec::from_raw_parts(ptr, size, size))
+    }
 }
 
 /// The byte ranges of buffer 0 (a GLB's binary chunk, `bin_len` bytes) that images' buffer
@@ -335,12 +360,16 @@ pub(super) fn load_buffers<'a>(
             ),
             gltf::buffer::Source::Uri(uri) => {
                 let file = access.resolve(&what, uri)?;
-                Cow::Owned(access.read(&file).map_err(|e| {
-                    model_err(LoadErrorKind::Buffer {
-                        buffer: index,
-                        problem: format!("cannot read '{}': {}", file.display(), e.kind),
-                    })
-                })?)
+                Cow::Owned(
+                    access
+                        .read_prefix(&file, buffer.length() as u64)
+                        .map_err(|e| {
+                            model_err(LoadErrorKind::Buffer {
+                                buffer: index,
+                                problem: format!("cannot read '{}': {}", file.display(), e.kind),
+                            })
+                        })?,
+                )
             }
         };
         if data.len() < buffer.length() {

@@ -18,6 +18,7 @@
 mod attributes;
 mod buffer;
 mod container;
+mod declared;
 mod draco;
 mod material;
 mod meshopt;
@@ -27,7 +28,8 @@ mod validate;
 mod vertices;
 mod walk;
 
-pub(crate) use container::{read_glb_deferring_images, LoadedFile};
+pub(crate) use container::{read_glb_deferring_images, DeferredImages, LoadedFile};
+pub(crate) use declared::check_declared_sizes;
 
 use super::error::{LoadError, LoadErrorKind};
 use super::extensions::{known, ExtensionUse};
@@ -60,6 +62,7 @@ pub(crate) fn load(
         extensions,
         webp_fallbacks,
     } = read_document(bytes).map_err(err)?;
+    check_declared_sizes(document.as_json(), &options.limits).map_err(err)?;
     let access = FileAccess::new(
         path,
         options.allow_external_files,

@@ -24,12 +24,13 @@ use meshtracer::jobs::batch::{
     FingerprintRecord, Job, JobRecord, OutputRecord, Shard, Status, Timings, JOB_FILE,
     RESULTS_FILE,
 };
+use meshtracer::jobs::lock::{self, Acquired, Holder};
 use meshtracer::output::sheet::ContactSheet;
 use meshtracer::output::PendingFile;
 use std::collections::{BTreeMap, HashSet};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime};
 
 /// The image of a job without views, unless `--image-name` or the manifest says otherwise.
 const DEFAULT_IMAGE: &str = "image.png";
@@ -94,32 +95,57 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
     };
 
     let progress = Progress::new(defaults.quiet, mine.len());
+    let started = SystemTime::now();
     let cancel = interrupt_flag();
     let mut records = Vec::with_capacity(mine.len());
+    let interrupted = |done: usize| -> anyhow::Error {
+        progress.finish();
+        Interrupted(format!(
+            "{done} of {} jobs done; each finished job is recorded in {}/<id>/{JOB_FILE}: run the same command with --resume to finish",
+            mine.len(),
+            dir.display()
+        ))
+        .into()
+    };
+    // Jobs another batch was rendering into this folder: taken up again once the rest are done.
+    let mut busy = Vec::new();
     for (k, entry) in mine.iter().enumerate() {
         let outcome = if cancel.load(Ordering::SeqCst) {
             Outcome::Interrupted
         } else {
-            run_job(args, dir, entry, &progress)
+            run_job(args, dir, entry, &progress, started, None)
         };
         match outcome {
             Outcome::Done(record, note) => {
-                progress.job_done(k, &record, note.as_deref());
+                progress.job_done(records.len(), &record, note.as_deref());
                 if let Some(sheet) = &mut sheet {
                     sheet.add(k, &record, dir, defaults);
                 }
                 records.push(*record);
             }
-            Outcome::Interrupted => {
-                progress.finish();
-                return Err(Interrupted(format!(
-                    "{k} of {} jobs done; each finished job is recorded in {}/<id>/{JOB_FILE}: run the same command with --resume to finish",
-                    mine.len(),
-                    dir.display()
-                ))
-                .into());
-            }
+            Outcome::Busy(holder) => busy.push((k, entry, holder)),
+            Outcome::Interrupted => return Err(interrupted(records.len())),
         }
+    }
+    for (k, entry, holder) in busy {
+        progress.waiting(entry, &holder, dir);
+        let record = loop {
+            if cancel.load(Ordering::SeqCst) {
+                return Err(interrupted(records.len()));
+            }
+            match run_job(args, dir, entry, &progress, started, Some(&holder)) {
+                Outcome::Done(record, note) => {
+                    progress.job_done(records.len(), &record, note.as_deref());
+                    break record;
+                }
+                Outcome::Busy(_) => std::thread::sleep(LOCK_POLL),
+                Outcome::Interrupted => return Err(interrupted(records.len())),
+            }
+        };
+        if let Some(sheet) = &mut sheet {
+            sheet.add(k, &record, dir, defaults);
+        }
+        records.push(*record);
     }
     progress.finish();
     let results = dir.join(shard.results_file());
@@ -210,10 +236,25 @@ enum Outcome {
     Done(Box<JobRecord>, Option<String>),
     /// Ctrl-C: the job was not finished and is not recorded.
     Interrupted,
+    /// Another batch holds the job's lock (it is rendering the job into the same folder).
+    Busy(Holder),
 }
 
+/// How often a batch looks again at a job another batch holds.
+const LOCK_POLL: Duration = Duration::from_millis(200);
+
 /// Runs one job: refused, skipped (`--resume`, verified), or rendered and recorded.
-fn run_job(args: &BatchArgs, dir: &Path, entry: &Entry, progress: &Progress) -> Outcome {
+/// The job's lock is taken first: a job another batch holds is left alone (`Busy`), and a job
+/// another batch recorded since this one `started` (also one taken up again `after` its holder
+/// let it go) adopts that batch's record instead of rendering again.
+fn run_job(
+    args: &BatchArgs,
+    dir: &Path,
+    entry: &Entry,
+    progress: &Progress,
+    started: SystemTime,
+    after: Option<&Holder>,
+) -> Outcome {
     let start = Instant::now();
     let fail = |error: String| {
         Outcome::Done(
@@ -235,6 +276,23 @@ fn run_job(args: &BatchArgs, dir: &Path, entry: &Entry, progress: &Progress) -> 
         Err(e) => return fail(format!("job '{}': {e:#}", job.id)),
     };
     let record_path = job_dir.join(JOB_FILE);
+    if let Err(e) = std::fs::create_dir_all(&job_dir) {
+        return fail(format!("cannot create {}: {e}", job_dir.display()));
+    }
+    // Held until this function returns, whatever it returns.
+    let _lock = match lock::acquire(&job_dir) {
+        Ok(Acquired::Held(lock)) => lock,
+        Ok(Acquired::Busy(holder)) => return Outcome::Busy(holder),
+        Err(e) => return fail(format!("job '{}': cannot lock its folder: {e}", job.id)),
+    };
+    // A record written since this batch started is another batch's, running beside it.
+    if let Some(record) = record_of_other_batch(&record_path, &fingerprint, dir, started) {
+        let by = after.map_or("another batch".to_string(), |h| format!("the batch of {h}"));
+        return Outcome::Done(
+            Box::new(record),
+            Some(format!("rendered meanwhile by {by}")),
+        );
+    }
     let mut note = None;
     if args.resume {
         match finished_record(&record_path, &fingerprint, dir) {
@@ -282,6 +340,7 @@ fn run_job(args: &BatchArgs, dir: &Path, entry: &Entry, progress: &Progress) -> 
             if interrupt_flag().load(Ordering::SeqCst) {
                 return Outcome::Interrupted;
             }
+            remove_single_view_outputs(&render_args);
             JobRecord::failed(entry, format!("{e:#}"), 0.0)
         }
     };
@@ -292,6 +351,20 @@ fn run_job(args: &BatchArgs, dir: &Path, entry: &Entry, progress: &Progress) -> 
         return fail(format!("job '{}': {e}", job.id));
     }
     Outcome::Done(Box::new(record), note)
+}
+
+/// Removes the files a failed single-view job may have written before it failed (the image
+/// when its depth or normals could not be written, say): a failed job leaves none of its
+/// files, never an image without the outputs that go with it. A job with views is left to
+/// `render --views`, which keeps its finished views whole.
+fn remove_single_view_outputs(args: &RenderArgs) {
+    if args.views.is_some() {
+        return;
+    }
+    let side = args.side_outputs().into_iter().filter_map(|(_, path)| path);
+    for path in std::iter::once(&args.output).chain(side) {
+        let _ = std::fs::remove_file(path);
+    }
 }
 
 /// The folders a job writes into (those a `{view}` pattern names excepted: render --views
@@ -372,6 +445,25 @@ fn slash_path(path: &Path) -> String {
         .map(|c| c.as_os_str().to_string_lossy().into_owned())
         .collect::<Vec<_>>()
         .join("/")
+}
+
+/// The record another batch wrote for this job since `started` (this batch's start), when it
+/// is for the same options and model: failed, or ok with its outputs as recorded.
+fn record_of_other_batch(
+    record_path: &Path,
+    fingerprint: &str,
+    dir: &Path,
+    started: SystemTime,
+) -> Option<JobRecord> {
+    let written = std::fs::metadata(record_path).ok()?.modified().ok()?;
+    if written < started {
+        return None;
+    }
+    let text = std::fs::read_to_string(record_path).ok()?;
+    let record: JobRecord = serde_json::from_str(&text).ok()?;
+    let usable = record.fingerprint.as_deref() == Some(fingerprint)
+        && (record.status == Status::Failed || record.verify(dir).is_ok());
+    usable.then_some(record)
 }
 
 /// The record of an earlier run of this job when it may be skipped: it finished (ok) with the
@@ -768,7 +860,24 @@ impl Progress {
         self.views.set_position(done as u64);
     }
 
-    /// Job `k` (from 0) is recorded: one line, with the ETA of the rest at the mean pace.
+    /// The job of `entry` is held by another batch, which this one now waits for: one line
+    /// naming the holder and the lock file (to delete if that batch is gone, on another host).
+    fn waiting(&self, entry: &Entry, holder: &Holder, dir: &Path) {
+        if self.quiet {
+            return;
+        }
+        let id = entry.id.as_deref().unwrap_or("(no id)");
+        let lock = dir.join(id).join(lock::LOCK_FILE);
+        self.multi.suspend(|| {
+            eprintln!(
+                "{id}: held by the batch of {holder}; waiting for its record (if that batch is gone, delete {})",
+                lock.display()
+            );
+        });
+    }
+
+    /// `k` jobs were recorded before this one: one line, with the ETA of the rest at the
+    /// mean pace.
     fn job_done(&self, k: usize, record: &JobRecord, note: Option<&str>) {
         self.jobs.inc(1);
         if self.quiet {

@@ -55,6 +55,16 @@ struct ViewNames {
     view: String,
 }
 
+impl ViewNames {
+    /// The names of the files that go with the image: AOVs, mask and view file.
+    fn companions(&self) -> impl Iterator<Item = &String> {
+        [&self.depth, &self.normal, &self.mask, &self.segmentation]
+            .into_iter()
+            .flatten()
+            .chain(std::iter::once(&self.view))
+    }
+}
+
 /// The file-name patterns of the outputs asked for; `None` for the image and the view file
 /// means the default numbered name.
 struct Layout {
@@ -500,7 +510,10 @@ fn render_all(
     let mut totals = RenderStats::default();
     on_view(0, cameras.len());
     for (k, (camera, names)) in cameras.iter().zip(&plan.names).enumerate() {
-        let (frame, stats, image) = run.render(k, camera, names)?;
+        let (frame, stats, image) = match run.render(k, camera, names) {
+            Ok(done) => done,
+            Err(e) => return Err(failed_part_way(args, plan, frames, k, e)),
+        };
         extras.add(k, camera, &image, (args.background, args.tonemap))?;
         on_view(k + 1, cameras.len());
         frames.push(frame);
@@ -523,6 +536,34 @@ fn render_all(
         threads: plan.threads,
     };
     Ok((summary, frames, warnings))
+}
+
+/// The error of a run whose view `k` failed (not interrupted) after views `0..k` were written
+/// whole: their `transforms.json` is written, so the views that exist are recorded and a
+/// rerun or a tool reading the folder knows which; the error says so.
+fn failed_part_way(
+    args: &RenderArgs,
+    plan: &Plan,
+    frames: Vec<Frame>,
+    k: usize,
+    error: anyhow::Error,
+) -> anyhow::Error {
+    if k == 0 || error.is::<Interrupted>() {
+        return error;
+    }
+    let total = plan.cameras.len();
+    let dir = args.output.as_path();
+    match write_transforms(args, dir, plan.width, plan.height, frames) {
+        Ok(()) => error.context(format!(
+            "view {k} failed; views 0 to {} of {total} are written whole and listed in {}",
+            k - 1,
+            dir.join(TRANSFORMS_FILE).display()
+        )),
+        Err(_) => error.context(format!(
+            "view {k} failed; views 0 to {} of {total} are written whole",
+            k - 1
+        )),
+    }
 }
 
 /// Writes the folder's `transforms.json`: the views' `frames`, their one size and, with
@@ -734,7 +775,43 @@ impl ViewRun<'_> {
                 ))
             })?;
         output.commit(&image, args.background, args.tonemap)?;
-        if let Some(a) = &aovs {
+        if let Err(e) = self.write_companions(names, &image, aovs.as_ref(), &view_path, &text) {
+            // None of this view's files without the others: the image goes with its AOVs.
+            for name in std::iter::once(&names.image).chain(names.companions()) {
+                let _ = std::fs::remove_file(dir.join(name));
+            }
+            return Err(e);
+        }
+        if !args.quiet {
+            eprintln!(
+                "[{}/{}] {} rendered in {:.3} s",
+                k + 1,
+                self.count,
+                image_path.display(),
+                stats.time.as_secs_f64()
+            );
+        }
+        let frame = Frame {
+            file_path: names.image.clone(),
+            transform_matrix: camera_to_world(&settings.view),
+            intrinsics,
+            depth_file_path: names.depth.clone(),
+            mask_path: names.mask.clone(),
+        };
+        Ok((frame, stats, image))
+    }
+
+    /// Writes view `k`'s files after its image: the AOVs, the mask, the view file (`text`).
+    fn write_companions(
+        &self,
+        names: &ViewNames,
+        image: &meshtracer::output::Image,
+        aovs: Option<&meshtracer::render::Aovs>,
+        view_path: &Path,
+        text: &str,
+    ) -> Result<()> {
+        let (args, dir, (width, height)) = (self.args, self.dir, (self.width, self.height));
+        if let Some(a) = aovs {
             if let Some(name) = &names.depth {
                 let path = dir.join(name);
                 meshtracer::output::aov::write_depth(
@@ -761,24 +838,8 @@ impl ViewRun<'_> {
             let coverage: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();
             meshtracer::output::aov::write_mask(&dir.join(name), width, height, &coverage)?;
         }
-        meshtracer::output::write_atomic(&view_path, text.as_bytes())?;
-        if !args.quiet {
-            eprintln!(
-                "[{}/{}] {} rendered in {:.3} s",
-                k + 1,
-                self.count,
-                image_path.display(),
-                stats.time.as_secs_f64()
-            );
-        }
-        let frame = Frame {
-            file_path: names.image.clone(),
-            transform_matrix: camera_to_world(&settings.view),
-            intrinsics,
-            depth_file_path: names.depth.clone(),
-            mask_path: names.mask.clone(),
-        };
-        Ok((frame, stats, image))
+        meshtracer::output::write_atomic(view_path, text.as_bytes())?;
+        Ok(())
     }
 }
 
