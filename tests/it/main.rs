@@ -44,6 +44,8 @@ mod render;
 mod tiles;
 /// `--turntable` GIFs and contact sheets.
 mod turntable;
+/// Valid glTF that strict readers refuse: drawn, or "nothing to draw" where that is so.
+mod valid_forms;
 /// `KHR_materials_variants`: `--variant` and `info`.
 mod variants;
 /// `render --views`: many views after one load, `transforms.json`.

@@ -438,11 +438,14 @@ pub(crate) fn choose_animation(
 }
 
 /// The pose `options` ask for: the rest pose, or animation `options.animation` sampled at
-/// `options.time` (missing parts default to animation 0 and time 0).
+/// `options.time` (missing parts default to animation 0 and time 0). `pointer_channels` holds,
+/// per animation, the `KHR_animation_pointer` channels removed from the file: an animation
+/// made of nothing else is refused, and one that lost some says so in its description.
 pub(crate) fn pose(
     document: &gltf::Document,
     buffers: &[Buffer],
     animations: &[AnimationInfo],
+    pointer_channels: &[usize],
     options: &PoseOptions,
 ) -> Result<Pose, String> {
     let mut pose = Pose::rest(document);
@@ -454,6 +457,12 @@ pub(crate) fn pose(
     let Some(animation) = document.animations().nth(index) else {
         return Err(format!("no animation {index}"));
     };
+    let pointers = pointer_channels.get(index).copied().unwrap_or(0);
+    if pointers > 0 && animation.channels().next().is_none() {
+        return Err(format!(
+            "animation {index}: all its {pointers} channels are KHR_animation_pointer channels, which meshtracer does not support (it animates node translation, rotation, scale and weights)"
+        ));
+    }
     let time = options.time.unwrap_or(0.0);
     let mut trs: Vec<Option<(Vec3, Quat, Vec3)>> = vec![None; pose.local.len()];
     for channel in animation.channels() {
@@ -490,11 +499,17 @@ pub(crate) fn pose(
         .get(index)
         .map_or_else(|| index.to_string(), AnimationInfo::label);
     let end = animations.get(index).map_or(0.0, |a| a.duration);
-    pose.description = Some(if time > end {
+    let mut description = if time > end {
         format!("animation {label} at {time} s (past its end at {end} s: its last keyframes)")
     } else {
         format!("animation {label} at {time} s")
-    });
+    };
+    if pointers > 0 {
+        description += &format!(
+            " without its {pointers} KHR_animation_pointer channel(s), which meshtracer does not support"
+        );
+    }
+    pose.description = Some(description);
     Ok(pose)
 }
 

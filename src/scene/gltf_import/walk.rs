@@ -21,10 +21,6 @@ use gltf::mesh::Mode;
 use std::collections::HashMap;
 use std::rc::Rc;
 
-/// Most node visits a hierarchy may expand to. A node shared by two parents is instanced twice,
-/// so 30 levels of sharing would be 2^30 visits: refuse such files instead of hanging.
-const MAX_NODE_VISITS: usize = 1_000_000;
-
 /// The node walk's state.
 pub(super) struct Importer<'a> {
     document: &'a gltf::Document,
@@ -91,33 +87,44 @@ impl<'a> Importer<'a> {
         }
     }
 
-    pub(super) fn walk_default_scene(&mut self) -> Result<(), LoadErrorKind> {
+    /// Walks the default scene (or scene 0) from its roots, visiting each node once. glTF 2.0
+    /// §3.5.2 gives a node at most one parent and makes a scene's nodes roots; a node reached a
+    /// second time (a second parent, a root that is also a child, a child listed twice) is
+    /// drawn only where it was first reached, with a warning. A file with no scene, or a scene
+    /// with no nodes, leaves nothing to draw: `NothingToDraw`'s reason is returned.
+    pub(super) fn walk_default_scene(&mut self) -> Result<Option<String>, LoadErrorKind> {
         // glTF 2.0 §3.5.1: `scene` names the default; without it, scene 0 is a reasonable choice.
-        let scene = self
+        let Some(scene) = self
             .document
             .default_scene()
             .or_else(|| self.document.scenes().next())
-            .ok_or(LoadErrorKind::NoScene)?;
+        else {
+            return Ok(Some("the file defines no scene".to_string()));
+        };
+        if scene.nodes().len() == 0 {
+            return Ok(Some(format!("scene {} has no nodes", scene.index())));
+        }
         let nodes: Vec<gltf::Node> = self.document.nodes().collect();
         let mut on_path = vec![false; nodes.len()];
-        let mut visits = 0usize;
+        // Where each node was first reached: `Some(None)` as a root, `Some(Some(p))` under p.
+        let mut reached: Vec<Option<Option<usize>>> = vec![None; nodes.len()];
         // An explicit stack: a hostile hierarchy a million levels deep must not overflow ours.
         enum Step {
-            Enter(usize, Mat4),
+            Enter(usize, Option<usize>, Mat4),
             Leave(usize),
         }
         let mut stack: Vec<Step> = scene
             .nodes()
-            .map(|n| Step::Enter(n.index(), Mat4::IDENTITY))
+            .map(|n| Step::Enter(n.index(), None, Mat4::IDENTITY))
             .collect();
         stack.reverse();
         while let Some(step) = stack.pop() {
-            let (index, parent) = match step {
+            let (index, parent, parent_world) = match step {
                 Step::Leave(index) => {
                     on_path[index] = false;
                     continue;
                 }
-                Step::Enter(index, parent) => (index, parent),
+                Step::Enter(index, parent, world) => (index, parent, world),
             };
             let Some(node) = nodes.get(index) else {
                 continue;
@@ -125,28 +132,36 @@ impl<'a> Importer<'a> {
             if on_path[index] {
                 return Err(LoadErrorKind::NodeCycle { node: index });
             }
-            visits += 1;
-            if visits > MAX_NODE_VISITS {
-                return Err(LoadErrorKind::Gltf(format!(
-                    "the node hierarchy expands to more than {MAX_NODE_VISITS} node instances (nodes shared by several parents)"
-                )));
+            if let Some(first) = reached[index] {
+                let place = |p: Option<usize>| match p {
+                    None => format!("a root of scene {}", scene.index()),
+                    Some(p) => format!("a child of node {p}"),
+                };
+                self.warnings.push(format!(
+                    "node {index}: is {} and also {} (glTF allows one parent); drawn once, as {}",
+                    place(first),
+                    place(parent),
+                    place(first)
+                ));
+                continue;
             }
+            reached[index] = Some(parent);
             let local = self
                 .pose
                 .local
                 .get(index)
                 .copied()
                 .unwrap_or(Mat4::IDENTITY);
-            let world = parent * local;
+            let world = parent_world * local;
             self.visit(node, world)?;
             on_path[index] = true;
             stack.push(Step::Leave(index));
             let children: Vec<usize> = node.children().map(|c| c.index()).collect();
             for child in children.into_iter().rev() {
-                stack.push(Step::Enter(child, world));
+                stack.push(Step::Enter(child, Some(index), world));
             }
         }
-        Ok(())
+        Ok(None)
     }
 
     fn visit(&mut self, node: &gltf::Node, world: Mat4) -> Result<(), LoadErrorKind> {
@@ -251,6 +266,12 @@ impl<'a> Importer<'a> {
             Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
         ) {
             self.skipped_non_triangle += 1;
+            return Ok(());
+        }
+        if primitive.get(&gltf::Semantic::Positions).is_none() {
+            self.warnings.push(format!(
+                "{at}: has no POSITION attribute; the primitive is skipped"
+            ));
             return Ok(());
         }
         self.primitive_count += 1;

@@ -368,7 +368,11 @@ fn load_options(args: &LoadArgs) -> LoadOptions {
 
 fn info(args: &InfoArgs) -> Result<()> {
     let start = Instant::now();
-    let scene = load(&args.model, &load_options(&args.load))?;
+    let options = LoadOptions {
+        allow_nothing_to_draw: true,
+        ..load_options(&args.load)
+    };
+    let scene = load(&args.model, &options)?;
     let load_time = start.elapsed();
     let json = info_json(&scene);
     if args.json {
