@@ -232,7 +232,14 @@ fn png_1x1() -> Vec<u8> {
     bytes
 }
 
+/// `base()` with a base colour texture of image `uri`, and the TEXCOORD_0 it reads (zeros: an
+/// accessor without a bufferView).
 fn with_image(json: &mut Value, uri: &str) {
+    json["accessors"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"componentType": 5126, "count": 3, "type": "VEC2"}));
+    json["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(2);
     json["images"] = json!([{"uri": uri}]);
     json["textures"] = json!([{"source": 0}]);
     json["materials"] = json!([{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]);

@@ -3,50 +3,11 @@
 //! and checks that it is drawn (pixels covered) or, where there is nothing to draw, that the
 //! program says so.
 
-use crate::common::{f32_bytes, glb_bytes, read_rgba, run, s, stderr, write_gltf};
+use crate::common::{
+    f32_bytes, glb_bytes, read_rgba, run, s, stderr, unit_quad as quad, write_gltf,
+};
 use serde_json::{json, Value};
-use std::path::{Path, PathBuf};
-
-/// A unit quad in the z = 0 plane, [-0.5, 0.5]², facing +Z, with its positions (accessor 0),
-/// indices (accessor 1) and texture coordinates (accessor 2, not used by the mesh) in one
-/// buffer of 92 bytes, seen by an orthographic camera 2 above looking down
-/// and framing [-1, 1]², lit by the default rig.
-fn quad() -> (Value, Vec<u8>) {
-    let mut bin = f32_bytes(&[
-        -0.5, -0.5, 0.0, 0.5, -0.5, 0.0, 0.5, 0.5, 0.0, -0.5, 0.5, 0.0,
-    ]);
-    bin.extend([0u16, 1, 2, 0, 2, 3].iter().flat_map(|i| i.to_le_bytes()));
-    bin.extend(f32_bytes(&[0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0]));
-    let json = json!({
-        "asset": {"version": "2.0"},
-        "scene": 0,
-        "scenes": [{"nodes": [0, 1]}],
-        "nodes": [{"mesh": 0}, {"camera": 0, "translation": [0.0, 0.0, 2.0]}],
-        "cameras": [{"type": "orthographic",
-            "orthographic": {"xmag": 1.0, "ymag": 1.0, "znear": 0.1, "zfar": 10.0}}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
-             "min": [-0.5, -0.5, 0.0], "max": [0.5, 0.5, 0.0]},
-            {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"},
-            {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"}
-        ],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": 48},
-            {"buffer": 0, "byteOffset": 48, "byteLength": 12},
-            {"buffer": 0, "byteOffset": 60, "byteLength": 32}
-        ]
-    });
-    (json, bin)
-}
-
-/// A temporary folder for one test.
-fn folder(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("meshtracer-valid-forms-{test}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
-}
+use std::path::Path;
 
 /// Renders `model` at 32x32 from its camera and returns the covered pixels (alpha > 0) and
 /// standard error (with warnings: no `-q`).
@@ -77,8 +38,9 @@ const QUAD_PIXELS: usize = 256;
 /// Writes `json` with `bin` embedded and checks that the quad covers its pixels; returns the
 /// render's standard error.
 fn quad_is_drawn(test: &str, json: Value, bin: &[u8]) -> String {
-    let dir = folder(test);
-    let model = write_gltf(&dir, "model.gltf", json, bin);
+    let dir = tempfile::tempdir().unwrap();
+    let dir = dir.path();
+    let model = write_gltf(dir, "model.gltf", json, bin);
     let (pixels, err) = covered(&model);
     assert_eq!(pixels, QUAD_PIXELS, "{test}: {err}");
     err
@@ -145,8 +107,9 @@ fn textures_whose_only_source_is_an_extension_are_drawn() {
         json["materials"] = json!([{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}]);
         json["meshes"][0]["primitives"][0]["material"] = json!(0);
         json["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(2);
-        let dir = folder(extension);
-        let model = write_gltf(&dir, "model.gltf", json, &bin);
+        let dir = tempfile::tempdir().unwrap();
+        let dir = dir.path();
+        let model = write_gltf(dir, "model.gltf", json, &bin);
         let (pixels, err) = covered(&model);
         assert_eq!(pixels, QUAD_PIXELS, "{extension}: {err}");
         let (_, _, image) = read_rgba(&model.with_extension("png"));
@@ -185,10 +148,11 @@ fn files_with_nothing_to_draw_are_described_and_not_rendered() {
             "nothing to draw: the file defines no scene",
         ),
     ] {
-        let dir = folder(name);
+        let dir = tempfile::tempdir().unwrap();
+        let dir = dir.path();
         let (mut json, bin) = quad();
         edit(&mut json);
-        let model = write_gltf(&dir, "model.gltf", json, &bin);
+        let model = write_gltf(dir, "model.gltf", json, &bin);
         let info = run(&["info", s(&model), "--json"], true);
         let info: Value = serde_json::from_slice(&info.stdout).unwrap();
         assert_eq!(info["triangles"], 0, "{name}");
@@ -252,8 +216,9 @@ fn a_light_of_an_unknown_type_is_skipped() {
         json!({"translation": [0.0, 0.0, 3.0], "extensions": {"KHR_lights_punctual": {"light": 1}}}),
     ]);
     json["scenes"][0]["nodes"] = json!([0, 1, 2, 3]);
-    let dir = folder("unknown-light");
-    let model = write_gltf(&dir, "model.gltf", json.clone(), &bin);
+    let dir = tempfile::tempdir().unwrap();
+    let dir = dir.path();
+    let model = write_gltf(dir, "model.gltf", json.clone(), &bin);
     let info = run(&["info", s(&model), "--json"], true);
     let info: Value = serde_json::from_slice(&info.stdout).unwrap();
     let lights = info["lights"].as_array().unwrap();
@@ -287,8 +252,9 @@ fn animation_pointer_channels_are_ignored_with_a_warning() {
         "samplers": [{"input": 3, "output": 4}],
         "channels": [{"sampler": 0, "target": {"path": "pointer",
             "extensions": {"KHR_animation_pointer": {"pointer": "/nodes/0/translation"}}}}]}]);
-    let dir = folder("pointer");
-    let model = write_gltf(&dir, "model.gltf", json.clone(), &bin);
+    let dir = tempfile::tempdir().unwrap();
+    let dir = dir.path();
+    let model = write_gltf(dir, "model.gltf", json.clone(), &bin);
     let err = quad_is_drawn("pointer-render", json, &bin);
     assert!(
         err.contains("animation 0 ('Slide'): 1 KHR_animation_pointer channel(s) ignored"),
@@ -339,7 +305,8 @@ fn glb_padding_trailing_bytes_and_unknown_chunks_are_ignored() {
     unknown.extend(b"XTRA12345678");
     unknown.extend(&plain[json_end..]);
     set_length(&mut unknown);
-    let dir = folder("glb");
+    let dir = tempfile::tempdir().unwrap();
+    let dir = dir.path();
     for (name, bytes) in [
         ("trailing", trailing),
         ("padded", padded),
@@ -357,7 +324,8 @@ fn glb_padding_trailing_bytes_and_unknown_chunks_are_ignored() {
 fn percent_encoded_data_uris_are_decoded() {
     let (mut json, bin) = quad();
     let encoded: String = bin.iter().map(|b| format!("%{b:02X}")).collect();
-    let dir = folder("percent");
+    let dir = tempfile::tempdir().unwrap();
+    let dir = dir.path();
     json["buffers"] = json!([{"byteLength": bin.len(),
         "uri": format!("data:application/octet-stream,{encoded}")}]);
     let model = dir.join("model.gltf");

@@ -77,6 +77,26 @@ impl Track {
         Ok(())
     }
 
+    /// What is wrong with keyframe times that [`Track::check`] lets through (§3.11 asks for
+    /// times that are not negative and strictly increase): a negative time (the channel holds
+    /// its first value until then, as sampling before the first key always does), or two
+    /// equal times (a jump at that instant). `None` when the times are as the specification
+    /// asks.
+    pub fn odd_times(&self) -> Option<String> {
+        if let Some(i) = self.times.iter().position(|t| *t < 0.0) {
+            return Some(format!(
+                "keyframe time {i} is negative ({} s); glTF times start at 0",
+                self.times[i]
+            ));
+        }
+        let i = self.times.windows(2).position(|w| w[1] == w[0])?;
+        Some(format!(
+            "keyframe times {i} and {} are equal ({} s); glTF times strictly increase",
+            i + 1,
+            self.times[i]
+        ))
+    }
+
     /// Element `e` (0..count) of the output, `width` floats.
     fn element(&self, e: usize) -> &[f32] {
         &self.values[e * self.width..(e + 1) * self.width]
@@ -375,7 +395,16 @@ pub(crate) fn list_animations(
             let mut duration = 0.0f32;
             for channel in animation.channels() {
                 match read_track(&channel, buffers, targets_of(&channel.target().node())) {
-                    Ok(track) => duration = duration.max(track.end()),
+                    Ok(track) => {
+                        duration = duration.max(track.end());
+                        if let Some(problem) = track.odd_times() {
+                            warnings.push(format!(
+                                "animation {} channel {}: {problem}",
+                                animation.index(),
+                                channel.index()
+                            ));
+                        }
+                    }
                     Err(problem) => {
                         warnings.push(format!(
                             "animation {} channel {}: {problem}",

@@ -5,7 +5,7 @@
 use super::attributes;
 use super::buffer::Buffer;
 use super::draco;
-use super::material::material;
+use super::material::{material, out_of_range};
 use super::pose::{self, Pose, Skinning};
 use super::validate::{check_accessor, check_accessor_type, INDICES};
 use super::vertices::{Deform, VertexReader};
@@ -18,7 +18,7 @@ use crate::scene::soup::Instance;
 use crate::scene::viewpoint::{Camera, Projection};
 use glam::{Mat4, Vec3};
 use gltf::mesh::Mode;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::rc::Rc;
 
 /// The node walk's state.
@@ -49,6 +49,8 @@ pub(super) struct Importer<'a> {
     limits: LoadLimits,
     /// Draco primitives decoded so far, by (mesh, primitive): instanced meshes decode once.
     draco: HashMap<(usize, usize), Rc<draco::Decoded>>,
+    /// The (mesh, primitive, material) triples whose texture coordinates were checked.
+    tex_coords_checked: HashSet<(usize, usize, usize)>,
 }
 
 impl<'a> Importer<'a> {
@@ -84,6 +86,7 @@ impl<'a> Importer<'a> {
                 .any(|name| name == "KHR_mesh_quantization"),
             limits,
             draco: HashMap::new(),
+            tex_coords_checked: HashSet::new(),
         }
     }
 
@@ -345,6 +348,9 @@ impl<'a> Importer<'a> {
                 }
             }
         }
+        if let Some(m) = chosen.index() {
+            self.check_tex_coords(primitive, at, &chosen, m);
+        }
         let material = match chosen.index() {
             Some(i) => i as u32,
             None => {
@@ -374,6 +380,39 @@ impl<'a> Importer<'a> {
         Ok(())
     }
 
+    /// Warns, once per primitive and material, when the material samples a `TEXCOORD_n` the
+    /// primitive does not have (glTF 2.0 §3.9.2 requires it): such a texture cannot be placed
+    /// as the file means.
+    fn check_tex_coords(
+        &mut self,
+        primitive: &gltf::Primitive,
+        at: PrimitiveAt,
+        chosen: &gltf::Material,
+        index: usize,
+    ) {
+        if !self
+            .tex_coords_checked
+            .insert((at.mesh, at.primitive, index))
+        {
+            return;
+        }
+        let mut sets: Vec<u32> = material(chosen)
+            .texture_refs()
+            .map(|r| r.tex_coord)
+            .filter(|&set| primitive.get(&gltf::Semantic::TexCoords(set)).is_none())
+            .collect();
+        sets.sort_unstable();
+        sets.dedup();
+        for set in sets {
+            self.warnings.push(format!(
+                "{at}: material {index}{} samples TEXCOORD_{set}, which the primitive does not have",
+                chosen
+                    .name()
+                    .map_or(String::new(), |n| format!(" ('{n}')"))
+            ));
+        }
+    }
+
     /// The primitive's Draco stream decoded, if it has `KHR_draco_mesh_compression` (decoded
     /// on its first instance, shared by the others).
     fn decode_draco(
@@ -395,7 +434,12 @@ impl<'a> Importer<'a> {
         Ok(Some(decoded))
     }
 
-    pub(super) fn materials(&self) -> Vec<Material> {
+    /// The file's materials (and the default material, if a primitive has none), with a
+    /// warning for each value corrected ([`out_of_range`]).
+    pub(super) fn materials(&mut self) -> Vec<Material> {
+        for m in self.document.materials() {
+            self.warnings.extend(out_of_range(&m));
+        }
         let mut out: Vec<Material> = self.document.materials().map(|m| material(&m)).collect();
         if self.uses_default_material {
             out.push(Material::default());

@@ -387,3 +387,36 @@ pub fn keep_failed_images(test: &str, reference: &Path, actual: &Path) -> PathBu
         .output();
     dir
 }
+
+/// A unit quad in the z = 0 plane, [-0.5, 0.5]², facing +Z, with its positions (accessor 0),
+/// indices (accessor 1) and texture coordinates (accessor 2, not used by the mesh) in one
+/// buffer of 92 bytes, seen by an orthographic camera 2 above looking down and framing
+/// [-1, 1]², lit by the default rig.
+pub fn unit_quad() -> (serde_json::Value, Vec<u8>) {
+    let mut bin = f32_bytes(&[
+        -0.5, -0.5, 0.0, 0.5, -0.5, 0.0, 0.5, 0.5, 0.0, -0.5, 0.5, 0.0,
+    ]);
+    bin.extend([0u16, 1, 2, 0, 2, 3].iter().flat_map(|i| i.to_le_bytes()));
+    bin.extend(f32_bytes(&[0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0]));
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"camera": 0, "translation": [0.0, 0.0, 2.0]}],
+        "cameras": [{"type": "orthographic",
+            "orthographic": {"xmag": 1.0, "ymag": 1.0, "znear": 0.1, "zfar": 10.0}}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "min": [-0.5, -0.5, 0.0], "max": [0.5, 0.5, 0.0]},
+            {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"},
+            {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 48, "byteLength": 12},
+            {"buffer": 0, "byteOffset": 60, "byteLength": 32}
+        ]
+    });
+    (json, bin)
+}
