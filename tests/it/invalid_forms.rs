@@ -3,7 +3,7 @@
 //! mesh, accessor or material, and the corrected picture where there is one (bounds from
 //! `info --json`). Also which messages `--quiet` and `--no-warnings` keep.
 
-use crate::common::{png_data_uri, run, s, stderr, unit_quad, write_gltf};
+use crate::common::{add_float_accessor, png_data_uri, run, s, stderr, unit_quad, write_gltf};
 use serde_json::{json, Value};
 use std::path::Path;
 
@@ -136,24 +136,21 @@ fn a_node_with_matrix_and_trs_uses_the_matrix_with_a_warning() {
 fn negative_and_repeated_keyframe_times_are_reported() {
     let dir = tempfile::tempdir().unwrap();
     let (mut json, mut bin) = unit_quad();
-    let offset = bin.len();
-    // Times [-1, 0], times [0, 1, 1], then four translations.
-    bin.extend(crate::common::f32_bytes(&[-1.0, 0.0, 0.0, 1.0, 1.0]));
-    bin.extend(crate::common::f32_bytes(&[0.0; 12]));
-    json["bufferViews"].as_array_mut().unwrap().extend([
-        json!({"buffer": 0, "byteOffset": offset, "byteLength": 8}),
-        json!({"buffer": 0, "byteOffset": offset + 8, "byteLength": 12}),
-        json!({"buffer": 0, "byteOffset": offset + 20, "byteLength": 48}),
-    ]);
-    json["accessors"].as_array_mut().unwrap().extend([
-        json!({"bufferView": 3, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [-1.0], "max": [0.0]}),
-        json!({"bufferView": 4, "componentType": 5126, "count": 3, "type": "SCALAR", "min": [0.0], "max": [1.0]}),
-        json!({"bufferView": 5, "componentType": 5126, "count": 2, "type": "VEC3"}),
-        json!({"bufferView": 5, "componentType": 5126, "count": 3, "type": "VEC3"}),
-    ]);
+    let mut add =
+        |floats: &[f32], accessor: Value| add_float_accessor(&mut json, &mut bin, floats, accessor);
+    let negative = add(
+        &[-1.0, 0.0],
+        json!({"count": 2, "type": "SCALAR", "min": [-1.0], "max": [0.0]}),
+    );
+    let repeated = add(
+        &[0.0, 1.0, 1.0],
+        json!({"count": 3, "type": "SCALAR", "min": [0.0], "max": [1.0]}),
+    );
+    let two = add(&[0.0; 6], json!({"count": 2, "type": "VEC3"}));
+    let three = add(&[0.0; 9], json!({"count": 3, "type": "VEC3"}));
     let target = json!({"node": 0, "path": "translation"});
     json["animations"] = json!([{
-        "samplers": [{"input": 3, "output": 5}, {"input": 4, "output": 6}],
+        "samplers": [{"input": negative, "output": two}, {"input": repeated, "output": three}],
         "channels": [{"sampler": 0, "target": target}, {"sampler": 1, "target": target}]
     }]);
     let info = info(dir.path(), json, &bin);
@@ -247,17 +244,13 @@ fn out_of_range_material_extension_values_are_corrected() {
 fn normals_that_are_not_unit_length_are_reported() {
     let dir = tempfile::tempdir().unwrap();
     let (mut json, mut bin) = unit_quad();
-    let offset = bin.len();
-    bin.extend(crate::common::f32_bytes(&[0.0, 0.0, 2.0].repeat(4)));
-    json["bufferViews"]
-        .as_array_mut()
-        .unwrap()
-        .push(json!({"buffer": 0, "byteOffset": offset, "byteLength": 48}));
-    json["accessors"]
-        .as_array_mut()
-        .unwrap()
-        .push(json!({"bufferView": 3, "componentType": 5126, "count": 4, "type": "VEC3"}));
-    json["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = json!(3);
+    let normals = add_float_accessor(
+        &mut json,
+        &mut bin,
+        &[0.0, 0.0, 2.0].repeat(4),
+        json!({"count": 4, "type": "VEC3"}),
+    );
+    json["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = json!(normals);
     let info = info(dir.path(), json, &bin);
     assert_eq!(
         warnings(&info),

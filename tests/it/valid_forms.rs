@@ -4,7 +4,7 @@
 //! program says so.
 
 use crate::common::{
-    f32_bytes, glb_bytes, read_rgba, run, s, stderr, unit_quad as quad, write_gltf,
+    add_float_accessor, glb_bytes, read_rgba, run, s, stderr, unit_quad as quad, write_gltf,
 };
 use serde_json::{json, Value};
 use std::path::Path;
@@ -237,19 +237,21 @@ fn a_light_of_an_unknown_type_is_skipped() {
 #[test]
 fn animation_pointer_channels_are_ignored_with_a_warning() {
     let (mut json, mut bin) = quad();
-    let offset = bin.len();
-    bin.extend(f32_bytes(&[0.0, 1.0, 0.0, 0.0, 0.0, 5.0, 0.0, 0.0]));
-    json["bufferViews"].as_array_mut().unwrap().extend([
-        json!({"buffer": 0, "byteOffset": offset, "byteLength": 8}),
-        json!({"buffer": 0, "byteOffset": offset + 8, "byteLength": 24}),
-    ]);
-    json["accessors"].as_array_mut().unwrap().extend([
-        json!({"bufferView": 3, "componentType": 5126, "count": 2, "type": "SCALAR", "min": [0.0], "max": [1.0]}),
-        json!({"bufferView": 4, "componentType": 5126, "count": 2, "type": "VEC3"}),
-    ]);
+    let times = add_float_accessor(
+        &mut json,
+        &mut bin,
+        &[0.0, 1.0],
+        json!({"count": 2, "type": "SCALAR", "min": [0.0], "max": [1.0]}),
+    );
+    let values = add_float_accessor(
+        &mut json,
+        &mut bin,
+        &[0.0, 0.0, 0.0, 5.0, 0.0, 0.0],
+        json!({"count": 2, "type": "VEC3"}),
+    );
     json["extensionsUsed"] = json!(["KHR_animation_pointer"]);
     json["animations"] = json!([{"name": "Slide",
-        "samplers": [{"input": 3, "output": 4}],
+        "samplers": [{"input": times, "output": values}],
         "channels": [{"sampler": 0, "target": {"path": "pointer",
             "extensions": {"KHR_animation_pointer": {"pointer": "/nodes/0/translation"}}}}]}]);
     let dir = tempfile::tempdir().unwrap();

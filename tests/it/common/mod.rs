@@ -420,3 +420,24 @@ pub fn unit_quad() -> (serde_json::Value, Vec<u8>) {
     });
     (json, bin)
 }
+
+/// Appends `floats` to `bin` as a new buffer view of buffer 0 and adds `accessor` (its
+/// `bufferView` set to that view; `componentType` float) to the JSON's accessors. Returns the
+/// accessor's index.
+pub fn add_float_accessor(
+    json: &mut serde_json::Value,
+    bin: &mut Vec<u8>,
+    floats: &[f32],
+    mut accessor: serde_json::Value,
+) -> usize {
+    let view =
+        serde_json::json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": 4 * floats.len()});
+    bin.extend(f32_bytes(floats));
+    let views = json["bufferViews"].as_array_mut().expect("bufferViews");
+    views.push(view);
+    accessor["bufferView"] = serde_json::json!(views.len() - 1);
+    accessor["componentType"] = serde_json::json!(5126);
+    let accessors = json["accessors"].as_array_mut().expect("accessors");
+    accessors.push(accessor);
+    accessors.len() - 1
+}

@@ -479,11 +479,15 @@ fn info(args: &InfoArgs) -> Result<()> {
             l.intensity
         );
     }
-    out!(
-        "bounds      min {:.4?} max {:.4?}",
-        b.min.to_array(),
-        b.max.to_array()
-    );
+    if b.is_empty() {
+        out!("bounds      none (no triangles)");
+    } else {
+        out!(
+            "bounds      min {:.4?} max {:.4?}",
+            b.min.to_array(),
+            b.max.to_array()
+        );
+    }
     for w in &scene.warnings {
         out!("warning     {w}");
     }
