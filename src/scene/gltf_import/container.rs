@@ -189,9 +189,11 @@ pub(crate) fn read_glb_deferring_images(
     if &bin_head[4..8] != b"BIN\0" || bin_start + bin_len > len {
         return Ok(None);
     }
-    let Ok(root) = serde_json::from_slice::<serde_json::Value>(&json) else {
+    let Ok(mut root) = serde_json::from_slice::<serde_json::Value>(&json) else {
         return Ok(None);
     };
+    // As the load will read it: an index written `2.0` names view 2 here too.
+    lenient::integers_and_extras(&mut root);
     let ranges = image_only_ranges(&root, bin_len)
         .into_iter()
         .map(|r| bin_start + r.start..bin_start + r.end)
@@ -490,6 +492,10 @@ mod tests {
         let draco = serde_json::json!({"meshes": [{"primitives": [{"extensions":
             {"KHR_draco_mesh_compression": {"bufferView": 2}}}]}]});
         assert_eq!(image_only_ranges(&root(draco), 400), [r(100, 200)]);
+        // An index written 2.0 names view 2 once the JSON is read as the load reads it.
+        let mut float_index = root(serde_json::json!({"accessors": [{"bufferView": 2.0}]}));
+        lenient::integers_and_extras(&mut float_index);
+        assert_eq!(image_only_ranges(&float_index, 400), [r(100, 200)]);
         let mut overlapping = root(serde_json::json!({}));
         overlapping["bufferViews"][3]["byteOffset"] = serde_json::json!(150);
         overlapping["bufferViews"][3]["byteLength"] = serde_json::json!(10);

@@ -88,7 +88,7 @@ pub(super) fn deserialize(bytes: &[u8]) -> Result<Rewritten, gltf::Error> {
 }
 
 /// Integral floats to integers and non-object `extras` dropped, at every depth.
-fn integers_and_extras(value: &mut Value) {
+pub(super) fn integers_and_extras(value: &mut Value) {
     match value {
         Value::Number(n) => {
             if let Some(f) = n.as_f64().filter(|_| n.is_f64()) {
