@@ -13,6 +13,7 @@ const BOUNDS_TOLERANCE: f64 = 1e-5;
 /// `info --json` of `json` with `bin` embedded, written into `dir`.
 fn info(dir: &Path, json: Value, bin: &[u8]) -> Value {
     let model = write_gltf(dir, "model.gltf", json, bin);
+    crate::common::copy_to_corpus(&model);
     let out = run(&["info", s(&model), "--json"], true);
     serde_json::from_slice(&out.stdout).unwrap()
 }

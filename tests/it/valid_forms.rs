@@ -12,6 +12,7 @@ use std::path::Path;
 /// Renders `model` at 32x32 from its camera and returns the covered pixels (alpha > 0) and
 /// standard error (with warnings: no `-q`).
 fn covered(model: &Path) -> (usize, String) {
+    crate::common::copy_to_corpus(model);
     let out_png = model.with_extension("png");
     let out = run(
         &[
@@ -153,6 +154,7 @@ fn files_with_nothing_to_draw_are_described_and_not_rendered() {
         let (mut json, bin) = quad();
         edit(&mut json);
         let model = write_gltf(dir, "model.gltf", json, &bin);
+        crate::common::copy_to_corpus(&model);
         let info = run(&["info", s(&model), "--json"], true);
         let info: Value = serde_json::from_slice(&info.stdout).unwrap();
         assert_eq!(info["triangles"], 0, "{name}");

@@ -441,3 +441,31 @@ pub fn add_float_accessor(
     accessors.push(accessor);
     accessors.len() - 1
 }
+
+/// With `MESHTRACER_WRITE_CORPUS=DIR`, copies `model` to DIR/<test>-<file stem>/model.<ext>
+/// the layout `fuzz/seed.sh` collects seeds from (the test is the running test's name).
+pub fn copy_to_corpus(model: &Path) {
+    let Some(out) = std::env::var_os("MESHTRACER_WRITE_CORPUS") else {
+        return;
+    };
+    let test = std::thread::current().name().unwrap_or("test").to_string();
+    let stem = model
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("model");
+    let slug: String = format!("{test}-{stem}")
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+        .collect();
+    let ext = model.extension().and_then(|e| e.to_str()).unwrap_or("gltf");
+    // A test that writes several files of one name keeps each (slug, slug-2, ...).
+    let dir = (1..)
+        .map(|k| match k {
+            1 => Path::new(&out).join(&slug),
+            _ => Path::new(&out).join(format!("{slug}-{k}")),
+        })
+        .find(|d| !d.exists())
+        .unwrap();
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(model, dir.join(format!("model.{ext}"))).unwrap();
+}
