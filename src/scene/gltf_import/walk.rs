@@ -140,12 +140,21 @@ impl<'a> Importer<'a> {
                     None => format!("a root of scene {}", scene.index()),
                     Some(p) => format!("a child of node {p}"),
                 };
-                self.warnings.push(format!(
-                    "node {index}: is {} and also {} (glTF allows one parent); drawn once, as {}",
-                    place(first),
-                    place(parent),
-                    place(first)
-                ));
+                self.warnings.push(match (first, parent) {
+                    (Some(a), Some(b)) if a == b => format!(
+                        "node {index}: is listed twice among the children of node {a}; drawn once"
+                    ),
+                    (None, None) => format!(
+                        "node {index}: is listed twice among the roots of scene {}; drawn once",
+                        scene.index()
+                    ),
+                    _ => format!(
+                        "node {index}: is {} and also {} (glTF allows one parent); drawn once, as {}",
+                        place(first),
+                        place(parent),
+                        place(first)
+                    ),
+                });
                 continue;
             }
             reached[index] = Some(parent);
