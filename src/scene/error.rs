@@ -223,9 +223,10 @@ pub enum LoadErrorKind {
         /// The length of the list it indexes.
         count: usize,
     },
-    /// The glTF file has no scene.
-    #[error("the file defines no scene")]
-    NoScene,
+    /// The glTF file is valid but places nothing in the world: it has no scene, or its scene
+    /// has no nodes.
+    #[error("nothing to draw: {0}")]
+    NothingToDraw(String),
     /// More triangles than the limit allows.
     #[error("the scene has {count} triangles, over the limit of {limit} (raise it with --max-triangles)")]
     TooManyTriangles {

@@ -156,14 +156,15 @@ impl Scene {
             return Err(LoadError::new(path, LoadErrorKind::EmptyFile));
         }
         let head = &bytes[..bytes.len().min(64)];
-        let scene = match Format::sniff(path, head) {
+        // `nothing_to_draw`: an empty scene the options accept (see `allow_nothing_to_draw`).
+        let (scene, nothing_to_draw) = match Format::sniff(path, head) {
             Some(Format::Glb) | Some(Format::Gltf) => {
                 gltf_import::load(path, bytes, file, options)?
             }
-            Some(Format::Obj) => obj::load(path, bytes, options)?,
+            Some(Format::Obj) => (obj::load(path, bytes, options)?, false),
             None => return Err(LoadError::new(path, LoadErrorKind::UnknownFormat)),
         };
-        if scene.soup.is_empty() {
+        if scene.soup.is_empty() && !nothing_to_draw {
             let detail = if scene.warnings.is_empty() {
                 String::new()
             } else {

@@ -50,6 +50,11 @@ pub struct LoadOptions {
     pub variant: Option<String>,
     /// The pose to draw (`--animation`, `--time`); the default is the file's static pose.
     pub pose: PoseOptions,
+    /// Load a glTF file that has nothing to draw (no scene, or a scene without nodes: both
+    /// valid) as an empty scene with a warning, instead of refusing it with
+    /// [`LoadErrorKind::NothingToDraw`](super::error::LoadErrorKind::NothingToDraw): for a
+    /// caller that describes the file rather than draws it (`info`).
+    pub allow_nothing_to_draw: bool,
 }
 
 /// The file formats meshtracer reads.

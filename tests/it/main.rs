@@ -26,6 +26,8 @@ mod encoded_variants;
 mod hostile;
 /// The importer on every shared sample model.
 mod import_samples;
+/// Invalid glTF that changes the picture: a warning naming the place, the corrected picture.
+mod invalid_forms;
 /// The path tracer against closed forms: furnace, area light, MIS, environment sampling.
 mod light_transport;
 /// Materials: alpha modes, textures, extensions.
@@ -44,6 +46,8 @@ mod render;
 mod tiles;
 /// `--turntable` GIFs and contact sheets.
 mod turntable;
+/// Valid glTF that strict readers refuse: drawn, or "nothing to draw" where that is so.
+mod valid_forms;
 /// `KHR_materials_variants`: `--variant` and `info`.
 mod variants;
 /// `render --views`: many views after one load, `transforms.json`.

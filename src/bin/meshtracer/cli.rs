@@ -437,9 +437,14 @@ pub struct RenderArgs {
     /// Refuse to overwrite an existing output file.
     #[arg(long)]
     pub no_clobber: bool,
-    /// No progress bar and no summary.
+    /// No progress bar and no summary. Warnings about the picture (a texture drawn without,
+    /// a value corrected) are still printed: --no-warnings silences them.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Print no warnings about the model or the picture (a batch still records each job's
+    /// in its results).
+    #[arg(long)]
+    pub no_warnings: bool,
     /// Refuse the model when a texture image is missing or cannot be decoded, instead of
     /// drawing its materials with their factors and a warning.
     #[arg(long)]

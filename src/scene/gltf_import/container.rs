@@ -3,6 +3,7 @@
 //! buffers, from the binary chunk, `data:` URIs or files next to the model.
 
 use super::buffer::Buffer;
+use super::lenient::{self, Rewritten};
 use super::meshopt;
 use crate::scene::error::{LoadError, LoadErrorKind};
 use crate::scene::options::Format;
@@ -13,21 +14,81 @@ use std::borrow::Cow;
 /// GLB header: magic, version, length (glTF 2.0 §4.4.2).
 const GLB_HEADER_BYTES: usize = 12;
 
-/// The unvalidated document and, for a GLB, its binary chunk, borrowed from `bytes`.
-/// `gltf::Gltf::from_slice_without_validation` copies the chunk into a `Vec`: for
-/// DamagedHelmet's GLB, 3.3 MB copied (and page-faulted in) on every load, a fifth of its time.
+/// The unvalidated document as [`lenient::deserialize`] rewrites it and, for a GLB, its binary
+/// chunk, borrowed from `bytes` (`gltf::Gltf::from_slice_without_validation` copies the chunk
+/// into a `Vec`: for DamagedHelmet's GLB, 3.3 MB copied and page-faulted in on every load, a
+/// fifth of its time). The header must have passed [`check_glb_header`].
 pub(super) fn parse(
     bytes: &[u8],
     format: Format,
-) -> Result<(gltf::Document, Option<Buffer<'_>>), gltf::Error> {
+) -> Result<(Rewritten, Option<Buffer<'_>>), LoadErrorKind> {
     let (json, blob) = match format {
-        Format::Glb => {
-            let glb = gltf::binary::Glb::from_slice(bytes)?;
-            (gltf::json::deserialize::from_slice(&glb.json)?, glb.bin)
-        }
-        _ => (gltf::json::deserialize::from_slice(bytes)?, None),
+        Format::Glb => glb_chunks(bytes)?,
+        _ => (bytes, None),
     };
-    Ok((gltf::Document::from_json_without_validation(json), blob))
+    let rewritten = lenient::deserialize(json).map_err(|e| match e {
+        gltf::Error::Deserialize(d) => LoadErrorKind::Gltf(format!("JSON: {d}")),
+        other => LoadErrorKind::Gltf(other.to_string()),
+    })?;
+    Ok((rewritten, blob.map(Cow::Borrowed)))
+}
+
+/// GLB chunk header: length, type (glTF 2.0 §4.4.3).
+const CHUNK_HEADER_BYTES: usize = 8;
+
+/// A GLB's JSON chunk and its first binary chunk (glTF 2.0 §4.4.3), within the length its
+/// header declares. Chunks of other types are skipped ("client implementations must ignore
+/// chunks with unknown types"); fewer bytes than a chunk header after the last chunk (padding)
+/// and anything past the declared length are not read. A chunk longer than what follows it is
+/// an error (truncated), except an unknown one at the end, which is skipped like padding.
+fn glb_chunks(bytes: &[u8]) -> Result<(&[u8], Option<&[u8]>), LoadErrorKind> {
+    let word = |b: &[u8]| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize;
+    let length = bytes.get(8..12).map_or(0, word);
+    let mut rest = bytes.get(GLB_HEADER_BYTES..length).unwrap_or_default();
+    let mut json = None;
+    let mut bin = None;
+    while rest.len() >= CHUNK_HEADER_BYTES {
+        let (size, kind) = (word(&rest[..4]), &rest[4..8]);
+        let body = &rest[CHUNK_HEADER_BYTES..];
+        let name = match kind {
+            b"JSON" => "JSON",
+            b"BIN\0" => "BIN",
+            _ => "unknown",
+        };
+        if size > body.len() {
+            if name == "unknown" {
+                break;
+            }
+            return Err(LoadErrorKind::Glb(format!(
+                "{name} chunk declares {size} bytes but only {} follow (truncated)",
+                body.len()
+            )));
+        }
+        match name {
+            "JSON" if json.is_none() && bin.is_none() => json = Some(&body[..size]),
+            "JSON" => return Err(LoadErrorKind::Glb("a second JSON chunk".to_string())),
+            _ if json.is_none() => {
+                return Err(LoadErrorKind::Glb(format!(
+                    "the first chunk is {} ({kind:?}), not JSON",
+                    if name == "BIN" {
+                        "BIN"
+                    } else {
+                        "of an unknown type"
+                    }
+                )))
+            }
+            "BIN" if bin.is_none() => bin = Some(&body[..size]),
+            _ => {}
+        }
+        rest = &body[size..];
+    }
+    let json = json.ok_or_else(|| {
+        LoadErrorKind::Glb(format!(
+            "no JSON chunk in the {} bytes after the header (truncated)",
+            length.saturating_sub(GLB_HEADER_BYTES)
+        ))
+    })?;
+    Ok((json, bin))
 }
 
 /// The `gltf` crate subtracts the header size from the declared length without checking it.
@@ -128,9 +189,11 @@ pub(crate) fn read_glb_deferring_images(
     if &bin_head[4..8] != b"BIN\0" || bin_start + bin_len > len {
         return Ok(None);
     }
-    let Ok(root) = serde_json::from_slice::<serde_json::Value>(&json) else {
+    let Ok(mut root) = serde_json::from_slice::<serde_json::Value>(&json) else {
         return Ok(None);
     };
+    // As the load will read it: an index written `2.0` names view 2 here too.
+    lenient::integers_and_extras(&mut root);
     let ranges = image_only_ranges(&root, bin_len)
         .into_iter()
         .map(|r| bin_start + r.start..bin_start + r.end)
@@ -284,7 +347,9 @@ fn image_only_ranges(root: &serde_json::Value, bin_len: u64) -> Vec<std::ops::Ra
     out
 }
 
-/// Decodes a `data:` URI's base64 payload, refusing one larger than `max_bytes` before decoding.
+/// Decodes a `data:` URI's payload, base64 (`;base64`) or percent-encoded (RFC 2397: any
+/// other octet as itself), refusing one larger than `max_bytes` before decoding. Returns its
+/// media type, if it names one, and its bytes.
 pub(crate) fn decode_data_uri(
     what: &str,
     uri: &str,
@@ -300,25 +365,63 @@ pub(crate) fn decode_data_uri(
     let (header, payload) = rest
         .split_once(',')
         .ok_or_else(|| bad("no ',' before the payload"))?;
-    let mime = header
-        .strip_suffix(";base64")
-        .ok_or_else(|| bad("only base64 data URIs are allowed (glTF 2.0 §3.6.1.2)"))?;
-    let decoded_len = (payload.len() as u64 / 4) * 3;
+    let (mime, base64) = match header.strip_suffix(";base64") {
+        Some(mime) => (mime, true),
+        None => (header, false),
+    };
+    let decoded_len = if base64 {
+        (payload.len() as u64 / 4) * 3
+    } else {
+        payload.len() as u64
+    };
     if decoded_len > max_bytes {
         return Err(bad(&format!(
             "decodes to about {decoded_len} bytes, over the limit of {max_bytes}"
         )));
     }
-    let engine = base64::engine::GeneralPurpose::new(
-        &base64::alphabet::STANDARD,
-        base64::engine::GeneralPurposeConfig::new()
-            .with_decode_padding_mode(base64::engine::DecodePaddingMode::Indifferent),
-    );
-    let bytes = engine
-        .decode(payload.trim())
-        .map_err(|e| bad(&format!("base64: {e}")))?;
+    let bytes = if base64 {
+        let engine = base64::engine::GeneralPurpose::new(
+            &base64::alphabet::STANDARD,
+            base64::engine::GeneralPurposeConfig::new()
+                .with_decode_padding_mode(base64::engine::DecodePaddingMode::Indifferent),
+        );
+        engine
+            .decode(payload.trim())
+            .map_err(|e| bad(&format!("base64: {e}")))?
+    } else {
+        percent_decode(payload).map_err(|at| {
+            bad(&format!(
+                "'%' at byte {at} of the payload is not followed by two hexadecimal digits"
+            ))
+        })?
+    };
+    // Parameters such as `;charset=...` are not part of the media type.
+    let mime = mime.split(';').next().unwrap_or_default();
     let mime = (!mime.is_empty()).then(|| mime.to_string());
     Ok((mime, bytes))
+}
+
+/// RFC 3986 percent-decoding: `%XY` is the octet 0xXY, anything else stands for itself.
+/// `Err` holds the offset of a `%` without two hexadecimal digits.
+fn percent_decode(payload: &str) -> Result<Vec<u8>, usize> {
+    let bytes = payload.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while let Some(&b) = bytes.get(i) {
+        if b == b'%' {
+            let hex = bytes
+                .get(i + 1..i + 3)
+                .and_then(|h| std::str::from_utf8(h).ok())
+                .and_then(|h| u8::from_str_radix(h, 16).ok())
+                .ok_or(i)?;
+            out.push(hex);
+            i += 3;
+        } else {
+            out.push(b);
+            i += 1;
+        }
+    }
+    Ok(out)
 }
 
 pub(super) fn load_buffers<'a>(
@@ -418,6 +521,10 @@ mod tests {
         let draco = serde_json::json!({"meshes": [{"primitives": [{"extensions":
             {"KHR_draco_mesh_compression": {"bufferView": 2}}}]}]});
         assert_eq!(image_only_ranges(&root(draco), 400), [r(100, 200)]);
+        // An index written 2.0 names view 2 once the JSON is read as the load reads it.
+        let mut float_index = root(serde_json::json!({"accessors": [{"bufferView": 2.0}]}));
+        lenient::integers_and_extras(&mut float_index);
+        assert_eq!(image_only_ranges(&float_index, 400), [r(100, 200)]);
         let mut overlapping = root(serde_json::json!({}));
         overlapping["bufferViews"][3]["byteOffset"] = serde_json::json!(150);
         overlapping["bufferViews"][3]["byteLength"] = serde_json::json!(10);
@@ -442,7 +549,16 @@ mod tests {
         assert_eq!(mime.as_deref(), Some("application/octet-stream"));
         assert_eq!(bytes, vec![0, 1, 2]);
         assert!(decode_data_uri("buffer 0", "data:;base64,AAECAAEC", 3).is_err());
-        assert!(decode_data_uri("buffer 0", "data:text/plain,hello", 100).is_err());
+        let (mime, bytes) = decode_data_uri(
+            "buffer 0",
+            "data:text/plain;charset=US-ASCII,h%C3%A9%00!",
+            100,
+        )
+        .unwrap();
+        assert_eq!(mime.as_deref(), Some("text/plain"));
+        assert_eq!(bytes, b"h\xc3\xa9\x00!");
+        assert!(decode_data_uri("buffer 0", "data:,100%", 100).is_err());
+        assert!(decode_data_uri("buffer 0", "data:,%zz", 100).is_err());
         assert!(decode_data_uri("buffer 0", "data:;base64,!!!!", 100).is_err());
     }
 

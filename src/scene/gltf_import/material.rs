@@ -96,7 +96,9 @@ pub(super) fn material(m: &gltf::Material) -> Material {
         }),
         occlusion_strength: occlusion.as_ref().map_or(1.0, |o| o.strength()),
         emissive: Vec3::from(m.emissive_factor()),
-        emissive_strength: m.emissive_strength().unwrap_or(1.0),
+        emissive_strength: m
+            .emissive_strength()
+            .map_or(1.0, |e| finite_or(e, 1.0).max(0.0)),
         emissive_texture: texture_ref(m.emissive_texture()),
         alpha_mode: match m.alpha_mode() {
             gltf::material::AlphaMode::Opaque => AlphaMode::Opaque,
@@ -132,7 +134,7 @@ pub(super) fn material(m: &gltf::Material) -> Material {
             .map_or(f32::INFINITY, |v| v.attenuation_distance()),
         unlit: m.unlit(),
         specular_layer: m.specular().map(|sp| SpecularLayer {
-            factor: finite_or(sp.specular_factor(), 1.0).max(0.0),
+            factor: finite_or(sp.specular_factor(), 1.0).clamp(0.0, 1.0),
             texture: texture_ref(sp.specular_texture()),
             color: Vec3::from(sp.specular_color_factor()).max(Vec3::ZERO),
             color_texture: texture_ref(sp.specular_color_texture()),
@@ -168,6 +170,55 @@ pub(super) fn material(m: &gltf::Material) -> Material {
                 thickness_texture: json_texture_ref(e.get("iridescenceThicknessTexture")),
             }),
     }
+}
+
+/// What [`material`] corrects in `m`'s extension values that are outside the ranges their
+/// extensions define (an invalid file: the validator reports each), one warning each, naming
+/// the material.
+pub(super) fn out_of_range(m: &gltf::Material) -> Vec<String> {
+    let mut problems = Vec::new();
+    if let Some(ior) = m.ior().filter(|i| !(i.is_finite() && *i >= 1.0)) {
+        problems.push(format!(
+            "KHR_materials_ior ior {ior} is not at least 1; the default 1.5 is used"
+        ));
+    }
+    // (extension, property, value) of the factors defined on [0, 1].
+    let mut factors = Vec::new();
+    if let Some(sp) = m.specular() {
+        factors.push((
+            "KHR_materials_specular",
+            "specularFactor",
+            sp.specular_factor(),
+        ));
+        let color = sp.specular_color_factor();
+        if color.iter().any(|c| *c < 0.0) {
+            problems.push(format!(
+                "KHR_materials_specular specularColorFactor {color:?} is negative; clamped to 0"
+            ));
+        }
+    }
+    if let Some(strength) = m.emissive_strength().filter(|e| *e < 0.0) {
+        problems.push(format!(
+            "KHR_materials_emissive_strength emissiveStrength {strength} is negative; 0 is used"
+        ));
+    }
+    if let Some(t) = m.transmission() {
+        let factor = t.transmission_factor();
+        factors.push(("KHR_materials_transmission", "transmissionFactor", factor));
+    }
+    for (extension, property, value) in factors {
+        if !(0.0..=1.0).contains(&value) {
+            problems.push(format!(
+                "{extension} {property} {value} is outside [0, 1]; clamped"
+            ));
+        }
+    }
+    let name = m.name().map_or(String::new(), |n| format!(" ('{n}')"));
+    let index = m.index().map_or("default".to_string(), |i| i.to_string());
+    problems
+        .into_iter()
+        .map(|p| format!("material {index}{name}: {p}"))
+        .collect()
 }
 
 fn finite_or(v: f32, default: f32) -> f32 {

@@ -20,6 +20,7 @@ mod buffer;
 mod container;
 mod declared;
 mod draco;
+mod lenient;
 mod material;
 mod meshopt;
 mod pose;
@@ -47,12 +48,13 @@ use walk::Importer;
 
 /// Loads a glTF or GLB file whose bytes are already read.
 /// `file`, when it holds `bytes`, lets images embedded in a GLB share it instead of copying.
+/// The flag is true for a file with nothing to draw that `options` let load empty.
 pub(crate) fn load(
     path: &Path,
     bytes: &[u8],
     file: Option<LoadedFile>,
     options: &LoadOptions,
-) -> Result<Scene, LoadError> {
+) -> Result<(Scene, bool), LoadError> {
     let err = |kind| LoadError::new(path, kind);
     let mut steps = crate::measure::Steps::new();
     let Parsed {
@@ -61,6 +63,8 @@ pub(crate) fn load(
         blob,
         extensions,
         webp_fallbacks,
+        warnings: json_warnings,
+        pointer_channels,
     } = read_document(bytes).map_err(err)?;
     check_declared_sizes(document.as_json(), &options.limits).map_err(err)?;
     let access = FileAccess::new(
@@ -81,8 +85,14 @@ pub(crate) fn load(
     };
     let mut pose_warnings = Vec::new();
     let animations = pose::list_animations(&document, &buffers, &mut pose_warnings);
-    let pose = pose::pose(&document, &buffers, &animations, &options.pose)
-        .map_err(|p| err(LoadErrorKind::Animation(p)))?;
+    let pose = pose::pose(
+        &document,
+        &buffers,
+        &animations,
+        &pointer_channels,
+        &options.pose,
+    )
+    .map_err(|p| err(LoadErrorKind::Animation(p)))?;
     let pose_description = pose.description.clone();
     steps.mark("parse");
     let mut importer = Importer::new(
@@ -90,10 +100,17 @@ pub(crate) fn load(
         &buffers,
         options.limits,
         pose,
-        pose_warnings,
+        json_warnings,
         variant,
     );
-    importer.walk_default_scene().map_err(err)?;
+    importer.warnings.extend(pose_warnings);
+    let nothing_to_draw = importer.walk_default_scene().map_err(err)?;
+    if let Some(reason) = &nothing_to_draw {
+        if !options.allow_nothing_to_draw {
+            return Err(err(LoadErrorKind::NothingToDraw(reason.clone())));
+        }
+        importer.warnings.push(format!("nothing to draw: {reason}"));
+    }
     steps.mark("flatten");
     let mut materials = importer.materials();
     let mut textures = textures(&document, &webp_fallbacks);
@@ -133,9 +150,12 @@ pub(crate) fn load(
         ));
     }
     warnings.extend(builder.dropped_warning());
+    // One line for what every instance of a mesh repeats.
+    let mut seen = std::collections::HashSet::new();
+    warnings.retain(|w| seen.insert(w.clone()));
     let file_triangles = builder.offered();
     let (soup, bounds) = builder.finish();
-    Ok(Scene {
+    let scene = Scene {
         source: path.to_path_buf(),
         format,
         soup,
@@ -163,7 +183,8 @@ pub(crate) fn load(
             steps.mark("materials and images");
             steps.list().to_vec()
         },
-    })
+    };
+    Ok((scene, nothing_to_draw.is_some()))
 }
 
 /// The document of a glTF or GLB file, validated, and what its JSON told before validation.
@@ -178,6 +199,10 @@ struct Parsed<'a> {
     extensions: Vec<ExtensionUse>,
     /// Each texture's fallback image (see [`choose_texture_sources`]).
     webp_fallbacks: Vec<Option<usize>>,
+    /// What the JSON's rewriting corrected or left out ([`lenient`]).
+    warnings: Vec<String>,
+    /// The `KHR_animation_pointer` channels each animation lost ([`lenient`]).
+    pointer_channels: Vec<usize>,
 }
 
 /// Parses the GLB container or JSON, refuses required extensions that are not supported,
@@ -191,27 +216,28 @@ fn read_document(bytes: &[u8]) -> Result<Parsed<'_>, LoadErrorKind> {
     } else {
         Format::Gltf
     };
-    let (document, blob) = parse(bytes, format).map_err(convert)?;
-    let required: Vec<&str> = document.extensions_required().collect();
+    let (rewritten, blob) = parse(bytes, format)?;
+    let mut root = rewritten.root;
+    let required = std::mem::take(&mut root.extensions_required);
     for name in &required {
         if known(name).is_none_or(|e| e.refused_when_required) {
             return Err(unsupported_extension(name));
         }
     }
     // extensionsUsed should list every required one; a file that forgets is still reported.
-    let mut extensions: Vec<ExtensionUse> = document
-        .extensions_used()
-        .map(|name| ExtensionUse::new(name, required.contains(&name)))
+    // The required list is taken out of the JSON: gltf-json's validation refuses required
+    // extensions it does not know itself (KHR_mesh_quantization, the meshopt ones,
+    // EXT_texture_webp), which are decoded here.
+    let mut extensions: Vec<ExtensionUse> = root
+        .extensions_used
+        .iter()
+        .map(|name| ExtensionUse::new(name, required.contains(name)))
         .collect();
     for name in &required {
         if !extensions.iter().any(|e| e.name == *name) {
             extensions.push(ExtensionUse::new(name, true));
         }
     }
-    let mut root = document.into_json();
-    // Checked above; gltf-json's validation refuses required extensions it does not know
-    // itself (KHR_mesh_quantization, the meshopt ones, EXT_texture_webp), which we decode here.
-    root.extensions_required.clear();
     let webp_fallbacks = choose_texture_sources(&mut root);
     check_attribute_indices(&root)?;
     pose::check_channel_targets(&root).map_err(LoadErrorKind::Gltf)?;
@@ -222,6 +248,8 @@ fn read_document(bytes: &[u8]) -> Result<Parsed<'_>, LoadErrorKind> {
         blob,
         extensions,
         webp_fallbacks,
+        warnings: rewritten.warnings,
+        pointer_channels: rewritten.pointer_channels,
     })
 }
 
@@ -258,7 +286,6 @@ fn unsupported_extension(name: &str) -> LoadErrorKind {
 
 fn convert(e: gltf::Error) -> LoadErrorKind {
     match e {
-        gltf::Error::Binary(b) => LoadErrorKind::Glb(glb_error(&b)),
         gltf::Error::Deserialize(d) => LoadErrorKind::Gltf(format!("JSON: {d}")),
         gltf::Error::Validation(list) => {
             let mut shown: Vec<String> = list
@@ -272,27 +299,5 @@ fn convert(e: gltf::Error) -> LoadErrorKind {
             LoadErrorKind::Gltf(shown.join("; "))
         }
         other => LoadErrorKind::Gltf(other.to_string()),
-    }
-}
-
-fn glb_error(e: &gltf::binary::Error) -> String {
-    use gltf::binary::Error as E;
-    match e {
-        E::Io(io) => format!("truncated: {io}"),
-        E::Version(v) => format!("version {v}, only glTF 2 is supported"),
-        E::Magic(m) => format!("bad magic {m:?}"),
-        E::Length {
-            length,
-            length_read,
-        } => format!("header declares {length} bytes of content but only {length_read} follow"),
-        E::ChunkLength {
-            ty,
-            length,
-            length_read,
-        } => format!(
-            "{ty:?} chunk declares {length} bytes but only {length_read} follow (truncated)"
-        ),
-        E::ChunkType(ty) => format!("unexpected {ty:?} chunk"),
-        E::UnknownChunkType(ty) => format!("unknown chunk type {ty:?}"),
     }
 }

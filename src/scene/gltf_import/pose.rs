@@ -77,6 +77,26 @@ impl Track {
         Ok(())
     }
 
+    /// What is wrong with keyframe times that [`Track::check`] lets through (§3.11 asks for
+    /// times that are not negative and strictly increase): a negative time (the channel holds
+    /// its first value until then, as sampling before the first key always does), or two
+    /// equal times (a jump at that instant). `None` when the times are as the specification
+    /// asks.
+    pub fn odd_times(&self) -> Option<String> {
+        if let Some(i) = self.times.iter().position(|t| *t < 0.0) {
+            return Some(format!(
+                "keyframe time {i} is negative ({} s); glTF times start at 0",
+                self.times[i]
+            ));
+        }
+        let i = self.times.windows(2).position(|w| w[1] == w[0])?;
+        Some(format!(
+            "keyframe times {i} and {} are equal ({} s); glTF times strictly increase",
+            i + 1,
+            self.times[i]
+        ))
+    }
+
     /// Element `e` (0..count) of the output, `width` floats.
     fn element(&self, e: usize) -> &[f32] {
         &self.values[e * self.width..(e + 1) * self.width]
@@ -375,7 +395,16 @@ pub(crate) fn list_animations(
             let mut duration = 0.0f32;
             for channel in animation.channels() {
                 match read_track(&channel, buffers, targets_of(&channel.target().node())) {
-                    Ok(track) => duration = duration.max(track.end()),
+                    Ok(track) => {
+                        duration = duration.max(track.end());
+                        if let Some(problem) = track.odd_times() {
+                            warnings.push(format!(
+                                "animation {} channel {}: {problem}",
+                                animation.index(),
+                                channel.index()
+                            ));
+                        }
+                    }
                     Err(problem) => {
                         warnings.push(format!(
                             "animation {} channel {}: {problem}",
@@ -438,11 +467,14 @@ pub(crate) fn choose_animation(
 }
 
 /// The pose `options` ask for: the rest pose, or animation `options.animation` sampled at
-/// `options.time` (missing parts default to animation 0 and time 0).
+/// `options.time` (missing parts default to animation 0 and time 0). `pointer_channels` holds,
+/// per animation, the `KHR_animation_pointer` channels removed from the file: an animation
+/// made of nothing else is refused, and one that lost some says so in its description.
 pub(crate) fn pose(
     document: &gltf::Document,
     buffers: &[Buffer],
     animations: &[AnimationInfo],
+    pointer_channels: &[usize],
     options: &PoseOptions,
 ) -> Result<Pose, String> {
     let mut pose = Pose::rest(document);
@@ -454,6 +486,12 @@ pub(crate) fn pose(
     let Some(animation) = document.animations().nth(index) else {
         return Err(format!("no animation {index}"));
     };
+    let pointers = pointer_channels.get(index).copied().unwrap_or(0);
+    if pointers > 0 && animation.channels().next().is_none() {
+        return Err(format!(
+            "animation {index}: all its {pointers} channels are KHR_animation_pointer channels, which meshtracer does not support (it animates node translation, rotation, scale and weights)"
+        ));
+    }
     let time = options.time.unwrap_or(0.0);
     let mut trs: Vec<Option<(Vec3, Quat, Vec3)>> = vec![None; pose.local.len()];
     for channel in animation.channels() {
@@ -490,11 +528,17 @@ pub(crate) fn pose(
         .get(index)
         .map_or_else(|| index.to_string(), AnimationInfo::label);
     let end = animations.get(index).map_or(0.0, |a| a.duration);
-    pose.description = Some(if time > end {
+    let mut description = if time > end {
         format!("animation {label} at {time} s (past its end at {end} s: its last keyframes)")
     } else {
         format!("animation {label} at {time} s")
-    });
+    };
+    if pointers > 0 {
+        description += &format!(
+            " without its {pointers} KHR_animation_pointer channel(s), which meshtracer does not support"
+        );
+    }
+    pose.description = Some(description);
     Ok(pose)
 }
 

@@ -4,7 +4,6 @@
 //! `KHR_mesh_quantization`), so that a hostile file gets an error instead of a panic.
 
 use super::buffer::Buffer;
-use super::draco;
 use crate::scene::error::{LoadErrorKind, PrimitiveAt};
 use gltf::accessor::{DataType, Dimensions};
 
@@ -43,35 +42,27 @@ pub(super) fn check_attribute_indices(root: &gltf::json::Root) -> Result<(), Loa
     Ok(())
 }
 
-/// The `gltf` crate's validation, except that the accessors of `KHR_draco_mesh_compression`
-/// primitives may lack a bufferView: their data is the decoded stream (gltf-json 1.4 requires
-/// a bufferView on every accessor that is not sparse).
+/// The `gltf` crate's validation, except for what glTF 2.0 allows and gltf-json 1.4 refuses:
+/// an accessor without a `bufferView` (§3.6.2.3: its elements are zeros, replaced by its sparse
+/// values if it has any; also the accessors of `KHR_draco_mesh_compression` primitives, whose
+/// data is the decoded stream) and a primitive without POSITION (§3.7.2.1 only says that
+/// without it the primitive is not drawn: the node walk skips it with a warning).
 pub(super) fn validate(root: gltf::json::Root) -> Result<gltf::Document, gltf::Error> {
     use gltf::json::validation::{Error, Validate};
-    let mut decoded = std::collections::HashSet::new();
-    for mesh in &root.meshes {
-        for primitive in &mesh.primitives {
-            let has_draco = primitive
-                .extensions
-                .as_ref()
-                .is_some_and(|e| e.others.contains_key(draco::EXTENSION));
-            if has_draco {
-                let accessors = primitive
-                    .attributes
-                    .values()
-                    .chain(primitive.indices.iter());
-                decoded.extend(accessors.map(|i| i.value()));
-            }
-        }
-    }
-    let exempt: std::collections::HashSet<String> = decoded
-        .iter()
-        .map(|i| format!("accessors[{i}].bufferView"))
-        .collect();
+    let allowed_missing = |path: &str| {
+        let accessor_view = path
+            .strip_prefix("accessors[")
+            .and_then(|rest| rest.split_once(']'))
+            .is_some_and(|(index, field)| {
+                field == ".bufferView" && index.bytes().all(|b| b.is_ascii_digit())
+            });
+        accessor_view
+            || (path.starts_with("meshes[") && path.ends_with(".attributes[\"POSITION\"]"))
+    };
     let mut errors = Vec::new();
     root.validate(&root, gltf::json::Path::new, &mut |path, error| {
         let path = path();
-        if !(matches!(error, Error::Missing) && exempt.contains(path.as_str())) {
+        if !(matches!(error, Error::Missing) && allowed_missing(path.as_str())) {
             errors.push((path, error));
         }
     });
@@ -275,12 +266,16 @@ pub(super) fn check_accessor(
     match accessor.view() {
         Some(view) => check_range(&view, accessor.offset(), accessor.count(), element)
             .map_err(|p| fail(format!("bufferView {}: {p}", view.index())))?,
-        None if accessor.sparse().is_none() => {
-            return Err(fail(
-                "has no bufferView (all-zero accessors are not supported)".to_string(),
-            ))
+        // §3.6.2.3: zeros (then the sparse values, if any), which no byte of the file bounds.
+        None => {
+            let bytes = accessor.count().saturating_mul(element) as u64;
+            if bytes > MAX_ZERO_ACCESSOR_BYTES {
+                return Err(fail(format!(
+                    "has no bufferView and {} elements of {element} bytes: {bytes} bytes of zeros, over the limit of {MAX_ZERO_ACCESSOR_BYTES}",
+                    accessor.count()
+                )));
+            }
         }
-        None => {}
     }
     if let Some(sparse) = accessor.sparse() {
         let count = sparse.count();
@@ -364,6 +359,11 @@ pub(super) fn check_accessor_type(
     }
     Ok(())
 }
+
+/// Most bytes an accessor without a bufferView may stand for: its zeros come from no byte of
+/// the file, so a few bytes of JSON could otherwise ask for any amount of memory. As much as
+/// a buffer within the default file limit (2 GiB) could hold.
+const MAX_ZERO_ACCESSOR_BYTES: u64 = 2 << 30;
 
 /// `count` elements of `element` bytes from `offset` in `view`, at the view's stride.
 fn check_range(

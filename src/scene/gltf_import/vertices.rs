@@ -28,6 +28,32 @@ pub(super) struct WorldVertices {
     pub(super) warnings: Vec<String>,
 }
 
+/// How far a NORMAL's length may be from 1 before it is reported: `KHR_mesh_quantization`'s
+/// normalized signed bytes put a unit vector within 0.7% of unit length (half of 1/127 on
+/// each of three components), float exports within 1e-6; further than 1% the file did not
+/// mean a unit vector (glTF 2.0 §3.7.2.1 requires one). The soup normalises every normal.
+const NORMAL_LENGTH_TOLERANCE: f32 = 0.01;
+
+/// A warning naming the primitive's NORMAL accessor when some of its normals (read from the
+/// file, before morphing and placing) are not unit length.
+fn not_unit_length(
+    normals: &[Vec3],
+    at: PrimitiveAt,
+    primitive: &gltf::Primitive,
+) -> Option<String> {
+    let off = |n: &Vec3| !n.is_finite() || (n.length() - 1.0).abs() > NORMAL_LENGTH_TOLERANCE;
+    let first = normals.iter().position(off)?;
+    let count = normals.iter().filter(|n| off(n)).count();
+    let accessor = primitive
+        .get(&gltf::Semantic::Normals)
+        .map_or(String::new(), |a| format!("accessor {} ", a.index()));
+    Some(format!(
+        "{at}: {accessor}(NORMAL): {count} of {} normals are not unit length (vertex {first} has length {}); they are normalised",
+        normals.len(),
+        normals[first].length()
+    ))
+}
+
 /// How one mesh instance is deformed: its morph weights, and the skin of its node.
 pub(super) struct Deform<'a> {
     /// One weight per morph target (§3.7.2.2), resolved for this node and pose.
@@ -87,6 +113,9 @@ impl VertexReader<'_> {
             };
         let mut positions = read3(Semantic::Positions, &POSITION)?.unwrap_or_default();
         let mut normals = read3(Semantic::Normals, &NORMAL)?;
+        let not_unit = normals
+            .as_deref()
+            .and_then(|n| not_unit_length(n, at, primitive));
         let mut tangents = read(Semantic::Tangents, &TANGENT)?;
         self.morph(
             primitive,
@@ -102,7 +131,7 @@ impl VertexReader<'_> {
             let weights = read(Semantic::Weights(set), &WEIGHTS)?.unwrap_or_default();
             influences.push((joints, weights));
         }
-        let (skinned, warnings) = place(
+        let (skinned, mut warnings) = place(
             world,
             deform.skin,
             &influences,
@@ -126,6 +155,7 @@ impl VertexReader<'_> {
         let uv0 = uv(0)?;
         let uv1 = uv(1)?;
         let colors = read(Semantic::Colors(0), &COLOR)?;
+        warnings.extend(not_unit);
         Ok(WorldVertices {
             positions,
             normals,

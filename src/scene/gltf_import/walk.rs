@@ -5,7 +5,7 @@
 use super::attributes;
 use super::buffer::Buffer;
 use super::draco;
-use super::material::material;
+use super::material::{material, out_of_range};
 use super::pose::{self, Pose, Skinning};
 use super::validate::{check_accessor, check_accessor_type, INDICES};
 use super::vertices::{Deform, VertexReader};
@@ -18,12 +18,8 @@ use crate::scene::soup::Instance;
 use crate::scene::viewpoint::{Camera, Projection};
 use glam::{Mat4, Vec3};
 use gltf::mesh::Mode;
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 use std::rc::Rc;
-
-/// Most node visits a hierarchy may expand to. A node shared by two parents is instanced twice,
-/// so 30 levels of sharing would be 2^30 visits: refuse such files instead of hanging.
-const MAX_NODE_VISITS: usize = 1_000_000;
 
 /// The node walk's state.
 pub(super) struct Importer<'a> {
@@ -53,6 +49,8 @@ pub(super) struct Importer<'a> {
     limits: LoadLimits,
     /// Draco primitives decoded so far, by (mesh, primitive): instanced meshes decode once.
     draco: HashMap<(usize, usize), Rc<draco::Decoded>>,
+    /// The (mesh, primitive, material) triples whose texture coordinates were checked.
+    tex_coords_checked: HashSet<(usize, usize, usize)>,
 }
 
 impl<'a> Importer<'a> {
@@ -88,36 +86,48 @@ impl<'a> Importer<'a> {
                 .any(|name| name == "KHR_mesh_quantization"),
             limits,
             draco: HashMap::new(),
+            tex_coords_checked: HashSet::new(),
         }
     }
 
-    pub(super) fn walk_default_scene(&mut self) -> Result<(), LoadErrorKind> {
+    /// Walks the default scene (or scene 0) from its roots, visiting each node once. glTF 2.0
+    /// §3.5.2 gives a node at most one parent and makes a scene's nodes roots; a node reached a
+    /// second time (a second parent, a root that is also a child, a child listed twice) is
+    /// drawn only where it was first reached, with a warning. A file with no scene, or a scene
+    /// with no nodes, leaves nothing to draw: `NothingToDraw`'s reason is returned.
+    pub(super) fn walk_default_scene(&mut self) -> Result<Option<String>, LoadErrorKind> {
         // glTF 2.0 §3.5.1: `scene` names the default; without it, scene 0 is a reasonable choice.
-        let scene = self
+        let Some(scene) = self
             .document
             .default_scene()
             .or_else(|| self.document.scenes().next())
-            .ok_or(LoadErrorKind::NoScene)?;
+        else {
+            return Ok(Some("the file defines no scene".to_string()));
+        };
+        if scene.nodes().len() == 0 {
+            return Ok(Some(format!("scene {} has no nodes", scene.index())));
+        }
         let nodes: Vec<gltf::Node> = self.document.nodes().collect();
         let mut on_path = vec![false; nodes.len()];
-        let mut visits = 0usize;
+        // Where each node was first reached: `Some(None)` as a root, `Some(Some(p))` under p.
+        let mut reached: Vec<Option<Option<usize>>> = vec![None; nodes.len()];
         // An explicit stack: a hostile hierarchy a million levels deep must not overflow ours.
         enum Step {
-            Enter(usize, Mat4),
+            Enter(usize, Option<usize>, Mat4),
             Leave(usize),
         }
         let mut stack: Vec<Step> = scene
             .nodes()
-            .map(|n| Step::Enter(n.index(), Mat4::IDENTITY))
+            .map(|n| Step::Enter(n.index(), None, Mat4::IDENTITY))
             .collect();
         stack.reverse();
         while let Some(step) = stack.pop() {
-            let (index, parent) = match step {
+            let (index, parent, parent_world) = match step {
                 Step::Leave(index) => {
                     on_path[index] = false;
                     continue;
                 }
-                Step::Enter(index, parent) => (index, parent),
+                Step::Enter(index, parent, world) => (index, parent, world),
             };
             let Some(node) = nodes.get(index) else {
                 continue;
@@ -125,28 +135,45 @@ impl<'a> Importer<'a> {
             if on_path[index] {
                 return Err(LoadErrorKind::NodeCycle { node: index });
             }
-            visits += 1;
-            if visits > MAX_NODE_VISITS {
-                return Err(LoadErrorKind::Gltf(format!(
-                    "the node hierarchy expands to more than {MAX_NODE_VISITS} node instances (nodes shared by several parents)"
-                )));
+            if let Some(first) = reached[index] {
+                let place = |p: Option<usize>| match p {
+                    None => format!("a root of scene {}", scene.index()),
+                    Some(p) => format!("a child of node {p}"),
+                };
+                self.warnings.push(match (first, parent) {
+                    (Some(a), Some(b)) if a == b => format!(
+                        "node {index}: is listed twice among the children of node {a}; drawn once"
+                    ),
+                    (None, None) => format!(
+                        "node {index}: is listed twice among the roots of scene {}; drawn once",
+                        scene.index()
+                    ),
+                    _ => format!(
+                        "node {index}: is {} and also {} (glTF allows one parent); drawn once, as {}",
+                        place(first),
+                        place(parent),
+                        place(first)
+                    ),
+                });
+                continue;
             }
+            reached[index] = Some(parent);
             let local = self
                 .pose
                 .local
                 .get(index)
                 .copied()
                 .unwrap_or(Mat4::IDENTITY);
-            let world = parent * local;
+            let world = parent_world * local;
             self.visit(node, world)?;
             on_path[index] = true;
             stack.push(Step::Leave(index));
             let children: Vec<usize> = node.children().map(|c| c.index()).collect();
             for child in children.into_iter().rev() {
-                stack.push(Step::Enter(child, world));
+                stack.push(Step::Enter(child, Some(index), world));
             }
         }
-        Ok(())
+        Ok(None)
     }
 
     fn visit(&mut self, node: &gltf::Node, world: Mat4) -> Result<(), LoadErrorKind> {
@@ -253,6 +280,12 @@ impl<'a> Importer<'a> {
             self.skipped_non_triangle += 1;
             return Ok(());
         }
+        if primitive.get(&gltf::Semantic::Positions).is_none() {
+            self.warnings.push(format!(
+                "{at}: has no POSITION attribute; the primitive is skipped"
+            ));
+            return Ok(());
+        }
         self.primitive_count += 1;
         let draco = self.decode_draco(primitive, at)?;
         let reader = VertexReader {
@@ -324,6 +357,9 @@ impl<'a> Importer<'a> {
                 }
             }
         }
+        if let Some(m) = chosen.index() {
+            self.check_tex_coords(primitive, at, &chosen, m);
+        }
         let material = match chosen.index() {
             Some(i) => i as u32,
             None => {
@@ -353,6 +389,39 @@ impl<'a> Importer<'a> {
         Ok(())
     }
 
+    /// Warns, once per primitive and material, when the material samples a `TEXCOORD_n` the
+    /// primitive does not have (glTF 2.0 §3.9.2 requires it): such a texture cannot be placed
+    /// as the file means.
+    fn check_tex_coords(
+        &mut self,
+        primitive: &gltf::Primitive,
+        at: PrimitiveAt,
+        chosen: &gltf::Material,
+        index: usize,
+    ) {
+        if !self
+            .tex_coords_checked
+            .insert((at.mesh, at.primitive, index))
+        {
+            return;
+        }
+        let mut sets: Vec<u32> = material(chosen)
+            .texture_refs()
+            .map(|r| r.tex_coord)
+            .filter(|&set| primitive.get(&gltf::Semantic::TexCoords(set)).is_none())
+            .collect();
+        sets.sort_unstable();
+        sets.dedup();
+        for set in sets {
+            self.warnings.push(format!(
+                "{at}: material {index}{} samples TEXCOORD_{set}, which the primitive does not have",
+                chosen
+                    .name()
+                    .map_or(String::new(), |n| format!(" ('{n}')"))
+            ));
+        }
+    }
+
     /// The primitive's Draco stream decoded, if it has `KHR_draco_mesh_compression` (decoded
     /// on its first instance, shared by the others).
     fn decode_draco(
@@ -374,7 +443,12 @@ impl<'a> Importer<'a> {
         Ok(Some(decoded))
     }
 
-    pub(super) fn materials(&self) -> Vec<Material> {
+    /// The file's materials (and the default material, if a primitive has none), with a
+    /// warning for each value corrected ([`out_of_range`]).
+    pub(super) fn materials(&mut self) -> Vec<Material> {
+        for m in self.document.materials() {
+            self.warnings.extend(out_of_range(&m));
+        }
         let mut out: Vec<Material> = self.document.materials().map(|m| material(&m)).collect();
         if self.uses_default_material {
             out.push(Material::default());

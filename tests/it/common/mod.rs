@@ -387,3 +387,85 @@ pub fn keep_failed_images(test: &str, reference: &Path, actual: &Path) -> PathBu
         .output();
     dir
 }
+
+/// A unit quad in the z = 0 plane, [-0.5, 0.5]², facing +Z, with its positions (accessor 0),
+/// indices (accessor 1) and texture coordinates (accessor 2, not used by the mesh) in one
+/// buffer of 92 bytes, seen by an orthographic camera 2 above looking down and framing
+/// [-1, 1]², lit by the default rig.
+pub fn unit_quad() -> (serde_json::Value, Vec<u8>) {
+    let mut bin = f32_bytes(&[
+        -0.5, -0.5, 0.0, 0.5, -0.5, 0.0, 0.5, 0.5, 0.0, -0.5, 0.5, 0.0,
+    ]);
+    bin.extend([0u16, 1, 2, 0, 2, 3].iter().flat_map(|i| i.to_le_bytes()));
+    bin.extend(f32_bytes(&[0.0, 1.0, 1.0, 1.0, 1.0, 0.0, 0.0, 0.0]));
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scene": 0,
+        "scenes": [{"nodes": [0, 1]}],
+        "nodes": [{"mesh": 0}, {"camera": 0, "translation": [0.0, 0.0, 2.0]}],
+        "cameras": [{"type": "orthographic",
+            "orthographic": {"xmag": 1.0, "ymag": 1.0, "znear": 0.1, "zfar": 10.0}}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "accessors": [
+            {"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+             "min": [-0.5, -0.5, 0.0], "max": [0.5, 0.5, 0.0]},
+            {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"},
+            {"bufferView": 2, "componentType": 5126, "count": 4, "type": "VEC2"}
+        ],
+        "bufferViews": [
+            {"buffer": 0, "byteOffset": 0, "byteLength": 48},
+            {"buffer": 0, "byteOffset": 48, "byteLength": 12},
+            {"buffer": 0, "byteOffset": 60, "byteLength": 32}
+        ]
+    });
+    (json, bin)
+}
+
+/// Appends `floats` to `bin` as a new buffer view of buffer 0 and adds `accessor` (its
+/// `bufferView` set to that view; `componentType` float) to the JSON's accessors. Returns the
+/// accessor's index.
+pub fn add_float_accessor(
+    json: &mut serde_json::Value,
+    bin: &mut Vec<u8>,
+    floats: &[f32],
+    mut accessor: serde_json::Value,
+) -> usize {
+    let view =
+        serde_json::json!({"buffer": 0, "byteOffset": bin.len(), "byteLength": 4 * floats.len()});
+    bin.extend(f32_bytes(floats));
+    let views = json["bufferViews"].as_array_mut().expect("bufferViews");
+    views.push(view);
+    accessor["bufferView"] = serde_json::json!(views.len() - 1);
+    accessor["componentType"] = serde_json::json!(5126);
+    let accessors = json["accessors"].as_array_mut().expect("accessors");
+    accessors.push(accessor);
+    accessors.len() - 1
+}
+
+/// With `MESHTRACER_WRITE_CORPUS=DIR`, copies `model` to DIR/<test>-<file stem>/model.<ext>
+/// the layout `fuzz/seed.sh` collects seeds from (the test is the running test's name).
+pub fn copy_to_corpus(model: &Path) {
+    let Some(out) = std::env::var_os("MESHTRACER_WRITE_CORPUS") else {
+        return;
+    };
+    let test = std::thread::current().name().unwrap_or("test").to_string();
+    let stem = model
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("model");
+    let slug: String = format!("{test}-{stem}")
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '-' })
+        .collect();
+    let ext = model.extension().and_then(|e| e.to_str()).unwrap_or("gltf");
+    // A test that writes several files of one name keeps each (slug, slug-2, ...).
+    let dir = (1..)
+        .map(|k| match k {
+            1 => Path::new(&out).join(&slug),
+            _ => Path::new(&out).join(format!("{slug}-{k}")),
+        })
+        .find(|d| !d.exists())
+        .unwrap();
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(model, dir.join(format!("model.{ext}"))).unwrap();
+}

@@ -571,6 +571,8 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         max_spp,
         no_clobber,
         quiet,
+        // Changes what is printed, never what is written: not part of the fingerprint.
+        no_warnings: _,
         strict,
         variant,
         load,
@@ -652,6 +654,9 @@ fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArg
     let mut args = batch.render.clone();
     args.model = job.model.clone();
     args.quiet = true;
+    // A job's warnings go to its record (job.json, results.jsonl), not between the batch's
+    // progress lines.
+    args.no_warnings = true;
     // The batch's sheet and preview are not the job's (and their options leave the
     // fingerprint alone).
     args.contact_sheet = None;

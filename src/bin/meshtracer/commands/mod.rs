@@ -113,7 +113,7 @@ pub(crate) struct PreparedModel {
 /// Prepares `scene` for `render` (one view or many) through the library's one build sequence
 /// ([`Prepared::build`]): the BVH preset chosen for `rays` rays, textures within
 /// `--max-texture-memory`, each step timed into `phases`, the decoder's warnings printed unless
-/// `--quiet`.
+/// `--no-warnings`.
 pub(crate) fn prepare_scene(
     args: &RenderArgs,
     scene: Scene,
@@ -147,7 +147,7 @@ pub(crate) fn prepare_scene(
         );
     })?;
     phases.sub_steps_of("bvh build", prepared.accel.build_steps());
-    if !args.quiet {
+    if !args.no_warnings {
         for w in &warnings {
             eprintln!("warning: {}: {w}", args.model.display());
         }
@@ -186,16 +186,16 @@ pub(crate) fn render_load_options(args: &RenderArgs) -> LoadOptions {
     }
 }
 
-/// Prints the loaded model's warnings and the pose it is drawn in, unless `--quiet` (shared by
-/// single- and multi-view renders).
+/// Prints the loaded model's warnings unless `--no-warnings` (`--quiet` does not hide a
+/// warning about the picture), and the pose it is drawn in unless `--quiet` (shared by single-
+/// and multi-view renders).
 pub(crate) fn report_load(args: &RenderArgs, scene: &Scene) {
-    if args.quiet {
-        return;
+    if !args.no_warnings {
+        for w in &scene.warnings {
+            eprintln!("warning: {}: {w}", args.model.display());
+        }
     }
-    for w in &scene.warnings {
-        eprintln!("warning: {}: {w}", args.model.display());
-    }
-    if let Some(pose) = &scene.pose {
+    if let (Some(pose), false) = (&scene.pose, args.quiet) {
         eprintln!("{}: posed by {pose}", args.model.display());
     }
 }
@@ -213,7 +213,7 @@ pub(crate) fn check_lighting(
             path.display()
         );
     }
-    if lights.is_empty() && environment.is_none() && !args.quiet {
+    if lights.is_empty() && environment.is_none() && !args.no_warnings {
         eprintln!(
             "warning: no lights (--no-default-lights): only ambient and emissive light the scene"
         );
@@ -368,7 +368,11 @@ fn load_options(args: &LoadArgs) -> LoadOptions {
 
 fn info(args: &InfoArgs) -> Result<()> {
     let start = Instant::now();
-    let scene = load(&args.model, &load_options(&args.load))?;
+    let options = LoadOptions {
+        allow_nothing_to_draw: true,
+        ..load_options(&args.load)
+    };
+    let scene = load(&args.model, &options)?;
     let load_time = start.elapsed();
     let json = info_json(&scene);
     if args.json {
@@ -475,11 +479,15 @@ fn info(args: &InfoArgs) -> Result<()> {
             l.intensity
         );
     }
-    out!(
-        "bounds      min {:.4?} max {:.4?}",
-        b.min.to_array(),
-        b.max.to_array()
-    );
+    if b.is_empty() {
+        out!("bounds      none (no triangles)");
+    } else {
+        out!(
+            "bounds      min {:.4?} max {:.4?}",
+            b.min.to_array(),
+            b.max.to_array()
+        );
+    }
     for w in &scene.warnings {
         out!("warning     {w}");
     }

@@ -200,7 +200,7 @@ fn load_environment(args: &RenderArgs) -> Result<Option<Environment>> {
 }
 
 /// Loads the model as `render` loads it ([`render_load_options`]), timing the parse and flatten
-/// (and its steps) into `phases`, and prints its warnings and pose unless `--quiet`. Returns
+/// (and its steps) into `phases`, and prints its warnings (unless `--no-warnings`) and pose (unless `--quiet`). Returns
 /// the scene and the wall time of the load so far (the tangents come later, in the prepare).
 fn load_model(args: &RenderArgs, phases: &mut Phases) -> Result<(Scene, Duration)> {
     let load_start = Instant::now();
