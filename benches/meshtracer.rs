@@ -363,6 +363,7 @@ fn render(c: &mut Criterion) {
         bounces: 0,
         environment: None,
         environment_visible: false,
+        noise: None,
     };
     let scene = meshtracer::prepare::Prepared::from_parts(
         scene,
@@ -450,6 +451,7 @@ fn path_tracer(c: &mut Criterion) {
             meshtracer::light::environment::Environment::studio(),
         )),
         environment_visible: false,
+        noise: None,
     };
     let cancel = std::sync::atomic::AtomicBool::new(false);
     let (reference, stats, _) = pool

@@ -191,5 +191,6 @@ pub fn default_settings(scene: &Scene, width: u32, height: u32) -> RenderSetting
         bounces: DEFAULT_BOUNCES,
         environment: lighting.environment,
         environment_visible: false,
+        noise: None,
     }
 }

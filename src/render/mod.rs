@@ -59,7 +59,20 @@ pub struct RenderSettings {
     pub environment: Option<Arc<Environment>>,
     /// Path tracer: camera rays that miss show the environment (else they are transparent).
     pub environment_visible: bool,
+    /// Adaptive sampling (`--noise`): each pixel stops taking samples once the standard error
+    /// of its mean luminance is at most this fraction of max(mean, [`NOISE_FLOOR`]); `spp` is
+    /// then the cap. `None`: every pixel takes `spp` samples.
+    pub noise: Option<f32>,
 }
+
+/// Adaptive sampling's first check: a pixel takes at least this many samples (or `spp`, if
+/// fewer) before its error is estimated, and checks again after each further batch of as many.
+pub const ADAPTIVE_BATCH: u32 = 16;
+
+/// Adaptive sampling's luminance floor: below it the target error is absolute (this times the
+/// target), so dark pixels, where a relative error means little to the eye, do not take every
+/// sample.
+pub const NOISE_FLOOR: f32 = 0.05;
 
 /// Arbitrary output variables, from one ray through each pixel's centre (no anti-aliasing,
 /// so ids never blend across boundaries), row-major from the top-left pixel.
@@ -85,7 +98,7 @@ pub struct RenderStats {
     pub indirect_rays: u64,
     /// Wall time of the render (not the BVH build).
     pub time: Duration,
-    /// Camera samples taken (pixels × spp).
+    /// Camera samples taken (pixels × spp, or fewer with adaptive sampling).
     pub samples: u64,
     /// Noise estimate: the standard error of the pixel mean's luminance (after exposure),
     /// averaged over covered pixels; `None` at 1 spp (no spread to measure).
@@ -234,10 +247,7 @@ pub fn render_region(
         normal: vec![Vec3::ZERO; pixel_count],
         instance: vec![0; pixel_count],
     });
-    let mut stats = RenderStats {
-        samples: u64::from(width) * u64::from(height) * u64::from(settings.spp.max(1)),
-        ..RenderStats::default()
-    };
+    let mut stats = RenderStats::default();
     let (mut noise_sum, mut noise_pixels) = (0.0f64, 0u64);
     for tile in results {
         let tile = tile.ok_or(Cancelled)?;
@@ -246,6 +256,7 @@ pub fn render_region(
         stats.indirect_rays += tile.counts.indirect;
         noise_sum += tile.noise_sum;
         noise_pixels += tile.noise_pixels;
+        stats.samples += tile.samples;
         for (row, chunk) in tile.pixels.chunks(tile.width as usize).enumerate() {
             let y = tile.y - region.y + row as u32;
             let begin = (y * width + tile.x - region.x) as usize;
@@ -295,6 +306,28 @@ fn render_tiles<I: Integrator>(
         .collect()
 }
 
+/// The standard error of a mean `mean` of `n` (> 1) samples whose squares sum to `squares`.
+fn standard_error(squares: f64, mean: f64, n: u32) -> f64 {
+    let n = f64::from(n);
+    let variance = (squares / n - mean * mean).max(0.0) * n / (n - 1.0);
+    (variance / n).sqrt()
+}
+
+/// Sample `s` of the R2 sequence (Roberts, "The unreasonable effectiveness of quasirandom
+/// sequences", 2018: the additive recurrence by the plastic number's inverse powers) shifted by
+/// (`ox`, `oy`), in [0, 1)²: evenly spread at every prefix.
+fn r2(s: u32, ox: f32, oy: f32) -> (f32, f32) {
+    const A1: f64 = 0.754_877_666_246_692_7;
+    const A2: f64 = 0.569_840_290_998_053_3;
+    let s = f64::from(s);
+    // Below 1 after rounding to f32 as well.
+    let below_one = |v: f64| (v.fract() as f32).min(1.0 - f32::EPSILON / 2.0);
+    (
+        below_one(f64::from(ox) + s * A1),
+        below_one(f64::from(oy) + s * A2),
+    )
+}
+
 /// One finished tile.
 struct Tile {
     x: u32,
@@ -307,6 +340,8 @@ struct Tile {
     noise_sum: f64,
     /// Covered pixels counted in `noise_sum`.
     noise_pixels: u64,
+    /// Camera samples taken.
+    samples: u64,
 }
 
 /// Per-render constants shared by all tiles.
@@ -386,6 +421,7 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
             counts: RayCounts::default(),
             noise_sum: 0.0,
             noise_pixels: 0,
+            samples: 0,
         };
         let spp = self.settings.spp.max(1);
         for y in y0..y1 {
@@ -394,9 +430,19 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                 let mut sum = Vec4::ZERO;
                 let mut luminance_squares = 0.0f64;
                 let mut first = None;
+                // Adaptive sampling places samples by the R2 sequence (Roberts 2018) from a
+                // per-pixel random start, so that any prefix of them covers the pixel evenly;
+                // the stratified grid covers it only when complete.
+                let r2_start = self
+                    .settings
+                    .noise
+                    .map(|_| (rng.next_f32(), rng.next_f32()));
+                let mut taken = spp;
                 for s in 0..spp {
                     let (dx, dy) = if spp == 1 {
                         (0.5, 0.5)
+                    } else if let Some((ox, oy)) = r2_start {
+                        r2(s, ox, oy)
                     } else {
                         let (sx, sy) = self.strata;
                         let (cx, cy) = (s % sx, (s / sx) % sy);
@@ -419,13 +465,24 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                     );
                     sum += (color * self.scale).extend(coverage);
                     luminance_squares += f64::from(luminance(color * self.scale)).powi(2);
+                    if let Some(target) = self.settings.noise {
+                        let n = s + 1;
+                        if n < spp && n % ADAPTIVE_BATCH == 0 {
+                            let mean = f64::from(luminance(sum.truncate())) / f64::from(n);
+                            let error = standard_error(luminance_squares, mean, n);
+                            if error <= f64::from(target) * mean.max(f64::from(NOISE_FLOOR)) {
+                                taken = n;
+                                break;
+                            }
+                        }
+                    }
                 }
-                tile.pixels.push(sum / spp as f32);
-                if spp > 1 && sum.w > 0.0 {
-                    let n = f64::from(spp);
+                tile.samples += u64::from(taken);
+                tile.pixels.push(sum / taken as f32);
+                if taken > 1 && sum.w > 0.0 {
+                    let n = f64::from(taken);
                     let mean = f64::from(luminance(sum.truncate())) / n;
-                    let variance = (luminance_squares / n - mean * mean).max(0.0) * n / (n - 1.0);
-                    tile.noise_sum += (variance / n).sqrt();
+                    tile.noise_sum += standard_error(luminance_squares, mean, taken);
                     tile.noise_pixels += 1;
                 }
                 if self.settings.aovs {

@@ -181,6 +181,11 @@ pub struct RenderArgs {
     /// samples (square numbers stratify best).
     #[arg(long, default_value_t = meshtracer::defaults::DEFAULT_SPP)]
     pub spp: u32,
+    /// Adaptive sampling: each pixel stops once the standard error of its luminance is at most
+    /// this fraction of it (of 0.05 in dark pixels), checked every 16 samples; --spp is then
+    /// the cap (e.g. --noise 0.02 --spp 1024). Samples are placed by the R2 sequence.
+    #[arg(long, value_name = "FRACTION", value_parser = parse_noise)]
+    pub noise: Option<f32>,
     /// Render for about this many seconds instead of a fixed --spp: one sample per pixel is
     /// timed, then the image is rendered at the largest spp that fits the rest of the budget
     /// (at most --max-spp); the summary says which. The result is exactly the --spp render of
@@ -653,6 +658,14 @@ pub struct CompareArgs {
     /// coverage_iou (e.g. --fail-below psnr=30); may be repeated.
     #[arg(long, value_name = "METRIC=VALUE", value_parser = parse_threshold)]
     pub fail_below: Vec<(String, f64)>,
+}
+
+/// Parses `--noise`: a finite fraction above 0.
+fn parse_noise(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a fraction above 0 (e.g. 0.02)")),
+    }
 }
 
 /// Parses `METRIC=VALUE`.

@@ -520,6 +520,7 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         width,
         height,
         spp,
+        noise,
         time_limit,
         denoise,
         seed,
@@ -647,6 +648,7 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         .field("strict", strict)
         .field("variant", variant)
         .field_unless_default("tonemap", tonemap)
+        .field_unless_default("noise", noise)
         .group_field("load", &load_record)
 }
 

@@ -361,6 +361,7 @@ fn render_settings(args: &RenderArgs, view: View, lit: Lighting) -> RenderSettin
         bounces: args.bounces,
         environment,
         environment_visible: args.env_visible,
+        noise: args.noise,
     }
 }
 
@@ -467,6 +468,7 @@ fn spp_for_time_limit(
     let calibration = RenderSettings {
         spp: 1,
         aovs: false,
+        noise: None,
         ..settings.clone()
     };
     let (_, stats, _) = render(prepared, &calibration, cancel, &|_, _| {})?;
@@ -667,6 +669,8 @@ fn write_stats(
         "phases": phases.to_json(),
         "total_seconds": run_start.elapsed().as_secs_f64(),
         "peak_memory_bytes": peak_memory_bytes(),
+        "samples": stats.samples,
+        "noise": stats.noise,
         "rays": stats.rays(),
         "mrays_per_second": stats.mrays_per_second(),
         "denoised": done.rendered.denoised.is_some(),
@@ -703,14 +707,21 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
         ),
         None => String::new(),
     };
+    let spp = match done.settings.noise {
+        Some(target) => format!(
+            "{:.1} spp (adaptive to noise {target}, at most {})",
+            stats.samples as f64 / (f64::from(width) * f64::from(height)).max(1.0),
+            done.settings.spp
+        ),
+        None => format!("{} spp", done.settings.spp),
+    };
     eprintln!(
-        "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {} spp rendered in {:.3} s ({:.0} samples/s{}){denoise_note}, peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {threads} threads -> {}",
+        "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {spp} rendered in {:.3} s ({:.0} samples/s{}){denoise_note}, peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {threads} threads -> {}",
         args.model.display(),
         scene.soup.len(),
         done.load_time.as_secs_f64() * 1e3,
         prepared.textures.bytes >> 20,
         texture_time.as_secs_f64() * 1e3,
-        done.settings.spp,
         stats.time.as_secs_f64(),
         stats.samples_per_second(),
         stats

@@ -763,6 +763,7 @@ impl ViewRun<'_> {
             bounces: args.bounces,
             environment: self.environment.clone(),
             environment_visible: args.env_visible,
+            noise: args.noise,
         };
         let image_path = dir.join(&names.image);
         let output = PendingOutput::reserve(&image_path, args.no_clobber)?;
