@@ -364,6 +364,7 @@ fn render(c: &mut Criterion) {
         environment: None,
         environment_visible: false,
         noise: None,
+        clamp_indirect: None,
     };
     let scene = meshtracer::prepare::Prepared::from_parts(
         scene,
@@ -452,6 +453,7 @@ fn path_tracer(c: &mut Criterion) {
         )),
         environment_visible: false,
         noise: None,
+        clamp_indirect: None,
     };
     let cancel = std::sync::atomic::AtomicBool::new(false);
     let (reference, stats, _) = pool

@@ -192,5 +192,6 @@ pub fn default_settings(scene: &Scene, width: u32, height: u32) -> RenderSetting
         environment: lighting.environment,
         environment_visible: false,
         noise: None,
+        clamp_indirect: None,
     }
 }

@@ -183,6 +183,8 @@ def main(argv):
         scene.cycles.max_bounces = bounces
         for kind in ("diffuse", "glossy", "transmission", "volume", "transparent"):
             setattr(scene.cycles, f"{kind}_bounces", bounces)
+    # --clamp-indirect: Cycles' own indirect clamp (0 = none).
+    scene.cycles.sample_clamp_indirect = view.get("clamp_indirect") or 0.0
     scene.render.film_transparent = not (environment and environment.get("visible"))
     set_display(scene, view.get("display") or {})
     scene.render.resolution_x = view["image"]["width"]

@@ -53,6 +53,12 @@ pub struct PathTracer {
     /// How light from emissive triangles and the environment is estimated (MIS by default;
     /// the single strategies are there to test it against).
     pub estimator: Estimator,
+    /// `--clamp-indirect`: the most a sample's indirect light (light that reached the first
+    /// surface after at least one more bounce) may bring, by its largest channel; brighter
+    /// samples are scaled down to it. Removes fireflies from rare bright paths (caustics
+    /// through glass, small bright reflections) at the cost of a bias toward darker indirect
+    /// light, as Cycles' "Clamp Indirect" does. `None`: unbiased.
+    pub clamp_indirect: Option<f32>,
 }
 
 /// The strategies that estimate light from emissive triangles and the environment. Punctual
@@ -122,6 +128,9 @@ impl Integrator for PathTracer {
         let mut cone = (camera.spread_base, camera.spread_per_distance);
         // Extinction coefficient of the volume the path is inside, if any.
         let mut medium: Option<Vec3> = None;
+        // The radiance of the direct light at the first surface (its light samples and what
+        // its BSDF sample found): what follows is indirect.
+        let mut direct: Option<Vec3> = None;
         loop {
             if bounces == 0 {
                 counts.primary += 1;
@@ -179,6 +188,9 @@ impl Integrator for PathTracer {
                     }
                 };
                 radiance += throughput * surface.emissive * weight;
+            }
+            if bounces == 1 {
+                direct = Some(radiance);
             }
             // Past the last vertex that estimates direct light: this hit only completed the
             // previous vertex's BSDF-sampled half of the MIS pair (its emission, above).
@@ -243,6 +255,13 @@ impl Integrator for PathTracer {
             }
             if !throughput.is_finite() || throughput == Vec3::ZERO {
                 break;
+            }
+        }
+        if let (Some(limit), Some(direct)) = (self.clamp_indirect, direct) {
+            let indirect = radiance - direct;
+            let peak = indirect.max_element();
+            if peak > limit {
+                radiance = direct + indirect * (limit / peak);
             }
         }
         (radiance, coverage)

@@ -113,6 +113,9 @@ pub struct ViewFile {
     /// Path tracer: most bounces after the first hit.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bounces: Option<u32>,
+    /// Path tracer: the clamp on a sample's indirect light (`--clamp-indirect`), if any.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub clamp_indirect: Option<f32>,
     /// Path tracer: the environment that lit the scene.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub environment: Option<ViewEnvironment>,
@@ -271,6 +274,7 @@ impl ViewFile {
             segmentation: Vec::new(),
             integrator: IntegratorKind::Direct,
             bounces: None,
+            clamp_indirect: None,
             environment: None,
             denoise: None,
             display: None,

@@ -63,6 +63,9 @@ pub struct RenderSettings {
     /// of its mean luminance is at most this fraction of max(mean, [`NOISE_FLOOR`]); `spp` is
     /// then the cap. `None`: every pixel takes `spp` samples.
     pub noise: Option<f32>,
+    /// Path tracer: the most a sample's indirect light may bring (`--clamp-indirect`,
+    /// [`crate::integrator::PathTracer::clamp_indirect`]); `None`: unbiased.
+    pub clamp_indirect: Option<f32>,
 }
 
 /// Adaptive sampling's first check: a pixel takes at least this many samples (or `spp`, if
@@ -236,6 +239,7 @@ pub fn render_region(
                 environment_visible: settings.environment_visible,
                 max_bounces: settings.bounces,
                 estimator: crate::integrator::Estimator::Mis,
+                clamp_indirect: settings.clamp_indirect,
             };
             render_tiles(scene, &path, settings, region, cancel, progress)
         }

@@ -335,6 +335,7 @@ fn mis_light_only_and_bsdf_only_estimators_agree() {
             environment_visible: false,
             max_bounces: 8,
             estimator,
+            clamp_indirect: None,
         };
         path_estimate(&tracer, &prepared, &camera, PATHS, (11, 0))
     };
@@ -1127,6 +1128,7 @@ fn a_panel_beside_a_plane_lights_it_at_grazing_incidence() {
             environment_visible: false,
             max_bounces: 0,
             estimator,
+            clamp_indirect: None,
         };
         let x = 0.5 + k as f32 * GAP;
         let eye = Vec3::new(x, 0.013, 1.0);
@@ -1181,4 +1183,62 @@ fn path_estimate(
         mean,
         ((squares / n - mean * mean).max(0.0) / (n - 1.0)).sqrt(),
     )
+}
+
+/// `--clamp-indirect`: the bundled Cornell box, path traced. A clamp no sample reaches leaves
+/// the EXR's bytes as they were. A tiny clamp (0.01) leaves the direct light alone and caps
+/// what each sample's indirect light adds: every pixel lies between the direct-light render
+/// (`--bounces 0`, whose random numbers for the first surface are the same, as is the BVH) and
+/// it plus 0.01,
+/// where the unclamped render adds far more.
+#[test]
+fn clamp_indirect_caps_indirect_light_and_nothing_else() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/cornell-box.gltf");
+    let base = [
+        "--quiet",
+        "--width",
+        "96",
+        "--height",
+        "72",
+        // One path a pixel: a pixel's random numbers are one stream for all its samples, so
+        // with more, the direct render's shorter paths would shift its later samples' numbers.
+        "--spp",
+        "1",
+        "--integrator",
+        "path",
+        // The automatic preset follows the rays a render will trace, which --bounces changes.
+        "--bvh-preset",
+        "medium",
+    ];
+    let pixels = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = base.to_vec();
+        args.extend_from_slice(extra);
+        render(&model, &out, &args);
+        (std::fs::read(&out).unwrap(), read_rgba(&out).2)
+    };
+    let (free_bytes, free) = pixels("free.exr", &[]);
+    let (loose_bytes, _) = pixels("loose.exr", &["--clamp-indirect", "1e9"]);
+    assert_eq!(
+        free_bytes, loose_bytes,
+        "a clamp no sample reaches changes nothing"
+    );
+    let (_, direct) = pixels("direct.exr", &["--bounces", "0"]);
+    let (_, clamped) = pixels("clamped.exr", &["--clamp-indirect", "0.01"]);
+    let mut most_indirect = 0.0f32;
+    for ((c, d), f) in clamped.iter().zip(&direct).zip(&free) {
+        for k in 0..3 {
+            let added = c[k] - d[k];
+            assert!(
+                (-1e-5..=0.01 + 1e-5).contains(&added),
+                "clamped {c:?} vs direct {d:?}"
+            );
+            most_indirect = most_indirect.max(f[k] - d[k]);
+        }
+    }
+    assert!(
+        most_indirect > 0.05,
+        "the room's indirect light: {most_indirect}"
+    );
 }

@@ -379,6 +379,11 @@ pub struct RenderArgs {
     /// Path tracer: most bounces after the first hit (0 = direct light only).
     #[arg(long, default_value_t = meshtracer::defaults::DEFAULT_BOUNCES, value_name = "N")]
     pub bounces: u32,
+    /// Path tracer: the most a sample's indirect light may bring (its largest channel, after
+    /// the first surface's direct light), against fireflies; biased, as Cycles' Clamp
+    /// Indirect [default: no clamp].
+    #[arg(long, value_name = "RADIANCE", value_parser = parse_clamp)]
+    pub clamp_indirect: Option<f32>,
     /// Path tracer: light the scene with this equirectangular panorama (.hdr, or .exr with
     /// any compression but DWAA/DWAB) [default: the built-in neutral studio when the file has
     /// no lights].
@@ -665,6 +670,14 @@ fn parse_noise(s: &str) -> Result<f32, String> {
     match s.parse::<f32>() {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
         _ => Err(format!("'{s}' is not a fraction above 0 (e.g. 0.02)")),
+    }
+}
+
+/// Parses `--clamp-indirect`: a finite radiance above 0.
+fn parse_clamp(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a radiance above 0 (e.g. 10)")),
     }
 }
 

@@ -555,6 +555,7 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         no_default_lights,
         integrator,
         bounces,
+        clamp_indirect,
         env,
         env_rotation,
         env_intensity,
@@ -649,6 +650,7 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         .field("variant", variant)
         .field_unless_default("tonemap", tonemap)
         .field_unless_default("noise", noise)
+        .field_unless_default("clamp_indirect", clamp_indirect)
         .group_field("load", &load_record)
 }
 

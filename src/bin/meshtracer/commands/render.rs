@@ -362,6 +362,7 @@ fn render_settings(args: &RenderArgs, view: View, lit: Lighting) -> RenderSettin
         environment,
         environment_visible: args.env_visible,
         noise: args.noise,
+        clamp_indirect: args.clamp_indirect,
     }
 }
 
@@ -628,6 +629,7 @@ fn view_record(args: &RenderArgs, done: &Finished) -> ViewFile {
     ));
     if settings.integrator == IntegratorKind::Path {
         view.bounces = Some(settings.bounces);
+        view.clamp_indirect = args.clamp_indirect;
         view.environment = settings
             .environment
             .as_ref()

@@ -45,8 +45,19 @@ fn render_fingerprint(args: &RenderArgs, settings: &RenderSettings, scene: &Scen
         .environment
         .as_ref()
         .map(|e| format!("{:?} {} {}", e.source, e.rotation_degrees(), e.intensity()));
+    // Options added later join the text only when set, so tiles of earlier renders still join.
+    let mut later = String::new();
+    if args.tonemap != meshtracer::color::ViewTransform::default() {
+        later += &format!("; tonemap {:?}", args.tonemap);
+    }
+    if let Some(noise) = settings.noise {
+        later += &format!("; noise {noise}");
+    }
+    if let Some(clamp) = settings.clamp_indirect {
+        later += &format!("; clamp indirect {clamp}");
+    }
     fingerprint(&format!(
-        "view {:?}; spp {}; seed {}; lights {:?}; ambient {:?}; exposure {}; shading {:?}; integrator {:?}; bounces {}; environment {environment:?} visible {}; background {:?}; depth scale {}; triangles {}; bounds {:?}",
+        "view {:?}; spp {}; seed {}; lights {:?}; ambient {:?}; exposure {}; shading {:?}; integrator {:?}; bounces {}; environment {environment:?} visible {}; background {:?}; depth scale {}; triangles {}; bounds {:?}{later}",
         settings.view,
         settings.spp,
         settings.seed,

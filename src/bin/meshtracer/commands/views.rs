@@ -737,6 +737,7 @@ impl ViewRun<'_> {
         record.display = Some(ViewDisplay::new(args.exposure, args.tonemap));
         if path_tracing {
             record.bounces = Some(args.bounces);
+            record.clamp_indirect = args.clamp_indirect;
             record.environment = self
                 .environment
                 .as_ref()
@@ -764,6 +765,7 @@ impl ViewRun<'_> {
             environment: self.environment.clone(),
             environment_visible: args.env_visible,
             noise: args.noise,
+            clamp_indirect: args.clamp_indirect,
         };
         let image_path = dir.join(&names.image);
         let output = PendingOutput::reserve(&image_path, args.no_clobber)?;
