@@ -66,7 +66,7 @@ const ALBEDO_STRATA: usize = 32;
 const ALBEDO_MIN_COSINE: f32 = 0.02;
 
 /// The single-scattering GGX lobe's directional albedo at cos θ_v = `cos` for perceptual
-/// `roughness` (α = max(roughness², [`crate::shading::MIN_GGX_ALPHA`])), split as (a, b) so
+/// `roughness` (α = max(roughness², 0.002), the BRDF's floor), split as (a, b) so
 /// that with Schlick's Fresnel F = F0 + (F90 - F0)(1 - v·h)⁵ the lobe D·V reflects
 /// `F0·a + (F90 - F0)·b` of the light arriving from the view direction: a = ∫ D·V·cos θ_l dω,
 /// b = ∫ (1 - v·h)⁵·D·V·cos θ_l dω (the "split-sum" or DFG table of real-time renderers).
