@@ -294,3 +294,16 @@ impl LoadErrorKind {
         LoadErrorKind::NoTriangles(String::new())
     }
 }
+
+/// An empty vector with room for `bytes` bytes, or [`LoadErrorKind::OutOfMemory`] naming
+/// `what` when the allocator refuses (under `ulimit -v`, or a container's memory limit).
+pub(super) fn allocate(bytes: u64, what: &str) -> Result<Vec<u8>, LoadErrorKind> {
+    let out_of_memory = || LoadErrorKind::OutOfMemory {
+        what: what.to_string(),
+        bytes,
+    };
+    let size = usize::try_from(bytes).map_err(|_| out_of_memory())?;
+    let mut out = Vec::new();
+    out.try_reserve_exact(size).map_err(|_| out_of_memory())?;
+    Ok(out)
+}

@@ -112,7 +112,7 @@ impl FileAccess {
             }));
         }
         let file = std::fs::File::open(path).map_err(|e| err(LoadErrorKind::Io(e)))?;
-        let mut bytes = super::read::allocate(len, "a buffer").map_err(err)?;
+        let mut bytes = super::error::allocate(len, "a buffer").map_err(err)?;
         file.take(len)
             .read_to_end(&mut bytes)
             .map_err(|e| err(LoadErrorKind::Io(e)))?;

@@ -3,7 +3,7 @@
 //! declared counts from its JSON before its binary chunk, then only the bytes its header
 //! declares, into memory allocated fallibly (too little memory is an error, not an abort).
 
-use super::error::{LoadError, LoadErrorKind};
+use super::error::{allocate, LoadError, LoadErrorKind};
 use super::gltf_import::{self, DeferredImages};
 use super::options::{Format, LoadOptions};
 use std::io::{Read, Seek};
@@ -101,19 +101,6 @@ fn check_glb_json(
         Ok(root) => gltf_import::check_declared_sizes(&root, &options.limits),
         Err(_) => Ok(()),
     }
-}
-
-/// An empty vector with room for `bytes` bytes, or [`LoadErrorKind::OutOfMemory`] naming
-/// `what` when the allocator refuses (under `ulimit -v`, or a container's memory limit).
-pub(super) fn allocate(bytes: u64, what: &str) -> Result<Vec<u8>, LoadErrorKind> {
-    let out_of_memory = || LoadErrorKind::OutOfMemory {
-        what: what.to_string(),
-        bytes,
-    };
-    let size = usize::try_from(bytes).map_err(|_| out_of_memory())?;
-    let mut out = Vec::new();
-    out.try_reserve_exact(size).map_err(|_| out_of_memory())?;
-    Ok(out)
 }
 
 #[cfg(test)]
