@@ -175,18 +175,7 @@ impl Integrator for PathTracer {
                 break;
             }
             if surface.emissive != Vec3::ZERO {
-                let weight = match bsdf_pdf {
-                    None => 1.0,
-                    Some(pdf) => {
-                        let at = EmitterHit {
-                            triangle: hit.triangle,
-                            distance: hit.t,
-                            cos: surface.geometric.dot(direction).abs(),
-                        };
-                        let light_pdf = SceneLight::Area.pdf(scene, direction, Some(at));
-                        self.estimator.bsdf_weight(pdf, light_pdf)
-                    }
-                };
+                let weight = self.emission_weight(scene, &hit, &surface, direction, bsdf_pdf);
                 radiance += throughput * surface.emissive * weight;
             }
             if bounces == 1 {
@@ -257,14 +246,7 @@ impl Integrator for PathTracer {
                 break;
             }
         }
-        if let (Some(limit), Some(direct)) = (self.clamp_indirect, direct) {
-            let indirect = radiance - direct;
-            let peak = indirect.max_element();
-            if peak > limit {
-                radiance = direct + indirect * (limit / peak);
-            }
-        }
-        (radiance, coverage)
+        (self.clamped(radiance, direct), coverage)
     }
 }
 
@@ -280,6 +262,48 @@ struct Vertex<'a> {
 }
 
 impl PathTracer {
+    /// The MIS weight of emission a path reached along `direction` at `hit`: 1 for a camera
+    /// ray (`bsdf_pdf` None: no light sample could have found it), else the estimator's BSDF
+    /// weight against the area light's pdf of the same direction.
+    #[inline(always)]
+    fn emission_weight(
+        &self,
+        scene: &Prepared,
+        hit: &Hit,
+        surface: &Surface,
+        direction: Vec3,
+        bsdf_pdf: Option<f32>,
+    ) -> f32 {
+        match bsdf_pdf {
+            None => 1.0,
+            Some(pdf) => {
+                let at = EmitterHit {
+                    triangle: hit.triangle,
+                    distance: hit.t,
+                    cos: surface.geometric.dot(direction).abs(),
+                };
+                let light_pdf = SceneLight::Area.pdf(scene, direction, Some(at));
+                self.estimator.bsdf_weight(pdf, light_pdf)
+            }
+        }
+    }
+
+    /// A sample's `radiance` with its indirect part (what it holds beyond `direct`, the first
+    /// surface's direct light) scaled down to [`PathTracer::clamp_indirect`] in its largest
+    /// channel; as it is without a clamp or without indirect light.
+    fn clamped(&self, radiance: Vec3, direct: Option<Vec3>) -> Vec3 {
+        let (Some(limit), Some(direct)) = (self.clamp_indirect, direct) else {
+            return radiance;
+        };
+        let indirect = radiance - direct;
+        let peak = indirect.max_element();
+        if peak > limit {
+            direct + indirect * (limit / peak)
+        } else {
+            radiance
+        }
+    }
+
     /// What a ray that meets no surface brings back: the environment's radiance, seen directly
     /// by a camera ray when it is visible, or found by a BSDF sample (drawn with density
     /// `bsdf_pdf`) and weighed against light sampling. `None` without an environment.
