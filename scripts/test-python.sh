@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Builds the Python package (python/) with `pip install ./python` into a virtual environment
+# and runs its pytest suite (python/tests) against the meshtracer binary.
+#
+# The wheel is built with Cargo's dev profile into the same target folder as `cargo test`:
+# python/Cargo.toml repeats the root's dev profile, so the dependencies cargo test compiled
+# are reused where their features agree. Set MESHTRACER_PYTHON_PROFILE=release for the
+# optimised build a user gets from `pip install ./python`.
+#
+# Anything missing (python3's venv module, PyPI) fails the run with a message: this script
+# never skips the Python tests silently.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root="$PWD"
+target="${CARGO_TARGET_DIR:-$root/target}"
+venv="${MESHTRACER_VENV:-$target/python-venv}"
+profile="${MESHTRACER_PYTHON_PROFILE:-dev}"
+
+if [ ! -x "$venv/bin/python" ]; then
+  if ! python3 -m venv "$venv"; then
+    echo "error: 'python3 -m venv $venv' failed: the Python tests need python3 with its venv module (Debian: apt-get install python3-venv)" >&2
+    exit 1
+  fi
+fi
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r python/requirements-test.txt
+
+# The binary the tests compare against (cargo test has built it already: then this is quick).
+cargo build --locked --bin meshtracer --quiet
+
+start=$(date +%s)
+CARGO_TARGET_DIR="$target" MATURIN_PEP517_ARGS="--profile $profile" \
+  "$venv/bin/python" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps ./python
+echo "python package built and installed ($profile profile) in $(( $(date +%s) - start )) s"
+
+cd python/tests
+MESHTRACER_CLI="${MESHTRACER_CLI:-$target/debug/meshtracer}" "$venv/bin/python" -m pytest -rs "$@"
