@@ -2,10 +2,10 @@
 # Builds the Python package (python/) with `pip install ./python` into a virtual environment
 # and runs its pytest suite (python/tests) against the meshtracer binary.
 #
-# The wheel is built with Cargo's dev profile into the same target folder as `cargo test`:
-# python/Cargo.toml repeats the root's dev profile, so the dependencies cargo test compiled
-# are reused where their features agree. Set MESHTRACER_PYTHON_PROFILE=release for the
-# optimised build a user gets from `pip install ./python`.
+# The wheel is built with python/Cargo.toml's `quick` profile (opt-level 1, no debug info:
+# that file says why) into the target folder of `cargo test`; set
+# MESHTRACER_PYTHON_PROFILE=release for the optimised build a user gets from
+# `pip install ./python`.
 #
 # Anything missing (python3's venv module, PyPI) fails the run with a message: this script
 # never skips the Python tests silently.
@@ -14,7 +14,7 @@ cd "$(dirname "$0")/.."
 root="$PWD"
 target="${CARGO_TARGET_DIR:-$root/target}"
 venv="${MESHTRACER_VENV:-$target/python-venv}"
-profile="${MESHTRACER_PYTHON_PROFILE:-dev}"
+profile="${MESHTRACER_PYTHON_PROFILE:-quick}"
 
 if [ ! -x "$venv/bin/python" ]; then
   if ! python3 -m venv "$venv"; then
@@ -25,7 +25,9 @@ fi
 "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r python/requirements-test.txt
 
 # The binary the tests compare against (cargo test has built it already: then this is quick).
-cargo build --locked --bin meshtracer --quiet
+if [ -z "${MESHTRACER_CLI:-}" ]; then
+  cargo build --locked --bin meshtracer --quiet
+fi
 
 start=$(date +%s)
 CARGO_TARGET_DIR="$target" MATURIN_PEP517_ARGS="--profile $profile" \
