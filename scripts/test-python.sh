@@ -24,9 +24,11 @@ if [ ! -x "$venv/bin/python" ]; then
 fi
 "$venv/bin/python" -m pip install --quiet --disable-pip-version-check -r python/requirements-test.txt
 
-# The binary the tests compare against (cargo test has built it already: then this is quick).
+# The binary the tests compare against, target/debug/meshtracer, as `cargo test` builds it
+# (with the dev-dependencies' features: `cargo build` would compile much of the tree again).
+# After cargo test, as in scripts/test.sh, this does nothing.
 if [ -z "${MESHTRACER_CLI:-}" ]; then
-  cargo build --locked --bin meshtracer --quiet
+  cargo test --locked --no-run --quiet
 fi
 
 start=$(date +%s)
