@@ -51,6 +51,8 @@ struct PyScene {
     /// `--strict`: also refuse an image that cannot be decoded when preparing.
     strict: bool,
     state: Mutex<State>,
+    /// The warnings of the texture decoding (first render), after the load's.
+    prepare_warnings: Mutex<Vec<String>>,
 }
 
 /// A scene before and after its first render.
@@ -92,6 +94,9 @@ impl PyScene {
             .map_err(cli_error)?;
         let prepared = Arc::new(prepared);
         *state = State::Prepared(Arc::clone(&prepared));
+        if let Ok(mut kept) = self.prepare_warnings.lock() {
+            kept.extend(warnings);
+        }
         Ok(prepared)
     }
 
@@ -128,10 +133,15 @@ impl PyScene {
         self.path.clone()
     }
 
-    /// The warnings of the load (what the CLI prints as `warning: FILE: ...`).
+    /// The warnings of the load and, once rendered, of the texture decoding: what the CLI
+    /// prints as `warning: FILE: ...`.
     #[getter]
     fn warnings(&self) -> PyResult<Vec<String>> {
-        self.with_scene(|s| s.warnings.clone())
+        let mut all = self.with_scene(|s| s.warnings.clone())?;
+        if let Ok(kept) = self.prepare_warnings.lock() {
+            all.extend(kept.iter().cloned());
+        }
+        Ok(all)
     }
 
     /// Renders one view; see `meshtracer.Scene.render` in `__init__.py` for the arguments.
@@ -312,6 +322,7 @@ fn load(
         path,
         strict,
         state: Mutex::new(State::Loaded(Box::new(scene))),
+        prepare_warnings: Mutex::new(Vec::new()),
     })
 }
 
