@@ -9,6 +9,7 @@ pub mod extensions;
 pub mod gltf_import;
 mod image_header;
 mod image_source;
+mod info;
 pub(crate) mod ktx2;
 mod material;
 mod model;

@@ -374,7 +374,7 @@ fn info(args: &InfoArgs) -> Result<()> {
     };
     let scene = load(&args.model, &options)?;
     let load_time = start.elapsed();
-    let json = info_json(&scene);
+    let json = scene.info_json();
     if args.json {
         out!("{}", serde_json::to_string_pretty(&json)?);
         return Ok(());
@@ -497,32 +497,6 @@ fn info(args: &InfoArgs) -> Result<()> {
         scene.soup.heap_bytes() as f64 / 1e6
     );
     Ok(())
-}
-
-/// The `info --json` object.
-pub fn info_json(scene: &Scene) -> serde_json::Value {
-    serde_json::json!({
-        "file": scene.source,
-        "format": scene.format,
-        "triangles": scene.file_triangles,
-        "traced_triangles": scene.soup.len(),
-        "dropped_triangles": scene.file_triangles - scene.soup.len(),
-        "meshes": scene.mesh_count,
-        "primitives": scene.primitive_count,
-        "instances": scene.instances.len(),
-        "materials": scene.materials.len(),
-        "textures": scene.textures.len(),
-        "images": scene.images.len(),
-        "cameras": scene.cameras,
-        "lights": scene.lights,
-        "bounds": scene.bounds,
-        "warnings": scene.warnings,
-        "variants": scene.variants,
-        "animations": scene.animations,
-        "pose": scene.pose,
-        "extensions": scene.extensions,
-        "material_list": scene.materials,
-    })
 }
 
 /// Image size from the options and the camera: `--height` wins, then the camera's

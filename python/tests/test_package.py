@@ -1,0 +1,174 @@
+"""The Python package against the CLI it wraps: load errors, info, colour, depth and mask.
+
+Each comparison renders the same model, size and settings through `meshtracer.load(...).render`
+and through the `meshtracer render` binary, and wants the same bytes: both run the library's
+one pipeline (load, lighting, prepare, render), so any difference is a bug in the binding.
+"""
+
+import json
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import meshtracer
+from conftest import ASSETS, cli_error_message
+
+CORNELL = ASSETS / "cornell-box.gltf"
+
+
+def read_png_rgba(path):
+    from PIL import Image
+
+    with Image.open(path) as image:
+        return np.asarray(image.convert("RGBA"))
+
+
+def srgb8_from_linear(color):
+    """8-bit sRGB of a premultiplied linear RGBA film, as docs/outputs.md describes the PNG:
+    colour un-premultiplied, clamped to [0, 1], the sRGB curve, rounded; alpha * 255 rounded."""
+    rgb = np.divide(color[..., :3], color[..., 3:4], out=np.zeros_like(color[..., :3]),
+                    where=color[..., 3:4] > 0)
+    rgb = np.clip(rgb, 0.0, 1.0).astype(np.float64)
+    srgb = np.where(rgb <= 0.0031308, rgb * 12.92, 1.055 * np.power(rgb, 1 / 2.4) - 0.055)
+    alpha = np.clip(color[..., 3:4], 0.0, 1.0).astype(np.float64)
+    return np.round(np.concatenate([srgb, alpha], axis=-1) * 255.0).astype(np.uint8)
+
+
+# Load errors -------------------------------------------------------------------------------
+
+def test_missing_file_raises_error_naming_the_file(cli, tmp_path):
+    missing = tmp_path / "no-such-model.gltf"
+    with pytest.raises(meshtracer.Error) as caught:
+        meshtracer.load(missing)
+    assert str(missing) in str(caught.value)
+    assert str(caught.value) == cli_error_message(cli("info", missing, check=False))
+
+
+def test_broken_gltf_raises_the_clis_message(cli, tmp_path):
+    broken = tmp_path / "broken.gltf"
+    broken.write_text('{"asset": {"version": "2.0"}, "meshes": [')
+    with pytest.raises(meshtracer.Error) as caught:
+        meshtracer.load(broken)
+    assert str(broken) in str(caught.value)
+    assert str(caught.value) == cli_error_message(cli("info", broken, check=False))
+
+
+def test_error_is_an_exception_subclass():
+    assert issubclass(meshtracer.Error, Exception)
+
+
+def test_bad_render_arguments_raise_errors():
+    scene = meshtracer.load(CORNELL)
+    with pytest.raises(meshtracer.Error, match="integrator 'photon'"):
+        scene.render(8, 8, integrator="photon")
+    with pytest.raises(meshtracer.Error, match="width and height must be at least 1"):
+        scene.render(0, 8)
+    with pytest.raises(meshtracer.Error, match="camera 5: the file has 1 camera"):
+        scene.render(8, 8, camera=5)
+    with pytest.raises(meshtracer.Error, match="aov 'albedo'"):
+        scene.render(8, 8, aovs=("albedo",))
+    with pytest.raises(meshtracer.Error, match="--time"):
+        meshtracer.load(CORNELL, time=-1)
+
+
+# info --------------------------------------------------------------------------------------
+
+def test_info_is_what_info_json_prints(cli):
+    scene = meshtracer.load(CORNELL)
+    assert scene.info() == json.loads(cli("info", "--json", CORNELL).stdout)
+
+
+# Colour, depth and mask against the CLI's files --------------------------------------------
+
+def render_both(cli, tmp_path, model, width, height, extra_cli=(), **render_options):
+    """Renders `model` through the package and the CLI; returns (arrays, the CLI's files)."""
+    png, depth, mask = tmp_path / "cli.png", tmp_path / "depth.npy", tmp_path / "mask.npy"
+    options = []
+    for key, value in render_options.items():
+        options += [f"--{key}", value]
+    cli("render", model, "-o", png, "--width", width, "--height", height, "--quiet",
+        "--depth-out", depth, "--mask-out", mask, *options, *extra_cli)
+    arrays = meshtracer.load(model).render(width, height, srgb8=True, **render_options)
+    return arrays, {"png": read_png_rgba(png), "depth": np.load(depth), "mask": np.load(mask)}
+
+
+def test_cornell_box_colour_equals_the_clis_png(cli, tmp_path):
+    arrays, files = render_both(cli, tmp_path, CORNELL, 96, 72, spp=4)
+    color = arrays["color"]
+    assert color.dtype == np.float32 and color.shape == (72, 96, 4)
+    np.testing.assert_array_equal(arrays["srgb8"], files["png"])
+    # The linear film, encoded here as the PNG encoder does: the same bytes but for rounding
+    # ties of float32 powers in another library (at most 1 of 255).
+    encoded = srgb8_from_linear(color)
+    diff = np.abs(encoded.astype(int) - files["png"].astype(int))
+    assert diff.max() <= 1, diff.max()
+    assert (diff == 0).mean() > 0.999
+
+
+def test_cornell_box_depth_and_mask_equal_the_clis_npy(cli, tmp_path):
+    arrays, files = render_both(cli, tmp_path, CORNELL, 64, 48, spp=1)
+    depth = arrays["depth"]
+    assert depth.dtype == np.float32 and depth.shape == (48, 64)
+    np.testing.assert_array_equal(depth, files["depth"])
+    np.testing.assert_array_equal(arrays["mask"], files["mask"])
+    assert (depth > 0).any() and (depth >= 0).all()
+
+
+def test_path_tracer_colour_equals_the_clis_png(cli, tmp_path):
+    arrays, files = render_both(cli, tmp_path, CORNELL, 48, 36, spp=2, integrator="path",
+                                seed=7)
+    np.testing.assert_array_equal(arrays["srgb8"], files["png"])
+
+
+@pytest.mark.parametrize("model", ["Box/glTF/Box.gltf", "Avocado/glTF/Avocado.gltf",
+                                   "CornellBox-OBJ/CornellBox-Original.obj"])
+def test_sample_model_equals_the_cli(cli, samples, tmp_path, model):
+    path = samples / model
+    if not path.exists():
+        pytest.fail(f"{path}: the sample model is missing from MESHTRACER_SAMPLES")
+    arrays, files = render_both(cli, tmp_path, path, 80, 60, spp=2)
+    np.testing.assert_array_equal(arrays["srgb8"], files["png"])
+    np.testing.assert_array_equal(arrays["depth"], files["depth"])
+    np.testing.assert_array_equal(arrays["mask"], files["mask"])
+    assert (arrays["depth"] > 0).any()
+
+
+# The binding itself ------------------------------------------------------------------------
+
+def test_renders_are_deterministic_and_the_scene_is_reused():
+    scene = meshtracer.load(CORNELL)
+    first = scene.render(32, 24, spp=2, aovs=("depth", "mask", "normal", "segmentation"))
+    second = scene.render(32, 24, spp=2, aovs=("depth", "mask", "normal", "segmentation"))
+    for key in ("color", "depth", "mask", "normal", "segmentation"):
+        np.testing.assert_array_equal(first[key], second[key])
+    assert first["normal"].shape == (24, 32, 3)
+    assert first["segmentation"].dtype == np.uint32
+    assert set(scene.render(8, 8, aovs=()).keys()) == {"color"}
+
+
+def test_render_releases_the_gil():
+    """While one thread renders, another runs Python: its longest wait is a small part of the
+    render (holding the GIL, the render would stall it throughout)."""
+    scene = meshtracer.load(CORNELL)
+    scene.render(8, 8)  # prepared here, so that the timed call only renders
+    done = threading.Event()
+    timing = {}
+
+    def work():
+        start = time.perf_counter()
+        scene.render(160, 120, spp=16)
+        timing["render"] = time.perf_counter() - start
+        done.set()
+
+    thread = threading.Thread(target=work)
+    last, longest = time.perf_counter(), 0.0
+    thread.start()
+    while not done.is_set():
+        now = time.perf_counter()
+        longest, last = max(longest, now - last), now
+        sum(range(100))
+    thread.join()
+    assert timing["render"] > 0.05, "the render is too short to tell"
+    assert longest < 0.5 * timing["render"], (longest, timing["render"])
