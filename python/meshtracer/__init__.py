@@ -18,14 +18,17 @@ allow_external_files=False) -> Scene``
     What ``meshtracer info --json`` prints.
 
 ``Scene.render(width, height, *, spp=4, integrator="direct", seed=0, bounces=8, exposure=0.0,
-camera=None, aovs=("depth", "mask"), srgb8=False) -> dict``
+camera=None, aovs=("depth", "mask"), srgb8=False, tonemap="standard", noise=None,
+clamp_indirect=None) -> dict``
     One view from the file's camera ``camera`` (default its first, else a camera framing the
     model), lit as the CLI lights it. The dict holds "color" (linear RGBA float32, H x W x 4,
     premultiplied by coverage, as the film is before it is written) and the AOVs asked for:
     "depth" (float32 H x W, metres along the view axis, 0 where nothing was hit, as pyrender
     returns it), "mask" (float32 H x W coverage), "normal" (float32 H x W x 3, world space),
     "segmentation" (uint32 H x W, mesh instance + 1, 0 for the background). ``srgb8=True``
-    adds "srgb8": uint8 H x W x 4, the bytes of the CLI's PNG. The GIL is released while the
+    adds "srgb8": uint8 H x W x 4, the bytes of the CLI's PNG through the view transform
+    ``tonemap`` (the CLI's ``--tonemap``; "color" stays linear). ``noise`` and
+    ``clamp_indirect`` are the CLI's ``--noise`` and ``--clamp-indirect``. The GIL is released while the
     scene is prepared (first render) and rendered.
 
 ``Error``

@@ -11,6 +11,7 @@
 
 use meshtracer::accel::{AccelKind, BvhPreset};
 use meshtracer::camera::{auto_camera, View};
+use meshtracer::color::ViewTransform;
 use meshtracer::defaults::{DEFAULT_BOUNCES, DEFAULT_SPP, MAX_TEXTURE_MIB};
 use meshtracer::integrator::IntegratorKind;
 use meshtracer::prepare::{PrepareOptions, Prepared};
@@ -147,7 +148,7 @@ impl PyScene {
     /// Renders one view; see `meshtracer.Scene.render` in `__init__.py` for the arguments.
     #[pyo3(signature = (width, height, *, spp=DEFAULT_SPP, integrator="direct", seed=0,
         bounces=DEFAULT_BOUNCES, exposure=0.0, camera=None, aovs=vec!["depth".to_string(), "mask".to_string()],
-        srgb8=false))]
+        srgb8=false, tonemap="standard", noise=None, clamp_indirect=None))]
     #[allow(clippy::too_many_arguments)]
     fn render<'py>(
         &self,
@@ -162,7 +163,19 @@ impl PyScene {
         camera: Option<usize>,
         aovs: Vec<String>,
         srgb8: bool,
+        tonemap: &str,
+        noise: Option<f32>,
+        clamp_indirect: Option<f32>,
     ) -> PyResult<Bound<'py, PyDict>> {
+        let tonemap = ViewTransform::from_name(tonemap).ok_or_else(|| {
+            let names: Vec<&str> = ViewTransform::ALL.iter().map(|v| v.name()).collect();
+            Error::new_err(format!("tonemap '{tonemap}': use {}", names.join(", ")))
+        })?;
+        for (name, value) in [("noise", noise), ("clamp_indirect", clamp_indirect)] {
+            if value.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
+                return Err(Error::new_err(format!("{name} must be a number above 0")));
+            }
+        }
         if width == 0 || height == 0 {
             return Err(Error::new_err(format!(
                 "image size {width}x{height}: width and height must be at least 1"
@@ -197,6 +210,8 @@ impl PyScene {
         settings.seed = seed;
         settings.bounces = bounces;
         settings.exposure = exposure;
+        settings.noise = noise;
+        settings.clamp_indirect = clamp_indirect;
         settings.aovs = wants("depth") || wants("normal") || wants("segmentation");
         let rays = setup::expected_rays(
             u64::from(width) * u64::from(height),
@@ -216,7 +231,7 @@ impl PyScene {
         let color: Vec<f32> = image.pixels.iter().flat_map(|p| p.to_array()).collect();
         out.set_item("color", PyArray1::from_vec(py, color).reshape([h, w, 4])?)?;
         if srgb8 {
-            let bytes = image.to_srgb8(None);
+            let bytes = image.to_srgb8(None, tonemap);
             out.set_item("srgb8", PyArray1::from_vec(py, bytes).reshape([h, w, 4])?)?;
         }
         if wants("mask") {
@@ -290,6 +305,8 @@ fn settings_for(
         bounces: DEFAULT_BOUNCES,
         environment: lit.environment,
         environment_visible: false,
+        noise: None,
+        clamp_indirect: None,
     })
 }
 
