@@ -238,6 +238,30 @@ pub(crate) fn segmentation_ids(scene: &Scene) -> Vec<SegmentId> {
         .collect()
 }
 
+/// Records in `view` how a view of `scene` was rendered, as `args` asked: the segmentation ids,
+/// the depth PNG's scale, the integrator, the display encoding (exposure, view transform) and,
+/// for the path tracer, its bounces, indirect clamp and the `environment` that lit it; shared
+/// by single- and multi-view renders.
+pub(crate) fn record_render(
+    view: &mut meshtracer::output::view_file::ViewFile,
+    args: &RenderArgs,
+    scene: &Scene,
+    environment: Option<&Arc<Environment>>,
+) {
+    view.segmentation = segmentation_ids(scene);
+    view.depth_png_scale = args.depth_scale;
+    view.integrator = args.integrator;
+    view.display = Some(meshtracer::output::view_file::ViewDisplay::new(
+        args.exposure,
+        args.tonemap,
+    ));
+    if args.integrator == meshtracer::integrator::IntegratorKind::Path {
+        view.bounces = Some(args.bounces);
+        view.clamp_indirect = args.clamp_indirect;
+        view.environment = environment.map(|env| view_environment(args, env));
+    }
+}
+
 /// How a view file records the environment `env` that lit a path-traced render: its source,
 /// turn and scale, whether the camera sees it (`--env-visible`), and the `--env-out` panorama,
 /// made absolute when the path resolves; shared by single- and multi-view renders.

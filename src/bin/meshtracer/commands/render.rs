@@ -6,9 +6,9 @@
 
 use super::{
     check_lighting, check_size, image_size, interrupt_flag, lighting_options, load,
-    peak_memory_bytes, prepare_scene, preset_label, render_load_options, report_load,
-    segmentation_ids, start_load_threads, tiles, view_environment, views, worker_pool,
-    write_panorama, Phases, PreparedModel, RenderReport,
+    peak_memory_bytes, prepare_scene, preset_label, record_render, render_load_options,
+    report_load, start_load_threads, tiles, views, worker_pool, write_panorama, Phases,
+    PreparedModel, RenderReport,
 };
 use crate::cli::RenderArgs;
 use anyhow::{bail, Context, Result};
@@ -620,21 +620,12 @@ fn view_record(args: &RenderArgs, done: &Finished) -> ViewFile {
         settings.ambient,
         done.using_rig,
     );
-    view.segmentation = segmentation_ids(&done.rendered.prepared.scene);
-    view.depth_png_scale = args.depth_scale;
-    view.integrator = settings.integrator;
-    view.display = Some(meshtracer::output::view_file::ViewDisplay::new(
-        args.exposure,
-        args.tonemap,
-    ));
-    if settings.integrator == IntegratorKind::Path {
-        view.bounces = Some(settings.bounces);
-        view.clamp_indirect = args.clamp_indirect;
-        view.environment = settings
-            .environment
-            .as_ref()
-            .map(|env| view_environment(args, env));
-    }
+    record_render(
+        &mut view,
+        args,
+        &done.rendered.prepared.scene,
+        settings.environment.as_ref(),
+    );
     view.denoise =
         done.rendered
             .denoised

@@ -10,8 +10,8 @@
 //! the options they share.
 
 use super::{
-    check_size, image_size, interrupt_flag, load, segmentation_ids, view_environment, worker_pool,
-    write_panorama, Interrupted, RenderReport,
+    check_size, image_size, interrupt_flag, load, record_render, worker_pool, write_panorama,
+    Interrupted, RenderReport,
 };
 use crate::cli::RenderArgs;
 use anyhow::{bail, Context, Result};
@@ -19,7 +19,6 @@ use glam::Vec3;
 use meshtracer::accel::AccelKind;
 use meshtracer::camera::{auto_camera, framing_distance, framing_radius, View};
 use meshtracer::defaults::{DEFAULT_ORBIT_ELEVATION_DEGREES, DEFAULT_YFOV_DEGREES};
-use meshtracer::integrator::IntegratorKind;
 use meshtracer::jobs::views::{
     azimuth_degrees, elevation_degrees, fibonacci_directions, orbit_directions, random_directions,
     read_views_file, ExplicitView, Framing, NamePattern, ViewSpec,
@@ -28,7 +27,7 @@ use meshtracer::light::environment::Environment;
 use meshtracer::output::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
 use meshtracer::output::sheet::{ContactSheet, SheetLayout};
 use meshtracer::output::turntable::{check_fps, frame_delay_centiseconds, GifWriter};
-use meshtracer::output::view_file::{ViewDisplay, ViewFile};
+use meshtracer::output::view_file::ViewFile;
 use meshtracer::output::{OutputFormat, PendingFile, PendingOutput, SaveError};
 use meshtracer::prepare::Prepared;
 use meshtracer::render::{render, RenderSettings, RenderStats};
@@ -722,7 +721,6 @@ impl ViewRun<'_> {
         names: &ViewNames,
     ) -> Result<(Frame, RenderStats, meshtracer::output::Image)> {
         let (args, dir, (width, height)) = (self.args, self.dir, (self.width, self.height));
-        let path_tracing = args.integrator == IntegratorKind::Path;
         let mut record = ViewFile::new(
             camera,
             width,
@@ -731,18 +729,12 @@ impl ViewRun<'_> {
             self.ambient,
             self.using_rig,
         );
-        record.segmentation = segmentation_ids(&self.prepared.scene);
-        record.depth_png_scale = args.depth_scale;
-        record.integrator = args.integrator;
-        record.display = Some(ViewDisplay::new(args.exposure, args.tonemap));
-        if path_tracing {
-            record.bounces = Some(args.bounces);
-            record.clamp_indirect = args.clamp_indirect;
-            record.environment = self
-                .environment
-                .as_ref()
-                .map(|env| view_environment(args, env));
-        }
+        record_render(
+            &mut record,
+            args,
+            &self.prepared.scene,
+            self.environment.as_ref(),
+        );
         // Render what `render --view` reads back from the view file, number for number, so
         // that the view rendered alone from its file gives the same bytes.
         let text = record.to_json();
