@@ -216,6 +216,31 @@ fn interrupt(child: &std::process::Child) {
     assert!(kill.success());
 }
 
+/// `info` and `render` (into `out`) of each model of `cases`, run by `run`: exit 1 and one
+/// message naming the model and its problem; nothing written.
+fn assert_each_refused(
+    cases: &[(&std::path::Path, &str)],
+    out: &std::path::Path,
+    run: fn(&[&str]) -> (Option<i32>, String),
+) {
+    for &(model, problem) in cases {
+        for command in ["info", "render"] {
+            let mut args = vec![command, s(model)];
+            if command == "render" {
+                args.extend(["-o", s(out), "-q"]);
+            }
+            let (code, err) = run(&args);
+            assert_eq!(code, Some(1), "{args:?}: {err}");
+            assert!(
+                err.contains(s(model)) && err.contains(problem),
+                "{args:?}: {err}"
+            );
+            assert_eq!(err.lines().count(), 1, "one message: {err}");
+        }
+    }
+    assert!(!out.exists(), "nothing written");
+}
+
 /// Runs the binary with `args`, and fails the test if it is still running after 20 s (what a
 /// FIFO read used to do forever): returns its exit code and standard error.
 fn run_bounded(args: &[&str]) -> (Option<i32>, String) {
@@ -262,25 +287,11 @@ fn fifos_and_devices_are_refused_before_they_are_read() {
     let out = dir.path().join("out.png");
     let pipe = dir.path().join("pipe.glb");
     fifo(&pipe);
-    for (model, kind) in [
+    let cases = [
         (pipe.as_path(), "a FIFO"),
         (std::path::Path::new("/dev/zero"), "a character device"),
-    ] {
-        for command in ["info", "render"] {
-            let mut args = vec![command, s(model)];
-            if command == "render" {
-                args.extend(["-o", s(&out), "-q"]);
-            }
-            let (code, err) = run_bounded(&args);
-            assert_eq!(code, Some(1), "{args:?}: {err}");
-            assert!(
-                err.contains(s(model)) && err.contains(kind),
-                "{args:?}: {err}"
-            );
-            assert_eq!(err.lines().count(), 1, "one message: {err}");
-        }
-    }
-    assert!(!out.exists(), "nothing written");
+    ];
+    assert_each_refused(&cases, &out, run_bounded);
 
     // A buffer and an image that are FIFOs, in the model's own folder.
     let buffer = dir.path().join("tri.bin");
@@ -418,22 +429,7 @@ fn declared_and_actual_sizes_are_checked_before_they_are_allocated() {
         (pipe.as_path(), "a FIFO"),
         (dev_zero, "a character device"),
     ];
-    for (model, problem) in cases {
-        for command in ["info", "render"] {
-            let mut args = vec![command, s(model)];
-            if command == "render" {
-                args.extend(["-o", s(&out), "-q"]);
-            }
-            let (code, err) = run_under_1_gib(&args);
-            assert_eq!(code, Some(1), "{args:?}: {err}");
-            assert!(
-                err.contains(s(model)) && err.contains(problem),
-                "{args:?}: {err}"
-            );
-            assert_eq!(err.lines().count(), 1, "one message: {err}");
-        }
-    }
-    assert!(!out.exists(), "nothing written");
+    assert_each_refused(&cases, &out, run_under_1_gib);
 
     // A quad's bytes at the start of a 1.9 GB buffer file.
     let (json, bin) = crate::common::quads_gltf(
