@@ -813,6 +813,17 @@ fn bad_options_are_refused_before_any_work() {
         ],
         "X,Y,Z",
     );
+    // The sampling and encoding options: a fraction above 0, a radiance above 0, a known name.
+    let png = out("x.png");
+    for (option, value, needle) in [
+        ("--noise", "0", "not a fraction above 0"),
+        ("--noise", "NaN", "not a fraction above 0"),
+        ("--clamp-indirect", "0", "not a radiance above 0"),
+        ("--clamp-indirect", "inf", "not a radiance above 0"),
+        ("--tonemap", "sepia", "khronos-pbr-neutral"),
+    ] {
+        refuse(&["render", s(&model), "-o", s(&png), option, value], needle);
+    }
     // Nothing was left behind by the refusals.
     let left = crate::common::file_names(dir.path());
     assert!(left.is_empty(), "files left behind: {left:?}");
