@@ -127,15 +127,23 @@ impl View {
     }
 }
 
-/// A camera that frames the bounding sphere of `bounds`: yfov 45°, looking at the centre from
-/// the front (+Z, the glTF "forward" of an asset), above and to the right, far enough that the
-/// sphere fits both the vertical and the horizontal field of view.
-pub fn auto_camera(bounds: &Bounds, aspect: f32) -> Camera {
+/// The direction from the model's centre toward the automatic camera: in front (+Z, the glTF
+/// "forward" of an asset), above and to the right.
+pub const AUTO_CAMERA_DIRECTION: Vec3 = Vec3::new(0.55, 0.45, 1.0);
+
+/// A camera that frames a model as glTF viewers do: yfov 45°, looking at the centre of its
+/// `bounds` from [`AUTO_CAMERA_DIRECTION`], as close as it can stand with every one of its
+/// `points` (the vertices; with none, the box's corners) inside the frame with an 8% margin
+/// ([`fit_distance`]). The box's bounding sphere, which this once framed, left a compact model
+/// a third of the frame wide. Generated views (orbits, turntables) stand at the distance that
+/// fits every one of their directions, so they are at least this far away.
+pub fn auto_camera(bounds: &Bounds, points: &[Vec3], aspect: f32) -> Camera {
     let yfov = crate::defaults::DEFAULT_YFOV_DEGREES.to_radians();
     let center = bounds.center();
     let radius = framing_radius(bounds);
-    let distance = framing_distance(radius, yfov, aspect);
-    let direction = Vec3::new(0.55, 0.45, 1.0).normalize();
+    let direction = AUTO_CAMERA_DIRECTION.normalize();
+    let distance = fit_distance(bounds, points, [direction], yfov, aspect)
+        .unwrap_or_else(|| framing_distance(radius, yfov, aspect));
     look_at(
         center + direction * distance,
         center,
@@ -144,6 +152,59 @@ pub fn auto_camera(bounds: &Bounds, aspect: f32) -> Camera {
         distance,
         radius,
     )
+}
+
+/// Most point-direction pairs [`fit_distance`] projects (a few hundred views of a model with a
+/// million vertices, well under a second); beyond that it fits the box's corners, which
+/// enclose the points, so the fit is looser but still holds.
+const MAX_FIT_PROJECTIONS: usize = 1 << 28;
+
+/// The margin the fit keeps: the outermost point reaches 1/1.08 of the half-frame.
+const FIT_MARGIN: f32 = 1.08;
+
+/// The one distance from the centre of `bounds` at which a camera looking at the centre (up
+/// +Y, vertical field of view `yfov`, image aspect `aspect`) from each of the unit
+/// `directions` (toward the eye) sees every one of `points` (the model's vertices, inside
+/// `bounds`; with none, or too many to project, the box's eight corners) inside the frame with
+/// an 8% margin: for a point at p from the centre, p·direction + max(|p·right| / tan_x,
+/// |p·up| / tan_y), the largest over the points and directions. Directions straight above or
+/// below the centre, which have no "up", are skipped. `None` for an empty or unbounded box or
+/// when no direction fits.
+pub fn fit_distance(
+    bounds: &Bounds,
+    points: &[Vec3],
+    directions: impl IntoIterator<Item = Vec3>,
+    yfov: f32,
+    aspect: f32,
+) -> Option<f32> {
+    let centre = bounds.center();
+    let half = (bounds.max - bounds.min) * 0.5;
+    if !(half.is_finite() && half.max_element() > 0.0) {
+        return None;
+    }
+    let corners: Vec<Vec3> = (0..8)
+        .map(|k| {
+            let sign = |bit: u32| if k & bit == 0 { -1.0 } else { 1.0 };
+            centre + half * Vec3::new(sign(1), sign(2), sign(4))
+        })
+        .collect();
+    let directions: Vec<Vec3> = directions.into_iter().collect();
+    let use_points =
+        !points.is_empty() && points.len().saturating_mul(directions.len()) <= MAX_FIT_PROJECTIONS;
+    let points = if use_points { points } else { &corners[..] };
+    let tan_y = (yfov * 0.5).tan() / FIT_MARGIN;
+    let tan_x = tan_y * aspect;
+    let fits = directions.iter().filter_map(|&direction| {
+        let right = (-direction).cross(Vec3::Y).try_normalize()?;
+        let up = right.cross(-direction);
+        let reach = |p: Vec3| {
+            let p = p - centre;
+            p.dot(direction) + (p.dot(right).abs() / tan_x).max(p.dot(up).abs() / tan_y)
+        };
+        Some(points.iter().map(|&p| reach(p)).fold(0.0f32, f32::max))
+    });
+    let distance = fits.reduce(f32::max)?;
+    (distance > 0.0 && distance.is_finite()).then_some(distance)
 }
 
 /// The radius of the sphere the automatic camera frames: the bounding sphere's. Any positive
@@ -214,11 +275,98 @@ mod tests {
                 min: Vec3::splat(-r),
                 max: Vec3::splat(r),
             };
-            let cam = auto_camera(&bounds, 4.0 / 3.0);
+            let cam = auto_camera(&bounds, &[], 4.0 / 3.0);
             (cam.position - bounds.center()).length() / r
         };
         let (tiny, unit) = (framing(1e-7), framing(1.0));
         assert!((tiny / unit - 1.0).abs() < 1e-4, "{tiny} vs {unit}");
+    }
+
+    /// Where each of `points` projects in `cam`'s frame: the larger of |x| and |y| in units of
+    /// the half-frame (1 = the edge), for a perspective camera with image aspect `aspect`.
+    fn reaches(cam: &Camera, points: &[Vec3], aspect: f32) -> Vec<f32> {
+        let Projection::Perspective { yfov, .. } = cam.projection else {
+            panic!("perspective");
+        };
+        let right = cam.forward.cross(cam.up).normalize();
+        let (tan_y, tan_x) = ((yfov * 0.5).tan(), (yfov * 0.5).tan() * aspect);
+        points
+            .iter()
+            .map(|&point| {
+                let p = point - cam.position;
+                let depth = p.dot(cam.forward);
+                assert!(depth > 0.0, "{point} behind the camera");
+                let (x, y) = (
+                    p.dot(right) / (depth * tan_x),
+                    p.dot(cam.up) / (depth * tan_y),
+                );
+                x.abs().max(y.abs())
+            })
+            .collect()
+    }
+
+    /// Without points the automatic camera fits the box's corners, not its sphere: for a cube,
+    /// a flat plate and a tall pole every corner projects inside the frame within the 8%
+    /// margin, and the outermost one touches the margin (the fit is tight).
+    #[test]
+    fn auto_camera_fits_the_box_corners_to_the_frame() {
+        let aspect = 4.0 / 3.0;
+        for half in [
+            Vec3::ONE,
+            Vec3::new(2.0, 0.05, 1.5),
+            Vec3::new(0.1, 3.0, 0.1),
+        ] {
+            let centre = Vec3::new(1.0, -2.0, 0.5);
+            let bounds = Bounds {
+                min: centre - half,
+                max: centre + half,
+            };
+            let corners: Vec<Vec3> = (0..8)
+                .map(|k| {
+                    let sign = |bit: u32| if k & bit == 0 { -1.0 } else { 1.0 };
+                    centre + half * Vec3::new(sign(1), sign(2), sign(4))
+                })
+                .collect();
+            let reach = reaches(&auto_camera(&bounds, &[], aspect), &corners, aspect);
+            let outermost = reach.iter().copied().fold(0.0f32, f32::max);
+            assert!(outermost <= 1.0 / 1.08 + 1e-4, "{half}: {outermost}");
+            assert!(
+                outermost > 1.0 / 1.08 - 1e-3,
+                "{half}: loose fit {outermost}"
+            );
+        }
+    }
+
+    /// With the model's points the camera fits them, not their box: 2,000 points on a sphere
+    /// all project inside the margin, the outermost touches it, and the camera stands closer
+    /// than the corner fit and the bounding-sphere framing would put it.
+    #[test]
+    fn auto_camera_fits_the_points_closer_than_their_box() {
+        let aspect = 4.0 / 3.0;
+        let centre = Vec3::new(0.3, 1.0, -2.0);
+        let points: Vec<Vec3> = (0..2000)
+            .map(|k| {
+                let z = 1.0 - 2.0 * (k as f32 + 0.5) / 2000.0;
+                let phi = k as f32 * 2.399_963;
+                let r = (1.0 - z * z).sqrt();
+                centre + Vec3::new(r * phi.cos(), z, r * phi.sin())
+            })
+            .collect();
+        let mut bounds = Bounds::EMPTY;
+        points.iter().for_each(|&p| bounds.grow(p));
+        let fitted = auto_camera(&bounds, &points, aspect);
+        let reach = reaches(&fitted, &points, aspect);
+        let outermost = reach.iter().copied().fold(0.0f32, f32::max);
+        assert!(outermost <= 1.0 / 1.08 + 1e-4, "{outermost}");
+        assert!(outermost > 1.0 / 1.08 - 1e-3, "loose fit {outermost}");
+        let distance = |cam: &Camera| (cam.position - bounds.center()).length();
+        let boxed = distance(&auto_camera(&bounds, &[], aspect));
+        let sphere = framing_distance(framing_radius(&bounds), 45f32.to_radians(), aspect);
+        assert!(
+            distance(&fitted) < 0.8 * boxed.min(sphere),
+            "{} vs {boxed}, {sphere}",
+            distance(&fitted)
+        );
     }
 
     fn camera(projection: Projection) -> Camera {
@@ -263,17 +411,15 @@ mod tests {
         assert!((Vec3::from(r.origin) - Vec3::new(-2.0, 1.0, 5.0)).length() < 1e-6);
     }
 
+    /// The automatic camera looks at the centre of the box.
     #[test]
-    fn auto_camera_sees_the_whole_sphere() {
+    fn auto_camera_looks_at_the_centre() {
         let bounds = Bounds {
             min: Vec3::splat(-1.0),
             max: Vec3::splat(1.0),
         };
-        let cam = auto_camera(&bounds, 4.0 / 3.0);
+        let cam = auto_camera(&bounds, &[], 4.0 / 3.0);
         let to_centre = (bounds.center() - cam.position).normalize();
         assert!((to_centre - cam.forward).length() < 1e-5);
-        let distance = (bounds.center() - cam.position).length();
-        let half = 22.5f32.to_radians();
-        assert!(bounds.radius() / distance <= half.sin() + 1e-6);
     }
 }

@@ -170,7 +170,7 @@ pub fn default_settings(scene: &Scene, width: u32, height: u32) -> RenderSetting
         .cameras
         .first()
         .cloned()
-        .unwrap_or_else(|| auto_camera(&scene.bounds, aspect));
+        .unwrap_or_else(|| auto_camera(&scene.bounds, &scene.soup.positions, aspect));
     let view = View::from_camera(&camera, width, height);
     let lighting = lighting(
         &scene.lights,

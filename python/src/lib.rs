@@ -288,7 +288,7 @@ fn settings_for(
     };
     let camera = match file_camera {
         Some(c) => c.clone(),
-        None => auto_camera(&scene.bounds, width as f32 / height as f32),
+        None => auto_camera(&scene.bounds, &scene.soup.positions, width as f32 / height as f32),
     };
     let view = View::from_camera(&camera, width, height);
     let lit = setup::lighting(&scene.lights, None, &view, LightingOptions::new(integrator));

@@ -536,7 +536,7 @@ mod tests {
                 min: Vec3::new(-t * 0.37, -1.3, -0.2 * t),
                 max: Vec3::new(1.0 + t, 2.9, 0.5 + t * 0.11),
             };
-            cameras.push(crate::camera::auto_camera(&bounds, 4.0 / 3.0));
+            cameras.push(crate::camera::auto_camera(&bounds, &[], 4.0 / 3.0));
         }
         let light = |direction: Vec3| Light {
             name: None,
@@ -577,7 +577,7 @@ mod tests {
             min: Vec3::splat(-1.0),
             max: Vec3::splat(1.0),
         };
-        let camera = crate::camera::auto_camera(&bounds, 4.0 / 3.0);
+        let camera = crate::camera::auto_camera(&bounds, &[], 4.0 / 3.0);
         let plain = ViewFile::new(&camera, 64, 48, &[], Vec3::splat(0.1), true);
         let path = Path::new("view.json");
         let read = ViewFile::from_json(&plain.to_json(), path).unwrap();

@@ -116,7 +116,7 @@ pub fn make_rays(
     side: u32,
     seed: u64,
 ) -> Vec<Ray> {
-    let camera = auto_camera(&scene.bounds, 1.0);
+    let camera = auto_camera(&scene.bounds, &scene.soup.positions, 1.0);
     let view = View::from_camera(&camera, side, side);
     let primary: Vec<Ray> = (0..side)
         .flat_map(|y| (0..side).map(move |x| (x, y)))

@@ -10,6 +10,12 @@ const MESH_MAX_FLIP: f64 = 0.02;
 /// Lossy texture encodings re-encode texels; the geometry is the same.
 const TEXTURE_MAX_FLIP: f64 = 0.05;
 
+/// The two StainedGlassLamp revisions (below) differ in their materials as well as their
+/// textures: FLIP 0.053 measured with the model filling 80% of the frame's height (the
+/// automatic camera's fit); 0.07 leaves margin while a wrong texture decode (FLIP 0.15 and up)
+/// still fails.
+const REVISED_MODEL_MAX_FLIP: f64 = 0.07;
+
 /// StainedGlassLamp's glTF-KTX-BasisU folder is a later revision of the model than
 /// glTF-JPG-PNG (transmission, volume, clearcoat and variants where the other has BLEND beads),
 /// so its coverage differs where the beads are (IoU 0.95 measured); the textures are compared
@@ -87,7 +93,7 @@ const PAIRS: &[(&str, &str, f64, f64)] = &[
     (
         "StainedGlassLamp/glTF-JPG-PNG/StainedGlassLamp.gltf",
         "StainedGlassLamp/glTF-KTX-BasisU/StainedGlassLamp.gltf",
-        TEXTURE_MAX_FLIP,
+        REVISED_MODEL_MAX_FLIP,
         REVISED_MODEL_MIN_IOU,
     ),
 ];

@@ -273,18 +273,22 @@ fn a_turntable_is_an_orbit_from_the_plain_view() {
     let expected = azimuth(&plain_view, centre);
     // The automatic camera looks from (0.55, 0.45, 1): atan(0.55) = 28.81 degrees.
     assert!((expected - 28.8108).abs() < 1e-3, "{expected}");
+    // Frame 0 stands on the plain view's ray from the centre: the same direction, at the
+    // distance that fits the model from all three frames' directions, so at least the plain
+    // view's (which fits its one direction).
     let (from, to) = (position(&plain_view), position(&tt.join("000.view.json")));
-    let gap = (0..3)
-        .map(|k| (from[k] - to[k]).powi(2))
-        .sum::<f64>()
-        .sqrt();
-    let distance = (0..3)
-        .map(|k| (from[k] - centre[k]).powi(2))
-        .sum::<f64>()
-        .sqrt();
+    let offset = |p: [f64; 3]| [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]];
+    let length = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    let (a, b) = (offset(from), offset(to));
+    let (la, lb) = (length(a), length(b));
+    let cosine = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / (la * lb);
     assert!(
-        gap < 1e-5 * distance,
-        "frame 0 at {to:?}, plain at {from:?}"
+        1.0 - cosine < 1e-10,
+        "frame 0 at {to:?}, plain at {from:?}: not on one ray"
+    );
+    assert!(
+        lb >= la * (1.0 - 1e-6),
+        "frame 0 at {lb} from the centre, closer than the plain view's {la}"
     );
     let first = azimuth(&tt.join("000.view.json"), centre);
     let second = azimuth(&tt.join("001.view.json"), centre);

@@ -103,9 +103,11 @@ fn read_npy_f32(path: &Path) -> (usize, usize, Vec<f32>) {
 }
 
 /// `orbit:8` writes 8 images, 8 view files and a transforms.json whose frames, file paths,
-/// intrinsics and matrices are right: each camera stands on the circle at the default 20°
-/// elevation and the automatic camera's distance, 45° apart from the front, with its -Z
-/// column pointing at the model's centre and +Y column up.
+/// intrinsics and matrices are right: each camera stands on one circle at the default 20°
+/// elevation, 45° apart from the front, with its -Z column pointing at the model's centre and
+/// +Y column up. The circle's radius fits the model from all eight directions, so it is at
+/// least the automatic camera's distance (which fits its one direction) and at most the
+/// bounding sphere's framing distance.
 #[test]
 fn orbit_writes_every_view_and_a_transforms_json() {
     let dir = tempfile::tempdir().unwrap();
@@ -129,7 +131,7 @@ fn orbit_writes_every_view_and_a_transforms_json() {
     let angle_x = 2.0 * (32.0 / fl_x).atan();
     assert!((t["camera_angle_x"].as_f64().unwrap() - angle_x).abs() < 1e-9);
 
-    // The default distance is the automatic camera's: the single render's view file says it.
+    // The automatic camera's distance: the single render's view file says it.
     let single_view = dir.path().join("auto.view.json");
     let (w, h) = (W.to_string(), H.to_string());
     run(
@@ -151,8 +153,15 @@ fn orbit_writes_every_view_and_a_transforms_json() {
         true,
     );
     let centre = bounds_centre(&shapes());
+    let info: Value =
+        serde_json::from_slice(&run(&["info", s(&shapes()), "--json"], true).stdout).unwrap();
+    let sphere_radius =
+        (vec3(&info["bounds"]["max"]) - vec3(&info["bounds"]["min"])).length() * 0.5;
+    // The bounding sphere's framing at yfov 45°, 4:3: radius / sin(22.5°) with a 5% margin.
+    let sphere_distance = sphere_radius / 22.5f32.to_radians().sin() * 1.05;
     let auto_distance = (vec3(&read_json(&single_view)["camera"]["position"]) - centre).length();
 
+    let mut orbit_radius = None;
     for (k, frame) in frames.iter().enumerate() {
         let name = format!("{k:03}.png");
         assert_eq!(frame["file_path"], name.as_str());
@@ -182,10 +191,19 @@ fn orbit_writes_every_view_and_a_transforms_json() {
         );
         // Camera position = the orbit point.
         let offset = eye - centre;
+        let radius = *orbit_radius.get_or_insert(offset.length());
         assert!(
-            (offset.length() - auto_distance).abs() < 1e-4 * auto_distance,
-            "view {k}: distance {} vs {auto_distance}",
+            (offset.length() - radius).abs() < 1e-5 * radius,
+            "view {k}: distance {} vs {radius}",
             offset.length()
+        );
+        assert!(
+            radius >= auto_distance * (1.0 - 1e-5),
+            "view {k}: {radius} closer than the automatic camera's {auto_distance}"
+        );
+        assert!(
+            radius <= sphere_distance,
+            "view {k}: {radius} farther than the sphere's framing {sphere_distance}"
         );
         let elevation = (offset.y / offset.length()).asin().to_degrees();
         assert!(

@@ -295,7 +295,7 @@ fn choose_camera(
     }
     let mut camera = match file_camera {
         Some(c) => c.clone(),
-        None => auto_camera(bounds, aspect),
+        None => auto_camera(bounds, &scene.soup.positions, aspect),
     };
     if let (Some(deg), Projection::Perspective { yfov, .. }) = (args.yfov, &mut camera.projection) {
         *yfov = deg.to_radians();

@@ -17,7 +17,7 @@ use crate::cli::RenderArgs;
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use meshtracer::accel::AccelKind;
-use meshtracer::camera::{auto_camera, framing_distance, framing_radius, View};
+use meshtracer::camera::{auto_camera, fit_distance, framing_distance, framing_radius, View};
 use meshtracer::defaults::{DEFAULT_ORBIT_ELEVATION_DEGREES, DEFAULT_YFOV_DEGREES};
 use meshtracer::jobs::views::{
     azimuth_degrees, elevation_degrees, fibonacci_directions, orbit_directions, random_directions,
@@ -435,7 +435,11 @@ fn fixed_lighting(
     height: u32,
     env_file: Option<Environment>,
 ) -> Result<Lighting> {
-    let front = auto_camera(&scene.bounds, width as f32 / height as f32);
+    let front = auto_camera(
+        &scene.bounds,
+        &scene.soup.positions,
+        width as f32 / height as f32,
+    );
     let lit = lighting(
         &scene.lights,
         None,
@@ -631,14 +635,31 @@ fn view_cameras(
     let aspect = width as f32 / height as f32;
     let yfov = args.yfov.unwrap_or(DEFAULT_YFOV_DEGREES).to_radians();
     let scene_radius = framing_radius(&scene.bounds);
-    let framing = Framing {
+    // Generated views share one distance: the closest at which the box fits every one of
+    // their directions (as the automatic camera fits its own); a --look-at target away from the
+    // centre frames the bounding sphere instead.
+    let distance = |directions: &[Vec3]| match (args.orbit_radius, args.look_at) {
+        (Some(radius), _) => radius,
+        (None, None) => {
+            let points = &scene.soup.positions;
+            fit_distance(
+                &scene.bounds,
+                points,
+                directions.iter().copied(),
+                yfov,
+                aspect,
+            )
+            .unwrap_or_else(|| framing_distance(scene_radius, yfov, aspect))
+        }
+        (None, Some(_)) => framing_distance(scene_radius, yfov, aspect),
+    };
+    let framing = |directions: &[Vec3]| Framing {
         target: args.look_at.unwrap_or(scene.bounds.center()),
-        distance: args
-            .orbit_radius
-            .unwrap_or_else(|| framing_distance(scene_radius, yfov, aspect)),
+        distance: distance(directions),
         yfov,
         scene_radius,
     };
+    let generated = |directions: Vec<Vec3>| framing(&directions).cameras(&directions);
     let cameras: Vec<Camera> = match spec {
         ViewSpec::Orbit(n) => {
             // A turntable starts where the plain render stands (the file's first camera, else
@@ -646,21 +667,22 @@ fn view_cameras(
             let (azimuth, elevation) = if args.turntable.is_some() {
                 let plain = match scene.cameras.first() {
                     Some(camera) => camera.clone(),
-                    None => auto_camera(&scene.bounds, aspect),
+                    None => auto_camera(&scene.bounds, &scene.soup.positions, aspect),
                 };
+                let target = args.look_at.unwrap_or(scene.bounds.center());
                 (
-                    azimuth_degrees(plain.position, framing.target),
-                    elevation_degrees(plain.position, framing.target),
+                    azimuth_degrees(plain.position, target),
+                    elevation_degrees(plain.position, target),
                 )
             } else {
                 (0.0, DEFAULT_ORBIT_ELEVATION_DEGREES)
             };
             let azimuth = args.orbit_azimuth.unwrap_or(azimuth);
             let elevation = args.orbit_elevation.unwrap_or(elevation);
-            framing.cameras(&orbit_directions(*n, elevation, azimuth))
+            generated(orbit_directions(*n, elevation, azimuth))
         }
-        ViewSpec::Sphere(n) => framing.cameras(&fibonacci_directions(*n)),
-        ViewSpec::Random(n) => framing.cameras(&random_directions(*n, args.seed)),
+        ViewSpec::Sphere(n) => generated(fibonacci_directions(*n)),
+        ViewSpec::Random(n) => generated(random_directions(*n, args.seed)),
         ViewSpec::Cameras => {
             if scene.cameras.is_empty() {
                 bail!(
