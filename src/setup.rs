@@ -3,8 +3,8 @@
 
 use crate::camera::{auto_camera, View};
 use crate::defaults::{
-    AMBIENT_WITH_DEFAULT_RIG, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_BOUNCES, DEFAULT_SPP,
-    FILL_LIGHT_LUX, KEY_LIGHT_LUX,
+    AMBIENT_WITH_DEFAULT_RIG, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_BOUNCES, DEFAULT_NOISE,
+    DEFAULT_PATH_SPP, FILL_LIGHT_LUX, KEY_LIGHT_LUX,
 };
 use crate::integrator::IntegratorKind;
 use crate::light::environment::Environment;
@@ -161,9 +161,11 @@ pub fn lighting(
 }
 
 /// The default render of `scene` at `width` x `height`: its first camera (else the automatic
-/// one framing its bounds), its lights with [`AMBIENT_WITH_FILE_LIGHTS`] (else the default
-/// rig), [`DEFAULT_SPP`] samples per pixel, seed 0, the glTF BRDF, no exposure change, no AOVs.
-/// What `meshtracer render MODEL` does with no options.
+/// one framing its vertices), the path tracer lit by the file's lights (else the built-in
+/// studio environment), up to [`DEFAULT_PATH_SPP`] samples per pixel taken adaptively until
+/// the noise is under [`DEFAULT_NOISE`], [`DEFAULT_BOUNCES`] bounces, seed 0, the glTF BRDF, no
+/// exposure change, no AOVs. What `meshtracer render MODEL` does with no options (which then
+/// encodes the image with the Khronos PBR Neutral view transform).
 pub fn default_settings(scene: &Scene, width: u32, height: u32) -> RenderSettings {
     let aspect = width as f32 / height.max(1) as f32;
     let camera = scene
@@ -176,22 +178,22 @@ pub fn default_settings(scene: &Scene, width: u32, height: u32) -> RenderSetting
         &scene.lights,
         None,
         &view,
-        LightingOptions::new(IntegratorKind::Direct),
+        LightingOptions::new(IntegratorKind::Path),
     );
     RenderSettings {
         view,
-        spp: DEFAULT_SPP,
+        spp: DEFAULT_PATH_SPP,
         seed: 0,
         lights: lighting.lights,
         ambient: lighting.ambient,
         exposure: 0.0,
         shading: ShadingModel::Pbr,
         aovs: false,
-        integrator: IntegratorKind::Direct,
+        integrator: IntegratorKind::Path,
         bounces: DEFAULT_BOUNCES,
         environment: lighting.environment,
         environment_visible: false,
-        noise: None,
+        noise: Some(DEFAULT_NOISE),
         clamp_indirect: None,
     }
 }

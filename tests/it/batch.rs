@@ -889,19 +889,19 @@ fn the_resume_fingerprint_of_fixed_jobs_is_pinned() {
     let pinned = [
         (
             "job-0",
-            "f8d52a5b8ebc87d2fc50e47d8388b7b9bd595c035337ffb88bcb40cb24e752e8",
+            "6f8b72b7c4d2541c56cc7cdc67f9017398cc234871ca9ed3adff05a2da6fc464",
         ),
         (
             "job-2",
-            "e797d04398558992b269ba6d5c9419924d0a347ee81a5d3ff6ad6f686e98087c",
+            "0e40786dc86927e8db8806052572d579228ae3af5954445266c5831afe228124",
         ),
         (
             "job-5",
-            "a15995e52f45039c0bfe38efe0879c33b5bd43192f8cceccdfa08ed772bceae0",
+            "3d35ef7238e333931d18ef257187f0c76a3118c1885032ec8160d384a4e6c177",
         ),
         (
             "job-7",
-            "c92cfce6eea048ee7c4f02bf4642ccbe18b6570b084138c8587097cfc8f59c6f",
+            "499ff18a2f210c0c8af5b7c0da71bee1d32fee60529636269017c5bf08589de9",
         ),
     ];
     for (id, fingerprint) in pinned {

@@ -110,7 +110,18 @@ fn encoded_variants_render_like_their_plain_sibling() {
         let view = dir.path().join(format!("{i}-view.json"));
         let a = dir.path().join(format!("{i}-plain.png"));
         let b = dir.path().join(format!("{i}-encoded.png"));
-        let size = ["--width", "160", "--height", "120", "--spp", "4", "--quiet"];
+        // The direct integrator: the decoders are under test, not light transport.
+        let size = [
+            "--width",
+            "160",
+            "--height",
+            "120",
+            "--spp",
+            "4",
+            "--quiet",
+            "--integrator",
+            "direct",
+        ];
         let plain_path = assets.join(plain);
         let encoded_path = assets.join(encoded);
         let mut args = vec![

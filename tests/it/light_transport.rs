@@ -400,7 +400,16 @@ fn environment_options_are_checked_first() {
     let out = dir.path().join("never.png");
     let env = uniform_hdr(dir.path(), 1.0);
     let refused = run(
-        &["render", s(&model), "-o", s(&out), "--env", s(&env)],
+        &[
+            "render",
+            s(&model),
+            "-o",
+            s(&out),
+            "--integrator",
+            "direct",
+            "--env",
+            s(&env),
+        ],
         false,
     );
     assert!(crate::common::stderr(&refused).contains("--integrator path"));

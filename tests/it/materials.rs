@@ -351,6 +351,7 @@ fn texture_coordinates_are_oriented_as_gltf_says() {
         "4",
     ];
     args.extend_from_slice(&look);
+    crate::common::direct_unless_named(&mut args, &[]);
     run(&args, true);
     let (_, _, px) = read_rgba(&out);
     let at = |x: usize, y: usize| px[y * 100 + x];

@@ -84,6 +84,8 @@ fn meshtracer_and_pyrender_agree_on_coverage_and_depth() {
                 "120",
                 "--spp",
                 "1",
+                "--integrator",
+                "direct",
                 "--quiet",
                 "--view-out",
                 s(&view),

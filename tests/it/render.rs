@@ -65,6 +65,8 @@ fn radiance_and_normals(dir: &Path, model: &Path, size: u32) -> (Vec<[f32; 4]>, 
 fn render_to(dir: &Path, model: &Path, name: &str, extra: &[&str]) -> PathBuf {
     let out = dir.join(name);
     let mut args = vec!["render", s(model), "-o", s(&out), "--quiet"];
+    // The closed forms here are the direct integrator's.
+    crate::common::direct_unless_named(&mut args, extra);
     args.extend_from_slice(extra);
     run(&args, true);
     out

@@ -9,7 +9,8 @@ use crate::common::{
 use serde_json::{json, Value};
 use std::path::Path;
 
-/// Renders `model` at 32x32 from its camera and returns the covered pixels (alpha > 0) and
+/// Renders `model` at 32x32 from its camera with the direct integrator (colours below are
+/// judged under its default rig) and returns the covered pixels (alpha > 0) and
 /// standard error (with warnings: no `-q`).
 fn covered(model: &Path) -> (usize, String) {
     crate::common::copy_to_corpus(model);
@@ -26,6 +27,8 @@ fn covered(model: &Path) -> (usize, String) {
             "32",
             "--spp",
             "1",
+            "--integrator",
+            "direct",
         ],
         true,
     );

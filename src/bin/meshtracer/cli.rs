@@ -177,15 +177,18 @@ pub struct RenderArgs {
     /// Image height in pixels [default: from the camera's aspectRatio, else 768].
     #[arg(long)]
     pub height: Option<u32>,
-    /// Samples per pixel: 1 shoots through pixel centres; N > 1 takes stratified jittered
-    /// samples (square numbers stratify best).
-    #[arg(long, default_value_t = meshtracer::defaults::DEFAULT_SPP)]
-    pub spp: u32,
+    /// Samples per pixel, exactly: 1 shoots through pixel centres; N > 1 takes stratified
+    /// jittered samples (square numbers stratify best) [default: the path tracer samples each
+    /// pixel adaptively, up to 32, until its noise is under --noise 0.1; the direct
+    /// integrator takes 4]. Read it through [`RenderArgs::spp`].
+    #[arg(long = "spp", value_name = "N")]
+    pub spp_given: Option<u32>,
     /// Adaptive sampling: each pixel stops once the standard error of its luminance is at most
     /// this fraction of it (of 0.05 in dark pixels), checked every 16 samples; --spp is then
-    /// the cap (e.g. --noise 0.02 --spp 1024). Samples are placed by the R2 sequence.
-    #[arg(long, value_name = "FRACTION", value_parser = parse_noise)]
-    pub noise: Option<f32>,
+    /// the cap (e.g. --noise 0.02 --spp 1024). Samples are placed by the R2 sequence. Read it
+    /// through [`RenderArgs::noise`].
+    #[arg(long = "noise", value_name = "FRACTION", value_parser = parse_noise)]
+    pub noise_given: Option<f32>,
     /// Render for about this many seconds instead of a fixed --spp: one sample per pixel is
     /// timed, then the image is rendered at the largest spp that fits the rest of the budget
     /// (at most --max-spp); the summary says which. The result is exactly the --spp render of
@@ -350,7 +353,9 @@ pub struct RenderArgs {
     pub exposure: f32,
     /// View transform from linear radiance to the 8-bit image (PNG, preview; EXR and HDR stay
     /// linear), after the exposure.
-    #[arg(long, value_parser = choice::<ViewTransform>(), default_value = "standard")]
+    /// [default: khronos-pbr-neutral, which keeps authored base colours as they are below its
+    /// knee and rolls highlights off; standard clips as sRGB does].
+    #[arg(long, value_parser = choice::<ViewTransform>(), default_value = "khronos-pbr-neutral")]
     pub tonemap: ViewTransform,
     /// Fill pixels where nothing was hit with this linear colour (R,G,B) instead of leaving
     /// them transparent.
@@ -373,8 +378,9 @@ pub struct RenderArgs {
     pub no_default_lights: bool,
     /// Light transport: `direct` (punctual lights through shadow rays, constant ambient) or
     /// `path` (path tracing: emissive surfaces as area lights, the environment,
-    /// interreflection, multiple importance sampling).
-    #[arg(long, value_parser = choice::<IntegratorKind>(), default_value = "direct")]
+    /// interreflection, multiple importance sampling) [default: path, lit by the file's lights,
+    /// else by a neutral studio environment].
+    #[arg(long, value_parser = choice::<IntegratorKind>(), default_value = "path")]
     pub integrator: meshtracer::integrator::IntegratorKind,
     /// Path tracer: most bounces after the first hit (0 = direct light only).
     #[arg(long, default_value_t = meshtracer::defaults::DEFAULT_BOUNCES, value_name = "N")]
@@ -468,6 +474,27 @@ pub struct RenderArgs {
 }
 
 impl RenderArgs {
+    /// Samples per pixel: `--spp`, else the integrator's default
+    /// ([`meshtracer::defaults::DEFAULT_PATH_SPP`] for the path tracer, which then samples
+    /// adaptively, [`meshtracer::defaults::DEFAULT_SPP`] for the direct integrator).
+    pub fn spp(&self) -> u32 {
+        self.spp_given.unwrap_or(match self.integrator {
+            IntegratorKind::Path => meshtracer::defaults::DEFAULT_PATH_SPP,
+            IntegratorKind::Direct => meshtracer::defaults::DEFAULT_SPP,
+        })
+    }
+
+    /// The adaptive sampler's noise target: `--noise`, else, for the path tracer without
+    /// `--spp` or `--time-limit`, [`meshtracer::defaults::DEFAULT_NOISE`]; `--spp N` alone asks
+    /// for exactly N samples.
+    pub fn noise(&self) -> Option<f32> {
+        let adaptive_default = self.spp_given.is_none()
+            && self.time_limit.is_none()
+            && self.integrator == IntegratorKind::Path;
+        self.noise_given
+            .or(adaptive_default.then_some(meshtracer::defaults::DEFAULT_NOISE))
+    }
+
     /// The files a render writes beside its image, each with the option that names it, in
     /// the order a single-view render writes them: the AOVs, the panorama, the view file and
     /// the statistics. The one list that render and batch both read.

@@ -23,8 +23,21 @@ pub fn run(args: &[&str], expect_success: bool) -> Output {
     out
 }
 
+/// Appends to `args` the direct integrator and the standard (clipping) view transform, each
+/// unless `extra` names its own: the settings most tests' expectations are written for (the
+/// default render, the path tracer through Khronos PBR Neutral, has tests of its own).
+pub fn direct_unless_named<'a>(args: &mut Vec<&'a str>, extra: &[&'a str]) {
+    if !extra.contains(&"--integrator") {
+        args.extend(["--integrator", "direct"]);
+    }
+    if !extra.contains(&"--tonemap") {
+        args.extend(["--tonemap", "standard"]);
+    }
+}
+
 /// The arguments of `meshtracer COMMAND INPUT -o OUT` at `width` x `height` and `spp`
-/// samples per pixel, quietly, followed by `extra`: the small, fast run most tests want.
+/// samples per pixel, quietly, with [`direct_unless_named`], followed by `extra`: the small,
+/// fast run most tests want.
 pub fn small_run<'a>(
     command: &'a str,
     input: &'a str,
@@ -36,6 +49,7 @@ pub fn small_run<'a>(
     let mut args = vec![
         command, input, "-o", out, "--width", width, "--height", height, "--spp", spp, "-q",
     ];
+    direct_unless_named(&mut args, extra);
     args.extend_from_slice(extra);
     args
 }

@@ -519,8 +519,8 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         output,
         width,
         height,
-        spp,
-        noise,
+        spp_given: _,
+        noise_given: _,
         time_limit,
         denoise,
         seed,
@@ -595,7 +595,7 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         .field("output", output)
         .field("width", width)
         .field("height", height)
-        .field("spp", spp)
+        .field("spp", &args.spp())
         .field("time_limit", time_limit)
         .field("denoise", denoise)
         .field("seed", seed)
@@ -649,7 +649,7 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         .field("strict", strict)
         .field("variant", variant)
         .field_unless_default("tonemap", tonemap)
-        .field_unless_default("noise", noise)
+        .field_unless_default("noise", &args.noise())
         .field_unless_default("clamp_indirect", clamp_indirect)
         .group_field("load", &load_record)
 }
@@ -674,7 +674,7 @@ fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArg
         args.height = job.height;
     }
     if let Some(spp) = job.spp {
-        args.spp = spp;
+        args.spp_given = Some(spp);
     }
     if let Some(seed) = job.seed {
         args.seed = seed;

@@ -8,7 +8,6 @@ use crate::cli::BenchArgs;
 use anyhow::{bail, Context, Result};
 use meshtracer::render::RenderSettings;
 use meshtracer::scene::Scene;
-use meshtracer::setup::{lighting, LightingOptions};
 use meshtracer::tools::bench::{
     generated_mesh, markdown_table, measure, scene_from_soup, BenchOptions, PathRow, Row,
 };
@@ -244,22 +243,13 @@ fn measure_path(
     )?)
 }
 
-/// What `bench --path-spp` renders: `scene`'s default view at `size` with the path tracer
-/// and `spp` samples, lit as `render --integrator path` lights it (the file's lights, else the
-/// built-in studio environment and no light rig).
+/// What `bench --path-spp` renders: `scene`'s default render at `size` (the path tracer, lit
+/// by the file's lights, else the built-in studio environment) with exactly `spp` samples per
+/// pixel: no adaptive stop, so every run does the same work.
 fn bench_path_settings(scene: &Scene, (width, height): (u32, u32), spp: u32) -> RenderSettings {
     let mut settings = meshtracer::setup::default_settings(scene, width, height);
-    settings.integrator = meshtracer::integrator::IntegratorKind::Path;
     settings.spp = spp;
-    let lit = lighting(
-        &scene.lights,
-        None,
-        &settings.view,
-        LightingOptions::new(settings.integrator),
-    );
-    settings.lights = lit.lights;
-    settings.ambient = lit.ambient;
-    settings.environment = lit.environment;
+    settings.noise = None;
     settings
 }
 

@@ -99,10 +99,10 @@ pub(super) fn render_model(
 /// single image only), `--yfov`, and `--width`/`--height` (at least 1, and within
 /// `--max-pixels` when both are given).
 fn check_image_options(args: &RenderArgs) -> Result<()> {
-    if args.spp == 0 || args.spp > args.max_spp {
+    if args.spp() == 0 || args.spp() > args.max_spp {
         bail!(
             "--spp {}: must be between 1 and {} (raise the limit with --max-spp)",
-            args.spp,
+            args.spp(),
             args.max_spp
         );
     }
@@ -348,7 +348,7 @@ fn render_settings(args: &RenderArgs, view: View, lit: Lighting) -> RenderSettin
     } = lit;
     RenderSettings {
         view,
-        spp: args.spp,
+        spp: args.spp(),
         seed: args.seed,
         lights,
         ambient: args.ambient.unwrap_or(default_ambient),
@@ -361,7 +361,7 @@ fn render_settings(args: &RenderArgs, view: View, lit: Lighting) -> RenderSettin
         bounces: args.bounces,
         environment,
         environment_visible: args.env_visible,
-        noise: args.noise,
+        noise: args.noise(),
         clamp_indirect: args.clamp_indirect,
     }
 }

@@ -480,7 +480,7 @@ fn render_all(
     // Every view's rays count toward the choice of preset: the tree is built once.
     let rays = meshtracer::setup::expected_rays(
         u64::from(width) * u64::from(height),
-        args.spp,
+        args.spp(),
         lit.lights.len(),
         args.integrator,
         args.bounces,
@@ -767,7 +767,7 @@ impl ViewRun<'_> {
             Intrinsics::of(&view).with_context(|| format!("view {k}: not a perspective camera"))?;
         let settings = RenderSettings {
             view,
-            spp: args.spp,
+            spp: args.spp(),
             seed: args.seed,
             lights: record.lights(),
             ambient: Vec3::from(record.ambient),
@@ -778,7 +778,7 @@ impl ViewRun<'_> {
             bounces: args.bounces,
             environment: self.environment.clone(),
             environment_visible: args.env_visible,
-            noise: args.noise,
+            noise: args.noise(),
             clamp_indirect: args.clamp_indirect,
         };
         let image_path = dir.join(&names.image);
@@ -895,7 +895,7 @@ impl Summary {
             self.views,
             self.width,
             self.height,
-            args.spp,
+            args.spp(),
             render_seconds,
             render_seconds / self.views.max(1) as f64,
             self.totals.rays(),
