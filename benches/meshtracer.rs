@@ -436,7 +436,7 @@ fn path_tracer(c: &mut Criterion) {
         meshtracer::prepare::Prepared::new(scene, &Default::default(), &mut Vec::new())
             .expect("textures decode")
     });
-    let camera = auto_camera(&scene.scene.bounds, 4.0 / 3.0);
+    let camera = auto_camera(&scene.scene.bounds, &scene.scene.soup.positions, 4.0 / 3.0);
     let settings = RenderSettings {
         view: View::from_camera(&camera, 160, 120),
         spp: 4,
