@@ -260,18 +260,24 @@ impl PyScene {
                 let k = k as u64;
                 // Tiles of view k count after those of the views before it.
                 let per_view = |done: u64, total: u64| report(k * total + done, count * total);
-                match render(&prepared, settings, cancel, &per_view) {
-                    Ok((image, _stats, aovs)) => out.push((image, aovs)),
-                    Err(cancelled) => return Err(cancelled),
-                }
+                out.push(render(&prepared, settings, cancel, &per_view)?);
             }
             Ok(out)
         })?
-        .map_err(|_| Error::new_err("the render was cancelled"))?;
+        .map_err(|_: meshtracer::render::Cancelled| Error::new_err("the render was cancelled"))?;
         rendered
             .into_iter()
             .zip(views)
-            .map(|((image, aovs), settings)| arrays(py, &settings.view, &image, aovs, o))
+            .map(|((image, stats, aovs), settings)| {
+                let out = arrays(py, &settings.view, &image, aovs, o)?;
+                let numbers = PyDict::new(py);
+                numbers.set_item("render_seconds", stats.time.as_secs_f64())?;
+                numbers.set_item("primary_rays", stats.primary_rays)?;
+                numbers.set_item("shadow_rays", stats.shadow_rays)?;
+                numbers.set_item("indirect_rays", stats.indirect_rays)?;
+                out.set_item("stats", numbers)?;
+                Ok(out)
+            })
             .collect()
     }
 }
