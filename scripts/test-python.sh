@@ -32,9 +32,29 @@ if [ -z "${MESHTRACER_CLI:-}" ]; then
 fi
 
 start=$(date +%s)
+# One wheel (abi3: any CPython 3.9+, NumPy 1.x or 2.x), installed into this venv and, for the
+# pyrender comparison, into pyrender's.
+wheels="$target/python-wheels"
+rm -rf "$wheels"
 CARGO_TARGET_DIR="$target" MATURIN_PEP517_ARGS="--profile $profile" \
-  "$venv/bin/python" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps ./python
+  "$venv/bin/python" -m pip wheel --quiet --disable-pip-version-check --no-deps -w "$wheels" ./python
+wheel="$(ls "$wheels"/meshtracer-*.whl)"
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps "$wheel"
 echo "python package built and installed ($profile profile) in $(( $(date +%s) - start )) s"
 
+cli="${MESHTRACER_CLI:-$target/debug/meshtracer}"
 cd python/tests
-MESHTRACER_CLI="${MESHTRACER_CLI:-$target/debug/meshtracer}" "$venv/bin/python" -m pytest -rs "$@"
+# test_pyrender_front.py needs pyrender, which lives in its own venv (numpy<2, PyOpenGL 3.1.7:
+# scripts/reference/install_pyrender.sh): it runs there when MESHTRACER_PYRENDER_PYTHON names
+# that venv's python, and skips with its reason here otherwise.
+pyrender_python="${MESHTRACER_PYRENDER_PYTHON:-}"
+ignore=()
+if [ -n "$pyrender_python" ]; then
+  ignore=(--ignore=test_pyrender_front.py)
+fi
+MESHTRACER_CLI="$cli" "$venv/bin/python" -m pytest -rs "${ignore[@]}" "$@"
+if [ -n "$pyrender_python" ]; then
+  "$pyrender_python" -m pip install --quiet --disable-pip-version-check "pytest>=7"
+  "$pyrender_python" -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps "$wheel"
+  MESHTRACER_CLI="$cli" "$pyrender_python" -m pytest -rs test_pyrender_front.py "$@"
+fi

@@ -10,7 +10,7 @@
 
 use crate::geometry::Ray;
 use crate::scene::{Bounds, Camera, Projection};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// A camera ready to generate rays for an image of a given size.
 #[derive(Clone, Debug, PartialEq)]
@@ -44,6 +44,10 @@ pub enum Lens {
         width: f32,
         /// Rectangle height, `2·tan(yfov/2)`.
         height: f32,
+        /// The rectangle's centre off the view axis, at distance 1 (x along u, y along v):
+        /// zero for glTF cameras, set by [`View::with_intrinsics`] for a principal point off
+        /// the image centre.
+        offset: Vec2,
     },
     /// View rectangle of `width` x `height` at the eye.
     Orthographic {
@@ -74,6 +78,7 @@ impl View {
                     Lens::Perspective {
                         width: aspect * h,
                         height: h,
+                        offset: Vec2::ZERO,
                     },
                     znear,
                     zfar.unwrap_or(f32::INFINITY),
@@ -103,6 +108,22 @@ impl View {
         }
     }
 
+    /// This view with the pinhole intrinsics of a calibrated camera (OpenCV's and pyrender's
+    /// `IntrinsicsCamera`), in pixels of this view's image: focal lengths `fx`, `fy` and the
+    /// principal point (`cx`, `cy`) measured from the image's top-left corner, y down. A point
+    /// at camera-space (x, y, -z) lands at image position (cx + fx·x/z, cy - fy·y/z). The
+    /// view's position, orientation and clip range are kept; an orthographic view becomes a
+    /// perspective one.
+    pub fn with_intrinsics(mut self, fx: f32, fy: f32, cx: f32, cy: f32) -> View {
+        let (width, height) = (self.width as f32, self.height as f32);
+        self.lens = Lens::Perspective {
+            width: width / fx,
+            height: height / fy,
+            offset: Vec2::new((0.5 * width - cx) / fx, (cy - 0.5 * height) / fy),
+        };
+        self
+    }
+
     /// The eye ray through continuous pixel coordinates (`px`, `py`), with (0, 0) the top-left
     /// corner of the image and (width, height) the bottom-right; pixel (i, j)'s centre is at
     /// (i + 0.5, j + 0.5). Its direction is unit length and its interval is the near/far clip
@@ -112,8 +133,15 @@ impl View {
         let s = px / self.width as f32 - 0.5;
         let t = 0.5 - py / self.height as f32;
         match self.lens {
-            Lens::Perspective { width, height } => {
-                let through = -self.w + s * width * self.u + t * height * self.v;
+            Lens::Perspective {
+                width,
+                height,
+                offset,
+            } => {
+                // With a zero offset (every glTF camera) the sums are exact: the rays are
+                // those of the plain rectangle, bit for bit.
+                let through =
+                    -self.w + (s * width + offset.x) * self.u + (t * height + offset.y) * self.v;
                 let direction = through.normalize();
                 // Along the ray, view-axis distance z is reached at t = z / cos(angle to -w).
                 let cos = direction.dot(-self.w);
@@ -421,5 +449,41 @@ mod tests {
         let cam = auto_camera(&bounds, &[], 4.0 / 3.0);
         let to_centre = (bounds.center() - cam.position).normalize();
         assert!((to_centre - cam.forward).length() < 1e-5);
+    }
+
+    /// A pinhole with intrinsics sends the ray through pixel position (px, py) along
+    /// ((px - cx)/fx, (cy - py)/fy, -1) in camera space, principal point off centre or not;
+    /// with the centre as principal point it is the plain perspective view.
+    #[test]
+    fn intrinsics_put_the_principal_point_where_they_say() {
+        let camera = Camera {
+            name: None,
+            position: Vec3::new(1.0, 2.0, 3.0),
+            forward: Vec3::NEG_Z,
+            up: Vec3::Y,
+            projection: Projection::Perspective {
+                yfov: 1.0,
+                aspect_ratio: None,
+                znear: 0.1,
+                zfar: None,
+            },
+        };
+        let view = View::from_camera(&camera, 64, 48).with_intrinsics(50.0, 40.0, 20.0, 30.0);
+        for (px, py) in [(20.0, 30.0), (0.0, 0.0), (63.5, 47.5)] {
+            let d = Vec3::from(view.ray(px, py).direction);
+            let expected = Vec3::new((px - 20.0) / 50.0, (30.0 - py) / 40.0, -1.0).normalize();
+            assert!(
+                (d - expected).length() < 1e-6,
+                "{px},{py}: {d} vs {expected}"
+            );
+        }
+        let plain = View::from_camera(&camera, 64, 48);
+        let Lens::Perspective { width, height, .. } = plain.lens else {
+            unreachable!("a perspective camera")
+        };
+        let (fx, fy) = (64.0 / width, 48.0 / height);
+        let centred = plain.clone().with_intrinsics(fx, fy, 32.0, 24.0);
+        let (a, b) = (centred.ray(10.5, 7.5), plain.ray(10.5, 7.5));
+        assert!((a.direction - b.direction).length() < 1e-6);
     }
 }

@@ -2,9 +2,10 @@
 //! values themselves are named in [`crate::defaults`].
 
 use crate::camera::{auto_camera, View};
+use crate::color::ViewTransform;
 use crate::defaults::{
     AMBIENT_WITH_DEFAULT_RIG, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_BOUNCES, DEFAULT_NOISE,
-    DEFAULT_PATH_SPP, FILL_LIGHT_LUX, KEY_LIGHT_LUX,
+    DEFAULT_PATH_SPP, DEFAULT_SPP, FILL_LIGHT_LUX, KEY_LIGHT_LUX,
 };
 use crate::integrator::IntegratorKind;
 use crate::light::environment::Environment;
@@ -157,6 +158,34 @@ pub fn lighting(
         ambient,
         environment: environment.map(Arc::new),
         default_rig,
+    }
+}
+
+/// The view transform of the default render's 8-bit outputs (`--tonemap`): Khronos PBR
+/// Neutral keeps authored base colours as they are below its knee and rolls highlights off,
+/// as glTF viewers show them. (A view file without a `display` record was encoded with
+/// [`ViewTransform::default`], the clipping `standard`.)
+pub const DEFAULT_VIEW_TRANSFORM: ViewTransform = ViewTransform::KhronosPbrNeutral;
+
+/// Samples per pixel and the adaptive sampler's noise target of a render asked for `spp`
+/// samples (`--spp`, if given) and `noise` (`--noise`) with `integrator`, with
+/// `time_limited` when a time budget picks the count: `spp` is exact when given; else the path
+/// tracer takes up to [`DEFAULT_PATH_SPP`] adaptively to [`DEFAULT_NOISE`] (unless a time
+/// budget decides), the direct integrator [`DEFAULT_SPP`]. The CLI and the Python package
+/// both decide this way.
+pub fn sampling(
+    integrator: IntegratorKind,
+    spp: Option<u32>,
+    noise: Option<f32>,
+    time_limited: bool,
+) -> (u32, Option<f32>) {
+    match (spp, integrator) {
+        (Some(spp), _) => (spp, noise),
+        (None, IntegratorKind::Direct) => (DEFAULT_SPP, noise),
+        (None, IntegratorKind::Path) => (
+            DEFAULT_PATH_SPP,
+            noise.or((!time_limited).then_some(DEFAULT_NOISE)),
+        ),
     }
 }
 

@@ -17,8 +17,8 @@ allow_external_files=False) -> Scene``
 ``Scene.info() -> dict``
     What ``meshtracer info --json`` prints.
 
-``Scene.render(width, height, *, spp=4, integrator="direct", seed=0, bounces=8, exposure=0.0,
-camera=None, aovs=("depth", "mask"), srgb8=False, tonemap="standard", noise=None,
+``Scene.render(width, height, *, spp=None, integrator="path", seed=0, bounces=8, exposure=0.0,
+camera=None, aovs=("depth", "mask"), srgb8=False, tonemap="khronos-pbr-neutral", noise=None,
 clamp_indirect=None) -> dict``
     One view from the file's camera ``camera`` (default its first, else a camera framing the
     model), lit as the CLI lights it. The dict holds "color" (linear RGBA float32, H x W x 4,
@@ -31,10 +31,23 @@ clamp_indirect=None) -> dict``
     ``clamp_indirect`` are the CLI's ``--noise`` and ``--clamp-indirect``. The GIL is released while the
     scene is prepared (first render) and rendered.
 
+``Scene.render(..., ambient=None, default_lights=True, progress=None)``
+    ``ambient`` and ``default_lights=False`` are the CLI's ``--ambient`` and
+    ``--no-default-lights``; ``progress(done, total)`` is called on this thread as tiles finish,
+    and an exception it raises, or Ctrl-C, cancels the render and propagates. Any other keyword
+    raises Error.
+
+``Scene.from_arrays(positions, indices, ...)``, ``Scene.add_mesh``, ``Scene.add_camera``,
+``Scene.add_light``, ``Scene.render_views(spec, width, height, ...)``
+    Scenes built from NumPy arrays and many views after one preparation: see each method's
+    docstring and docs/python.md. ``meshtracer.pyrender`` renders a ``pyrender.Scene``.
+
 ``Error``
     Raised when a model cannot be loaded or rendered; its message is exactly what the CLI
     prints after ``meshtracer: error:``, naming the file and the part.
 """
+
+import numpy as _np
 
 from ._meshtracer import Error, Scene
 from ._meshtracer import load as _load
@@ -52,3 +65,128 @@ def load(path, *, animation=None, time=None, variant=None, strict=False,
     return _load(os.fspath(path), animation=animation,
                  time=None if time is None else float(time), variant=variant,
                  strict=bool(strict), allow_external_files=bool(allow_external_files))
+
+
+def _rows(name, values, width):
+    """``values`` as a C-contiguous float32 N x ``width`` array, or an Error naming ``name``."""
+    try:
+        array = _np.asarray(values, dtype=_np.float32)
+    except (TypeError, ValueError) as e:
+        raise Error(f"{name}: not an array of numbers ({e})") from None
+    if array.ndim != 2 or array.shape[1] != width:
+        raise Error(f"{name}: shape {array.shape}, expected (N, {width})")
+    return _np.ascontiguousarray(array)
+
+
+def _triangles(indices):
+    """``indices`` as a C-contiguous uint32 M x 3 array, or an Error."""
+    array = _np.asarray(indices)
+    if array.dtype.kind not in "iu":
+        if array.dtype.kind == "f" and array.size and _np.all(_np.mod(array, 1) == 0):
+            array = array.astype(_np.int64)
+        else:
+            raise Error(f"indices: dtype {array.dtype}, expected integers")
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise Error(f"indices: shape {array.shape}, expected (M, 3): three vertices a triangle")
+    if array.size and array.min() < 0:
+        t = int(_np.argwhere(array < 0)[0][0])
+        raise Error(f"indices: triangle {t} has a negative index ({array[t].tolist()})")
+    if array.size and array.max() > 0xFFFFFFFF:
+        raise Error("indices: an index beyond 2**32 - 1")
+    return _np.ascontiguousarray(array, dtype=_np.uint32)
+
+
+def _pose(pose):
+    """A 4x4 pose (world from local, rows as NumPy prints it) as 16 floats in rows."""
+    if pose is None:
+        return None
+    array = _np.asarray(pose, dtype=_np.float64)
+    if array.shape != (4, 4):
+        raise Error(f"pose: shape {array.shape}, expected (4, 4)")
+    return [float(v) for v in array.ravel()]
+
+
+def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, material=None,
+              pose=None, name=None):
+    """Adds a mesh given as arrays; returns its instance index (segmentation id - 1).
+
+    positions: N x 3 (metres), indices: M x 3 (counter-clockwise from the front), normals:
+    N x 3, uvs: N x 2 ((0, 0) at the texture's top-left, as glTF), colors: N x 3 or N x 4
+    (linear, multiplying the base colour); pose: 4x4 world-from-local matrix (default
+    identity); material: a dict of glTF metallic-roughness factors (``base_color`` RGB or
+    RGBA, ``metallic``, ``roughness``, ``emissive``, ``emissive_strength``, ``alpha_mode``,
+    ``alpha_cutoff``, ``double_sided``, ``unlit``, ``name``), every key optional with glTF's
+    default (white, metallic 1, roughness 1). Raises Error, naming the mesh and the array,
+    for a wrong shape, a NaN, an index out of range or a factor out of its range.
+    """
+    if colors is not None:
+        c = _np.asarray(colors, dtype=_np.float32)
+        if c.ndim == 2 and c.shape[1] == 3:
+            colors = _np.concatenate([c, _np.ones((len(c), 1), _np.float32)], axis=1)
+    if material is not None and not isinstance(material, dict):
+        raise Error(f"material: a dict of factors, not {type(material).__name__}")
+    return self._add_mesh(
+        _rows("positions", positions, 3), _triangles(indices),
+        None if normals is None else _rows("normals", normals, 3),
+        None if uvs is None else _rows("uvs", uvs, 2),
+        None if colors is None else _rows("colors", colors, 4),
+        material, _pose(pose), name)
+
+
+def _from_arrays(positions, indices, normals=None, uvs=None, colors=None, material=None,
+                 pose=None, name="<arrays>"):
+    """A scene of one mesh given as arrays (see ``Scene.add_mesh``); add more meshes,
+    cameras and lights to it, then render it as a loaded scene."""
+    scene = Scene.empty(str(name))
+    scene.add_mesh(positions, indices, normals, uvs, colors, material, pose)
+    return scene
+
+
+_scene_add_camera = Scene.add_camera
+_scene_add_light = Scene.add_light
+_scene_render_views = Scene.render_views
+
+
+def _add_camera(self, pose, **projection):
+    """Adds a camera placed by ``pose`` (4x4 world from camera: it looks down its local -Z with
+    +Y up, as glTF and pyrender cameras do); returns its index for ``render(camera=...)``.
+    The first camera is the default view. The projection is one of: ``yfov`` (radians) with
+    optional ``aspect_ratio``; ``xmag`` and ``ymag`` (orthographic half extents, metres);
+    ``fx``, ``fy``, ``cx``, ``cy`` (pinhole intrinsics in pixels of the rendered image,
+    principal point from the top-left corner, y down). ``znear`` (default 0.05) and
+    ``zfar`` (default none) clip along the view axis."""
+    return _scene_add_camera(self, _pose(pose), **projection)
+
+
+def _add_light(self, kind, pose=None, **light):
+    """Adds a punctual light (``KHR_lights_punctual``): ``kind`` "directional" (intensity in
+    lux), "point" or "spot" (candela; ``inner_cone_angle``, ``outer_cone_angle`` in radians),
+    placed by ``pose`` (4x4 world from light: it shines down its local -Z), with ``color``
+    (linear RGB), ``intensity`` and ``range``. Returns its index. A scene with lights is lit
+    by them alone (and the ambient ``render`` is given), not by the default rig."""
+    return _scene_add_light(self, kind, _pose(pose if pose is not None else _np.eye(4)), **light)
+
+
+def _render_views(self, spec, width, height, **options):
+    """Renders many views after one preparation of the scene (one BVH build), as
+    ``meshtracer render --views SPEC``: ``spec`` is "orbit:N", "sphere:N", "random:N",
+    "cameras", the path of a views file, or a list of views as such a file holds them
+    (dicts with "look_from", "look_at" and optional "up", "yfov_degrees"). ``yfov``
+    (degrees), ``look_at``, ``orbit_radius``, ``orbit_azimuth``, ``orbit_elevation`` are the
+    CLI's options of the same names; the rest are ``render``'s. Returns one dict a view:
+    ``render``'s arrays plus "camera_to_world" (4x4, OpenGL camera axes, as transforms.json)
+    and, for perspective views, "intrinsics" (fl_x, fl_y, cx, cy in pixels)."""
+    import json
+    import os
+
+    if isinstance(spec, (list, tuple)):
+        return _scene_render_views(self, "", width, height, views_json=json.dumps(list(spec)),
+                                   **options)
+    return _scene_render_views(self, os.fspath(spec), width, height, **options)
+
+
+Scene.add_mesh = _add_mesh
+Scene.from_arrays = staticmethod(_from_arrays)
+Scene.add_camera = _add_camera
+Scene.add_light = _add_light
+Scene.render_views = _render_views

@@ -9,22 +9,30 @@
 //!
 //! The Python-facing module is `python/meshtracer/__init__.py`; docs/python.md describes it.
 
+mod build;
+mod progress;
+
+use glam::{Vec2, Vec3, Vec4};
 use meshtracer::accel::{AccelKind, BvhPreset};
 use meshtracer::camera::{auto_camera, View};
 use meshtracer::color::ViewTransform;
-use meshtracer::defaults::{DEFAULT_BOUNCES, DEFAULT_SPP, MAX_TEXTURE_MIB};
+use meshtracer::defaults::{DEFAULT_BOUNCES, MAX_TEXTURE_MIB};
 use meshtracer::integrator::IntegratorKind;
+use meshtracer::jobs::views::{
+    parse_views, plan_cameras, read_views_file, PlanOptions, ViewSpec, ViewsError,
+};
+use meshtracer::output::dataset::{camera_to_world, Intrinsics};
 use meshtracer::prepare::{PrepareOptions, Prepared};
 use meshtracer::render::{render, RenderSettings};
-use meshtracer::scene::{LoadOptions, PoseOptions};
+use meshtracer::scene::{Camera, Light, LoadOptions, MeshArrays, PoseOptions, Projection};
 use meshtracer::setup::{self, LightingOptions};
 use meshtracer::shading::ShadingModel;
-use numpy::{PyArray1, PyArrayMethods};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
+use std::collections::HashMap;
 use std::path::PathBuf;
-use std::sync::atomic::AtomicBool;
 use std::sync::{Arc, Mutex};
 
 pyo3::create_exception!(
@@ -54,6 +62,10 @@ struct PyScene {
     state: Mutex<State>,
     /// The warnings of the texture decoding (first render), after the load's.
     prepare_warnings: Mutex<Vec<String>>,
+    /// Pinhole intrinsics (fx, fy, cx, cy in pixels) of the cameras added with them, by camera
+    /// index: such a camera is kept in the scene as a perspective one and given its
+    /// intrinsics when a view is made of it.
+    intrinsics: Mutex<HashMap<usize, [f32; 4]>>,
 }
 
 /// A scene before and after its first render.
@@ -112,12 +124,239 @@ impl PyScene {
         match &*self.lock()? {
             State::Loaded(scene) => Ok(f(scene)),
             State::Prepared(p) => Ok(f(&p.scene)),
-            State::Empty => Err(Error::new_err(format!(
-                "{}: an earlier preparation of this scene failed: load it again",
-                self.path.display()
-            ))),
+            State::Empty => Err(self.failed_earlier()),
         }
     }
+
+    /// Runs `f` on the scene to change it: a prepared scene goes back to its loaded form (the
+    /// next render prepares it again, BVH and all).
+    fn with_scene_mut<T>(&self, f: impl FnOnce(&mut meshtracer::Scene) -> T) -> PyResult<T> {
+        let mut state = self.lock()?;
+        if let State::Prepared(p) = &*state {
+            let scene = p.scene.clone();
+            *state = State::Loaded(Box::new(scene));
+        }
+        match &mut *state {
+            State::Loaded(scene) => Ok(f(scene)),
+            _ => Err(self.failed_earlier()),
+        }
+    }
+
+    /// Runs `f` on the scene to change only its cameras or lights, which its preparation does
+    /// not depend on: a prepared scene stays prepared unless a render still holds it.
+    fn with_views_mut<T>(&self, f: impl FnOnce(&mut meshtracer::Scene) -> T) -> PyResult<T> {
+        {
+            let mut state = self.lock()?;
+            if let State::Prepared(p) = &mut *state {
+                if let Some(p) = Arc::get_mut(p) {
+                    return Ok(f(&mut p.scene));
+                }
+            }
+        }
+        self.with_scene_mut(f)
+    }
+
+    fn failed_earlier(&self) -> PyErr {
+        Error::new_err(format!(
+            "{}: an earlier preparation of this scene failed: load it again",
+            self.path.display()
+        ))
+    }
+
+    fn new(path: PathBuf, strict: bool, scene: meshtracer::Scene) -> PyScene {
+        PyScene {
+            path,
+            strict,
+            state: Mutex::new(State::Loaded(Box::new(scene))),
+            prepare_warnings: Mutex::new(Vec::new()),
+            intrinsics: Mutex::new(HashMap::new()),
+        }
+    }
+
+    /// The view of camera `camera` (default the first; else the automatic camera framing the
+    /// bounds) for a `width` x `height` image, with its intrinsics if it was added with them.
+    fn view(&self, camera: Option<usize>, width: u32, height: u32) -> PyResult<View> {
+        let chosen = self.with_scene(|scene| -> PyResult<Camera> {
+            let file_camera = match camera {
+                Some(i) => Some(scene.cameras.get(i).ok_or_else(|| {
+                    Error::new_err(format!(
+                        "{}: --camera {i}: the file has {} camera(s)",
+                        self.path.display(),
+                        scene.cameras.len()
+                    ))
+                })?),
+                None => scene.cameras.first(),
+            };
+            Ok(match file_camera {
+                Some(c) => c.clone(),
+                None => auto_camera(
+                    &scene.bounds,
+                    &scene.soup.positions,
+                    width as f32 / height as f32,
+                ),
+            })
+        })??;
+        let view = View::from_camera(&chosen, width, height);
+        let index = camera.unwrap_or(0);
+        let intrinsics = self
+            .intrinsics
+            .lock()
+            .map_err(|_| Error::new_err("the scene was poisoned by a panic in an earlier call"))?
+            .get(&index)
+            .copied();
+        Ok(match intrinsics {
+            Some([fx, fy, cx, cy]) => view.with_intrinsics(fx, fy, cx, cy),
+            None => view,
+        })
+    }
+
+    /// The settings of one view: `view` lit as [`setup::lighting`] decides, the rig (when the
+    /// scene has no lights) placed for `rig_view`.
+    fn settings(&self, view: View, rig_view: &View, o: &RenderOptions) -> PyResult<RenderSettings> {
+        let mut lighting_options = LightingOptions::new(o.integrator);
+        lighting_options.no_default_lights = !o.default_lights;
+        let lit = self
+            .with_scene(|scene| setup::lighting(&scene.lights, None, rig_view, lighting_options))?;
+        let (spp, noise) = setup::sampling(o.integrator, o.spp, o.noise, false);
+        Ok(RenderSettings {
+            view,
+            spp,
+            seed: o.seed,
+            lights: lit.lights,
+            ambient: o.ambient.unwrap_or(lit.ambient),
+            exposure: o.exposure,
+            shading: ShadingModel::Pbr,
+            aovs: o.wants("depth") || o.wants("normal") || o.wants("segmentation"),
+            integrator: o.integrator,
+            bounces: o.bounces,
+            environment: lit.environment,
+            environment_visible: false,
+            noise,
+            clamp_indirect: o.clamp_indirect,
+        })
+    }
+
+    /// Renders every view of `views` with one preparation of the scene (the BVH preset chosen
+    /// for the rays of all of them), reporting tiles over all views to `progress`.
+    fn render_settings<'py>(
+        &self,
+        py: Python<'py>,
+        views: &[RenderSettings],
+        o: &RenderOptions,
+        progress: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let rays: f64 = views
+            .iter()
+            .map(|s| {
+                setup::expected_rays(
+                    u64::from(s.view.width) * u64::from(s.view.height),
+                    s.spp,
+                    s.lights.len(),
+                    s.integrator,
+                    s.bounces,
+                )
+            })
+            .sum();
+        let prepared = self.prepared(py, rays)?;
+        let rendered = progress::run_cancellable(py, progress, |cancel, report| {
+            let count = views.len() as u64;
+            let mut out = Vec::with_capacity(views.len());
+            for (k, settings) in views.iter().enumerate() {
+                let k = k as u64;
+                // Tiles of view k count after those of the views before it.
+                let per_view = |done: u64, total: u64| report(k * total + done, count * total);
+                out.push(render(&prepared, settings, cancel, &per_view)?);
+            }
+            Ok(out)
+        })?
+        .map_err(|_: meshtracer::render::Cancelled| Error::new_err("the render was cancelled"))?;
+        rendered
+            .into_iter()
+            .zip(views)
+            .map(|((image, stats, aovs), settings)| {
+                let out = arrays(py, &settings.view, &image, aovs, o)?;
+                let numbers = PyDict::new(py);
+                numbers.set_item("render_seconds", stats.time.as_secs_f64())?;
+                numbers.set_item("primary_rays", stats.primary_rays)?;
+                numbers.set_item("shadow_rays", stats.shadow_rays)?;
+                numbers.set_item("indirect_rays", stats.indirect_rays)?;
+                out.set_item("stats", numbers)?;
+                Ok(out)
+            })
+            .collect()
+    }
+}
+
+/// The options every render takes, checked.
+struct RenderOptions {
+    /// Exactly this many samples per pixel; `None` for the CLI's default
+    /// ([`setup::sampling`]).
+    spp: Option<u32>,
+    integrator: IntegratorKind,
+    seed: u64,
+    bounces: u32,
+    exposure: f32,
+    aovs: Vec<String>,
+    srgb8: bool,
+    tonemap: ViewTransform,
+    noise: Option<f32>,
+    clamp_indirect: Option<f32>,
+    ambient: Option<Vec3>,
+    default_lights: bool,
+}
+
+impl RenderOptions {
+    fn wants(&self, name: &str) -> bool {
+        self.aovs.iter().any(|a| a == name)
+    }
+}
+
+/// Refuses a size the CLI refuses.
+fn check_size(width: u32, height: u32) -> PyResult<()> {
+    if width == 0 || height == 0 {
+        return Err(Error::new_err(format!(
+            "image size {width}x{height}: width and height must be at least 1"
+        )));
+    }
+    Ok(())
+}
+
+/// The arrays of one rendered view (docs/python.md has the table).
+fn arrays<'py>(
+    py: Python<'py>,
+    view: &View,
+    image: &meshtracer::render::Image,
+    rendered_aovs: Option<meshtracer::render::Aovs>,
+    o: &RenderOptions,
+) -> PyResult<Bound<'py, PyDict>> {
+    let (h, w) = (view.height as usize, view.width as usize);
+    let out = PyDict::new(py);
+    let color: Vec<f32> = image.pixels.iter().flat_map(|p| p.to_array()).collect();
+    out.set_item("color", PyArray1::from_vec(py, color).reshape([h, w, 4])?)?;
+    if o.srgb8 {
+        let bytes = image.to_srgb8(None, o.tonemap);
+        out.set_item("srgb8", PyArray1::from_vec(py, bytes).reshape([h, w, 4])?)?;
+    }
+    if o.wants("mask") {
+        let mask: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();
+        out.set_item("mask", PyArray1::from_vec(py, mask).reshape([h, w])?)?;
+    }
+    if let Some(a) = rendered_aovs {
+        if o.wants("depth") {
+            out.set_item("depth", PyArray1::from_vec(py, a.depth).reshape([h, w])?)?;
+        }
+        if o.wants("normal") {
+            let normal: Vec<f32> = a.normal.iter().flat_map(|n| n.to_array()).collect();
+            out.set_item("normal", PyArray1::from_vec(py, normal).reshape([h, w, 3])?)?;
+        }
+        if o.wants("segmentation") {
+            out.set_item(
+                "segmentation",
+                PyArray1::from_vec(py, a.instance).reshape([h, w])?,
+            )?;
+        }
+    }
+    Ok(out)
 }
 
 #[pymethods]
@@ -128,7 +367,7 @@ impl PyScene {
         py.import("json")?.call_method1("loads", (text,))
     }
 
-    /// The file the scene was loaded from.
+    /// The file the scene was loaded from (for a scene built from arrays, its name).
     #[getter]
     fn path(&self) -> PathBuf {
         self.path.clone()
@@ -145,112 +384,283 @@ impl PyScene {
         Ok(all)
     }
 
-    /// Renders one view; see `meshtracer.Scene.render` in `__init__.py` for the arguments.
-    #[pyo3(signature = (width, height, *, spp=DEFAULT_SPP, integrator="direct", seed=0,
-        bounces=DEFAULT_BOUNCES, exposure=0.0, camera=None, aovs=vec!["depth".to_string(), "mask".to_string()],
-        srgb8=false, tonemap="standard", noise=None, clamp_indirect=None))]
+    /// An empty scene named `name`; see `meshtracer.Scene.from_arrays` in `__init__.py`.
+    #[staticmethod]
+    fn empty(name: PathBuf) -> PyScene {
+        let scene = meshtracer::Scene::empty(name.clone());
+        PyScene::new(name, false, scene)
+    }
+
+    /// Adds a mesh from float32/uint32 arrays the Python side converted and shaped; see
+    /// `meshtracer.Scene.add_mesh` in `__init__.py`.
+    #[pyo3(signature = (positions, indices, normals=None, uvs=None, colors=None, material=None, pose=None, name=None))]
     #[allow(clippy::too_many_arguments)]
+    fn _add_mesh(
+        &self,
+        positions: PyReadonlyArray2<'_, f32>,
+        indices: PyReadonlyArray2<'_, u32>,
+        normals: Option<PyReadonlyArray2<'_, f32>>,
+        uvs: Option<PyReadonlyArray2<'_, f32>>,
+        colors: Option<PyReadonlyArray2<'_, f32>>,
+        material: Option<Bound<'_, PyDict>>,
+        pose: Option<[f32; 16]>,
+        name: Option<String>,
+    ) -> PyResult<usize> {
+        let mesh = MeshArrays {
+            positions: build::rows::<Vec3, 3>("positions", &positions)?,
+            indices: build::triangles(&indices)?,
+            normals: normals
+                .as_ref()
+                .map(|a| build::rows::<Vec3, 3>("normals", a))
+                .transpose()?,
+            uv0: uvs
+                .as_ref()
+                .map(|a| build::rows::<Vec2, 2>("uvs", a))
+                .transpose()?,
+            colors: colors
+                .as_ref()
+                .map(|a| build::rows::<Vec4, 4>("colors", a))
+                .transpose()?,
+        };
+        let material = build::material(material.as_ref())?;
+        let pose = build::pose(pose);
+        self.with_scene_mut(|scene| scene.add_mesh(&mesh, material, pose, name))?
+            .map_err(|e| Error::new_err(format!("{}: {e}", self.path.display())))
+    }
+
+    /// Adds a camera; see `meshtracer.Scene.add_camera` in `__init__.py`.
+    #[pyo3(signature = (pose, *, yfov=None, aspect_ratio=None, xmag=None, ymag=None, fx=None,
+        fy=None, cx=None, cy=None, znear=0.05, zfar=None, name=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn add_camera(
+        &self,
+        pose: [f32; 16],
+        yfov: Option<f32>,
+        aspect_ratio: Option<f32>,
+        xmag: Option<f32>,
+        ymag: Option<f32>,
+        fx: Option<f32>,
+        fy: Option<f32>,
+        cx: Option<f32>,
+        cy: Option<f32>,
+        znear: f32,
+        zfar: Option<f32>,
+        name: Option<String>,
+    ) -> PyResult<usize> {
+        let positive = |what: &str, v: f32| {
+            if v.is_finite() && v > 0.0 {
+                Ok(v)
+            } else {
+                Err(Error::new_err(format!(
+                    "camera {what} {v}: must be a number above 0"
+                )))
+            }
+        };
+        positive("znear", znear)?;
+        if let Some(far) = zfar {
+            if positive("zfar", far)? <= znear {
+                return Err(Error::new_err(format!(
+                    "camera zfar {far}: must be beyond znear {znear}"
+                )));
+            }
+        }
+        let mut intrinsics = None;
+        let projection = match (yfov, xmag.zip(ymag), fx.zip(fy).zip(cx.zip(cy))) {
+            (Some(yfov), None, None) if yfov < std::f32::consts::PI => Projection::Perspective {
+                yfov: positive("yfov", yfov)?,
+                aspect_ratio: aspect_ratio
+                    .map(|a| positive("aspect_ratio", a))
+                    .transpose()?,
+                znear,
+                zfar,
+            },
+            (None, Some((xmag, ymag)), None) => Projection::Orthographic {
+                xmag: positive("xmag", xmag)?,
+                ymag: positive("ymag", ymag)?,
+                znear,
+                zfar: zfar.unwrap_or(f32::INFINITY),
+            },
+            (None, None, Some(((fx, fy), (cx, cy)))) => {
+                let (fx, fy) = (positive("fx", fx)?, positive("fy", fy)?);
+                if !(cx.is_finite() && cy.is_finite()) {
+                    return Err(Error::new_err("camera cx, cy: must be finite numbers"));
+                }
+                intrinsics = Some([fx, fy, cx, cy]);
+                // Kept as the perspective camera an image of 2·cy rows would have (what
+                // info() shows); every view of it is made from the intrinsics.
+                Projection::Perspective {
+                    yfov: 2.0 * (cy.abs().max(0.5) / fy).atan(),
+                    aspect_ratio: None,
+                    znear,
+                    zfar,
+                }
+            }
+            _ => {
+                return Err(Error::new_err(
+                    "a camera is given by yfov (perspective, below pi), by xmag and ymag \
+                     (orthographic), or by fx, fy, cx and cy (intrinsics): exactly one of them",
+                ))
+            }
+        };
+        let camera = Camera::from_pose(build::pose(Some(pose)), projection, name)
+            .ok_or_else(|| Error::new_err("camera pose: not finite, or it collapses -Z or +Y"))?;
+        let index = self.with_views_mut(|scene| {
+            scene.cameras.push(camera);
+            scene.cameras.len() - 1
+        })?;
+        if let Some(k) = intrinsics {
+            if let Ok(mut map) = self.intrinsics.lock() {
+                map.insert(index, k);
+            }
+        }
+        Ok(index)
+    }
+
+    /// Adds a punctual light; see `meshtracer.Scene.add_light` in `__init__.py`.
+    #[pyo3(signature = (kind, pose, *, color=[1.0, 1.0, 1.0], intensity=1.0, range=None,
+        inner_cone_angle=0.0, outer_cone_angle=std::f32::consts::FRAC_PI_4, name=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn add_light(
+        &self,
+        kind: &str,
+        pose: [f32; 16],
+        color: [f32; 3],
+        intensity: f32,
+        range: Option<f32>,
+        inner_cone_angle: f32,
+        outer_cone_angle: f32,
+        name: Option<String>,
+    ) -> PyResult<usize> {
+        let kind = build::light_kind(kind, inner_cone_angle, outer_cone_angle)?;
+        if color.iter().any(|c| !(c.is_finite() && *c >= 0.0)) {
+            return Err(Error::new_err(format!(
+                "light color {color:?}: must be finite numbers of at least 0"
+            )));
+        }
+        let light = Light::from_pose(
+            kind,
+            Vec3::from(color),
+            intensity,
+            range,
+            build::pose(Some(pose)),
+            name,
+        )
+        .ok_or_else(|| {
+            Error::new_err(format!(
+                "light: intensity {intensity} must be a finite number of at least 0, and the pose finite"
+            ))
+        })?;
+        self.with_views_mut(|scene| {
+            scene.lights.push(light);
+            scene.lights.len() - 1
+        })
+    }
+
+    /// Removes every camera (the file's too); the scene stays prepared.
+    fn clear_cameras(&self) -> PyResult<()> {
+        self.with_views_mut(|scene| scene.cameras.clear())?;
+        if let Ok(mut map) = self.intrinsics.lock() {
+            map.clear();
+        }
+        Ok(())
+    }
+
+    /// Removes every light (the file's too); the scene stays prepared. Without lights it is
+    /// lit as a file without lights is (the default rig, unless `default_lights=False`).
+    fn clear_lights(&self) -> PyResult<()> {
+        self.with_views_mut(|scene| scene.lights.clear())
+    }
+
+    /// Renders one view; see `meshtracer.Scene.render` in `__init__.py` for the arguments.
+    #[pyo3(signature = (width, height, *, camera=None, progress=None, **options))]
     fn render<'py>(
         &self,
         py: Python<'py>,
         width: u32,
         height: u32,
-        spp: u32,
-        integrator: &str,
-        seed: u64,
-        bounces: u32,
-        exposure: f32,
         camera: Option<usize>,
-        aovs: Vec<String>,
-        srgb8: bool,
-        tonemap: &str,
-        noise: Option<f32>,
-        clamp_indirect: Option<f32>,
+        progress: Option<Bound<'py, PyAny>>,
+        options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let tonemap = ViewTransform::from_name(tonemap).ok_or_else(|| {
-            let names: Vec<&str> = ViewTransform::ALL.iter().map(|v| v.name()).collect();
-            Error::new_err(format!("tonemap '{tonemap}': use {}", names.join(", ")))
-        })?;
-        for (name, value) in [("noise", noise), ("clamp_indirect", clamp_indirect)] {
-            if value.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
-                return Err(Error::new_err(format!("{name} must be a number above 0")));
-            }
-        }
-        if width == 0 || height == 0 {
-            return Err(Error::new_err(format!(
-                "image size {width}x{height}: width and height must be at least 1"
-            )));
-        }
-        if spp == 0 {
-            return Err(Error::new_err("spp 0: must be at least 1"));
-        }
-        if !exposure.is_finite() {
-            return Err(Error::new_err("exposure must be a finite number"));
-        }
-        let integrator = match integrator {
-            "direct" => IntegratorKind::Direct,
-            "path" => IntegratorKind::Path,
-            other => {
-                return Err(Error::new_err(format!(
-                    "integrator '{other}': use 'direct' or 'path'"
-                )))
-            }
-        };
-        if let Some(unknown) = aovs.iter().find(|a| !AOV_NAMES.contains(&a.as_str())) {
-            return Err(Error::new_err(format!(
-                "aov '{unknown}': use {}",
-                AOV_NAMES.join(", ")
-            )));
-        }
-        let wants = |name: &str| aovs.iter().any(|a| a == name);
-        let mut settings = self.with_scene(|scene| {
-            settings_for(scene, &self.path, width, height, camera, integrator)
-        })??;
-        settings.spp = spp;
-        settings.seed = seed;
-        settings.bounces = bounces;
-        settings.exposure = exposure;
-        settings.noise = noise;
-        settings.clamp_indirect = clamp_indirect;
-        settings.aovs = wants("depth") || wants("normal") || wants("segmentation");
-        let rays = setup::expected_rays(
-            u64::from(width) * u64::from(height),
-            settings.spp,
-            settings.lights.len(),
-            settings.integrator,
-            settings.bounces,
-        );
-        let prepared = self.prepared(py, rays)?;
-        let cancel = AtomicBool::new(false);
-        let (image, _stats, rendered_aovs) = py
-            .detach(|| render(&prepared, &settings, &cancel, &|_, _| {}))
-            .map_err(cli_error)?;
+        let o = RenderOptions::from_kwargs(options)?;
+        check_size(width, height)?;
+        let view = self.view(camera, width, height)?;
+        let settings = self.settings(view.clone(), &view, &o)?;
+        let mut out = self.render_settings(py, &[settings], &o, progress.as_ref())?;
+        out.pop()
+            .ok_or_else(|| Error::new_err("internal error: no view was rendered"))
+    }
 
-        let (h, w) = (height as usize, width as usize);
-        let out = PyDict::new(py);
-        let color: Vec<f32> = image.pixels.iter().flat_map(|p| p.to_array()).collect();
-        out.set_item("color", PyArray1::from_vec(py, color).reshape([h, w, 4])?)?;
-        if srgb8 {
-            let bytes = image.to_srgb8(None, tonemap);
-            out.set_item("srgb8", PyArray1::from_vec(py, bytes).reshape([h, w, 4])?)?;
-        }
-        if wants("mask") {
-            let mask: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();
-            out.set_item("mask", PyArray1::from_vec(py, mask).reshape([h, w])?)?;
-        }
-        if let Some(a) = rendered_aovs {
-            if wants("depth") {
-                out.set_item("depth", PyArray1::from_vec(py, a.depth).reshape([h, w])?)?;
-            }
-            if wants("normal") {
-                let normal: Vec<f32> = a.normal.iter().flat_map(|n| n.to_array()).collect();
-                out.set_item("normal", PyArray1::from_vec(py, normal).reshape([h, w, 3])?)?;
-            }
-            if wants("segmentation") {
-                out.set_item(
-                    "segmentation",
-                    PyArray1::from_vec(py, a.instance).reshape([h, w])?,
-                )?;
+    /// Renders many views after one preparation; see `meshtracer.Scene.render_views` in
+    /// `__init__.py` for the arguments.
+    #[pyo3(signature = (spec, width, height, *, views_json=None, yfov=None, look_at=None,
+        orbit_radius=None, orbit_azimuth=None, orbit_elevation=None, progress=None, **options))]
+    #[allow(clippy::too_many_arguments)]
+    fn render_views<'py>(
+        &self,
+        py: Python<'py>,
+        spec: &str,
+        width: u32,
+        height: u32,
+        views_json: Option<&str>,
+        yfov: Option<f32>,
+        look_at: Option<[f32; 3]>,
+        orbit_radius: Option<f32>,
+        orbit_azimuth: Option<f32>,
+        orbit_elevation: Option<f32>,
+        progress: Option<Bound<'py, PyAny>>,
+        options: Option<&Bound<'py, PyDict>>,
+    ) -> PyResult<Vec<Bound<'py, PyDict>>> {
+        let o = RenderOptions::from_kwargs(options)?;
+        check_size(width, height)?;
+        let views_error = |e: ViewsError| Error::new_err(e.to_string());
+        let (parsed, explicit) = match views_json {
+            Some(text) => (
+                ViewSpec::File(PathBuf::from("<views>")),
+                parse_views(text).map_err(views_error)?,
+            ),
+            None => match ViewSpec::parse(spec).map_err(views_error)? {
+                ViewSpec::File(path) => {
+                    let explicit = read_views_file(&path).map_err(views_error)?;
+                    (ViewSpec::File(path), explicit)
+                }
+                other => (other, Vec::new()),
+            },
+        };
+        let options = PlanOptions {
+            yfov_degrees: yfov,
+            look_at: look_at.map(Vec3::from),
+            orbit_radius,
+            orbit_azimuth,
+            orbit_elevation,
+            seed: o.seed,
+        };
+        let aspect = width as f32 / height as f32;
+        let (cameras, front) = self
+            .with_scene(|scene| {
+                plan_cameras(&parsed, &explicit, scene, aspect, &options)
+                    .map(|c| (c, auto_camera(&scene.bounds, &scene.soup.positions, aspect)))
+            })?
+            .map_err(views_error)?;
+        // As `render --views`: the lights stay put from view to view, the default rig placed
+        // for the automatic camera.
+        let front = View::from_camera(&front, width, height);
+        let views: Vec<RenderSettings> = cameras
+            .iter()
+            .map(|c| self.settings(View::from_camera(c, width, height), &front, &o))
+            .collect::<PyResult<_>>()?;
+        let out = self.render_settings(py, &views, &o, progress.as_ref())?;
+        for (dict, settings) in out.iter().zip(&views) {
+            let pose: Vec<f32> = camera_to_world(&settings.view)
+                .into_iter()
+                .flatten()
+                .collect();
+            dict.set_item(
+                "camera_to_world",
+                PyArray1::from_vec(py, pose).reshape([4, 4])?,
+            )?;
+            if let Some(k) = Intrinsics::of(&settings.view) {
+                dict.set_item("intrinsics", [k.fl_x, k.fl_y, k.cx, k.cy])?;
             }
         }
         Ok(out)
@@ -265,49 +675,98 @@ impl PyScene {
     }
 }
 
-/// The settings `meshtracer render MODEL --width W --height H [--camera I] [--integrator K]`
-/// starts from: the file's camera `camera` (default its first; else the automatic camera
-/// framing the bounds), lit as [`setup::lighting`] decides with no lighting option given.
-fn settings_for(
-    scene: &meshtracer::Scene,
-    path: &std::path::Path,
-    width: u32,
-    height: u32,
-    camera: Option<usize>,
-    integrator: IntegratorKind,
-) -> PyResult<RenderSettings> {
-    let file_camera = match camera {
-        Some(i) => Some(scene.cameras.get(i).ok_or_else(|| {
-            Error::new_err(format!(
-                "{}: --camera {i}: the file has {} camera(s)",
-                path.display(),
-                scene.cameras.len()
-            ))
-        })?),
-        None => scene.cameras.first(),
-    };
-    let camera = match file_camera {
-        Some(c) => c.clone(),
-        None => auto_camera(&scene.bounds, &scene.soup.positions, width as f32 / height as f32),
-    };
-    let view = View::from_camera(&camera, width, height);
-    let lit = setup::lighting(&scene.lights, None, &view, LightingOptions::new(integrator));
-    Ok(RenderSettings {
-        view,
-        spp: DEFAULT_SPP,
-        seed: 0,
-        lights: lit.lights,
-        ambient: lit.ambient,
-        exposure: 0.0,
-        shading: ShadingModel::Pbr,
-        aovs: false,
-        integrator,
-        bounces: DEFAULT_BOUNCES,
-        environment: lit.environment,
-        environment_visible: false,
-        noise: None,
-        clamp_indirect: None,
-    })
+impl RenderOptions {
+    /// The options of a render given as keyword arguments (docs/python.md lists them), each
+    /// checked as the CLI checks it; missing ones take the CLI's defaults.
+    fn from_kwargs(kwargs: Option<&Bound<'_, PyDict>>) -> PyResult<RenderOptions> {
+        let mut o = RenderOptions {
+            spp: None,
+            integrator: IntegratorKind::Path,
+            seed: 0,
+            bounces: DEFAULT_BOUNCES,
+            exposure: 0.0,
+            aovs: vec!["depth".to_string(), "mask".to_string()],
+            srgb8: false,
+            tonemap: setup::DEFAULT_VIEW_TRANSFORM,
+            noise: None,
+            clamp_indirect: None,
+            ambient: None,
+            default_lights: true,
+        };
+        for (key, value) in kwargs.into_iter().flat_map(|d| d.iter()) {
+            let key: String = key.extract()?;
+            let bad = |e: PyErr| Error::new_err(format!("{key}: {e}"));
+            match key.as_str() {
+                "spp" => o.spp = Some(value.extract().map_err(bad)?),
+                "integrator" => {
+                    o.integrator = match value.extract::<String>().map_err(bad)?.as_str() {
+                        "direct" => IntegratorKind::Direct,
+                        "path" => IntegratorKind::Path,
+                        other => {
+                            return Err(Error::new_err(format!(
+                                "integrator '{other}': use 'direct' or 'path'"
+                            )))
+                        }
+                    }
+                }
+                "seed" => o.seed = value.extract().map_err(bad)?,
+                "bounces" => o.bounces = value.extract().map_err(bad)?,
+                "exposure" => o.exposure = value.extract().map_err(bad)?,
+                "aovs" => o.aovs = value.extract().map_err(bad)?,
+                "srgb8" => o.srgb8 = value.extract().map_err(bad)?,
+                "tonemap" => {
+                    let name: String = value.extract().map_err(bad)?;
+                    o.tonemap = ViewTransform::from_name(&name).ok_or_else(|| {
+                        let names: Vec<&str> =
+                            ViewTransform::ALL.iter().map(|v| v.name()).collect();
+                        Error::new_err(format!("tonemap '{name}': use {}", names.join(", ")))
+                    })?;
+                }
+                "noise" => o.noise = value.extract().map_err(bad)?,
+                "clamp_indirect" => o.clamp_indirect = value.extract().map_err(bad)?,
+                "ambient" => {
+                    o.ambient = value
+                        .extract::<Option<[f32; 3]>>()
+                        .map_err(bad)?
+                        .map(Vec3::from)
+                }
+                "default_lights" => o.default_lights = value.extract().map_err(bad)?,
+                _ => {
+                    return Err(Error::new_err(format!(
+                        "unknown render option '{key}': use spp, integrator, seed, bounces, \
+                         exposure, aovs, srgb8, tonemap, noise, clamp_indirect, ambient, \
+                         default_lights"
+                    )))
+                }
+            }
+        }
+        for (name, value) in [("noise", o.noise), ("clamp_indirect", o.clamp_indirect)] {
+            if value.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
+                return Err(Error::new_err(format!("{name} must be a number above 0")));
+            }
+        }
+        if o.spp == Some(0) {
+            return Err(Error::new_err("spp 0: must be at least 1"));
+        }
+        if !o.exposure.is_finite() {
+            return Err(Error::new_err("exposure must be a finite number"));
+        }
+        if let Some(a) = o
+            .ambient
+            .filter(|a| !(a.is_finite() && a.min_element() >= 0.0))
+        {
+            return Err(Error::new_err(format!(
+                "ambient {a}: must be finite numbers of at least 0"
+            )));
+        }
+        if let Some(unknown) = o.aovs.iter().find(|a| !AOV_NAMES.contains(&a.as_str())) {
+            return Err(Error::new_err(format!(
+                "aov '{unknown}': use {}",
+                AOV_NAMES.join(", ")
+            )));
+        }
+        Ok(o)
+    }
 }
 
 /// Loads a model (glTF, GLB or OBJ) as `meshtracer render` and `info` load it; see
@@ -332,15 +791,24 @@ fn load(
         pose,
         ..LoadOptions::default()
     };
-    let scene = py
-        .detach(|| meshtracer::Scene::load_with(&path, &options))
-        .map_err(cli_error)?;
-    Ok(PyScene {
-        path,
-        strict,
-        state: Mutex::new(State::Loaded(Box::new(scene))),
-        prepare_warnings: Mutex::new(Vec::new()),
-    })
+    // A panic inside an importer is a bug (ours or a dependency's); as the CLI does, it is
+    // reported as an error naming the file rather than as pyo3's PanicException.
+    let loaded = py.detach(|| {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            meshtracer::Scene::load_with(&path, &options)
+        }))
+    });
+    let scene = match loaded {
+        Ok(result) => result.map_err(cli_error)?,
+        Err(panic) => {
+            let what = meshtracer::scene::panic_message(panic.as_ref());
+            return Err(Error::new_err(format!(
+                "{}: internal error while loading (please report this file): {what}",
+                path.display()
+            )));
+        }
+    };
+    Ok(PyScene::new(path, strict, scene))
 }
 
 #[pymodule]

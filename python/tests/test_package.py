@@ -145,7 +145,10 @@ def test_renders_are_deterministic_and_the_scene_is_reused():
         np.testing.assert_array_equal(first[key], second[key])
     assert first["normal"].shape == (24, 32, 3)
     assert first["segmentation"].dtype == np.uint32
-    assert set(scene.render(8, 8, aovs=()).keys()) == {"color"}
+    small = scene.render(8, 8, aovs=(), spp=4)
+    assert set(small.keys()) == {"color", "stats"}
+    assert small["stats"]["primary_rays"] == 8 * 8 * 4
+    assert small["stats"]["render_seconds"] > 0
 
 
 def test_render_releases_the_gil():

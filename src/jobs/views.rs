@@ -148,6 +148,104 @@ impl Framing {
     }
 }
 
+/// What a run of many views may set about where generated views stand (the `--views`
+/// options of `render`); `None` everywhere gives the defaults.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PlanOptions {
+    /// Vertical field of view of generated views, and of the file's perspective cameras when
+    /// set (`--yfov`), degrees [default: 45].
+    pub yfov_degrees: Option<f32>,
+    /// The point generated views look at (`--look-at`) [default: the model's centre].
+    pub look_at: Option<Vec3>,
+    /// Their distance from it (`--orbit-radius`) [default: the distance that frames the model].
+    pub orbit_radius: Option<f32>,
+    /// Azimuth of the first orbit view (`--orbit-azimuth`), degrees [default: 0, in front].
+    pub orbit_azimuth: Option<f32>,
+    /// Elevation of the orbit (`--orbit-elevation`), degrees [default: 20].
+    pub orbit_elevation: Option<f32>,
+    /// Seed of `random:N` directions.
+    pub seed: u64,
+}
+
+/// The cameras of `spec` for `scene` at an image aspect of `aspect`: generated views around
+/// the target ([`Framing`]), the file's cameras (`cameras`; their yfov replaced when
+/// `options` sets one), or the views of a file (`explicit`, as [`read_views_file`] read
+/// them). Refuses `cameras` for a file without any.
+pub fn plan_cameras(
+    spec: &ViewSpec,
+    explicit: &[ExplicitView],
+    scene: &crate::scene::Scene,
+    aspect: f32,
+    options: &PlanOptions,
+) -> Result<Vec<Camera>, ViewsError> {
+    use crate::camera::{fit_distance, framing_distance, framing_radius};
+    use crate::defaults::{DEFAULT_ORBIT_ELEVATION_DEGREES, DEFAULT_YFOV_DEGREES};
+    let yfov = options
+        .yfov_degrees
+        .unwrap_or(DEFAULT_YFOV_DEGREES)
+        .to_radians();
+    let scene_radius = framing_radius(&scene.bounds);
+    // Generated views share one distance: the closest at which every vertex is inside the frame
+    // from every one of their directions (as the automatic camera fits its own); a look-at
+    // target away from the centre frames the bounding sphere instead.
+    let distance = |directions: &[Vec3]| match (options.orbit_radius, options.look_at) {
+        (Some(radius), _) => radius,
+        (None, None) => {
+            let points = &scene.soup.positions;
+            fit_distance(
+                &scene.bounds,
+                points,
+                directions.iter().copied(),
+                yfov,
+                aspect,
+            )
+            .unwrap_or_else(|| framing_distance(scene_radius, yfov, aspect))
+        }
+        (None, Some(_)) => framing_distance(scene_radius, yfov, aspect),
+    };
+    let generated = |directions: Vec<Vec3>| {
+        let framing = Framing {
+            target: options.look_at.unwrap_or(scene.bounds.center()),
+            distance: distance(&directions),
+            yfov,
+            scene_radius,
+        };
+        framing.cameras(&directions)
+    };
+    Ok(match spec {
+        ViewSpec::Orbit(n) => generated(orbit_directions(
+            *n,
+            options
+                .orbit_elevation
+                .unwrap_or(DEFAULT_ORBIT_ELEVATION_DEGREES),
+            options.orbit_azimuth.unwrap_or(0.0),
+        )),
+        ViewSpec::Sphere(n) => generated(fibonacci_directions(*n)),
+        ViewSpec::Random(n) => generated(random_directions(*n, options.seed)),
+        ViewSpec::Cameras => {
+            if scene.cameras.is_empty() {
+                return Err(views_error(
+                    format!("{}: --views cameras", scene.source.display()),
+                    "the file has no cameras",
+                ));
+            }
+            let mut cameras = scene.cameras.clone();
+            if let Some(deg) = options.yfov_degrees {
+                for c in &mut cameras {
+                    if let crate::scene::Projection::Perspective { yfov, .. } = &mut c.projection {
+                        *yfov = deg.to_radians();
+                    }
+                }
+            }
+            cameras
+        }
+        ViewSpec::File(_) => explicit
+            .iter()
+            .map(|v| v.camera(yfov, scene.bounds.center(), scene_radius))
+            .collect(),
+    })
+}
+
 /// `n` unit directions on the circle at `elevation_degrees` above the horizontal plane: the
 /// first at `azimuth_degrees` (0 toward +Z, 90 toward +X), then counter-clockwise seen from
 /// above (about +Y) in equal steps.

@@ -42,20 +42,27 @@ pub struct Intrinsics {
 
 impl Intrinsics {
     /// The intrinsics of a perspective view: its view rectangle at distance 1 is
-    /// `lens.width` x `lens.height`, so `fl_x = w / lens.width` and `fl_y = h / lens.height`.
+    /// `lens.width` x `lens.height`, so `fl_x = w / lens.width` and `fl_y = h / lens.height`; the principal point is the image
+    /// centre moved by the lens offset.
     /// `None` for an orthographic view.
     pub fn of(view: &View) -> Option<Intrinsics> {
-        let Lens::Perspective { width, height } = view.lens else {
+        let Lens::Perspective {
+            width,
+            height,
+            offset,
+        } = view.lens
+        else {
             return None;
         };
         let (w, h) = (f64::from(view.width), f64::from(view.height));
         let fl_x = w / f64::from(width);
+        let fl_y = h / f64::from(height);
         Some(Intrinsics {
             camera_angle_x: 2.0 * (w / (2.0 * fl_x)).atan(),
             fl_x,
-            fl_y: h / f64::from(height),
-            cx: w / 2.0,
-            cy: h / 2.0,
+            fl_y,
+            cx: w / 2.0 - f64::from(offset.x) * fl_x,
+            cy: h / 2.0 + f64::from(offset.y) * fl_y,
         })
     }
 }

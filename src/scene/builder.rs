@@ -3,7 +3,7 @@
 
 use super::error::LoadErrorKind;
 use super::soup::{Bounds, TriangleSoup};
-use glam::{Vec2, Vec3, Vec4};
+use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 
 /// Triangles of a primitive one thread classifies at least (see
@@ -386,6 +386,32 @@ impl SoupBuilder {
     /// The soup and its bounds.
     pub fn finish(self) -> (TriangleSoup, Bounds) {
         (self.soup, self.bounds)
+    }
+}
+
+/// Places vertices given in a node's local space in the world by its transform `world`
+/// (glTF 2.0 §3.7.2.1): positions as points, normals by the inverse transpose (left
+/// unnormalised: the builder normalises them), tangents by the linear part with their
+/// handedness flipped when `world` mirrors. The caller flips the winding of a mirroring
+/// transform.
+pub(crate) fn place_vertices(
+    world: Mat4,
+    positions: &mut [Vec3],
+    normals: Option<&mut [Vec3]>,
+    tangents: Option<&mut [Vec4]>,
+) {
+    let linear = Mat3::from_mat4(world);
+    let normal_matrix = linear.inverse().transpose();
+    let mirror = if world.determinant() < 0.0 { -1.0 } else { 1.0 };
+    for p in positions.iter_mut() {
+        *p = world.transform_point3(*p);
+    }
+    for n in normals.into_iter().flatten() {
+        *n = normal_matrix * *n;
+    }
+    for t in tangents.into_iter().flatten() {
+        let xyz = (linear * t.truncate()).normalize_or_zero();
+        *t = xyz.extend(t.w * mirror);
     }
 }
 

@@ -307,3 +307,29 @@ pub(super) fn allocate(bytes: u64, what: &str) -> Result<Vec<u8>, LoadErrorKind>
     out.try_reserve_exact(size).map_err(|_| out_of_memory())?;
     Ok(out)
 }
+
+/// The message a caught panic carries (`panic!("...")` with or without formatting), or
+/// "unknown panic". A panic inside an importer is a bug; the CLI and the Python package catch
+/// it around the load and report it as an error naming the file with this message.
+pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
+    payload
+        .downcast_ref::<String>()
+        .map(String::as_str)
+        .or_else(|| payload.downcast_ref::<&str>().copied())
+        .unwrap_or("unknown panic")
+}
+
+#[cfg(test)]
+mod panic_tests {
+    use super::panic_message;
+
+    #[test]
+    fn a_panics_message_is_read_from_either_payload() {
+        let formatted = std::panic::catch_unwind(|| panic!("bad {}", 7)).unwrap_err();
+        let plain = std::panic::catch_unwind(|| panic!("plain")).unwrap_err();
+        let other = std::panic::catch_unwind(|| std::panic::panic_any(7u8)).unwrap_err();
+        assert_eq!(panic_message(formatted.as_ref()), "bad 7");
+        assert_eq!(panic_message(plain.as_ref()), "plain");
+        assert_eq!(panic_message(other.as_ref()), "unknown panic");
+    }
+}

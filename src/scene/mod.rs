@@ -3,6 +3,7 @@
 //! Importers ([`gltf_import`] and [`obj`]) turn a file into a [`Scene`]; nothing here knows
 //! about rays. Units are the glTF ones (glTF 2.0 §3.4): metres, radians, right-handed, +Y up.
 
+mod arrays;
 mod builder;
 mod error;
 pub mod extensions;
@@ -24,8 +25,9 @@ pub mod tangents;
 mod texture;
 mod viewpoint;
 
+pub use arrays::{check_material, ArraysError, MeshArrays};
 pub use builder::{SoupBuilder, TriangleIn, VerticesIn};
-pub use error::{LoadError, LoadErrorKind};
+pub use error::{panic_message, LoadError, LoadErrorKind};
 pub use image_source::{Encoded, FileRange, ImageSource, SharedBytes};
 pub use material::{
     AlphaMode, ClearcoatLayer, IridescenceLayer, Material, SheenLayer, SpecularLayer, TextureRef,
@@ -163,7 +165,9 @@ impl Scene {
                 gltf_import::load(path, bytes, file, options)?
             }
             Some(Format::Obj) => (obj::load(path, bytes, options)?, false),
-            None => return Err(LoadError::new(path, LoadErrorKind::UnknownFormat)),
+            Some(Format::Memory) | None => {
+                return Err(LoadError::new(path, LoadErrorKind::UnknownFormat))
+            }
         };
         if scene.soup.is_empty() && !nothing_to_draw {
             let detail = if scene.warnings.is_empty() {

@@ -67,6 +67,9 @@ pub enum Format {
     Glb,
     /// Wavefront OBJ with optional MTL.
     Obj,
+    /// No file: built in memory ([`Scene::empty`](super::model::Scene::empty) and
+    /// [`Scene::add_mesh`](super::model::Scene::add_mesh)). [`Format::sniff`] never returns it.
+    Memory,
 }
 
 impl Format {

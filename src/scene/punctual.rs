@@ -1,7 +1,7 @@
 //! The punctual lights (`KHR_lights_punctual`) a file places in the world, as plain data;
 //! [`crate::light`] computes what they deliver.
 
-use glam::Vec3;
+use glam::{Mat4, Vec3};
 use serde::Serialize;
 
 /// Type of a punctual light (`KHR_lights_punctual`).
@@ -38,4 +38,34 @@ pub struct Light {
     pub position: Vec3,
     /// Unit direction the light travels, world space (local -Z of its node).
     pub direction: Vec3,
+}
+
+impl Light {
+    /// A light placed by `pose`, its world-from-light matrix (a glTF node's world transform,
+    /// pyrender's light pose): at the pose's origin, shining down its local -Z. `None` when the
+    /// pose is not finite or collapses -Z, or `intensity` is negative or not finite (what the
+    /// glTF importer skips too). `range` is kept only when positive and finite.
+    pub fn from_pose(
+        kind: LightKind,
+        color: Vec3,
+        intensity: f32,
+        range: Option<f32>,
+        pose: Mat4,
+        name: Option<String>,
+    ) -> Option<Light> {
+        let position = pose.transform_point3(Vec3::ZERO);
+        let direction = pose.transform_vector3(Vec3::NEG_Z).try_normalize()?;
+        if !position.is_finite() || !intensity.is_finite() || intensity < 0.0 {
+            return None;
+        }
+        Some(Light {
+            name,
+            kind,
+            color,
+            intensity,
+            range: range.filter(|r| *r > 0.0 && r.is_finite()),
+            position,
+            direction,
+        })
+    }
 }

@@ -92,6 +92,36 @@ impl TriangleSoup {
         (!self.tangents.is_empty()).then(|| self.corners(&self.tangents, t))
     }
 
+    /// Appends the triangles of `other` after this soup's, their vertex indices shifted past
+    /// this soup's vertices. Optional attributes stay either empty or as long as the positions:
+    /// one side's missing attribute is padded with the builder's defaults (uv 0, white, no
+    /// tangent). `other`'s material and instance indices are kept as they are.
+    pub fn append(&mut self, other: TriangleSoup) {
+        let (mine, theirs) = (self.positions.len(), other.positions.len());
+        fn pad<T: Copy>(a: &mut Vec<T>, b: Vec<T>, mine: usize, theirs: usize, default: T) {
+            if a.is_empty() && b.is_empty() {
+                return;
+            }
+            a.resize(mine, default);
+            if b.is_empty() {
+                a.resize(mine + theirs, default);
+            } else {
+                a.extend(b);
+            }
+        }
+        pad(&mut self.uv0, other.uv0, mine, theirs, Vec2::ZERO);
+        pad(&mut self.uv1, other.uv1, mine, theirs, Vec2::ZERO);
+        pad(&mut self.colors, other.colors, mine, theirs, Vec4::ONE);
+        pad(&mut self.tangents, other.tangents, mine, theirs, Vec4::ZERO);
+        self.positions.extend(other.positions);
+        self.normals.extend(other.normals);
+        let shift = mine as u32;
+        self.indices
+            .extend(other.indices.iter().map(|t| t.map(|v| v + shift)));
+        self.material.extend(other.material);
+        self.instance.extend(other.instance);
+    }
+
     /// Approximate heap size in bytes.
     pub fn heap_bytes(&self) -> usize {
         use std::mem::size_of_val;

@@ -478,21 +478,24 @@ impl RenderArgs {
     /// ([`meshtracer::defaults::DEFAULT_PATH_SPP`] for the path tracer, which then samples
     /// adaptively, [`meshtracer::defaults::DEFAULT_SPP`] for the direct integrator).
     pub fn spp(&self) -> u32 {
-        self.spp_given.unwrap_or(match self.integrator {
-            IntegratorKind::Path => meshtracer::defaults::DEFAULT_PATH_SPP,
-            IntegratorKind::Direct => meshtracer::defaults::DEFAULT_SPP,
-        })
+        self.sampling().0
     }
 
     /// The adaptive sampler's noise target: `--noise`, else, for the path tracer without
     /// `--spp` or `--time-limit`, [`meshtracer::defaults::DEFAULT_NOISE`]; `--spp N` alone asks
     /// for exactly N samples.
     pub fn noise(&self) -> Option<f32> {
-        let adaptive_default = self.spp_given.is_none()
-            && self.time_limit.is_none()
-            && self.integrator == IntegratorKind::Path;
-        self.noise_given
-            .or(adaptive_default.then_some(meshtracer::defaults::DEFAULT_NOISE))
+        self.sampling().1
+    }
+
+    /// [`meshtracer::setup::sampling`] of these options.
+    fn sampling(&self) -> (u32, Option<f32>) {
+        meshtracer::setup::sampling(
+            self.integrator,
+            self.spp_given,
+            self.noise_given,
+            self.time_limit.is_some(),
+        )
     }
 
     /// The files a render writes beside its image, each with the option that names it, in

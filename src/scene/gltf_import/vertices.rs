@@ -10,8 +10,9 @@ use super::validate::{
     accessor_error, check_accessor, check_accessor_type, Expect, COLOR, JOINTS, MORPH_NORMAL,
     MORPH_POSITION, MORPH_TANGENT, NORMAL, POSITION, TANGENT, TEXCOORD, WEIGHTS,
 };
+use crate::scene::builder::place_vertices;
 use crate::scene::error::{LoadErrorKind, PrimitiveAt};
-use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
+use glam::{Mat4, Vec2, Vec3, Vec4};
 use gltf::accessor::Dimensions;
 
 /// One primitive's vertex data in world space.
@@ -370,19 +371,7 @@ fn place(
         None => false,
     };
     if !skinned {
-        let normal_matrix = Mat3::from_mat4(world).inverse().transpose();
-        let linear = Mat3::from_mat4(world);
-        let mirror = if world.determinant() < 0.0 { -1.0 } else { 1.0 };
-        for p in positions.iter_mut() {
-            *p = world.transform_point3(*p);
-        }
-        for n in normals.into_iter().flatten() {
-            *n = normal_matrix * *n;
-        }
-        for t in tangents.into_iter().flatten() {
-            let xyz = (linear * t.truncate()).normalize_or_zero();
-            *t = xyz.extend(t.w * mirror);
-        }
+        place_vertices(world, positions, normals, tangents);
     }
     Ok((skinned, warnings))
 }

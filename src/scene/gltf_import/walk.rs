@@ -458,7 +458,6 @@ impl<'a> Importer<'a> {
 }
 
 fn place_camera(camera: &gltf::Camera, world: Mat4, node_name: Option<String>) -> Option<Camera> {
-    let (position, forward, up) = frame(world)?;
     let projection = match camera.projection() {
         gltf::camera::Projection::Perspective(p) => Projection::Perspective {
             yfov: p.yfov(),
@@ -473,33 +472,15 @@ fn place_camera(camera: &gltf::Camera, world: Mat4, node_name: Option<String>) -
             zfar: o.zfar(),
         },
     };
-    Some(Camera {
-        name: camera.name().map(str::to_string).or(node_name),
-        position,
-        forward,
-        up,
+    Camera::from_pose(
+        world,
         projection,
-    })
-}
-
-/// Position, forward (local -Z) and up (local +Y) of a node, with scale removed and up made
-/// orthogonal to forward. `None` when the transform is degenerate.
-fn frame(world: Mat4) -> Option<(Vec3, Vec3, Vec3)> {
-    let position = world.transform_point3(Vec3::ZERO);
-    let forward = world.transform_vector3(Vec3::NEG_Z).try_normalize()?;
-    let up_raw = world.transform_vector3(Vec3::Y);
-    let up = (up_raw - forward * up_raw.dot(forward)).try_normalize()?;
-    position.is_finite().then_some((position, forward, up))
+        camera.name().map(str::to_string).or(node_name),
+    )
 }
 
 fn place_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Option<Light> {
     use gltf::khr_lights_punctual::Kind;
-    let position = world.transform_point3(Vec3::ZERO);
-    let direction = world.transform_vector3(Vec3::NEG_Z).try_normalize()?;
-    let intensity = light.intensity();
-    if !position.is_finite() || !intensity.is_finite() || intensity < 0.0 {
-        return None;
-    }
     let kind = match light.kind() {
         Kind::Directional => LightKind::Directional,
         Kind::Point => LightKind::Point,
@@ -511,33 +492,12 @@ fn place_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Option<
             outer_cone_angle,
         },
     };
-    Some(Light {
-        name: light.name().map(str::to_string),
+    Light::from_pose(
         kind,
-        color: Vec3::from(light.color()),
-        intensity,
-        range: light.range().filter(|r| *r > 0.0 && r.is_finite()),
-        position,
-        direction,
-    })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn camera_frame_removes_scale_and_keeps_minus_z() {
-        let world = Mat4::from_scale_rotation_translation(
-            Vec3::splat(3.0),
-            glam::Quat::from_rotation_y(std::f32::consts::FRAC_PI_2),
-            Vec3::new(1.0, 2.0, 3.0),
-        );
-        let (p, f, u) = frame(world).unwrap();
-        assert!((p - Vec3::new(1.0, 2.0, 3.0)).length() < 1e-6);
-        // Rotating -Z by +90° about Y gives -X.
-        assert!((f - Vec3::NEG_X).length() < 1e-6);
-        assert!((u - Vec3::Y).length() < 1e-6);
-        assert!(frame(Mat4::ZERO).is_none());
-    }
+        Vec3::from(light.color()),
+        light.intensity(),
+        light.range(),
+        world,
+        light.name().map(str::to_string),
+    )
 }

@@ -334,11 +334,7 @@ fn load(path: &std::path::Path, options: &LoadOptions) -> Result<Scene> {
     match result {
         Ok(loaded) => Ok(loaded?),
         Err(panic) => {
-            let what = panic
-                .downcast_ref::<String>()
-                .map(String::as_str)
-                .or_else(|| panic.downcast_ref::<&str>().copied())
-                .unwrap_or("unknown panic");
+            let what = meshtracer::scene::panic_message(panic.as_ref());
             bail!(
                 "{}: internal error while loading (please report this file): {what}",
                 path.display()

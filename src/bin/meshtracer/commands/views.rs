@@ -17,11 +17,10 @@ use crate::cli::RenderArgs;
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use meshtracer::accel::AccelKind;
-use meshtracer::camera::{auto_camera, fit_distance, framing_distance, framing_radius, View};
-use meshtracer::defaults::{DEFAULT_ORBIT_ELEVATION_DEGREES, DEFAULT_YFOV_DEGREES};
+use meshtracer::camera::{auto_camera, View};
 use meshtracer::jobs::views::{
-    azimuth_degrees, elevation_degrees, fibonacci_directions, orbit_directions, random_directions,
-    read_views_file, ExplicitView, Framing, NamePattern, ViewSpec,
+    azimuth_degrees, elevation_degrees, plan_cameras, read_views_file, ExplicitView, NamePattern,
+    PlanOptions, ViewSpec,
 };
 use meshtracer::light::environment::Environment;
 use meshtracer::output::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
@@ -633,78 +632,31 @@ fn view_cameras(
     height: u32,
 ) -> Result<Vec<Camera>> {
     let aspect = width as f32 / height as f32;
-    let yfov = args.yfov.unwrap_or(DEFAULT_YFOV_DEGREES).to_radians();
-    let scene_radius = framing_radius(&scene.bounds);
-    // Generated views share one distance: the closest at which the box fits every one of
-    // their directions (as the automatic camera fits its own); a --look-at target away from the
-    // centre frames the bounding sphere instead.
-    let distance = |directions: &[Vec3]| match (args.orbit_radius, args.look_at) {
-        (Some(radius), _) => radius,
-        (None, None) => {
-            let points = &scene.soup.positions;
-            fit_distance(
-                &scene.bounds,
-                points,
-                directions.iter().copied(),
-                yfov,
-                aspect,
-            )
-            .unwrap_or_else(|| framing_distance(scene_radius, yfov, aspect))
-        }
-        (None, Some(_)) => framing_distance(scene_radius, yfov, aspect),
+    let mut options = PlanOptions {
+        yfov_degrees: args.yfov,
+        look_at: args.look_at,
+        orbit_radius: args.orbit_radius,
+        orbit_azimuth: args.orbit_azimuth,
+        orbit_elevation: args.orbit_elevation,
+        seed: args.seed,
     };
-    let framing = |directions: &[Vec3]| Framing {
-        target: args.look_at.unwrap_or(scene.bounds.center()),
-        distance: distance(directions),
-        yfov,
-        scene_radius,
-    };
-    let generated = |directions: Vec<Vec3>| framing(&directions).cameras(&directions);
-    let cameras: Vec<Camera> = match spec {
-        ViewSpec::Orbit(n) => {
-            // A turntable starts where the plain render stands (the file's first camera, else
-            // the automatic camera): its direction from the target; a plain orbit in front.
-            let (azimuth, elevation) = if args.turntable.is_some() {
-                let plain = match scene.cameras.first() {
-                    Some(camera) => camera.clone(),
-                    None => auto_camera(&scene.bounds, &scene.soup.positions, aspect),
-                };
-                let target = args.look_at.unwrap_or(scene.bounds.center());
-                (
-                    azimuth_degrees(plain.position, target),
-                    elevation_degrees(plain.position, target),
-                )
-            } else {
-                (0.0, DEFAULT_ORBIT_ELEVATION_DEGREES)
-            };
-            let azimuth = args.orbit_azimuth.unwrap_or(azimuth);
-            let elevation = args.orbit_elevation.unwrap_or(elevation);
-            generated(orbit_directions(*n, elevation, azimuth))
-        }
-        ViewSpec::Sphere(n) => generated(fibonacci_directions(*n)),
-        ViewSpec::Random(n) => generated(random_directions(*n, args.seed)),
-        ViewSpec::Cameras => {
-            if scene.cameras.is_empty() {
-                bail!(
-                    "{}: --views cameras: the file has no cameras",
-                    args.model.display()
-                );
-            }
-            let mut cameras = scene.cameras.clone();
-            if let Some(deg) = args.yfov {
-                for c in &mut cameras {
-                    if let Projection::Perspective { yfov, .. } = &mut c.projection {
-                        *yfov = deg.to_radians();
-                    }
-                }
-            }
-            cameras
-        }
-        ViewSpec::File(_) => explicit
-            .iter()
-            .map(|v| v.camera(yfov, scene.bounds.center(), scene_radius))
-            .collect(),
-    };
+    if let (ViewSpec::Orbit(_), Some(_)) = (spec, args.turntable) {
+        // A turntable starts where the plain render stands (the file's first camera, else
+        // the automatic camera): its direction from the target; a plain orbit in front.
+        let plain = match scene.cameras.first() {
+            Some(camera) => camera.clone(),
+            None => auto_camera(&scene.bounds, &scene.soup.positions, aspect),
+        };
+        let target = args.look_at.unwrap_or(scene.bounds.center());
+        options.orbit_azimuth = options
+            .orbit_azimuth
+            .or(Some(azimuth_degrees(plain.position, target)));
+        options.orbit_elevation = options
+            .orbit_elevation
+            .or(Some(elevation_degrees(plain.position, target)));
+    }
+    // The scene's source is the model as given, so a refusal names it as the CLI does.
+    let cameras = plan_cameras(spec, explicit, scene, aspect, &options)?;
     if let Some(i) = cameras
         .iter()
         .position(|c| matches!(c.projection, Projection::Orthographic { .. }))

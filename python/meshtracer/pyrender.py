@@ -1,0 +1,254 @@
+"""A pyrender-compatible front: render a ``pyrender.Scene`` with meshtracer instead of OpenGL.
+
+    from meshtracer.pyrender import OffscreenRenderer, RenderFlags   # instead of pyrender's
+    renderer = OffscreenRenderer(640, 480)
+    color, depth = renderer.render(scene)        # scene: a pyrender.Scene
+
+The scene is read through pyrender's own objects (nodes and their world poses, meshes and
+primitives with their materials, the main camera, the lights, ``ambient_light`` and
+``bg_color``) and handed to ``meshtracer.Scene.add_mesh`` / ``add_camera`` / ``add_light``;
+the picture comes from the meshtracer library (shadows, reflections, the glTF BRDF), not from
+OpenGL. pyrender itself is imported only to tell its objects apart, when ``render`` is called:
+this module imports without it. docs/python.md lists every flag and what is done with it.
+"""
+
+import enum
+
+import numpy as np
+
+from . import Error, Scene
+
+__all__ = ["OffscreenRenderer", "RenderFlags"]
+
+
+class RenderFlags(enum.IntFlag):
+    """pyrender's ``RenderFlags``, with the same values (pyrender's own flags work as well)."""
+
+    NONE = 0
+    DEPTH_ONLY = 1
+    OFFSCREEN = 2
+    FLIP_WIREFRAME = 4
+    ALL_WIREFRAME = 8
+    ALL_SOLID = 16
+    SHADOWS_DIRECTIONAL = 32
+    SHADOWS_POINT = 64
+    SHADOWS_SPOT = 128
+    SHADOWS_ALL = 32 | 64 | 128
+    VERTEX_NORMALS = 256
+    FACE_NORMALS = 512
+    SKIP_CULL_FACES = 1024
+    RGBA = 2048
+    FLAT = 4096
+    SEG = 8192
+
+
+# Flags refused rather than ignored: they ask for a different picture than the one returned.
+_REFUSED = {
+    RenderFlags.FLIP_WIREFRAME: "wireframes are not drawn",
+    RenderFlags.ALL_WIREFRAME: "wireframes are not drawn",
+    RenderFlags.VERTEX_NORMALS: "normal vectors are not drawn as lines (render(aovs=('normal',)) "
+                                "of meshtracer.Scene gives them as an array)",
+    RenderFlags.FACE_NORMALS: "normal vectors are not drawn as lines",
+}
+
+_TRIANGLES = 4  # GLTF.TRIANGLES, the only primitive mode with faces.
+
+
+def _material(material, flags):
+    """The factors of a pyrender material as ``meshtracer.Scene.add_mesh`` takes them."""
+    out = {}
+    base = getattr(material, "baseColorFactor", None)
+    if base is None:  # SpecularGlossinessMaterial: its diffuse factor as the base colour
+        base = getattr(material, "diffuseFactor", None)
+        out["metallic"] = 0.0
+        gloss = getattr(material, "glossinessFactor", None)
+        out["roughness"] = 1.0 - float(gloss) if gloss is not None else 1.0
+    else:
+        out["metallic"] = float(material.metallicFactor)
+        out["roughness"] = float(material.roughnessFactor)
+    if base is not None:
+        out["base_color"] = [float(np.clip(c, 0.0, 1.0)) for c in np.asarray(base).ravel()[:4]]
+    emissive = getattr(material, "emissiveFactor", None)
+    if emissive is not None:
+        out["emissive"] = [float(c) for c in np.asarray(emissive).ravel()[:3]]
+    mode = (getattr(material, "alphaMode", None) or "OPAQUE").upper()
+    out["alpha_mode"] = mode
+    if mode == "MASK":
+        out["alpha_cutoff"] = float(material.alphaCutoff)
+    out["double_sided"] = bool(material.doubleSided) or bool(flags & RenderFlags.SKIP_CULL_FACES)
+    if flags & RenderFlags.FLAT:
+        out["unlit"] = True
+    return out
+
+
+def _add_primitive(target, primitive, world, flags, name):
+    """Adds one pyrender primitive (and each of its instance poses) to ``target``; returns the
+    instance indices it got."""
+    mode = _TRIANGLES if primitive.mode is None else int(primitive.mode)
+    if mode != _TRIANGLES:
+        return []  # points and lines have no surface to hit
+    positions = np.asarray(primitive.positions, dtype=np.float32)
+    if primitive.indices is None:
+        indices = np.arange(len(positions) // 3 * 3, dtype=np.uint32).reshape(-1, 3)
+    else:
+        indices = np.asarray(primitive.indices).reshape(-1, 3)
+    material = _material(primitive.material, flags)
+    smooth = getattr(primitive.material, "smooth", True)
+    normals = primitive.normals if smooth else None
+    uvs = primitive.texcoord_0
+    colors = primitive.color_0
+    if colors is not None:
+        colors = np.asarray(colors)
+        if colors.dtype.kind in "ui":  # 8-bit colours, as trimesh gives them
+            colors = colors.astype(np.float32) / 255.0
+        colors = colors[:, :4]
+    poses = primitive.poses if primitive.poses is not None else [np.eye(4)]
+    added = []
+    for pose in poses:
+        added.append(target.add_mesh(positions, indices, normals=normals, uvs=uvs,
+                                     colors=colors, material=material,
+                                     pose=np.asarray(world) @ np.asarray(pose), name=name))
+    return added
+
+
+def _camera_options(camera, width, height):
+    """``meshtracer.Scene.add_camera``'s projection arguments for a pyrender camera."""
+    import pyrender
+
+    options = {"znear": float(camera.znear)}
+    zfar = getattr(camera, "zfar", None)
+    if zfar is not None and np.isfinite(zfar):
+        options["zfar"] = float(zfar)
+    if isinstance(camera, pyrender.IntrinsicsCamera):
+        options.update(fx=float(camera.fx), fy=float(camera.fy), cx=float(camera.cx),
+                       cy=float(camera.cy))
+    elif isinstance(camera, pyrender.OrthographicCamera):
+        options.update(xmag=float(camera.xmag), ymag=float(camera.ymag))
+    elif isinstance(camera, pyrender.PerspectiveCamera):
+        options.update(yfov=float(camera.yfov))
+    else:
+        raise Error(f"camera of type {type(camera).__name__}: use PerspectiveCamera, "
+                    "IntrinsicsCamera or OrthographicCamera")
+    return options
+
+
+def _light_options(light):
+    """``meshtracer.Scene.add_light``'s arguments for a pyrender light (pyrender's units are
+    glTF's: lux for directional lights, candela for point and spot lights)."""
+    import pyrender
+
+    common = {"color": [float(c) for c in np.asarray(light.color).ravel()[:3]],
+              "intensity": float(light.intensity)}
+    if isinstance(light, pyrender.DirectionalLight):
+        return "directional", common
+    if isinstance(light, pyrender.SpotLight):
+        return "spot", dict(common, inner_cone_angle=float(light.innerConeAngle),
+                            outer_cone_angle=float(light.outerConeAngle))
+    if isinstance(light, pyrender.PointLight):
+        return "point", common
+    raise Error(f"light of type {type(light).__name__}: use DirectionalLight, PointLight or "
+                "SpotLight")
+
+
+class OffscreenRenderer:
+    """pyrender's ``OffscreenRenderer`` with meshtracer behind it.
+
+    ``spp`` (samples per pixel), ``integrator`` ("direct": punctual lights with shadows and
+    ambient, as pyrender lights a scene; "path": global illumination), ``seed`` and
+    ``tonemap`` are meshtracer's render options; the rest is pyrender's interface.
+    """
+
+    def __init__(self, viewport_width, viewport_height, point_size=1.0, *, spp=16,
+                 integrator="direct", seed=0, tonemap="standard"):
+        self.viewport_width = int(viewport_width)
+        self.viewport_height = int(viewport_height)
+        self.point_size = point_size
+        self.spp = spp
+        self.integrator = integrator
+        self.seed = seed
+        self.tonemap = tonemap
+        # The meshes of the last scene rendered, kept while its meshes and poses stay the same
+        # (so that views of one scene share one BVH), with what identifies them.
+        self._built = None
+        self._built_key = None
+
+    def _scene_for(self, scene, flags):
+        """The meshtracer scene of ``scene``'s meshes, built again only when they changed."""
+        nodes = sorted(scene.mesh_nodes, key=id)
+        key = (int(flags & (RenderFlags.SKIP_CULL_FACES | RenderFlags.FLAT)),
+               tuple((id(n), id(n.mesh), scene.get_pose(n).tobytes()) for n in nodes))
+        if self._built is not None and key == self._built_key:
+            return self._built, self._instances
+        built = None
+        instances = {}
+        for node in nodes:
+            world = scene.get_pose(node)
+            for primitive in node.mesh.primitives:
+                name = node.name or node.mesh.name
+                if built is None:
+                    built = Scene.empty("<pyrender scene>")
+                for index in _add_primitive(built, primitive, world, flags, name):
+                    instances[index] = node
+        if built is None:
+            raise Error("the pyrender scene has no mesh with triangles: nothing to draw")
+        self._built, self._built_key, self._instances = built, key, instances
+        return built, instances
+
+    def render(self, scene, flags=RenderFlags.NONE, seg_node_map=None):
+        """Renders ``scene`` (a ``pyrender.Scene``) from its main camera, as pyrender does.
+
+        Returns ``(color, depth)``: color uint8 H x W x 3 (x 4 with ``RGBA``), the
+        8-bit sRGB picture over ``scene.bg_color``; depth float32 H x W, camera-space z (distance
+        along the view axis) in metres, 0 where nothing was hit. With ``DEPTH_ONLY`` only the
+        depth. With ``SEG`` the colour is each mesh node's colour from ``seg_node_map`` (black
+        for the background and unmapped nodes), as pyrender's.
+        """
+        flags = RenderFlags(int(flags))
+        for flag, why in _REFUSED.items():
+            if flags & flag:
+                raise Error(f"RenderFlags.{flag.name}: {why}")
+        if scene.main_camera_node is None:
+            raise Error("the pyrender scene has no camera (pyrender needs one too)")
+        width, height = self.viewport_width, self.viewport_height
+        built, instances = self._scene_for(scene, flags)
+        camera_node = scene.main_camera_node
+        built.clear_cameras()
+        built.add_camera(scene.get_pose(camera_node),
+                         **_camera_options(camera_node.camera, width, height))
+        built.clear_lights()
+        for node in scene.light_nodes:
+            kind, options = _light_options(node.light)
+            built.add_light(kind, scene.get_pose(node), **options)
+
+        depth_only = bool(flags & RenderFlags.DEPTH_ONLY)
+        seg = bool(flags & RenderFlags.SEG)
+        aovs = ("depth", "segmentation") if seg else ("depth",)
+        out = built.render(width, height, camera=0, spp=1 if depth_only or seg else self.spp,
+                           integrator=self.integrator, seed=self.seed, aovs=aovs,
+                           srgb8=not (depth_only or seg), tonemap=self.tonemap,
+                           ambient=[float(a) for a in np.asarray(scene.ambient_light)[:3]],
+                           default_lights=False)
+        depth = out["depth"]
+        if depth_only:
+            return depth
+        if seg:
+            color = np.zeros((height, width, 3), np.uint8)
+            ids = out["segmentation"]
+            for index, node in instances.items():
+                if seg_node_map is not None and node in seg_node_map:
+                    color[ids == index + 1] = np.asarray(seg_node_map[node], np.uint8)[:3]
+            return color, depth
+        rgba = out["srgb8"].astype(np.float32)
+        alpha = rgba[..., 3:4] / 255.0
+        background = np.asarray(scene.bg_color, np.float32).ravel()[:4] * 255.0
+        rgb = rgba[..., :3] * alpha + background[:3] * (1.0 - alpha)
+        channels = [rgb]
+        if flags & RenderFlags.RGBA:
+            channels.append(rgba[..., 3:4] + background[3] * (1.0 - alpha))
+        color = np.concatenate(channels, axis=-1)
+        return np.clip(np.round(color), 0, 255).astype(np.uint8), depth
+
+    def delete(self):
+        """Frees the scene kept between renders (pyrender frees its GL context here)."""
+        self._built = None
+        self._built_key = None

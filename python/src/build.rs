@@ -1,0 +1,133 @@
+//! Python values to the library's scene parts: NumPy rows to [`MeshArrays`], a material dict to
+//! a [`Material`], a 4x4 pose to a [`Mat4`], and the keyword arguments of cameras and lights.
+//! Everything here only converts and names what it refuses; the checks of the values
+//! themselves are the library's ([`meshtracer::Scene::add_mesh`]).
+
+use crate::Error;
+use glam::{Mat4, Vec3, Vec4};
+use meshtracer::scene::{AlphaMode, LightKind, Material};
+use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+/// The rows of a C-contiguous float32 N x `W` array (the Python side converts and checks the
+/// shape first), as glam vectors.
+pub fn rows<'a, T: bytemuck::Pod, const W: usize>(
+    name: &str,
+    array: &'a PyReadonlyArray2<'_, f32>,
+) -> PyResult<&'a [T]> {
+    if array.shape()[1] != W {
+        return Err(Error::new_err(format!(
+            "{name}: shape {:?}, expected (N, {W})",
+            array.shape()
+        )));
+    }
+    let flat = array
+        .as_slice()
+        .map_err(|_| Error::new_err(format!("{name}: not a contiguous array")))?;
+    Ok(bytemuck::cast_slice(flat))
+}
+
+/// The triangles of a C-contiguous uint32 M x 3 array.
+pub fn triangles<'a>(array: &'a PyReadonlyArray2<'_, u32>) -> PyResult<&'a [[u32; 3]]> {
+    if array.shape()[1] != 3 {
+        return Err(Error::new_err(format!(
+            "indices: shape {:?}, expected (M, 3)",
+            array.shape()
+        )));
+    }
+    let flat = array
+        .as_slice()
+        .map_err(|_| Error::new_err("indices: not a contiguous array"))?;
+    Ok(bytemuck::cast_slice(flat))
+}
+
+/// A pose given as 16 numbers of a 4x4 matrix in rows (NumPy's `pose.ravel()`, the
+/// convention of pyrender and trimesh), as glam's column-major matrix.
+pub fn pose(rows: Option<[f32; 16]>) -> Mat4 {
+    match rows {
+        Some(m) => Mat4::from_cols_array(&m).transpose(),
+        None => Mat4::IDENTITY,
+    }
+}
+
+/// The material of a mesh: the glTF metallic-roughness factors in `dict` (every key
+/// optional, the glTF default where missing: white, metallic 1, roughness 1), refusing keys it
+/// does not know. The library checks the ranges.
+pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
+    let mut m = Material::default();
+    let Some(dict) = dict else {
+        return Ok(m);
+    };
+    const KEYS: &str = "base_color, metallic, roughness, emissive, emissive_strength, \
+        alpha_mode, alpha_cutoff, double_sided, unlit, name";
+    for (key, value) in dict.iter() {
+        let key: String = key.extract()?;
+        let bad = |e: PyErr| Error::new_err(format!("material: {key}: {e}"));
+        match key.as_str() {
+            "base_color" => {
+                let c: Vec<f32> = value.extract().map_err(bad)?;
+                m.base_color = match c.as_slice() {
+                    [r, g, b] => Vec4::new(*r, *g, *b, 1.0),
+                    [r, g, b, a] => Vec4::new(*r, *g, *b, *a),
+                    _ => {
+                        return Err(Error::new_err(format!(
+                            "material: base_color: {} numbers, expected 3 (RGB) or 4 (RGBA)",
+                            c.len()
+                        )))
+                    }
+                };
+            }
+            "metallic" => m.metallic = value.extract().map_err(bad)?,
+            "roughness" => m.roughness = value.extract().map_err(bad)?,
+            "emissive" => m.emissive = Vec3::from(value.extract::<[f32; 3]>().map_err(bad)?),
+            "emissive_strength" => m.emissive_strength = value.extract().map_err(bad)?,
+            "alpha_cutoff" => m.alpha_cutoff = value.extract().map_err(bad)?,
+            "double_sided" => m.double_sided = value.extract().map_err(bad)?,
+            "unlit" => m.unlit = value.extract().map_err(bad)?,
+            "name" => m.name = value.extract().map_err(bad)?,
+            "alpha_mode" => {
+                let mode: String = value.extract().map_err(bad)?;
+                m.alpha_mode = match mode.to_ascii_uppercase().as_str() {
+                    "OPAQUE" => AlphaMode::Opaque,
+                    "MASK" => AlphaMode::Mask,
+                    "BLEND" => AlphaMode::Blend,
+                    _ => {
+                        return Err(Error::new_err(format!(
+                            "material: alpha_mode '{mode}': use OPAQUE, MASK or BLEND"
+                        )))
+                    }
+                };
+            }
+            _ => {
+                return Err(Error::new_err(format!(
+                    "material: unknown key '{key}': use {KEYS}"
+                )))
+            }
+        }
+    }
+    Ok(m)
+}
+
+/// A light kind from its name and cone angles (radians), as `KHR_lights_punctual` has them.
+pub fn light_kind(kind: &str, inner: f32, outer: f32) -> PyResult<LightKind> {
+    match kind {
+        "directional" => Ok(LightKind::Directional),
+        "point" => Ok(LightKind::Point),
+        "spot" => {
+            let right = std::f32::consts::FRAC_PI_2;
+            if !(0.0 <= inner && inner < outer && outer <= right) {
+                return Err(Error::new_err(format!(
+                    "spot light cone: inner {inner}, outer {outer}: need 0 <= inner < outer <= pi/2"
+                )));
+            }
+            Ok(LightKind::Spot {
+                inner_cone_angle: inner,
+                outer_cone_angle: outer,
+            })
+        }
+        other => Err(Error::new_err(format!(
+            "light kind '{other}': use directional, point or spot"
+        ))),
+    }
+}

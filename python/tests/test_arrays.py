@@ -1,0 +1,213 @@
+"""Scenes built from Python (from_arrays, add_mesh, cameras, lights), many views after one
+preparation, progress and cancelling.
+
+The quad tests know their answer in closed form: a unit quad two metres in front of a camera
+whose view rectangle is one metre tall at one metre covers exactly the middle half of the
+image in each direction, at depth 2.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+import meshtracer
+from conftest import ASSETS
+
+CORNELL = ASSETS / "cornell-box.gltf"
+
+QUAD = np.array([[-0.5, -0.5, 0.0], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0], [-0.5, 0.5, 0.0]])
+QUAD_TRIANGLES = np.array([[0, 1, 2], [0, 2, 3]])
+MATTE = {"base_color": [0.8, 0.8, 0.8], "metallic": 0.0, "roughness": 1.0}
+# Explicit settings: the defaults of render may change, these tests' answers do not.
+SETTINGS = dict(spp=4, integrator="direct", seed=0, tonemap="standard")
+
+
+def translation(x, y, z):
+    pose = np.eye(4)
+    pose[:3, 3] = [x, y, z]
+    return pose
+
+
+def quad_scene():
+    scene = meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, material=MATTE)
+    scene.add_light("directional", np.eye(4), intensity=3.0)
+    return scene
+
+
+def covered(mask):
+    """The rows and columns `mask` reaches, and the number of its pixels."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    cols = np.flatnonzero(mask.any(axis=0))
+    return (rows[0], rows[-1] + 1, cols[0], cols[-1] + 1), int((mask > 0).sum())
+
+
+@pytest.mark.parametrize("projection, rect", [
+    # yfov with tan(yfov/2) = 1/2: the view rectangle is 1 m tall at 1 m.
+    ({"yfov": 2 * math.atan(0.5)}, (16, 48, 16, 48)),
+    # Half extents of 1 m: the quad's 1 m is half the image.
+    ({"xmag": 1.0, "ymag": 1.0}, (16, 48, 16, 48)),
+    # fx = fy = 64 px: 1 m at 2 m is 32 px; the principal point moves the quad with it.
+    ({"fx": 64.0, "fy": 64.0, "cx": 24.0, "cy": 40.0}, (24, 56, 8, 40)),
+])
+def test_a_unit_quad_fills_its_analytic_pixels(projection, rect):
+    scene = quad_scene()
+    assert scene.add_camera(translation(0, 0, 2), **projection) == 0
+    out = scene.render(64, 64, aovs=("depth", "mask", "segmentation"), **SETTINGS)
+    top, bottom, left, right = rect
+    expected = np.zeros((64, 64), bool)
+    expected[top:bottom, left:right] = True
+    full = out["mask"] == 1.0
+    assert covered(full) == (rect, 32 * 32)
+    np.testing.assert_array_equal(full, expected)
+    # A sample that lands exactly on the quad's edge (the edges lie on pixel boundaries) may
+    # count for the pixel beside it: never more than one of its samples.
+    assert out["mask"][~expected].max() <= 1 / SETTINGS["spp"]
+    np.testing.assert_allclose(out["depth"][expected], 2.0, rtol=1e-6)
+    assert (out["depth"][~expected] == 0).all()
+    np.testing.assert_array_equal(out["segmentation"], expected.astype(np.uint32))
+    lit = out["color"][expected][:, :3]
+    assert (lit > 0.1).all(), "lit head-on by its directional light"
+
+
+def test_meshes_added_later_get_their_own_pose_material_and_id():
+    scene = quad_scene()
+    red = {"base_color": [1, 0, 0, 1], "metallic": 0.0, "roughness": 1.0}
+    assert scene.add_mesh(QUAD, QUAD_TRIANGLES, material=red, pose=translation(0.5, 0, 0.5),
+                          name="front") == 1
+    scene.add_camera(translation(0, 0, 2), yfov=2 * math.atan(0.5))
+    out = scene.render(64, 64, aovs=("depth", "segmentation"), **SETTINGS)
+    seg = out["segmentation"]
+    # The second quad, half a metre nearer (depth 1.5) and half a metre to the right: its
+    # left edge (x = 0) is on the view axis, the image centre.
+    assert set(np.unique(seg).tolist()) == {0, 1, 2}
+    front = seg == 2
+    np.testing.assert_allclose(out["depth"][front], 1.5, rtol=1e-6)
+    color = out["color"]
+    # Red: green only from the dielectric's white specular reflection (F0 = 0.04).
+    assert (color[front][:, 0] > 0.1).all() and (color[front][:, 0] > 5 * color[front][:, 1]).all()
+    _, cols = np.nonzero(front)
+    assert cols.min() == 32
+
+
+def test_the_scene_says_what_it_holds():
+    scene = quad_scene()
+    info = scene.info()
+    assert info["format"] == "memory"
+    assert scene.warnings == []
+    assert "2 triangles" in repr(scene)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda: meshtracer.Scene.from_arrays(QUAD[:, :2], QUAD_TRIANGLES),
+     "positions: shape (4, 2), expected (N, 3)"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, [[0, 1, 2], [0, 2, 7]]),
+     "<arrays>: mesh 0: indices: triangle 1 uses vertex 7, but there are 4 vertices (0 to 3)"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, [[0, 1, 2], [0, -2, 3]]),
+     "indices: triangle 1 has a negative index ([0, -2, 3])"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES.ravel()),
+     "indices: shape (6,), expected (M, 3): three vertices a triangle"),
+    (lambda: meshtracer.Scene.from_arrays(np.where(QUAD == 0.5, np.nan, QUAD), QUAD_TRIANGLES),
+     "<arrays>: mesh 0: positions: row 1 is not finite (NaN or infinite)"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, normals=np.ones((3, 3))),
+     "<arrays>: mesh 0: normals: 3 rows, but there are 4 positions (one row a vertex)"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, material={"roughness": 2}),
+     "<arrays>: mesh 0: material: roughness 2: must be from 0 to 1"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, material={"shiny": 1}),
+     "material: unknown key 'shiny'"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, pose=np.zeros((4, 4))),
+     "<arrays>: mesh 0: pose: singular (determinant 0): it flattens the mesh"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, [[0, 0, 1]]),
+     "<arrays>: mesh 0: indices: all 1 triangles have zero area or repeat a vertex: nothing to draw"),
+    (lambda: quad_scene().add_camera(np.eye(4), yfov=1.0, fx=10.0, fy=10.0, cx=1.0, cy=1.0),
+     "a camera is given by yfov"),
+    (lambda: quad_scene().add_light("area", np.eye(4)),
+     "light kind 'area': use directional, point or spot"),
+    (lambda: quad_scene().add_light("point", np.eye(4), intensity=float("nan")),
+     "light: intensity NaN must be a finite number of at least 0"),
+    (lambda: quad_scene().render(8, 8, camera=3), "--camera 3: the file has 0 camera(s)"),
+])
+def test_bad_arrays_and_parts_raise_errors_naming_them(call, message):
+    with pytest.raises(meshtracer.Error) as caught:
+        call()
+    assert message in str(caught.value)
+
+
+# Many views ---------------------------------------------------------------------------------
+
+def test_render_views_equals_one_render_per_view():
+    """Views rendered together (one preparation) are the views rendered one by one."""
+    scene = meshtracer.load(CORNELL)
+    views = [{"look_from": [0, 1, 3.5], "look_at": [0, 1, 0]},
+             {"look_from": [1.5, 1.2, 3], "look_at": [0, 1, 0], "yfov_degrees": 50}]
+    together = scene.render_views(views, 40, 30, aovs=("depth", "mask"), **SETTINGS)
+    assert len(together) == 2
+    for view, out in zip(views, together):
+        single = meshtracer.load(CORNELL)
+        pose = out["camera_to_world"]
+        np.testing.assert_allclose(pose[:3, 3], view["look_from"], atol=1e-6)
+        single.clear_cameras()
+        single.add_camera(pose, yfov=math.radians(view.get("yfov_degrees", 45)), znear=0.05)
+        alone = single.render(40, 30, aovs=("depth", "mask"), **SETTINGS)
+        assert out["intrinsics"][2:] == [20.0, 15.0]
+        np.testing.assert_array_equal(out["mask"], alone["mask"])
+        np.testing.assert_allclose(out["depth"], alone["depth"], rtol=1e-5)
+
+
+def test_render_views_orbit_gives_n_views_around_the_model(cli, tmp_path):
+    scene = meshtracer.load(CORNELL)
+    out = scene.render_views("orbit:3", 48, 36, srgb8=True, **SETTINGS)
+    cli("render", CORNELL, "--views", "orbit:3", "-o", tmp_path, "--width", 48, "--height", 36,
+        "--spp", 4, "--integrator", "direct", "--seed", 0, "--tonemap", "standard", "--quiet")
+    from PIL import Image
+    pngs = sorted(tmp_path.glob("*.png"))
+    assert len(pngs) == 3, pngs
+    for view, png in zip(out, pngs):
+        with Image.open(png) as image:
+            np.testing.assert_array_equal(view["srgb8"], np.asarray(image.convert("RGBA")))
+
+
+def test_bad_view_specs_raise_the_clis_message():
+    scene = meshtracer.load(CORNELL)
+    with pytest.raises(meshtracer.Error, match="--views orbit:0: the number of views must be at least 1"):
+        scene.render_views("orbit:0", 8, 8)
+    with pytest.raises(meshtracer.Error, match="--views cameras: the file has no cameras"):
+        quad_scene().render_views("cameras", 8, 8)
+
+
+# Progress and cancelling --------------------------------------------------------------------
+
+def test_progress_counts_rise_to_the_total():
+    scene = meshtracer.load(CORNELL)
+    calls = []
+    scene.render(256, 192, progress=lambda done, total: calls.append((done, total)), **SETTINGS)
+    assert calls, "the callable was called"
+    done = [d for d, _ in calls]
+    totals = {t for _, t in calls}
+    assert done == sorted(set(done)), "strictly increasing"
+    assert len(totals) == 1 and done[-1] == totals.pop()
+
+
+def test_progress_of_many_views_counts_over_all_of_them():
+    calls = []
+    meshtracer.load(CORNELL).render_views(
+        "orbit:3", 64, 48, progress=lambda d, t: calls.append((d, t)), **SETTINGS)
+    total = calls[-1][1]
+    assert calls[-1][0] == total and total % 3 == 0
+
+
+@pytest.mark.parametrize("exception", [ValueError, KeyboardInterrupt])
+def test_an_exception_in_the_callback_cancels_and_propagates(exception):
+    scene = meshtracer.load(CORNELL)
+    calls = []
+
+    def stop(done, total):
+        calls.append(done)
+        raise exception("stop here")
+
+    with pytest.raises(exception, match="stop here"):
+        scene.render(320, 240, spp=64, integrator="direct", progress=stop)
+    assert len(calls) == 1, "no call after the exception"
+    # The scene is intact: it renders again.
+    again = scene.render(16, 12, **SETTINGS)
+    assert again["color"].shape == (12, 16, 4)

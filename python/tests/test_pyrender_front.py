@@ -1,0 +1,121 @@
+"""The pyrender front against pyrender itself (OSMesa, no GPU): one scene built with pyrender's
+own classes, rendered by both; depth must agree within 0.5% where both hit, and what each
+covers must overlap with an IoU of at least 0.99.
+
+It needs pyrender (installed from PyPI by scripts/reference/install_pyrender.sh, whose venv
+scripts/test-python.sh installs the meshtracer wheel into and runs this file with); without it
+the test skips saying why.
+"""
+
+import os
+
+import numpy as np
+import pytest
+
+os.environ.setdefault("PYOPENGL_PLATFORM", "osmesa")
+try:
+    import pyrender
+    import trimesh
+except Exception as e:  # ImportError, or OpenGL failing to find OSMesa
+    pytest.skip(f"SKIPPED: pyrender cannot be imported here ({type(e).__name__}: {e}); "
+                "scripts/test-python.sh runs this file in MESHTRACER_PYRENDER_PYTHON's "
+                "environment", allow_module_level=True)
+
+import meshtracer
+import meshtracer.pyrender as front
+
+WIDTH, HEIGHT = 320, 240
+
+
+def look_at(eye, target, up=(0.0, 1.0, 0.0)):
+    """The world-from-camera pose of a camera at `eye` looking at `target` (local -Z)."""
+    eye, target, up = (np.asarray(v, float) for v in (eye, target, up))
+    back = eye - target
+    back /= np.linalg.norm(back)
+    right = np.cross(up, back)
+    right /= np.linalg.norm(right)
+    pose = np.eye(4)
+    pose[:3, 0], pose[:3, 1], pose[:3, 2], pose[:3, 3] = right, np.cross(back, right), back, eye
+    return pose
+
+
+def orthographic_z(returned, znear, zfar):
+    """pyrender 0.1.45 linearises every depth buffer with the perspective formula
+    d = 2·n·f / (f + n - z_ndc·(f - n)), also for an orthographic camera, whose buffer is
+    linear in z: undone here, z = f + n - n·f/d is the camera-space depth it stands for."""
+    hit = returned > 0
+    out = np.zeros_like(returned)
+    out[hit] = zfar + znear - znear * zfar / returned[hit].astype(np.float64)
+    return out
+
+
+def build_scene(camera):
+    scene = pyrender.Scene(bg_color=[0.0, 0.0, 0.0, 0.0], ambient_light=[0.1, 0.1, 0.1])
+    sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.5)
+    box = trimesh.creation.box(extents=[0.7, 0.5, 0.9])
+    red = pyrender.MetallicRoughnessMaterial(baseColorFactor=[0.8, 0.2, 0.2, 1.0],
+                                             metallicFactor=0.0, roughnessFactor=0.7)
+    scene.add(pyrender.Mesh.from_trimesh(sphere, material=red),
+              pose=np.array([[1, 0, 0, -0.55], [0, 1, 0, 0.1], [0, 0, 1, 0], [0, 0, 0, 1.0]]))
+    turned = trimesh.transformations.rotation_matrix(0.6, [0, 1, 0])
+    turned[:3, 3] = [0.5, -0.1, -0.2]
+    scene.add(pyrender.Mesh.from_trimesh(box, smooth=False), pose=turned)
+    scene.add(camera, pose=look_at([0.4, 0.9, 2.6], [0.0, 0.0, 0.0]))
+    scene.add(pyrender.DirectionalLight(color=[1.0, 1.0, 1.0], intensity=3.0),
+              pose=look_at([1.0, 2.0, 1.5], [0.0, 0.0, 0.0]))
+    return scene
+
+
+@pytest.mark.parametrize("camera", [
+    pyrender.PerspectiveCamera(yfov=np.pi / 3.0),
+    pyrender.PerspectiveCamera(yfov=np.pi / 4.0, znear=0.1, zfar=20.0),
+    pyrender.IntrinsicsCamera(fx=300.0, fy=300.0, cx=150.0, cy=130.0),
+    pyrender.OrthographicCamera(xmag=1.2 * WIDTH / HEIGHT, ymag=1.2),
+], ids=["perspective", "perspective-zfar", "intrinsics", "orthographic"])
+def test_depth_and_coverage_match_pyrender(camera):
+    scene = build_scene(camera)
+    reference = pyrender.OffscreenRenderer(WIDTH, HEIGHT)
+    try:
+        ref_color, ref_depth = reference.render(scene, flags=pyrender.RenderFlags.RGBA)
+    finally:
+        reference.delete()
+    color, depth = front.OffscreenRenderer(WIDTH, HEIGHT, spp=4).render(
+        scene, flags=front.RenderFlags.RGBA)
+    if isinstance(camera, pyrender.OrthographicCamera):
+        ref_depth = orthographic_z(ref_depth, camera.znear, camera.zfar)
+
+    assert color.dtype == np.uint8 and color.shape == (HEIGHT, WIDTH, 4)
+    assert depth.dtype == np.float32 and depth.shape == (HEIGHT, WIDTH)
+    hit, ref_hit = depth > 0, ref_depth > 0
+    iou = (hit & ref_hit).sum() / (hit | ref_hit).sum()
+    print(f"{camera}: IoU {iou:.4f}, {ref_hit.sum()} pixels covered by pyrender")
+    assert ref_hit.sum() > 0.1 * WIDTH * HEIGHT, "the objects are in view"
+    assert iou >= 0.99, iou
+    both = hit & ref_hit
+    relative = np.abs(depth[both] - ref_depth[both]) / ref_depth[both]
+    print(f"relative depth difference: max {relative.max():.2e}, "
+          f"99.9th percentile {np.quantile(relative, 0.999):.2e}")
+    assert relative.max() <= 0.005, relative.max()
+    # The colour is a picture of the same scene: where pyrender sees the red sphere lit, so
+    # does the front (red above green), and the background is bg_color's transparent black.
+    # (Edge pixels whose centre misses may still be partly covered: anti-aliased colour.)
+    assert (color[~hit] == 0).all(axis=-1).mean() > 0.97
+    lit = both & (ref_color[..., 0] > ref_color[..., 1] + 40)
+    assert lit.sum() > 1000
+    assert (color[lit][:, 0] > color[lit][:, 1]).mean() > 0.99
+
+
+def test_depth_only_and_flags():
+    scene = build_scene(pyrender.PerspectiveCamera(yfov=np.pi / 3.0))
+    renderer = front.OffscreenRenderer(64, 48)
+    depth = renderer.render(scene, flags=front.RenderFlags.DEPTH_ONLY)
+    assert depth.shape == (48, 64) and depth.dtype == np.float32 and (depth > 0).any()
+    color, _ = renderer.render(scene, flags=pyrender.RenderFlags.SHADOWS_DIRECTIONAL)
+    assert color.shape == (48, 64, 3)
+    with pytest.raises(meshtracer.Error, match="ALL_WIREFRAME: wireframes are not drawn"):
+        renderer.render(scene, flags=front.RenderFlags.ALL_WIREFRAME)
+    nodes = list(scene.mesh_nodes)
+    seg, _ = renderer.render(scene, flags=front.RenderFlags.SEG,
+                             seg_node_map={nodes[0]: (255, 0, 0), nodes[1]: (0, 0, 255)})
+    colours = {tuple(c) for c in seg.reshape(-1, 3)}
+    assert colours == {(0, 0, 0), (255, 0, 0), (0, 0, 255)}
