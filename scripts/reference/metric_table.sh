@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Renders each model with meshtracer, pyrender and Blender (direct light) from the same view and
-# prints the metric table (meshtracer vs each reference).
+# prints the metric table (meshtracer vs each reference), meshtracer with the direct integrator
+# and the standard encoding as both references light and encode.
 #   scripts/reference/metric_table.sh MESHTRACER PYTHON_WITH_PYRENDER SAMPLES_DIR [WIDTH HEIGHT] [-- extra meshtracer render options]
 set -euo pipefail
 mt="$1"; py="$2"; samples="$3"; width="${4:-320}"; height="${5:-240}"
@@ -23,6 +24,7 @@ echo "|---|---|---:|---:|---:|---:|"
 for m in "${models[@]}"; do
   name="$(basename "${m%.*}")"
   "$mt" render "$samples/$m" -o "$work/$name-mt.png" --width "$width" --height "$height" --spp 16 --quiet \
+    --integrator direct --tonemap standard \
     --view-out "$work/$name.json" "$@"
   PYOPENGL_PLATFORM=osmesa "$py" "$here/pyrender_render.py" "$work/$name.json" "$samples/$m" "$work/$name-pr.png" >/dev/null 2>&1 || true
   if command -v blender >/dev/null; then

@@ -1472,3 +1472,45 @@ fn adaptive_sampling_stops_converged_pixels_early() {
         "edge coverage off by {alpha_error} on average"
     );
 }
+
+/// The default render (no option but the model, the size and the outputs) is the path tracer
+/// lit by the built-in studio (shapes.obj has no lights), sampled adaptively between 16 and 32
+/// samples a pixel to --noise 0.1, and encoded with Khronos PBR Neutral: the view file and the
+/// statistics say so, and the image is byte for byte the render that asks for exactly that.
+#[test]
+fn the_default_render_is_the_adaptive_path_tracer_through_pbr_neutral() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = crate::common::root().join("assets/shapes.obj");
+    let (plain, view, stats) = (
+        dir.path().join("default.png"),
+        dir.path().join("default.view.json"),
+        dir.path().join("default.stats.json"),
+    );
+    let size = ["--width", "48", "--height", "36", "-q"];
+    let mut args = vec!["render", s(&model), "-o", s(&plain), "--view-out", s(&view)];
+    args.extend(["--stats", s(&stats)]);
+    args.extend(size);
+    run(&args, true);
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_slice(&std::fs::read(p).unwrap()).unwrap()
+    };
+    let (view, stats) = (read(&view), read(&stats));
+    assert_eq!(view["integrator"], "path", "{view}");
+    assert_eq!(view["display"]["view_transform"], "khronos-pbr-neutral");
+    assert!(view["environment"].is_object(), "lit by the studio: {view}");
+    assert_eq!(stats["spp"], 32, "the cap");
+    let pixels = 48.0 * 36.0;
+    let mean = stats["samples"].as_f64().unwrap() / pixels;
+    assert!((16.0..32.0).contains(&mean), "mean spp {mean}");
+
+    let explicit = dir.path().join("explicit.png");
+    let mut args = vec!["render", s(&model), "-o", s(&explicit)];
+    args.extend(["--integrator", "path", "--spp", "32", "--noise", "0.1"]);
+    args.extend(["--tonemap", "khronos-pbr-neutral"]);
+    args.extend(size);
+    run(&args, true);
+    assert!(
+        std::fs::read(&plain).unwrap() == std::fs::read(&explicit).unwrap(),
+        "the default render differs from the settings it documents"
+    );
+}
