@@ -25,7 +25,8 @@ importer's numbers.
 Importer corrections, so that Cycles renders the file as glTF and MTL define it (Blender 5.2;
 each is skipped where the Blender at hand does not need it):
 - a primitive without a material gets glTF's default material (white, metallic 1, roughness 1),
-  not Cycles' grey;
+  not Cycles' grey; an OBJ face without one gets meshtracer's grey (0.8, metallic 0,
+  roughness 1);
 - `KHR_materials_iridescence`: the importer reads the maximum thickness from a key the
   extension does not define (`iridescenceThickness`), so the film is always 400 nm thick; the
   script sets the file's `iridescenceThicknessMaximum` (without a thickness texture), and no
@@ -140,27 +141,29 @@ def fix_iridescence(model):
             socket.default_value = ext.get("iridescenceThicknessMaximum", 400.0)
 
 
-def default_material():
-    """glTF's default material: white, metallic 1, roughness 1."""
-    material = bpy.data.materials.new("glTF default")
+def default_material(obj_file):
+    """glTF's default material (white, metallic 1, roughness 1), or for an OBJ face without a
+    material meshtracer's grey (0.8, metallic 0, roughness 1)."""
+    material = bpy.data.materials.new("default")
     if hasattr(material, "use_nodes"):
         material.use_nodes = True
     node = principled(material)
-    node.inputs["Base Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    node.inputs["Metallic"].default_value = 1.0
+    grey = 0.8 if obj_file else 1.0
+    node.inputs["Base Color"].default_value = (grey, grey, grey, 1.0)
+    node.inputs["Metallic"].default_value = 0.0 if obj_file else 1.0
     node.inputs["Roughness"].default_value = 1.0
     return material
 
 
-def fix_missing_materials():
-    """Gives meshes without a material glTF's default one instead of Cycles' grey."""
+def fix_missing_materials(obj_file):
+    """Gives meshes without a material the default one meshtracer uses, not Cycles' grey."""
     material = None
     for obj in bpy.data.objects:
         if obj.type != "MESH":
             continue
         slots = obj.data.materials
         if len(slots) == 0 or any(m is None for m in slots):
-            material = material or default_material()
+            material = material or default_material(obj_file)
             if len(slots) == 0:
                 slots.append(material)
             else:
@@ -219,7 +222,7 @@ def import_model(model):
             options["export_import_convert_lighting_mode"] = "COMPAT"
         bpy.ops.import_scene.gltf(filepath=model, **options)
         fix_iridescence(model)
-    fix_missing_materials()
+    fix_missing_materials(model.lower().endswith(".obj"))
     for obj in list(bpy.data.objects):
         if obj.type in {"CAMERA", "LIGHT"}:
             bpy.data.objects.remove(obj, do_unlink=True)

@@ -7,6 +7,7 @@
 #
 # BPY_PYTHON is a Python with `bpy` (Blender 5.2 as a module), numpy and Pillow
 # (scripts/reference/README.md). Renders run one at a time; Cycles' denoiser is off.
+# MODELS="Duck/glTF/Duck.gltf ..." renders only those (paths under SAMPLES_DIR).
 set -euo pipefail
 mt="$1"; py="$2"; samples="$3"; env="$4"
 width="${5:-320}"; height="${6:-240}"; spp="${7:-256}"
@@ -32,6 +33,7 @@ models=(
   TextureCoordinateTest/glTF/TextureCoordinateTest.gltf
   VikingRoom-OBJ/viking_room.obj
 )
+[ -n "${MODELS:-}" ] && read -r -a models <<<"$MODELS"
 echo "| model | covered FLIP | coverage IoU | mean luminance ours/Cycles |"
 echo "|---|---:|---:|---:|"
 for m in "${models[@]}"; do
