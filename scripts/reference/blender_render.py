@@ -1,7 +1,9 @@
 """Render MODEL with Blender Cycles (CPU) from a meshtracer view file.
 
-    blender -b --factory-startup -P blender_render.py -- VIEW.json MODEL OUT.png
-            [--mode direct|gi] [--samples 32] [--units compat|spec]
+    python blender_render.py -- VIEW.json MODEL OUT.png [options]      (PyPI bpy 5.x)
+    blender -b --factory-startup -P blender_render.py -- VIEW.json MODEL OUT.png [options]
+
+Options: [--mode direct|gi] [--samples 32] [--units compat|spec] [--threads N]
 
 The camera, lights and ambient come from VIEW.json (`meshtracer render --view-out`); the
 model's own cameras and lights are removed. `--mode direct` (default) renders direct light only
@@ -19,10 +21,25 @@ lights and W/m² = lux/683 for suns, which makes 1 lux read 1/683 as bright as i
 pyrender. `--units compat` (default) uses W = 4π·I and sun strength = E instead, so a white
 Lambertian surface under 1 lux reads about 1/π in all three renderers; `--units spec` gives the
 importer's numbers.
+
+Importer corrections, so that Cycles renders the file as glTF and MTL define it (Blender 5.2;
+each is skipped where the Blender at hand does not need it):
+- a primitive without a material gets glTF's default material (white, metallic 1, roughness 1),
+  not Cycles' grey; an OBJ face without one gets meshtracer's grey (0.8, metallic 0,
+  roughness 1);
+- `KHR_materials_iridescence`: the importer reads the maximum thickness from a key the
+  extension does not define (`iridescenceThickness`), so the film is always 400 nm thick; the
+  script sets the file's `iridescenceThicknessMaximum` (without a thickness texture), and no
+  film where `iridescenceFactor` is 0 (Cycles has no film factor: 0 < factor < 1 renders as 1);
+- OBJ: the importer turns an MTL `Tf` into transmission on every material, so `Tf 1 1 1` on an
+  opaque `illum 2` material becomes clear glass: transmission is reset unless `illum` is 4, 6,
+  7 or 9.
 """
 import argparse
 import json
 import math
+import os
+import struct
 import sys
 
 import bpy
@@ -65,18 +82,150 @@ VIEW_TRANSFORMS = {
 def set_display(scene, display):
     """Sets the view transform and exposure recorded in the view file."""
     name = display.get("view_transform", "standard")
-    available = {
-        item.identifier
-        for item in scene.view_settings.bl_rna.properties["view_transform"].enum_items
-    }
-    choices = [c for c in VIEW_TRANSFORMS.get(name, []) if c in available]
-    if not choices:
-        sys.exit(f"view transform {name!r}: this Blender has none of {VIEW_TRANSFORMS.get(name)}"
-                 f" (it has {sorted(available)})")
-    scene.view_settings.view_transform = choices[0]
+    # The list of view transforms is dynamic (the colour management configuration's), so try
+    # each name rather than reading the enum's static items.
+    for choice in VIEW_TRANSFORMS.get(name, []):
+        try:
+            scene.view_settings.view_transform = choice
+            break
+        except TypeError:
+            continue
+    else:
+        sys.exit(f"view transform {name!r}: this Blender has none of {VIEW_TRANSFORMS.get(name)}")
     scene.view_settings.look = "None"
     scene.view_settings.exposure = display.get("exposure", 0.0)
     scene.view_settings.gamma = 1.0
+
+
+def gltf_json(path):
+    """The JSON of a .gltf or .glb file (None when unreadable)."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+        if data[:4] == b"glTF":
+            length, kind = struct.unpack_from("<II", data, 12)
+            if kind != 0x4E4F534A:
+                return None
+            return json.loads(data[20:20 + length])
+        return json.loads(data)
+    except (OSError, ValueError, struct.error):
+        return None
+
+
+def principled(material):
+    if material is None or material.node_tree is None:
+        return None
+    for node in material.node_tree.nodes:
+        if node.type == "BSDF_PRINCIPLED":
+            return node
+    return None
+
+
+def fix_iridescence(model):
+    """Sets each film's maximum thickness from the file, and no film where the factor is 0."""
+    doc = gltf_json(model)
+    if not doc:
+        return
+    for m in doc.get("materials", []):
+        ext = m.get("extensions", {}).get("KHR_materials_iridescence")
+        material = bpy.data.materials.get(m.get("name", ""))
+        node = principled(material)
+        if ext is None or node is None or "Thin Film Thickness" not in node.inputs:
+            continue
+        socket = node.inputs["Thin Film Thickness"]
+        if ext.get("iridescenceFactor", 0.0) <= 0.0 and "iridescenceTexture" not in ext:
+            if socket.is_linked:
+                material.node_tree.links.remove(socket.links[0])
+            socket.default_value = 0.0
+        elif "iridescenceThicknessTexture" not in ext and not socket.is_linked:
+            socket.default_value = ext.get("iridescenceThicknessMaximum", 400.0)
+
+
+def default_material(obj_file):
+    """glTF's default material (white, metallic 1, roughness 1), or for an OBJ face without a
+    material meshtracer's grey (0.8, metallic 0, roughness 1)."""
+    material = bpy.data.materials.new("default")
+    if hasattr(material, "use_nodes"):
+        material.use_nodes = True
+    node = principled(material)
+    grey = 0.8 if obj_file else 1.0
+    node.inputs["Base Color"].default_value = (grey, grey, grey, 1.0)
+    node.inputs["Metallic"].default_value = 0.0 if obj_file else 1.0
+    node.inputs["Roughness"].default_value = 1.0
+    return material
+
+
+def fix_missing_materials(obj_file):
+    """Gives meshes without a material the default one meshtracer uses, not Cycles' grey."""
+    material = None
+    for obj in bpy.data.objects:
+        if obj.type != "MESH":
+            continue
+        slots = obj.data.materials
+        if len(slots) == 0 or any(m is None for m in slots):
+            material = material or default_material(obj_file)
+            if len(slots) == 0:
+                slots.append(material)
+            else:
+                for i, m in enumerate(slots):
+                    if m is None:
+                        slots[i] = material
+
+
+def mtl_illum(model):
+    """MTL material name -> illum of the libraries the OBJ names."""
+    illum, libraries = {}, []
+    try:
+        with open(model, errors="replace") as f:
+            for line in f:
+                if line.startswith("mtllib"):
+                    libraries += line.split()[1:]
+    except OSError:
+        return illum
+    for library in libraries:
+        name = None
+        try:
+            with open(os.path.join(os.path.dirname(model), library), errors="replace") as f:
+                for line in f:
+                    words = line.split()
+                    if len(words) >= 2 and words[0] == "newmtl":
+                        name = line.split(None, 1)[1].strip()
+                    elif len(words) >= 2 and words[0] == "illum" and name is not None:
+                        illum[name] = int(float(words[1]))
+        except (OSError, ValueError):
+            continue
+    return illum
+
+
+def fix_obj_transmission(model):
+    """Keeps transmission only on MTL materials whose illum model refracts (4, 6, 7, 9)."""
+    illum = mtl_illum(model)
+    for material in bpy.data.materials:
+        node = principled(material)
+        if node is None or "Transmission Weight" not in node.inputs:
+            continue
+        if illum.get(material.name, 2) not in (4, 6, 7, 9):
+            node.inputs["Transmission Weight"].default_value = 0.0
+
+
+def import_model(model):
+    if model.lower().endswith(".obj"):
+        if hasattr(bpy.ops.wm, "obj_import"):
+            bpy.ops.wm.obj_import(filepath=model, forward_axis="NEGATIVE_Z", up_axis="Y")
+            fix_obj_transmission(model)
+        else:
+            bpy.ops.import_scene.obj(filepath=model, axis_forward="-Z", axis_up="Y")
+    else:
+        options = {}
+        props = bpy.ops.import_scene.gltf.get_rna_type().properties
+        if "export_import_convert_lighting_mode" in props:
+            options["export_import_convert_lighting_mode"] = "COMPAT"
+        bpy.ops.import_scene.gltf(filepath=model, **options)
+        fix_iridescence(model)
+    fix_missing_materials(model.lower().endswith(".obj"))
+    for obj in list(bpy.data.objects):
+        if obj.type in {"CAMERA", "LIGHT"}:
+            bpy.data.objects.remove(obj, do_unlink=True)
 
 
 def main(argv):
@@ -87,21 +236,13 @@ def main(argv):
     parser.add_argument("--mode", choices=["direct", "gi"], default="direct")
     parser.add_argument("--samples", type=int, default=32)
     parser.add_argument("--units", choices=["compat", "spec"], default="compat")
+    parser.add_argument("--threads", type=int, default=0, help="render threads (0: all cores)")
     args = parser.parse_args(argv)
     with open(args.view) as f:
         view = json.load(f)
 
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    if args.model.lower().endswith(".obj"):
-        if hasattr(bpy.ops.wm, "obj_import"):
-            bpy.ops.wm.obj_import(filepath=args.model, forward_axis="NEGATIVE_Z", up_axis="Y")
-        else:
-            bpy.ops.import_scene.obj(filepath=args.model, axis_forward="-Z", axis_up="Y")
-    else:
-        bpy.ops.import_scene.gltf(filepath=args.model)
-    for obj in list(bpy.data.objects):
-        if obj.type in {"CAMERA", "LIGHT"}:
-            bpy.data.objects.remove(obj, do_unlink=True)
+    import_model(os.path.abspath(args.model))
 
     scene = bpy.context.scene
     cam = view["camera"]
@@ -116,7 +257,7 @@ def main(argv):
     camera_data.clip_start = max(cam["znear"], 1e-4)
     camera_data.clip_end = cam["zfar"] or 1e5
     camera = bpy.data.objects.new("view", camera_data)
-    forward = [b - a for a, b in zip(cam["position"], cam["look_at"])]
+    forward = cam.get("forward") or [b - a for a, b in zip(cam["position"], cam["look_at"])]
     camera.matrix_world = GLTF_TO_BLENDER @ pose(cam["position"], forward, cam["up"])
     scene.collection.objects.link(camera)
     scene.camera = camera
@@ -143,14 +284,19 @@ def main(argv):
         scene.collection.objects.link(obj)
 
     world = bpy.data.worlds.new("ambient")
-    world.use_nodes = True
+    if hasattr(world, "use_nodes") and not world.use_nodes:
+        world.use_nodes = True
     background = world.node_tree.nodes["Background"]
     background.inputs[0].default_value = (*view.get("ambient", [0, 0, 0]), 1.0)
     scene.world = world
     environment = view.get("environment")
     if view.get("integrator") == "path":
         args.mode = "gi"
-    if environment:
+    if environment and environment["source"].get("type") == "uniform":
+        # The white furnace: one radiance everywhere.
+        background.inputs[0].default_value = (*environment["source"]["radiance"], 1.0)
+        background.inputs["Strength"].default_value = environment["intensity"]
+    elif environment:
         panorama = environment.get("panorama")
         source = environment["source"]
         if panorama is None and source.get("type") != "file":
@@ -176,13 +322,19 @@ def main(argv):
     scene.cycles.device = "CPU"
     scene.cycles.samples = args.samples
     scene.cycles.use_denoising = False
+    if args.threads > 0:
+        scene.render.threads_mode = "FIXED"
+        scene.render.threads = args.threads
     if args.mode == "direct":
         scene.cycles.max_bounces = 0
     elif view.get("bounces") is not None:
         bounces = view["bounces"]
         scene.cycles.max_bounces = bounces
         for kind in ("diffuse", "glossy", "transmission", "volume", "transparent"):
-            setattr(scene.cycles, f"{kind}_bounces", bounces)
+            # Blender 5 renamed some of them ("transparent_max_bounces").
+            for name in (f"{kind}_bounces", f"{kind}_max_bounces"):
+                if hasattr(scene.cycles, name):
+                    setattr(scene.cycles, name, bounces)
     # --clamp-indirect: Cycles' own indirect clamp (0 = none).
     scene.cycles.sample_clamp_indirect = view.get("clamp_indirect") or 0.0
     scene.render.film_transparent = not (environment and environment.get("visible"))
@@ -192,7 +344,7 @@ def main(argv):
     scene.render.resolution_percentage = 100
     scene.render.image_settings.file_format = "PNG"
     scene.render.image_settings.color_mode = "RGBA"
-    scene.render.filepath = args.out
+    scene.render.filepath = os.path.abspath(args.out)
     bpy.ops.render.render(write_still=True)
 
 

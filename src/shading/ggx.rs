@@ -133,17 +133,52 @@ fn integrate_albedo(cos_v: f32, roughness: f32) -> [f32; 2] {
 /// `cos`: the factor the single-scattering lobe is scaled by, and the scaled lobe's
 /// directional albedo.
 ///
-/// Turquin, "Practical multiple scattering compensation for microfacet models" (2019): a
-/// microsurface reflects the light its single-scattering lobe loses (1 - E(v) for white,
-/// E = [`directional_albedo`]'s a) after further bounces, with about the lobe's own shape,
-/// so the lobe is scaled by 1 + F0·(1 - E)/E. A white metal then reflects all the light at
-/// every roughness and angle (the white furnace), and a coloured one saturates as real rough
-/// metals do. Layers under the lobe (the diffuse base, the base under a clearcoat) keep what
-/// the scaled lobe leaves: 1 - albedo.
+/// A microsurface reflects the light its single-scattering lobe loses (1 - E(v) for white,
+/// E = [`directional_albedo`]'s a) after further bounces, with about the lobe's own shape
+/// (Turquin, "Practical multiple scattering compensation for microfacet models", 2019), and
+/// each further bounce takes the Fresnel factor again: Kulla and Conty's multiple-bounce
+/// Fresnel ("Revisiting Physically Based Shading at Imageworks", 2017)
+/// F_ms = F_avg·E_avg / (1 - F_avg·(1 - E_avg)), with F_avg = F0 + (F90 - F0)/21 the
+/// cosine-weighted average of Schlick's Fresnel and E_avg = [`average_albedo`], so the lobe
+/// is scaled by 1 + F_ms·(1 - E)/E, as Cycles scales its multiscatter GGX. A white metal then
+/// reflects all the light at every roughness and angle (the white furnace), and a coloured
+/// one saturates and darkens as real rough metals do. Layers under the lobe (the diffuse
+/// base, the base under a clearcoat) keep what the scaled lobe leaves: 1 - albedo.
 pub fn multiple_scattering(f0: Vec3, f90: Vec3, cos: f32, roughness: f32) -> (Vec3, Vec3) {
     let (a, b) = directional_albedo(cos, roughness);
-    let scale = Vec3::ONE + f0 * ((1.0 - a) / a.max(1e-3));
+    let e_avg = average_albedo(roughness);
+    let f_avg = f0 + (f90 - f0) / 21.0;
+    // 1 - F_avg·(1 - E_avg), written so that F_avg = 1 gives exactly F_ms = 1.
+    let f_ms = f_avg * e_avg / (Vec3::splat(e_avg) + (Vec3::ONE - f_avg) * (1.0 - e_avg));
+    let scale = Vec3::ONE + f_ms * ((1.0 - a) / a.max(1e-3));
     (scale, (f0 * a + (f90 - f0) * b) * scale)
+}
+
+/// The single-scattering GGX lobe's hemispherical average albedo for perceptual `roughness`
+/// (F = 1): E_avg = 2·∫ E(μ)·μ dμ over view cosines μ, with E = [`directional_albedo`]'s a;
+/// 1 for a mirror, about 0.45 at roughness 1. Linear in a table of the albedo table's
+/// roughness rows, integrated once by the midpoint rule.
+pub fn average_albedo(roughness: f32) -> f32 {
+    static TABLE: std::sync::OnceLock<Vec<f32>> = std::sync::OnceLock::new();
+    let n = ALBEDO_TABLE;
+    let table = TABLE.get_or_init(|| {
+        const STEPS: usize = 256;
+        (0..n)
+            .map(|j| {
+                let roughness = j as f32 / (n - 1) as f32;
+                let sum: f32 = (0..STEPS)
+                    .map(|k| {
+                        let mu = (k as f32 + 0.5) / STEPS as f32;
+                        directional_albedo(mu, roughness).0 * mu
+                    })
+                    .sum();
+                2.0 * sum / STEPS as f32
+            })
+            .collect()
+    });
+    let y = roughness.clamp(0.0, 1.0) * (n - 1) as f32;
+    let j = (y as usize).min(n - 2);
+    table[j] + (table[j + 1] - table[j]) * (y - j as f32)
 }
 
 #[cfg(test)]
@@ -204,7 +239,7 @@ mod tests {
     }
 
     /// A white lobe (F0 = F90 = 1) reflects all the light once multiply scattered; a black one
-    /// is left alone; the scale grows with roughness.
+    /// (F0 = F90 = 0) is left alone; the scale grows with roughness.
     #[test]
     fn multiple_scattering_restores_a_white_lobe() {
         for roughness in [0.0f32, 0.25, 0.5, 0.75, 1.0] {
@@ -212,9 +247,34 @@ mod tests {
                 let (scale, albedo) = multiple_scattering(Vec3::ONE, Vec3::ONE, cos, roughness);
                 assert!((albedo.x - 1.0).abs() < 1e-4, "{roughness} {cos}: {albedo}");
                 assert!(scale.x >= 1.0);
-                let (scale, _) = multiple_scattering(Vec3::ZERO, Vec3::ONE, cos, roughness);
+                let (scale, _) = multiple_scattering(Vec3::ZERO, Vec3::ZERO, cos, roughness);
                 assert_eq!(scale, Vec3::ONE);
             }
         }
+    }
+
+    /// The average albedo is 2·∫E(μ)μ dμ: 1 for a mirror, falling with roughness. A coloured
+    /// rough metal's further bounces each take the Fresnel factor again (Kulla-Conty's F_ms),
+    /// so it gets less of the lost light back than F0·(1 - E)/E would give it: at F0 = 0.8,
+    /// roughness 1, head-on, F_ms = F_avg·E_avg / (1 - F_avg·(1 - E_avg)) exactly.
+    #[test]
+    fn coloured_lobes_get_the_multiple_bounce_fresnel() {
+        assert!((average_albedo(0.0) - 1.0).abs() < 0.01);
+        let mut last = 1.01;
+        for roughness in [0.0f32, 0.25, 0.5, 0.75, 1.0] {
+            let e_avg = average_albedo(roughness);
+            assert!(e_avg < last, "{roughness}: {e_avg}");
+            last = e_avg;
+        }
+        let (a, _) = directional_albedo(1.0, 1.0);
+        let e_avg = average_albedo(1.0);
+        let f_avg = 0.8 + 0.2 / 21.0;
+        let f_ms = f_avg * e_avg / (1.0 - f_avg * (1.0 - e_avg));
+        let (scale, _) = multiple_scattering(Vec3::splat(0.8), Vec3::ONE, 1.0, 1.0);
+        assert!(
+            (scale.x - (1.0 + f_ms * (1.0 - a) / a)).abs() < 1e-4,
+            "{scale}"
+        );
+        assert!(scale.x < 1.0 + 0.8 * (1.0 - a) / a);
     }
 }

@@ -22,7 +22,8 @@
 //! as Blender's Principled BSDF and pbrt-v4's layered materials do:
 //!
 //! ```text
-//! f = (1 - E_s(v))·c_diff/π + k(v)·F·D·V        k = 1 + F0·(1 - E(v))/E(v)     (Turquin 2019)
+//! f = (1 - E_s(v))·c_diff/π + k(v)·F·D·V        k = 1 + F_ms·(1 - E(v))/E(v)   (Turquin 2019)
+//! F_ms = F_avg·E_avg / (1 - F_avg·(1 - E_avg))  multiple-bounce Fresnel (Kulla-Conty 2017)
 //! E(v)   = ∫ D·V·cos θ_l dω                   the lobe's albedo for F = 1 ([`ggx::directional_albedo`])
 //! E_s(v) = k(v)·(F0·E(v) + (F90 - F0)·E₅(v))  the scaled lobe's albedo with Schlick's Fresnel
 //! ```
@@ -273,10 +274,23 @@ impl Iridescence {
     }
 }
 
+/// The linear Rec. 709 sensitivities of [`film_sensitivity_xyz`] at zero path difference: the
+/// XYZ fits integrate to about 1 each (an equal-energy spectrum), which is not Rec. 709 white.
+const FILM_SENSITIVITY_DC: Vec3 = Vec3::new(1.205_368_8, 0.948_319_5, 0.910_009_6);
+
+/// The Rec. 709 colour matching functions' response to an optical path difference `opd` (nm)
+/// with phase shift `shift`, each channel normalised to 1 at zero path difference (as Cycles
+/// normalises its thin-film table): a film whose interference averages out then reflects its
+/// Fresnel colour unchanged, and each channel's fringe is the spectral average of
+/// cos(2π·opd/λ + shift) weighted by that channel's sensitivity.
+fn film_sensitivity(opd: f32, shift: Vec3) -> Vec3 {
+    film_sensitivity_xyz(opd, shift) / FILM_SENSITIVITY_DC
+}
+
 /// The XYZ colour matching functions' response to an optical path difference `opd` (nm) with
 /// phase shift `shift`, from their Gaussian fits in Fourier space (Belcour and Barla 2017),
-/// in linear Rec. 709 RGB.
-fn film_sensitivity(opd: f32, shift: Vec3) -> Vec3 {
+/// in linear Rec. 709 RGB, unnormalised ([`FILM_SENSITIVITY_DC`] at zero).
+fn film_sensitivity_xyz(opd: f32, shift: Vec3) -> Vec3 {
     let phase = 2.0 * PI * opd * 1.0e-9;
     let val = Vec3::new(5.4856e-13, 4.4201e-13, 5.2481e-13);
     let pos = Vec3::new(1.6810e6, 1.7953e6, 2.2084e6);
@@ -683,6 +697,125 @@ mod tests {
         let f = gltf_brdf(&m, Vec3::Z, Vec3::Z, Vec3::Z);
         let expected = film(400.0).reflectance(1.0, f0) / (4.0 * PI * 0.09 * 0.09);
         assert!((f - expected).abs().max_element() < 1e-3 * expected.max_element());
+    }
+
+    /// The film's reflectance at one wavelength `lambda` (nm), in f64: the spec's interfaces
+    /// (Schlick at the air-film and film-base boundaries, phase 0 or π) and the Airy sum of
+    /// the multiply reflected waves, summed to 200 orders with the exact phase 2π·OPD/λ.
+    fn film_at_wavelength(cos1: f64, film: f64, base_f0: f64, thickness: f64, lambda: f64) -> f64 {
+        let schlick = |f0: f64, c: f64| f0 + (1.0 - f0) * (1.0 - c).powi(5);
+        let cos2 = (1.0 - (1.0 - cos1 * cos1) / (film * film)).sqrt();
+        let base_ior = (1.0 + base_f0.sqrt()) / (1.0 - base_f0.sqrt());
+        let r12 = schlick(((film - 1.0) / (film + 1.0)).powi(2), cos1);
+        let r23 = schlick(((base_ior - film) / (base_ior + film)).powi(2), cos2);
+        let phase23 = if base_ior < film {
+            std::f64::consts::PI
+        } else {
+            0.0
+        };
+        let delta = 2.0 * std::f64::consts::PI * 2.0 * film * thickness * cos2 / lambda
+            + std::f64::consts::PI
+            + phase23;
+        let t121 = 1.0 - r12;
+        let rs = t121 * t121 * r23 / (1.0 - r12 * r23);
+        let mut r = r12 + rs;
+        let mut cm = rs - t121;
+        for m in 1..=200 {
+            cm *= (r12 * r23).sqrt();
+            r += 2.0 * cm * (m as f64 * delta).cos();
+        }
+        r
+    }
+
+    /// CIE 1931 colour matching functions, Wyman, Sloan and Shirley's multi-lobe fit (2013):
+    /// independent of the Fourier-space fits the renderer uses.
+    fn cie_xyz(lambda: f64) -> [f64; 3] {
+        let g = |mu: f64, s1: f64, s2: f64| {
+            let s = if lambda < mu { s1 } else { s2 };
+            (-0.5 * ((lambda - mu) / s).powi(2)).exp()
+        };
+        [
+            1.056 * g(599.8, 37.9, 31.0) + 0.362 * g(442.0, 16.0, 26.7)
+                - 0.065 * g(501.1, 20.4, 26.2),
+            0.821 * g(568.8, 46.9, 40.5) + 0.286 * g(530.9, 16.3, 31.1),
+            1.217 * g(437.0, 11.8, 36.0) + 0.681 * g(459.0, 26.0, 13.8),
+        ]
+    }
+
+    /// The film's linear Rec. 709 reflectance by spectral integration: each channel is the
+    /// average of the per-wavelength reflectance weighted by that channel's sensitivity
+    /// (XYZ to Rec. 709 applied to the colour matching functions), over 360-830 nm, clamped
+    /// at 0 as the renderer clamps out-of-gamut colours.
+    fn film_by_spectral_integration(
+        cos1: f64,
+        film: f64,
+        base_f0: f64,
+        thickness: f64,
+    ) -> [f64; 3] {
+        const XYZ_TO_709: [[f64; 3]; 3] = [
+            [3.2404542, -1.5371385, -0.4985314],
+            [-0.969266, 1.8760108, 0.0415560],
+            [0.0556434, -0.2040259, 1.0572252],
+        ];
+        let (mut weighted, mut total) = ([0.0f64; 3], [0.0f64; 3]);
+        for step in 0..=4700 {
+            let lambda = 360.0 + 0.1 * step as f64;
+            let xyz = cie_xyz(lambda);
+            let r = film_at_wavelength(cos1, film, base_f0, thickness, lambda);
+            for c in 0..3 {
+                let s: f64 = (0..3).map(|k| XYZ_TO_709[c][k] * xyz[k]).sum();
+                weighted[c] += s * r;
+                total[c] += s;
+            }
+        }
+        [0, 1, 2].map(|c| (weighted[c] / total[c]).max(0.0))
+    }
+
+    /// The Fourier-space thin film agrees with a direct spectral integration of the same
+    /// interfaces: within 0.04 of reflectance everywhere and 0.009 on average over films
+    /// of 250-800 nm, five film-over-base pairs and six angles (unnormalised sensitivities,
+    /// whose channels weigh the fringes by 1.21, 0.95 and 0.91, are off by up to 0.1).
+    #[test]
+    fn the_thin_film_matches_a_spectral_integration() {
+        let (mut worst, mut sum, mut count) = (0.0f64, 0.0f64, 0);
+        for thickness in [250.0f32, 400.0, 600.0, 800.0] {
+            for cos in [1.0f32, 0.85, 0.7, 0.55, 0.4, 0.25] {
+                for (ior, f0) in [
+                    (1.3f32, 0.04f32),
+                    (1.8, 0.04),
+                    (1.3, 0.9),
+                    (1.5, 0.5),
+                    (2.0, 0.04),
+                ] {
+                    let film = Iridescence {
+                        factor: 1.0,
+                        ior,
+                        thickness,
+                    };
+                    let ours = film.reflectance(cos, Vec3::splat(f0));
+                    let reference = film_by_spectral_integration(
+                        cos as f64,
+                        ior as f64,
+                        f0 as f64,
+                        thickness as f64,
+                    );
+                    let error = (0..3)
+                        .map(|c| (ours[c] as f64 - reference[c]).abs())
+                        .fold(0.0, f64::max);
+                    worst = worst.max(error);
+                    sum += error;
+                    count += 1;
+                }
+            }
+        }
+        let mean = sum / count as f64;
+        assert!(worst < 0.04 && mean < 0.009, "worst {worst}, mean {mean}");
+    }
+
+    #[test]
+    fn the_film_sensitivities_are_one_at_zero_path_difference() {
+        let dc = film_sensitivity(0.0, Vec3::ZERO);
+        assert!((dc - Vec3::ONE).abs().max_element() < 1e-5, "{dc}");
     }
 
     #[test]

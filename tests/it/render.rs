@@ -74,11 +74,16 @@ fn render_to(dir: &Path, model: &Path, name: &str, extra: &[&str]) -> PathBuf {
 
 /// The multiple-scattering scale k and the specular albedo E_s of a GGX lobe at roughness 1
 /// seen head-on (n·v = 1, as every pixel of the quads below sees it) for Schlick's (F0, F90):
-/// k = 1 + F0·(1 - a)/a and E_s = k·(F0·a + (F90 - F0)·b), with the lobe's albedo (a, b) from
-/// the renderer's table (held against a Monte Carlo estimate by its own unit test).
+/// k = 1 + F_ms·(1 - a)/a with Kulla-Conty's F_ms = F_avg·E_avg / (1 - F_avg·(1 - E_avg)),
+/// F_avg = F0 + (F90 - F0)/21, and E_s = k·(F0·a + (F90 - F0)·b), with the lobe's albedo
+/// (a, b) and average albedo E_avg from the renderer's tables (held against a Monte Carlo
+/// estimate by their own unit tests).
 fn multiple_scattering(f0: f32, f90: f32) -> (f32, f32) {
     let (a, b) = meshtracer::shading::ggx::directional_albedo(1.0, 1.0);
-    let k = 1.0 + f0 * (1.0 - a) / a;
+    let e_avg = meshtracer::shading::ggx::average_albedo(1.0);
+    let f_avg = f0 + (f90 - f0) / 21.0;
+    let f_ms = f_avg * e_avg / (1.0 - f_avg * (1.0 - e_avg));
+    let k = 1.0 + f_ms * (1.0 - a) / a;
     (k, k * (f0 * a + (f90 - f0) * b))
 }
 
