@@ -11,7 +11,7 @@ use crate::geometry::Ray;
 use crate::light::PunctualLight;
 use crate::prepare::lights::SceneLight;
 use crate::prepare::Prepared;
-use crate::sampling::Rng;
+use crate::sampling::Sampler;
 use crate::scene::AlphaMode;
 use crate::shading::surface::{Occlusion, Surface};
 use crate::shading::{shade, ShadingModel};
@@ -35,7 +35,7 @@ impl Integrator for Direct {
         &self,
         scene: &Prepared,
         camera: &CameraRay,
-        _rng: &mut Rng,
+        _sampler: &mut Sampler,
         counts: &mut RayCounts,
         first: &mut Option<Hit>,
     ) -> (Vec3, f32) {

@@ -12,7 +12,7 @@ pub use path::{Estimator, PathTracer};
 use crate::accel::Hit;
 use crate::geometry::Ray;
 use crate::prepare::Prepared;
-use crate::sampling::Rng;
+use crate::sampling::Sampler;
 use glam::Vec3;
 
 /// A camera ray with its footprint (ray cone, for texture filtering): the width of the pixel's
@@ -60,8 +60,8 @@ pub enum IntegratorKind {
 /// Computes the radiance along camera rays.
 pub trait Integrator: Sync {
     /// Radiance (premultiplied by coverage, linear, photometric units as in [`crate::light`])
-    /// and coverage (0 = nothing hit, 1 = opaque) along `camera`. `rng` is the pixel's own
-    /// stream (deterministic for a seed, whatever thread runs it); `counts` tallies the rays.
+    /// and coverage (0 = nothing hit, 1 = opaque) along `camera`. `sampler` gives the pixel's
+    /// current sample's numbers (deterministic for a seed, whatever thread runs it); `counts` tallies the rays.
     /// `first` gets the first surface the camera ray meets (the one the AOVs record: at one
     /// sample a pixel, through its centre, they need no ray of their own), left `None` when
     /// the ray meets nothing.
@@ -69,7 +69,7 @@ pub trait Integrator: Sync {
         &self,
         scene: &Prepared,
         camera: &CameraRay,
-        rng: &mut Rng,
+        sampler: &mut Sampler,
         counts: &mut RayCounts,
         first: &mut Option<Hit>,
     ) -> (Vec3, f32);

@@ -26,7 +26,7 @@ use crate::light::environment::Environment;
 use crate::light::PunctualLight;
 use crate::prepare::lights::{EmitterHit, LightSample, SceneLight};
 use crate::prepare::Prepared;
-use crate::sampling::{power_heuristic, Rng};
+use crate::sampling::{power_heuristic, Sampler};
 use crate::scene::AlphaMode;
 use crate::shading::bsdf::Bsdf;
 use crate::shading::surface::{Occlusion, Surface};
@@ -113,7 +113,7 @@ impl Integrator for PathTracer {
         &self,
         scene: &Prepared,
         camera: &CameraRay,
-        rng: &mut Rng,
+        sampler: &mut Sampler,
         counts: &mut RayCounts,
         first: &mut Option<Hit>,
     ) -> (Vec3, f32) {
@@ -157,7 +157,7 @@ impl Integrator for PathTracer {
             // Occlusion textures darken only the direct renderer's ambient term.
             let surface = scene.surface(&ray, &hit, cone.0 + cone.1 * hit.t, Occlusion::Skip);
             if surface.source.alpha_mode == AlphaMode::Blend
-                && rng.next_f32() >= surface.alpha
+                && sampler.next_f32() >= surface.alpha
                 && pass_throughs < MAX_BLEND_LAYERS
             {
                 // Not there for this path: go on through, from the far side.
@@ -199,9 +199,10 @@ impl Integrator for PathTracer {
                 );
             }
             // The direction to continue in, drawn from the BSDF (three numbers drawn whether or
-            // not it is used, so the stream stays aligned) before the light samples: its
+            // not it is used, so every later number keeps its dimension of the sequence) before the light samples: its
             // evaluation then overlaps their shadow rays' traversal.
-            let (u_lobe, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let u_lobe = sampler.next_f32();
+            let (u1, u2) = sampler.next_2d();
             let continuation = bsdf.sample(to_eye, u_lobe, u1, u2);
             let vertex = Vertex {
                 scene,
@@ -210,7 +211,7 @@ impl Integrator for PathTracer {
                 to_eye,
                 throughput,
             };
-            self.next_event(&vertex, &mut radiance, rng, counts);
+            self.next_event(&vertex, &mut radiance, sampler, counts);
             let Some(sample) = continuation else {
                 break;
             };
@@ -237,7 +238,7 @@ impl Integrator for PathTracer {
             bounces += 1;
             if bounces >= ROULETTE_DEPTH {
                 let survive = throughput.max_element().clamp(MIN_SURVIVAL, 1.0);
-                if rng.next_f32() >= survive {
+                if sampler.next_f32() >= survive {
                     break;
                 }
                 throughput /= survive;
@@ -330,7 +331,7 @@ impl PathTracer {
     /// Next-event estimation at `vertex`, added to `radiance`: every punctual light, one point on
     /// the emissive triangles and one direction of the environment, each through a shadow ray
     /// ([`PathTracer::light_sample`]). The area-light point and the environment direction are
-    /// drawn (five numbers, drawn in any case so the stream stays aligned) before any shadow
+    /// drawn (five numbers, drawn in any case so every later number keeps its dimension) before any shadow
     /// ray is traced, so their arithmetic (and the environment's table lookups) overlaps the
     /// traversal of the punctual lights' shadow rays. Seen from below its shading normal, the
     /// BSDF reflects nothing toward the eye ([`Bsdf::eval_pdf`] is zero for every light
@@ -340,17 +341,20 @@ impl PathTracer {
         &self,
         vertex: &Vertex,
         radiance: &mut Vec3,
-        rng: &mut Rng,
+        sampler: &mut Sampler,
         counts: &mut RayCounts,
     ) {
         let (scene, point) = (vertex.scene, vertex.surface.spawn.point);
         let lit = vertex.surface.normal.dot(vertex.to_eye) > 0.0;
         let sample_lights = lit && self.estimator.samples_lights();
-        let u_area = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+        let u_light = sampler.next_f32();
+        let (u1, u2) = sampler.next_2d();
+        let u_area = [u_light, u1, u2];
         let area = sample_lights
             .then(|| SceneLight::Area.sample(scene, point, u_area))
             .flatten();
-        let u_env = [rng.next_f32(), rng.next_f32(), 0.0];
+        let (u1, u2) = sampler.next_2d();
+        let u_env = [u1, u2, 0.0];
         let environment = self
             .environment
             .as_deref()

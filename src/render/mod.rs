@@ -1,9 +1,9 @@
-//! The render phase: the pixel loop. Camera rays per pixel (stratified jittered samples), each
+//! The render phase: the pixel loop. Camera rays per pixel (Owen-scrambled Sobol samples), each
 //! handed to an [`Integrator`]; the samples averaged into the film; AOVs from pixel-centre rays.
 //! Surface evaluation lives in [`crate::shading::surface`], light transport in [`crate::integrator`].
 //!
 //! Work is split into square tiles rendered in parallel with rayon. Every pixel's samples come
-//! from a generator keyed by (seed, x, y), so the image is the same, byte for byte, whatever the
+//! from a sampler keyed by (seed, x, y) ([`crate::sampling::Sampler`]), so the image is the same, byte for byte, whatever the
 //! number of threads or the order tiles finish in.
 
 pub mod denoise;
@@ -19,7 +19,7 @@ use crate::integrator::{CameraRay, Direct, Integrator, IntegratorKind, PathTrace
 use crate::light::environment::Environment;
 use crate::light::PunctualLight;
 use crate::prepare::Prepared;
-use crate::sampling::Rng;
+use crate::sampling::Sampler;
 use crate::scene::Light;
 use crate::shading::ShadingModel;
 use glam::{Vec3, Vec4};
@@ -37,7 +37,7 @@ pub const TILE_SIZE: u32 = 32;
 pub struct RenderSettings {
     /// The camera, sized for the image.
     pub view: View,
-    /// Samples per pixel: 1 is the pixel centre; more are stratified jittered samples.
+    /// Samples per pixel: 1 is the pixel centre; more are Owen-scrambled Sobol samples.
     pub spp: u32,
     /// Seed of the sample pattern.
     pub seed: u64,
@@ -317,21 +317,6 @@ fn standard_error(squares: f64, mean: f64, n: u32) -> f64 {
     (variance / n).sqrt()
 }
 
-/// Sample `s` of the R2 sequence (Roberts, "The unreasonable effectiveness of quasirandom
-/// sequences", 2018: the additive recurrence by the plastic number's inverse powers) shifted by
-/// (`ox`, `oy`), in [0, 1)²: evenly spread at every prefix.
-fn r2(s: u32, ox: f32, oy: f32) -> (f32, f32) {
-    const A1: f64 = 0.754_877_666_246_692_7;
-    const A2: f64 = 0.569_840_290_998_053_3;
-    let s = f64::from(s);
-    // Below 1 after rounding to f32 as well.
-    let below_one = |v: f64| (v.fract() as f32).min(1.0 - f32::EPSILON / 2.0);
-    (
-        below_one(f64::from(ox) + s * A1),
-        below_one(f64::from(oy) + s * A2),
-    )
-}
-
 /// One finished tile.
 struct Tile {
     x: u32,
@@ -357,8 +342,6 @@ struct PixelLoop<'a, I> {
     region: Region,
     /// 2^exposure.
     scale: f32,
-    /// Strata per axis for jittered sampling.
-    strata: (u32, u32),
     /// Ray-cone footprint of a pixel: width at distance t is `spread.0 + spread.1 · t`
     /// (perspective: angle per pixel; orthographic: pixel size).
     spread: (f32, f32),
@@ -371,8 +354,6 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
         settings: &'a RenderSettings,
         region: Region,
     ) -> Self {
-        let sx = (settings.spp as f32).sqrt().floor().max(1.0) as u32;
-        let sy = settings.spp.div_ceil(sx);
         let view = &settings.view;
         let spread = match view.lens {
             Lens::Perspective { height, .. } => (0.0, height / view.height as f32),
@@ -384,7 +365,6 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
             settings,
             region,
             scale: settings.exposure.exp2(),
-            strata: (sx, sy),
             spread,
         }
     }
@@ -430,30 +410,20 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
         let spp = self.settings.spp.max(1);
         for y in y0..y1 {
             for x in x0..x1 {
-                let mut rng = Rng::for_pixel(self.settings.seed, x, y);
+                let mut sampler = Sampler::for_pixel(self.settings.seed, x, y);
                 let mut sum = Vec4::ZERO;
                 let mut luminance_squares = 0.0f64;
                 let mut first = None;
-                // Adaptive sampling places samples by the R2 sequence (Roberts 2018) from a
-                // per-pixel random start, so that any prefix of them covers the pixel evenly;
-                // the stratified grid covers it only when complete.
-                let r2_start = self
-                    .settings
-                    .noise
-                    .map(|_| (rng.next_f32(), rng.next_f32()));
                 let mut taken = spp;
                 for s in 0..spp {
+                    sampler.start_sample(s);
+                    // The pixel position is the sample's first two numbers: any prefix of 2^m
+                    // samples covers the pixel evenly (see crate::sampling::Sampler), which
+                    // adaptive sampling's early stops need.
                     let (dx, dy) = if spp == 1 {
                         (0.5, 0.5)
-                    } else if let Some((ox, oy)) = r2_start {
-                        r2(s, ox, oy)
                     } else {
-                        let (sx, sy) = self.strata;
-                        let (cx, cy) = (s % sx, (s / sx) % sy);
-                        (
-                            (cx as f32 + rng.next_f32()) / sx as f32,
-                            (cy as f32 + rng.next_f32()) / sy as f32,
-                        )
+                        sampler.next_2d()
                     };
                     let camera = CameraRay {
                         ray: view.ray(x as f32 + dx, y as f32 + dy),
@@ -463,7 +433,7 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                     let (color, coverage) = self.integrator.radiance(
                         self.scene,
                         &camera,
-                        &mut rng,
+                        &mut sampler,
                         &mut tile.counts,
                         &mut first,
                     );

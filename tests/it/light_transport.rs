@@ -1161,7 +1161,7 @@ fn a_panel_beside_a_plane_lights_it_at_grazing_incidence() {
 }
 
 /// The mean and standard error of the green radiance `tracer` brings back along `camera` over
-/// `paths` paths, path i drawing from pixel stream (i, `stream.1`) of seed `stream.0`. Every
+/// `paths` paths, path i drawing from the sampler of pixel (i, `stream.1`) of seed `stream.0`. Every
 /// path's camera ray must meet the scene.
 fn path_estimate(
     tracer: &meshtracer::integrator::PathTracer,
@@ -1173,11 +1173,12 @@ fn path_estimate(
     use meshtracer::integrator::{Integrator, RayCounts};
     let (mut sum, mut squares) = (0.0f64, 0.0f64);
     for i in 0..paths {
-        let mut rng = meshtracer::sampling::Rng::for_pixel(seed, i, stream);
+        // Sample 0 of pixel (i, stream): every path draws from its own, independent sampler.
+        let mut sampler = meshtracer::sampling::Sampler::for_pixel(seed, i, stream);
         let (radiance, coverage) = tracer.radiance(
             prepared,
             camera,
-            &mut rng,
+            &mut sampler,
             &mut RayCounts::default(),
             &mut None,
         );

@@ -177,15 +177,15 @@ pub struct RenderArgs {
     /// Image height in pixels [default: from the camera's aspectRatio, else 768].
     #[arg(long)]
     pub height: Option<u32>,
-    /// Samples per pixel, exactly: 1 shoots through pixel centres; N > 1 takes stratified
-    /// jittered samples (square numbers stratify best) [default: the path tracer samples each
+    /// Samples per pixel, exactly: 1 shoots through pixel centres; N > 1 takes
+    /// Owen-scrambled Sobol samples (powers of two stratify best) [default: the path tracer samples each
     /// pixel adaptively, up to 32, until its noise is under --noise 0.1; the direct
     /// integrator takes 4]. Read it through [`RenderArgs::spp`].
     #[arg(long = "spp", value_name = "N")]
     pub spp_given: Option<u32>,
     /// Adaptive sampling: each pixel stops once the standard error of its luminance is at most
     /// this fraction of it (of 0.05 in dark pixels), checked every 16 samples; --spp is then
-    /// the cap (e.g. --noise 0.02 --spp 1024). Samples are placed by the R2 sequence. Read it
+    /// the cap (e.g. --noise 0.02 --spp 1024). Read it
     /// through [`RenderArgs::noise`].
     #[arg(long = "noise", value_name = "FRACTION", value_parser = parse_noise)]
     pub noise_given: Option<f32>,

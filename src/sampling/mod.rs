@@ -1,9 +1,15 @@
-//! Seeded, position-keyed random numbers: the same pixel gets the same samples whatever thread
-//! renders it, so output is identical for any thread count. Also the sampling routines of the
+//! Sample numbers and warps. [`Sampler`] gives each pixel its samples' numbers (Owen-scrambled
+//! Sobol, keyed by seed and pixel: the same pixel gets the same samples whatever thread renders
+//! it, so output is identical for any thread count); [`Rng`] is a plain seeded generator for
+//! everything else (generated views, test data). Also the sampling routines of the
 //! path tracer: hemisphere and triangle warps, piecewise-constant distributions, the MIS power
 //! heuristic.
 
 use glam::Vec3;
+
+mod sobol;
+
+pub use sobol::Sampler;
 
 /// A small, fast generator (SplitMix64). Not for cryptography; statistically fine for jitter.
 #[derive(Clone, Debug)]
@@ -15,19 +21,6 @@ impl Rng {
     /// A generator from a seed.
     pub fn new(seed: u64) -> Self {
         Self { state: seed }
-    }
-
-    /// A generator for one pixel of one render: independent streams per (seed, x, y).
-    ///
-    /// The pixel's key goes through SplitMix64's output mix before it meets the seed. Without
-    /// it (a multiple of the generator's own increment, as before) pixel (x, y + 1) started
-    /// one increment after pixel (x, y), so with the default seed 0 its stream was (x, y)'s
-    /// shifted by one draw, and path-traced noise showed vertical streaks.
-    pub fn for_pixel(seed: u64, x: u32, y: u32) -> Self {
-        let key = (u64::from(x) << 32) | u64::from(y);
-        let mut rng = Self::new(seed ^ mix(key.wrapping_mul(INCREMENT)));
-        rng.next_u64();
-        rng
     }
 
     /// Next 64 random bits.
@@ -292,34 +285,6 @@ mod tests {
         }
     }
 
-    /// Neighbouring pixels' streams are unrelated: no pixel's stream is its neighbour's shifted
-    /// by a few draws (with the key unmixed, pixel (x, y + 1)'s first draw was pixel (x, y)'s
-    /// second for seed 0), and the first draws of a column of pixels are uncorrelated.
-    #[test]
-    fn neighbouring_pixels_have_unrelated_streams() {
-        for seed in [0, 1, 0x1234_5678] {
-            for (x, y) in [(0, 0), (5, 7), (511, 383), (1000, 20)] {
-                let draws = |x, y| {
-                    let mut rng = Rng::for_pixel(seed, x, y);
-                    (0..8).map(|_| rng.next_u64()).collect::<Vec<_>>()
-                };
-                let here = draws(x, y);
-                for other in [draws(x, y + 1), draws(x + 1, y)] {
-                    assert!(
-                        here.iter().all(|d| !other.contains(d)),
-                        "seed {seed}, pixel ({x}, {y}): a neighbour repeats its draws"
-                    );
-                }
-            }
-            // Correlation of the first draw of pixel (3, y) with that of (3, y + 1).
-            let first = |y| Rng::for_pixel(seed, 3, y).next_f32() as f64 - 0.5;
-            let n = 4000;
-            let c: f64 = (0..n).map(|y| first(y) * first(y + 1)).sum::<f64>() / n as f64;
-            // Independent uniforms: |c| has standard deviation 1/12/√n ≈ 0.0013.
-            assert!(c.abs() < 0.006, "seed {seed}: correlation {c}");
-        }
-    }
-
     #[test]
     fn uniform_in_unit_interval_and_reproducible() {
         let mut a = Rng::new(1);
@@ -332,9 +297,5 @@ mod tests {
             sum += x;
         }
         assert!((sum / 10_000.0 - 0.5).abs() < 0.02);
-        assert_ne!(
-            Rng::for_pixel(0, 1, 2).next_u64(),
-            Rng::for_pixel(0, 2, 1).next_u64()
-        );
     }
 }
