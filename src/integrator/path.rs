@@ -331,8 +331,8 @@ impl PathTracer {
     /// Next-event estimation at `vertex`, added to `radiance`: every punctual light, one point on
     /// the emissive triangles and one direction of the environment, each through a shadow ray
     /// ([`PathTracer::light_sample`]). The area-light point and the environment direction are
-    /// drawn (five numbers, drawn in any case so every later number keeps its dimension) before any shadow
-    /// ray is traced, so their arithmetic (and the environment's table lookups) overlaps the
+    /// drawn (three dimensions of the sampler, taken or skipped in any case so every later
+    /// number keeps its dimension) before any shadow ray is traced, so their arithmetic (and the environment's table lookups) overlaps the
     /// traversal of the punctual lights' shadow rays. Seen from below its shading normal, the
     /// BSDF reflects nothing toward the eye ([`Bsdf::eval_pdf`] is zero for every light
     /// direction), so no light is sampled there.
@@ -347,19 +347,25 @@ impl PathTracer {
         let (scene, point) = (vertex.scene, vertex.surface.spawn.point);
         let lit = vertex.surface.normal.dot(vertex.to_eye) > 0.0;
         let sample_lights = lit && self.estimator.samples_lights();
-        let u_light = sampler.next_f32();
-        let (u1, u2) = sampler.next_2d();
-        let u_area = [u_light, u1, u2];
-        let area = sample_lights
-            .then(|| SceneLight::Area.sample(scene, point, u_area))
-            .flatten();
-        let (u1, u2) = sampler.next_2d();
-        let u_env = [u1, u2, 0.0];
-        let environment = self
-            .environment
-            .as_deref()
-            .filter(|_| sample_lights)
-            .and_then(|env| SceneLight::Environment(env).sample(scene, point, u_env));
+        // Numbers a light does not need are skipped, not drawn: their dimensions stay theirs.
+        let area = if sample_lights && !scene.area_lights.is_empty() {
+            let u_light = sampler.next_f32();
+            let (u1, u2) = sampler.next_2d();
+            SceneLight::Area.sample(scene, point, [u_light, u1, u2])
+        } else {
+            sampler.skip(2);
+            None
+        };
+        let environment = match self.environment.as_deref().filter(|_| sample_lights) {
+            Some(env) => {
+                let (u1, u2) = sampler.next_2d();
+                SceneLight::Environment(env).sample(scene, point, [u1, u2, 0.0])
+            }
+            None => {
+                sampler.skip(1);
+                None
+            }
+        };
         for light in self.lights.iter().filter(|_| lit) {
             let Some(sample) = SceneLight::Punctual(light).sample(scene, point, [0.0; 3]) else {
                 continue;

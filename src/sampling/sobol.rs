@@ -53,7 +53,15 @@ impl Sampler {
     pub fn next_f32(&mut self) -> f32 {
         let (seed_index, seed_x, _) = self.dimension_seeds();
         let i = shuffled_index(self.index, seed_index);
-        to_unit(owen_scramble(i.reverse_bits(), seed_x))
+        // owen_scramble(i.reverse_bits(), seed_x), without reversing twice.
+        to_unit(owen_hash(i, seed_x).reverse_bits())
+    }
+
+    /// Passes over `dimensions` dimensions (one `next_f32` or `next_2d` each) without drawing
+    /// them: a number a sample does not need costs nothing, and the ones after it keep their
+    /// dimensions.
+    pub fn skip(&mut self, dimensions: u32) {
+        self.dimension += dimensions;
     }
 
     /// The next two numbers of the current sample, in [0, 1)²: a point of the Sobol
@@ -64,8 +72,9 @@ impl Sampler {
         let (seed_index, seed_x, seed_y) = self.dimension_seeds();
         let i = shuffled_index(self.index, seed_index);
         (
-            to_unit(owen_scramble(i.reverse_bits(), seed_x)),
-            to_unit(owen_scramble(sobol_second(i), seed_y)),
+            to_unit(owen_hash(i, seed_x).reverse_bits()),
+            // owen_scramble(sobol_second(i), seed_y), without reversing twice.
+            to_unit(owen_hash(sobol_second_reversed(i), seed_y).reverse_bits()),
         )
     }
 
@@ -95,25 +104,37 @@ fn shuffled_index(index: u32, seed: u32) -> u32 {
 /// hash that propagates only upward, reverse back) with Vegdahl's stronger hash (the one
 /// Cycles uses in `reversed_bit_owen`).
 fn owen_scramble(x: u32, seed: u32) -> u32 {
-    let mut n = x.reverse_bits();
+    owen_hash(x.reverse_bits(), seed).reverse_bits()
+}
+
+/// The hash of [`owen_scramble`] on bit-reversed input: each bit of the result is the same bit
+/// of `n` flipped by a function of `seed` and the bits below it (multiplications by even
+/// constants, additions and odd multiplications only carry upward), a bijection.
+fn owen_hash(mut n: u32, seed: u32) -> u32 {
     n ^= n.wrapping_mul(0x3d20_adea);
     n = n.wrapping_add(seed);
     n = n.wrapping_mul((seed >> 16) | 1);
     n ^= n.wrapping_mul(0x0552_6c56);
     n ^= n.wrapping_mul(0x53a2_2864);
-    n.reverse_bits()
+    n
 }
 
-/// The second dimension of the Sobol sequence at `index`, as a 32-bit fraction: the XOR of the
-/// direction numbers of the index's set bits. Its primitive polynomial is x + 1, so
-/// `v[0] = 1/2` and `v[k] = v[k-1] ^ (v[k-1] >> 1)`.
-fn sobol_second(index: u32) -> u32 {
+/// The second dimension of the Sobol sequence at `index`, as a 32-bit fraction with its bits
+/// reversed (what [`owen_hash`] takes): the XOR of the direction numbers of the index's set
+/// bits. Its primitive polynomial is x + 1, so `v[0] = 1/2` and `v[k] = v[k-1] ^ (v[k-1] >> 1)`;
+/// the table holds them reversed.
+fn sobol_second_reversed(index: u32) -> u32 {
     const DIRECTIONS: [u32; 32] = {
         let mut v = [0u32; 32];
         v[0] = 1 << 31;
         let mut k = 1;
         while k < 32 {
             v[k] = v[k - 1] ^ (v[k - 1] >> 1);
+            k += 1;
+        }
+        let mut k = 0;
+        while k < 32 {
+            v[k] = v[k].reverse_bits();
             k += 1;
         }
         v
@@ -135,6 +156,11 @@ fn to_unit(x: u32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The second Sobol dimension at `index` as a 32-bit fraction.
+    fn sobol_second(index: u32) -> u32 {
+        sobol_second_reversed(index).reverse_bits()
+    }
 
     /// The first 2^m points (as 32-bit fractions) each fall in their own cell of every
     /// elementary-interval shape of area 2^-m: 2^a × 2^(m-a) cells for a = 0..=m.
