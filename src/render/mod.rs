@@ -70,7 +70,7 @@ pub struct RenderSettings {
 
 /// Adaptive sampling's first check: a pixel takes at least this many samples (or `spp`, if
 /// fewer) before its error is estimated, and checks again after each further batch of as many.
-pub const ADAPTIVE_BATCH: u32 = 16;
+pub const ADAPTIVE_BATCH: u32 = 4;
 
 /// Adaptive sampling's luminance floor: below it the target error is absolute (this times the
 /// target), so dark pixels, where a relative error means little to the eye, do not take every

@@ -1410,7 +1410,7 @@ fn the_exact_view_round_trips_for_matrix_trs_and_automatic_cameras() {
 
 /// `--noise`: adaptive sampling. A white quad under a point light (the direct integrator), seen
 /// from above with a margin: inside the quad every sample of a pixel has the same radiance, so
-/// those pixels stop at the first check (16 samples); pixels the quad's edge crosses vary
+/// those pixels stop at the first check (4 samples); pixels the quad's edge crosses vary
 /// (covered or not) and take more. The render takes far fewer samples than the cap (from
 /// `--stats`), agrees with the full `--spp` render (mean radiance within 0.5%, alpha within
 /// 2% per edge pixel on average), and is the same bytes with 1 and 2 threads.
@@ -1454,7 +1454,7 @@ fn adaptive_sampling_stops_converged_pixels_early() {
     assert_eq!(runs[0].0, runs[1].0, "1 and 2 threads: the same bytes");
     let samples = runs[0].1["samples"].as_u64().unwrap();
     let cap = 64 * 64 * 256;
-    // Inside pixels stop at 16 samples; about 4·64·(4/6) edge pixels may take up to 256.
+    // Inside pixels stop at 4 samples; about 4·64·(4/6) edge pixels may take up to 256.
     assert!(
         samples < cap / 8,
         "{samples} samples of at most {cap}: adaptive sampling stopped too few pixels"
@@ -1479,7 +1479,7 @@ fn adaptive_sampling_stops_converged_pixels_early() {
 }
 
 /// The default render (no option but the model, the size and the outputs) is the path tracer
-/// lit by the built-in studio (shapes.obj has no lights), sampled adaptively between 16 and 32
+/// lit by the built-in studio (shapes.obj has no lights), sampled adaptively between 4 and 32
 /// samples a pixel to --noise 0.1, and encoded with Khronos PBR Neutral: the view file and the
 /// statistics say so, and the image is byte for byte the render that asks for exactly that.
 #[test]
@@ -1506,7 +1506,7 @@ fn the_default_render_is_the_adaptive_path_tracer_through_pbr_neutral() {
     assert_eq!(stats["spp"], 32, "the cap");
     let pixels = 48.0 * 36.0;
     let mean = stats["samples"].as_f64().unwrap() / pixels;
-    assert!((16.0..32.0).contains(&mean), "mean spp {mean}");
+    assert!((4.0..32.0).contains(&mean), "mean spp {mean}");
 
     let explicit = dir.path().join("explicit.png");
     let mut args = vec!["render", s(&model), "-o", s(&explicit)];
