@@ -14,7 +14,8 @@ already applied), else the source panorama with the same rotation and intensity 
 studio needs `--env-out`). The view transform and exposure are the view's `display` record
 (`--tonemap`, `--exposure`; 'Standard' and 0 for views written before it): Standard, Khronos PBR
 Neutral and AgX are Blender's own view transforms; `aces` needs an ACES view (Blender 5's
-"ACES 1.3" or "ACES 2.0"). Transparent film, hard shadows (light radius and sun angle 0).
+"ACES 1.3" or "ACES 2.0"). Transparent film, hard shadows (light radius and sun angle 0), and
+meshtracer's pixel filter (a box one pixel wide).
 
 Light units: Blender's glTF importer ("SPEC" mode) converts W = cd·4π/683 for point and spot
 lights and W/m² = lux/683 for suns, which makes 1 lux read 1/683 as bright as in meshtracer and
@@ -322,6 +323,12 @@ def main(argv):
     scene.cycles.device = "CPU"
     scene.cycles.samples = args.samples
     scene.cycles.use_denoising = False
+    # meshtracer averages a pixel's samples with equal weight over the pixel's square (a box
+    # filter 1 pixel wide); Cycles' default is a Blackman-Harris filter 1.5 pixels wide, which
+    # blurs edges and textures and makes every silhouette differ. Compare shading, not
+    # reconstruction filters.
+    scene.cycles.pixel_filter_type = "BOX"
+    scene.cycles.filter_width = 1.0
     if args.threads > 0:
         scene.render.threads_mode = "FIXED"
         scene.render.threads = args.threads
