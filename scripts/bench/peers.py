@@ -54,7 +54,10 @@ import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
+try:
+    import numpy as np
+except ImportError:
+    sys.exit("peers.py needs numpy: run it with the venv its docstring sets up")
 
 REPO = Path(__file__).resolve().parents[2]
 KINDS = ("primary", "shadow", "diffuse")

@@ -440,7 +440,13 @@ pub fn markdown_table(rows: &[Row]) -> String {
                         .map_or("-".into(), |(_, t)| format!("{:.1}", t.as_secs_f64() * 1e3))
                 })
                 .collect();
-            out.push_str(&format!("| {} | {} |\n", r.name, cells.join(" | ")));
+            // Each ray kind built its own BVH: a row each, named by the kind too.
+            out.push_str(&format!(
+                "| {}, {} | {} |\n",
+                r.name,
+                r.kind.name(),
+                cells.join(" | ")
+            ));
         }
     }
     out
@@ -743,6 +749,7 @@ mod tests {
             "{table}"
         );
         assert!(table.contains("\n| gen | "), "{table}");
+        assert!(table.contains("\n| gen, primary | "), "{table}");
     }
 
     #[test]

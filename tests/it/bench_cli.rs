@@ -226,4 +226,24 @@ fn bench_reports_every_ray_kind_as_json_and_exports_what_it_traces() {
         "{}",
         stderr(&refused)
     );
+    // The plot draws one kind's time per ray.
+    let plot = dir.path().join("two.svg");
+    let refused = run(
+        &[
+            "bench",
+            "--sizes",
+            "1000",
+            "--rays",
+            "primary,shadow",
+            "--plot",
+            s(&plot),
+        ],
+        false,
+    );
+    assert!(
+        stderr(&refused).contains("--plot draws one ray kind"),
+        "{}",
+        stderr(&refused)
+    );
+    assert!(!plot.exists());
 }
