@@ -255,8 +255,12 @@ class EmbreeModel:
         tie = both & (np.abs(our_t[differ] - their_t[differ]) <= T_TOLERANCE * scale)
         graze = ~tie & self.grazing(kind, differ, ours, theirs)
         other = len(differ) - int(tie.sum()) - int(graze.sum())
+        # Where both hit the same triangle, how far apart their distances are.
+        same = (ours == theirs) & (ours >= 0)
+        t_error = np.abs(our_t[same] - their_t[same]) / np.maximum(1.0, np.abs(our_t[same]))
         self.checks[kind] = (f"{len(differ)} ({100 * len(differ) / max(1, len(ours)):.3f}%): "
-                             f"{int(tie.sum())} ties, {int(graze.sum())} grazing, {other} other")
+                             f"{int(tie.sum())} ties, {int(graze.sum())} grazing, {other} other; "
+                             f"same triangle: t within {t_error.max(initial=0):.1e}")
         return f"{kind}: {self.checks[kind]}"
 
     def grazing(self, kind, rays, ours, theirs):
