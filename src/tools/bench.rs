@@ -8,6 +8,9 @@
 //!   order (coherent). **Shadow rays**: from each primary hit toward a point light above and in
 //!   front of the scene (any-hit queries, coherent-ish). **Diffuse rays**: from each primary hit
 //!   in a cosine-distributed random direction about the normal (closest-hit, incoherent).
+//! - **Export** ([`export_rays`]): the triangles, the rays of each kind and the BVH's answers as
+//!   `.npy` arrays, so that another ray tracer (`scripts/bench/peers.py` runs Intel Embree) can
+//!   trace exactly the same work and be checked ray for ray.
 
 use crate::accel::{Accel, AccelKind, BvhPreset};
 use crate::camera::{auto_camera, View};
@@ -16,6 +19,7 @@ use crate::sampling::Rng;
 use crate::scene::{Material, Scene, SoupBuilder, TriangleIn, TriangleSoup};
 use glam::Vec3;
 use rayon::prelude::*;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 /// Ray coherence of a workload.
@@ -27,6 +31,20 @@ pub enum RayKind {
     Shadow,
     /// From primary hits in random cosine-weighted directions; closest hit.
     Diffuse,
+}
+
+impl RayKind {
+    /// Every kind, in the order the tables list them.
+    pub const ALL: [RayKind; 3] = [RayKind::Primary, RayKind::Shadow, RayKind::Diffuse];
+
+    /// The kind's name on the command line, in JSON and in exported file names.
+    pub fn name(self) -> &'static str {
+        match self {
+            RayKind::Primary => "primary",
+            RayKind::Shadow => "shadow",
+            RayKind::Diffuse => "diffuse",
+        }
+    }
 }
 
 /// A seeded bumpy sphere with about `triangles` triangles (see the module docs).
@@ -196,12 +214,16 @@ pub fn trace(accel: &Accel, rays: &[Ray], kind: RayKind) -> Checksum {
 pub struct Row {
     /// Model name or `generated N`.
     pub name: String,
+    /// The rays traced.
+    pub kind: RayKind,
     /// Triangles traced.
     pub triangles: usize,
     /// BVH build time (median of the runs).
     pub build: Duration,
-    /// BVH throughput, million rays per second over all threads.
+    /// BVH throughput, million rays per second over all threads (median of the runs).
     pub bvh_mrays: f64,
+    /// BVH throughput of each timed run, in the order run.
+    pub bvh_run_mrays: Vec<f64>,
     /// Linear-scan throughput, if measured.
     pub linear_mrays: Option<f64>,
     /// Rays traced per BVH run.
@@ -312,6 +334,10 @@ pub fn measure(scene: &Scene, name: &str, options: &BenchOptions) -> Result<Row,
             return Err(Mismatch(name.into(), got, expected));
         }
     }
+    let bvh_run_mrays = times
+        .iter()
+        .map(|t| rays.len() as f64 / t.as_secs_f64().max(1e-9) / 1e6)
+        .collect();
     let bvh_time = median(times);
     let linear_rays = (options.linear_budget / scene.soup.len().max(1) as u64) as usize;
     let linear_mrays = (linear_rays >= 64).then(|| {
@@ -335,12 +361,14 @@ pub fn measure(scene: &Scene, name: &str, options: &BenchOptions) -> Result<Row,
     }
     Ok(Row {
         name: name.into(),
+        kind: options.kind,
         triangles: scene.soup.len(),
         build,
         build_steps,
         soup_bytes: scene.soup.heap_bytes(),
         accel_bytes: bvh.heap_bytes(),
         bvh_mrays: rays.len() as f64 / bvh_time.as_secs_f64().max(1e-9) / 1e6,
+        bvh_run_mrays,
         linear_mrays: linear_mrays.map(|(_, _, m)| m),
         rays: rays.len(),
         threads,
@@ -374,17 +402,19 @@ fn step_columns<'a>(
 /// The tables as Markdown: throughput and memory, then the build's steps.
 pub fn markdown_table(rows: &[Row]) -> String {
     let mut out = String::from(
-        "| scene | triangles | build ms | BVH Mrays/s | linear Mrays/s | speedup | BVH ns/ray/thread | linear ns/ray/thread | soup MB | BVH MB |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| scene | rays | triangles | build ms | BVH Mrays/s | BVH Mrays/s/thread | linear Mrays/s | speedup | BVH ns/ray/thread | linear ns/ray/thread | soup MB | BVH MB |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         let opt =
             |v: Option<f64>, digits: usize| v.map_or("-".to_string(), |v| format!("{v:.digits$}"));
         out.push_str(&format!(
-            "| {} | {} | {:.1} | {:.2} | {} | {} | {:.0} | {} | {:.1} | {:.1} |\n",
+            "| {} | {} | {} | {:.1} | {:.2} | {:.2} | {} | {} | {:.0} | {} | {:.1} | {:.1} |\n",
             r.name,
+            r.kind.name(),
             r.triangles,
             r.build.as_secs_f64() * 1e3,
             r.bvh_mrays,
+            r.bvh_mrays / r.threads.max(1) as f64,
             opt(r.linear_mrays, 4),
             opt(r.speedup(), 0),
             r.bvh_ns_per_ray(),
@@ -410,7 +440,13 @@ pub fn markdown_table(rows: &[Row]) -> String {
                         .map_or("-".into(), |(_, t)| format!("{:.1}", t.as_secs_f64() * 1e3))
                 })
                 .collect();
-            out.push_str(&format!("| {} | {} |\n", r.name, cells.join(" | ")));
+            // Each ray kind built its own BVH: a row each, named by the kind too.
+            out.push_str(&format!(
+                "| {}, {} | {} |\n",
+                r.name,
+                r.kind.name(),
+                cells.join(" | ")
+            ));
         }
     }
     out
@@ -427,6 +463,10 @@ pub struct PathRow {
     pub path_mrays: Vec<f64>,
     /// The BVH's closest hits of diffuse rays per second, in millions, each round.
     pub bvh_mrays: Vec<f64>,
+    /// The path tracer's samples (camera paths) per second, each round.
+    pub samples_per_second: Vec<f64>,
+    /// Threads used.
+    pub threads: usize,
 }
 
 impl PathRow {
@@ -443,7 +483,7 @@ impl PathRow {
 }
 
 /// The median of `v` (the upper one of an even count); 0 for none.
-fn median_f64(v: &[f64]) -> f64 {
+pub fn median_f64(v: &[f64]) -> f64 {
     let mut v = v.to_vec();
     v.sort_by(f64::total_cmp);
     v.get(v.len() / 2).copied().unwrap_or(0.0)
@@ -465,7 +505,8 @@ pub fn path_versus_bvh(
     let rays = make_rays(&scene.scene, &scene.accel, RayKind::Diffuse, side, 7);
     let expected = trace(&scene.accel, &rays, RayKind::Diffuse);
     let cancel = std::sync::atomic::AtomicBool::new(false);
-    let (mut path_mrays, mut bvh_mrays) = (Vec::new(), Vec::new());
+    let (mut path_mrays, mut bvh_mrays, mut samples_per_second) =
+        (Vec::new(), Vec::new(), Vec::new());
     for _ in 0..runs.max(1) {
         let start = Instant::now();
         let got = trace(&scene.accel, &rays, RayKind::Diffuse);
@@ -480,6 +521,7 @@ pub fn path_versus_bvh(
             Err(_) => unreachable!("the flag is never set"),
         };
         path_mrays.push(stats.rays() as f64 / stats.time.as_secs_f64().max(1e-9) / 1e6);
+        samples_per_second.push(stats.samples_per_second());
     }
     Ok(PathRow {
         name: name.into(),
@@ -490,13 +532,15 @@ pub fn path_versus_bvh(
         ),
         path_mrays,
         bvh_mrays,
+        samples_per_second,
+        threads: rayon::current_num_threads(),
     })
 }
 
 /// [`PathRow`]s as a Markdown table: medians, and the range of the rounds' ratios.
 pub fn path_table(rows: &[PathRow]) -> String {
     let mut out = String::from(
-        "| scene | render | path tracer Mrays/s | BVH alone, diffuse, Mrays/s | ratio (median of rounds) | ratio range |\n|---|---|---:|---:|---:|---:|\n",
+        "| scene | render | path tracer Mrays/s | samples/s/thread | BVH alone, diffuse, Mrays/s | ratio (median of rounds) | ratio range |\n|---|---|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
         let ratios = r.ratios();
@@ -513,13 +557,122 @@ pub fn path_table(rows: &[PathRow]) -> String {
             )
         };
         out.push_str(&format!(
-            "| {} | {w}x{h}, {spp} spp | {:.2} | {:.2} | {ratio} | {range} |\n",
+            "| {} | {w}x{h}, {spp} spp | {:.2} | {:.0} | {:.2} | {ratio} | {range} |\n",
             r.name,
             median_f64(&r.path_mrays),
+            median_f64(&r.samples_per_second) / r.threads.max(1) as f64,
             median_f64(&r.bvh_mrays),
         ));
     }
     out
+}
+
+/// An exported triangle index that means "no hit" (NumPy `<u4`).
+pub const NO_TRIANGLE: u32 = u32::MAX;
+
+/// A ray as one exported row: origin x, y, z, direction x, y, z, tmin, tmax.
+pub fn ray_row(ray: &Ray) -> [f32; 8] {
+    let (o, d) = (ray.origin, ray.direction);
+    [o.x, o.y, o.z, d.x, d.y, d.z, ray.tmin, ray.tmax]
+}
+
+/// What `accel` answers for each ray of `kind`: closest-hit kinds give the soup triangle and
+/// the hit parameter ([`NO_TRIANGLE`] and `f32::INFINITY` for a miss); shadow rays give 1
+/// when blocked, else 0, and no parameter (`f32::INFINITY`): an any-hit query names no
+/// particular triangle.
+pub fn expected_hits(accel: &Accel, rays: &[Ray], kind: RayKind) -> Vec<(u32, f32)> {
+    rays.par_iter()
+        .map(|ray| match kind {
+            RayKind::Shadow => (u32::from(accel.occluded(ray)), f32::INFINITY),
+            _ => accel
+                .intersect(ray)
+                .map_or((NO_TRIANGLE, f32::INFINITY), |hit| (hit.triangle, hit.t)),
+        })
+        .collect()
+}
+
+/// Little-endian bytes of `values`, for a `.npy` file.
+fn le_bytes<T: Copy, const N: usize>(
+    values: impl Iterator<Item = T>,
+    to: fn(T) -> [u8; N],
+) -> Vec<u8> {
+    values.flat_map(to).collect()
+}
+
+/// Writes what [`measure`] traces on `scene` for each of `kinds` (the same BVH preset, `side`
+/// and seed) into the folder `dir`, created if missing, as NumPy arrays:
+///
+/// - `triangles.npy`: `<f4`, (triangles, 3, 3), each triangle's corners in soup order (world
+///   space), so row `i` is the triangle the hit files call `i`;
+/// - `triangle_materials.npy`: `<u4`, (triangles,), each triangle's material index;
+/// - `KIND.npy` (`primary`, `shadow`, `diffuse`): `<f4`, (rays, 8), one [`ray_row`] a ray;
+/// - `KIND_triangle.npy` and `KIND_t.npy` for the closest-hit kinds: `<u4` and `<f4`, (rays,),
+///   the BVH's closest hit ([`expected_hits`]);
+/// - `shadow_occluded.npy`: `<u4`, (rays,), 1 where the BVH finds the shadow ray blocked.
+///
+/// Returns the files written, in that order.
+pub fn export_rays(
+    scene: &Scene,
+    kinds: &[RayKind],
+    side: u32,
+    preset: BvhPreset,
+    dir: &Path,
+) -> Result<Vec<PathBuf>, crate::output::SaveError> {
+    use crate::output::npy::encode;
+    std::fs::create_dir_all(dir).map_err(|error| crate::output::SaveError::Unwritable {
+        path: dir.to_path_buf(),
+        error,
+    })?;
+    let bvh = Accel::build(&scene.soup, &scene.materials, AccelKind::Bvh, preset);
+    let n = scene.soup.len();
+    let corners = (0..n)
+        .flat_map(|t| scene.soup.triangle(t))
+        .flat_map(|p| p.to_array());
+    let mut files = vec![
+        (
+            "triangles".to_string(),
+            encode("<f4", &[n, 3, 3], &le_bytes(corners, f32::to_le_bytes)),
+        ),
+        (
+            "triangle_materials".to_string(),
+            encode(
+                "<u4",
+                &[n],
+                &le_bytes(scene.soup.material.iter().copied(), u32::to_le_bytes),
+            ),
+        ),
+    ];
+    for &kind in kinds {
+        let rays = make_rays(scene, &bvh, kind, side, 7);
+        let rows = rays.iter().flat_map(ray_row);
+        let name = kind.name();
+        files.push((
+            name.to_string(),
+            encode("<f4", &[rays.len(), 8], &le_bytes(rows, f32::to_le_bytes)),
+        ));
+        let hits = expected_hits(&bvh, &rays, kind);
+        let triangles = le_bytes(hits.iter().map(|h| h.0), u32::to_le_bytes);
+        if kind == RayKind::Shadow {
+            files.push((
+                format!("{name}_occluded"),
+                encode("<u4", &[rays.len()], &triangles),
+            ));
+        } else {
+            files.push((
+                format!("{name}_triangle"),
+                encode("<u4", &[rays.len()], &triangles),
+            ));
+            let t = le_bytes(hits.iter().map(|h| h.1), f32::to_le_bytes);
+            files.push((format!("{name}_t"), encode("<f4", &[rays.len()], &t)));
+        }
+    }
+    let mut written = Vec::new();
+    for (name, bytes) in files {
+        let path = dir.join(format!("{name}.npy"));
+        crate::output::write_atomic(&path, &bytes)?;
+        written.push(path);
+    }
+    Ok(written)
 }
 
 #[cfg(test)]
@@ -596,6 +749,7 @@ mod tests {
             "{table}"
         );
         assert!(table.contains("\n| gen | "), "{table}");
+        assert!(table.contains("\n| gen, primary | "), "{table}");
     }
 
     #[test]
@@ -629,11 +783,13 @@ mod tests {
             render: (64, 48, 2),
             path_mrays: vec![4.0, 5.0, 6.0],
             bvh_mrays: vec![10.0, 10.0, 8.0],
+            samples_per_second: vec![2000.0, 3000.0, 1000.0],
+            threads: 2,
         };
         assert_eq!(row.ratios(), vec![0.4, 0.5, 0.75]);
         let table = path_table(&[row]);
         assert!(
-            table.contains("| box | 64x48, 2 spp | 5.00 | 10.00 | 50% | 40-75% |"),
+            table.contains("| box | 64x48, 2 spp | 5.00 | 1000 | 10.00 | 50% | 40-75% |"),
             "{table}"
         );
         // Nothing in view: no diffuse rays, so no ratio (not "inf%").
@@ -642,11 +798,118 @@ mod tests {
             render: (8, 8, 1),
             path_mrays: vec![1.0],
             bvh_mrays: vec![0.0],
+            samples_per_second: vec![64.0],
+            threads: 1,
         };
         let table = path_table(&[empty]);
         assert!(
-            table.contains("| away | 8x8, 1 spp | 1.00 | 0.00 | - | - |") && !table.contains("inf"),
+            table.contains("| away | 8x8, 1 spp | 1.00 | 64 | 0.00 | - | - |")
+                && !table.contains("inf"),
             "{table}"
         );
+    }
+
+    /// The exported arrays read back as the rays that were traced, and the hit files give what
+    /// the linear scan (the reference) answers for the rays read back: same triangle, same t.
+    #[test]
+    fn exported_rays_round_trip_and_their_hits_match_the_reference() {
+        use crate::output::npy;
+        let scene = scene_from_soup(generated_mesh(2_000, 1), "test");
+        let dir = tempfile::tempdir().unwrap();
+        let files = export_rays(&scene, &RayKind::ALL, 24, BvhPreset::Medium, dir.path()).unwrap();
+        // triangles, materials; primary (rays, triangle, t); shadow (rays, occluded); diffuse.
+        assert_eq!(files.len(), 2 + 3 + 2 + 3);
+        let bytes = |name: &str| std::fs::read(dir.path().join(format!("{name}.npy"))).unwrap();
+        let floats = |data: &[u8]| -> Vec<f32> {
+            data.chunks_exact(4)
+                .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .collect()
+        };
+        // A 1-D array (which `npy::decode`, made for images, refuses): the header must give
+        // its length, and the elements are the file's last 4·len bytes.
+        let column = |name: &str, len: usize| -> Vec<u32> {
+            let file = bytes(name);
+            let header = String::from_utf8_lossy(&file[..64.min(file.len())]).into_owned();
+            assert!(file.len() > 4 * len, "{name}");
+            let text = String::from_utf8_lossy(&file[..file.len() - 4 * len]).into_owned();
+            assert!(
+                text.contains(&format!("'shape': ({len},)")),
+                "{name}: {header}"
+            );
+            file[file.len() - 4 * len..]
+                .chunks_exact(4)
+                .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .collect()
+        };
+        let triangles = npy::decode(&bytes("triangles")).unwrap();
+        assert_eq!(triangles.shape, [scene.soup.len(), 3, 3]);
+        let corners = floats(&triangles.data);
+        for t in [0, 917, scene.soup.len() - 1] {
+            let want: Vec<f32> = scene
+                .soup
+                .triangle(t)
+                .iter()
+                .flat_map(|p| p.to_array())
+                .collect();
+            assert_eq!(corners[9 * t..9 * t + 9], want[..], "triangle {t}");
+        }
+        assert_eq!(
+            column("triangle_materials", scene.soup.len()),
+            scene.soup.material
+        );
+
+        let bvh = Accel::build(
+            &scene.soup,
+            &scene.materials,
+            AccelKind::Bvh,
+            BvhPreset::Medium,
+        );
+        let linear = Accel::build(
+            &scene.soup,
+            &scene.materials,
+            AccelKind::Linear,
+            BvhPreset::Medium,
+        );
+        for kind in RayKind::ALL {
+            let array = npy::decode(&bytes(kind.name())).unwrap();
+            let rows = floats(&array.data);
+            let rays: Vec<Ray> = rows
+                .chunks_exact(8)
+                .map(|r| {
+                    Ray::new(
+                        Vec3::new(r[0], r[1], r[2]),
+                        Vec3::new(r[3], r[4], r[5]),
+                        r[6],
+                        r[7],
+                    )
+                })
+                .collect();
+            let traced = make_rays(&scene, &bvh, kind, 24, 7);
+            assert_eq!(array.shape, [traced.len(), 8], "{kind:?}");
+            assert!(traced.len() > 100, "{kind:?}: {}", traced.len());
+            assert_eq!(
+                rows,
+                traced.iter().flat_map(ray_row).collect::<Vec<_>>(),
+                "{kind:?}"
+            );
+            let reference = expected_hits(&linear, &rays, kind);
+            let n = rays.len();
+            if kind == RayKind::Shadow {
+                let occluded = column("shadow_occluded", n);
+                assert_eq!(occluded, reference.iter().map(|h| h.0).collect::<Vec<_>>());
+                assert!(
+                    occluded.contains(&0) && occluded.contains(&1),
+                    "{occluded:?}"
+                );
+            } else {
+                let triangle = column(&format!("{}_triangle", kind.name()), n);
+                let t: Vec<f32> = column(&format!("{}_t", kind.name()), n)
+                    .into_iter()
+                    .map(f32::from_bits)
+                    .collect();
+                let want: (Vec<u32>, Vec<f32>) = reference.into_iter().unzip();
+                assert_eq!((triangle, t), want, "{kind:?}");
+            }
+        }
     }
 }

@@ -137,9 +137,11 @@ mod tests {
     fn row(name: &str, triangles: usize, bvh_mrays: f64, linear_mrays: Option<f64>) -> Row {
         Row {
             name: name.into(),
+            kind: crate::tools::bench::RayKind::Primary,
             triangles,
             build: Duration::ZERO,
             bvh_mrays,
+            bvh_run_mrays: vec![bvh_mrays],
             linear_mrays,
             rays: 1,
             threads: 2,

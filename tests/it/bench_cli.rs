@@ -104,7 +104,9 @@ fn bench_sets_the_path_tracer_against_the_bvh() {
     );
     let table = String::from_utf8_lossy(&out.stdout);
     assert!(
-        table.contains("| scene | render | path tracer Mrays/s | BVH alone, diffuse, Mrays/s |"),
+        table.contains(
+            "| scene | render | path tracer Mrays/s | samples/s/thread | BVH alone, diffuse, Mrays/s |"
+        ),
         "{table}"
     );
     let row = table
@@ -113,7 +115,8 @@ fn bench_sets_the_path_tracer_against_the_bvh() {
         .unwrap_or_else(|| panic!("no path row: {table}"));
     let cells: Vec<&str> = row.split('|').map(str::trim).collect();
     let figure = |i: usize| -> f64 { cells[i].trim_end_matches('%').parse().unwrap() };
-    for i in [3, 4, 5] {
+    // Path tracer Mrays/s, its samples/s per thread, the BVH's Mrays/s, their ratio.
+    for i in [3, 4, 5, 6] {
         assert!(figure(i).is_finite() && figure(i) > 0.0, "{row}");
     }
 
@@ -147,4 +150,100 @@ fn bench_sets_the_path_tracer_against_the_bvh() {
         "{err}"
     );
     assert!(!err.contains("building and tracing"), "{err}");
+}
+
+/// The comparison `scripts/bench/peers.py` makes: three ray kinds in one run as JSON, one
+/// thread, per-thread throughput, and the exported arrays: the triangles and, per kind, as
+/// many rays as the row says were traced, with a hit file of one entry a ray. An export with
+/// generated meshes is refused up front.
+#[test]
+fn bench_reports_every_ray_kind_as_json_and_exports_what_it_traces() {
+    let dir = tempfile::tempdir().unwrap();
+    let export = dir.path().join("rays");
+    let out = run(
+        &[
+            "bench",
+            "assets/cornell-box.gltf",
+            "--sizes=",
+            "--rays",
+            "primary,shadow,diffuse",
+            "--double-sided",
+            "--side",
+            "16",
+            "--runs",
+            "2",
+            "--threads",
+            "1",
+            "--linear-budget",
+            "0",
+            "--json",
+            "-q",
+            "--export-rays",
+            s(&export),
+        ],
+        true,
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["settings"]["threads"], 1, "{report}");
+    assert_eq!(report["settings"]["double_sided"], true, "{report}");
+    let rows = report["rows"].as_array().unwrap();
+    let kinds: Vec<&str> = rows.iter().map(|r| r["rays"].as_str().unwrap()).collect();
+    assert_eq!(kinds, ["primary", "shadow", "diffuse"]);
+    let triangles = rows[0]["triangles"].as_u64().unwrap() as usize;
+    // A .npy's data is its last bytes: the header comes first, padded to 64 bytes.
+    let data_len = |name: &str| {
+        let bytes = std::fs::read(export.join(format!("{name}.npy"))).unwrap();
+        assert!(bytes.starts_with(b"\x93NUMPY"), "{name}");
+        let header_len = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+        bytes.len() - 10 - header_len
+    };
+    assert_eq!(data_len("triangles"), triangles * 9 * 4);
+    assert_eq!(data_len("triangle_materials"), triangles * 4);
+    for row in rows {
+        let kind = row["rays"].as_str().unwrap();
+        let traced = row["traced"].as_u64().unwrap() as usize;
+        assert_eq!(row["run_mrays_per_second"].as_array().unwrap().len(), 2);
+        assert!(
+            row["mrays_per_second_per_thread"].as_f64().unwrap() > 0.0,
+            "{row}"
+        );
+        assert_eq!(data_len(kind), traced * 8 * 4, "{kind}");
+        let hits = if kind == "shadow" {
+            "shadow_occluded".to_string()
+        } else {
+            format!("{kind}_triangle")
+        };
+        assert_eq!(data_len(&hits), traced * 4, "{kind}");
+    }
+    assert_eq!(rows[0]["traced"], 256, "16x16 primary rays");
+
+    let refused = run(
+        &["bench", "--sizes", "1000", "--export-rays", s(&export)],
+        false,
+    );
+    assert!(
+        stderr(&refused).contains("--export-rays writes one scene's rays"),
+        "{}",
+        stderr(&refused)
+    );
+    // The plot draws one kind's time per ray.
+    let plot = dir.path().join("two.svg");
+    let refused = run(
+        &[
+            "bench",
+            "--sizes",
+            "1000",
+            "--rays",
+            "primary,shadow",
+            "--plot",
+            s(&plot),
+        ],
+        false,
+    );
+    assert!(
+        stderr(&refused).contains("--plot draws one ray kind"),
+        "{}",
+        stderr(&refused)
+    );
+    assert!(!plot.exists());
 }

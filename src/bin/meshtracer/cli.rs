@@ -600,9 +600,10 @@ pub struct BenchArgs {
     /// empty (`--sizes=`) for none.
     #[arg(long, default_value = "1000,10000,100000,1000000")]
     pub sizes: SizeList,
-    /// Ray coherence: camera rays, shadow rays toward a light, or random diffuse bounces.
-    #[arg(long, value_parser = choice::<RayKind>(), default_value = "primary")]
-    pub rays: meshtracer::tools::bench::RayKind,
+    /// Ray coherence: camera rays, shadow rays toward a light, or random diffuse bounces;
+    /// several, comma-separated, measure each in turn on the same BVH build.
+    #[arg(long, value_parser = choice::<RayKind>(), value_delimiter = ',', default_value = "primary")]
+    pub rays: Vec<meshtracer::tools::bench::RayKind>,
     /// Camera rays per image side (side² primary rays per run).
     #[arg(long, default_value_t = 512)]
     pub side: u32,
@@ -636,6 +637,18 @@ pub struct BenchArgs {
     /// The path tracer's image size for --path-spp.
     #[arg(long, default_value = "512x384", value_name = "WIDTHxHEIGHT", value_parser = parse_size)]
     pub path_size: (u32, u32),
+    /// Print one JSON object (settings, a row per scene and ray kind with each run's
+    /// throughput, the path tracer's rows) instead of the Markdown tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Trace every triangle from both sides (no back-face culling of single-sided materials),
+    /// as Intel Embree does by default: the work `scripts/bench/peers.py` compares.
+    #[arg(long)]
+    pub double_sided: bool,
+    /// Write the triangles, the rays of each `--rays` kind and the BVH's hits as NumPy arrays
+    /// into this folder (one model and `--sizes=`); see `scripts/bench/peers.py`.
+    #[arg(long, value_name = "DIR")]
+    pub export_rays: Option<PathBuf>,
     /// No progress lines.
     #[arg(short, long)]
     pub quiet: bool,

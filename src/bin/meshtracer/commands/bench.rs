@@ -1,7 +1,8 @@
 //! `meshtracer bench`: build time and ray throughput of the BVH (and of the linear scan) on
 //! generated meshes and models, and with `--path-spp` the path tracer against the BVH alone;
 //! the measurements are in [`meshtracer::tools::bench`]. Prints a Markdown table and the
-//! settings, and writes them to `--report` and a scaling plot to `--plot`.
+//! settings (or with `--json` one JSON object), and writes them to `--report` and a scaling
+//! plot to `--plot`; `--export-rays` writes the traced triangles, rays and hits as NumPy arrays.
 
 use super::{interrupt_flag, load, load_options, worker_pool, Interrupted, QUIT_ON_SECOND_PRESS};
 use crate::cli::BenchArgs;
@@ -9,7 +10,8 @@ use anyhow::{bail, Context, Result};
 use meshtracer::render::RenderSettings;
 use meshtracer::scene::Scene;
 use meshtracer::tools::bench::{
-    generated_mesh, markdown_table, measure, scene_from_soup, BenchOptions, PathRow, Row,
+    generated_mesh, markdown_table, measure, median_f64, scene_from_soup, BenchOptions, PathRow,
+    Row,
 };
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -19,7 +21,7 @@ pub(super) fn bench_command(args: &BenchArgs) -> Result<()> {
     check_bench_options(args)?;
     let (threads, pool) = worker_pool(args.threads)?;
     let options = BenchOptions {
-        kind: args.rays,
+        kind: args.rays[0],
         side: args.side,
         runs: args.runs.max(1),
         linear_budget: args.linear_budget,
@@ -47,16 +49,21 @@ pub(super) fn bench_command(args: &BenchArgs) -> Result<()> {
         measure_job(args, &options, &pool, job, &stop, &mut measured)?;
     }
     let table = measured.table();
-    out!("{table}");
-    let partial = (measured.rows.len() < jobs.len()).then(|| {
+    let wanted = jobs.len() * args.rays.len();
+    let partial = (measured.rows.len() < wanted).then(|| {
         format!(
-            "stopped early: {} of {} measurements",
+            "stopped early: {} of {wanted} measurements",
             measured.rows.len(),
-            jobs.len()
         )
     });
     let settings = settings_line(args, &options, threads, partial.as_deref());
-    out!("{settings}");
+    if args.json {
+        let json = bench_json(args, &options, threads, partial.as_deref(), &measured);
+        out!("{}", serde_json::to_string_pretty(&json)?);
+    } else {
+        out!("{table}");
+        out!("{settings}");
+    }
     write_report_and_plot(args, &settings, &table, &measured)?;
     match partial {
         Some(p) => Err(Interrupted(format!("{p} reported")).into()),
@@ -65,8 +72,9 @@ pub(super) fn bench_command(args: &BenchArgs) -> Result<()> {
 }
 
 /// Refuses, in this order and before any measurement: a `--report` or `--plot` that is a
-/// folder, a `--plot` not named `.svg`, `--side` outside 1..=8192, `--path-spp` over 4096,
-/// nothing to measure, and a `--sizes` entry outside 8..=`--max-triangles`.
+/// folder, a `--plot` not named `.svg` or of several ray kinds, `--side` outside 1..=8192,
+/// `--path-spp` over 4096, nothing to measure, an `--export-rays` with other than one model
+/// and no generated sizes, and a `--sizes` entry outside 8..=`--max-triangles`.
 fn check_bench_options(args: &BenchArgs) -> Result<()> {
     for path in [&args.report, &args.plot].into_iter().flatten() {
         if path.is_dir() {
@@ -83,6 +91,9 @@ fn check_bench_options(args: &BenchArgs) -> Result<()> {
                 path.display()
             );
         }
+        if args.rays.len() != 1 {
+            bail!("--plot draws one ray kind: give --rays one kind");
+        }
     }
     if args.side == 0 || args.side > 8192 {
         bail!("--side {}: must be between 1 and 8192", args.side);
@@ -95,6 +106,9 @@ fn check_bench_options(args: &BenchArgs) -> Result<()> {
     }
     if args.sizes.is_empty() && args.models.is_empty() {
         bail!("nothing to measure: name models, or generated sizes with --sizes");
+    }
+    if args.export_rays.is_some() && (args.models.len() != 1 || !args.sizes.is_empty()) {
+        bail!("--export-rays writes one scene's rays: name one model, with --sizes=");
     }
     if let Some(&n) = args
         .sizes
@@ -179,26 +193,52 @@ fn measure_job(
     measured: &mut Measured,
 ) -> Result<()> {
     let name = &job.name;
-    let scene = match job.source {
+    let mut scene = match job.source {
         BenchSource::Generated(n) => scene_from_soup(generated_mesh(n, 1), name),
         BenchSource::Model(p) => load(p, &load_options(&args.load))?,
     };
-    let row = pool.install(|| measure(&scene, name, options))?;
-    if !args.quiet {
-        eprintln!(
-            "      {} triangles: build {:.1} ms, BVH {:.2} Mrays/s{}",
-            row.triangles,
-            row.build.as_secs_f64() * 1e3,
-            row.bvh_mrays,
-            row.linear_mrays
-                .map_or(String::new(), |l| format!(", linear {l:.4} Mrays/s"))
-        );
+    if args.double_sided {
+        for material in &mut scene.materials {
+            material.double_sided = true;
+        }
     }
-    match job.source {
-        BenchSource::Generated(_) => measured.generated.push(row.clone()),
-        BenchSource::Model(_) => measured.models.push(row.clone()),
+    if let Some(dir) = &args.export_rays {
+        let files = pool.install(|| {
+            meshtracer::tools::bench::export_rays(
+                &scene,
+                &args.rays,
+                args.side,
+                args.bvh_preset,
+                dir,
+            )
+        })?;
+        if !args.quiet {
+            eprintln!("      wrote {} arrays to {}", files.len(), dir.display());
+        }
     }
-    measured.rows.push(row);
+    for (i, &kind) in args.rays.iter().enumerate() {
+        if i > 0 && stop.load(Ordering::SeqCst) {
+            return Ok(());
+        }
+        let options = BenchOptions { kind, ..*options };
+        let row = pool.install(|| measure(&scene, name, &options))?;
+        if !args.quiet {
+            eprintln!(
+                "      {} triangles, {} rays: build {:.1} ms, BVH {:.2} Mrays/s{}",
+                row.triangles,
+                kind.name(),
+                row.build.as_secs_f64() * 1e3,
+                row.bvh_mrays,
+                row.linear_mrays
+                    .map_or(String::new(), |l| format!(", linear {l:.4} Mrays/s"))
+            );
+        }
+        match job.source {
+            BenchSource::Generated(_) => measured.generated.push(row.clone()),
+            BenchSource::Model(_) => measured.models.push(row.clone()),
+        }
+        measured.rows.push(row);
+    }
     if args.path_spp > 0 && !stop.load(Ordering::SeqCst) {
         if !args.quiet {
             eprintln!(
@@ -262,12 +302,17 @@ fn settings_line(
     partial: Option<&str>,
 ) -> String {
     format!(
-        "{:?} rays ({} primary rays per run, shadow/diffuse rays from their hits), median of {} runs, {threads} threads, obvhs preset {:?}, linear scan budget {} triangle tests; CPU: {}{}",
-        args.rays,
+        "{} rays ({} primary rays per run, shadow/diffuse rays from their hits), median of {} runs, {threads} threads, obvhs preset {:?}, linear scan budget {} triangle tests{}; CPU: {}{}",
+        kind_names(args).join(", "),
         u64::from(args.side) * u64::from(args.side),
         options.runs,
         args.bvh_preset,
         args.linear_budget,
+        if args.double_sided {
+            ", every triangle double-sided"
+        } else {
+            ""
+        },
         cpu_name(),
         partial.map_or(String::new(), |p| format!("; {p}"))
     )
@@ -286,7 +331,7 @@ fn write_report_and_plot(
         meshtracer::output::write_atomic(path, report.as_bytes())?;
     }
     if let Some(path) = &args.plot {
-        let title = format!("time per {:?} ray vs triangles", args.rays).to_lowercase();
+        let title = format!("time per {} ray vs triangles", kind_names(args).join(", "));
         let svg =
             meshtracer::tools::plot::scaling_plot(&measured.generated, &measured.models, &title)?;
         meshtracer::output::write_atomic(path, svg.as_bytes())?;
@@ -305,4 +350,74 @@ fn cpu_name() -> String {
                 .map(|(_, v)| v.trim().to_string())
         })
         .unwrap_or_else(|| "unknown".into())
+}
+
+/// The names of the `--rays` kinds, in the order given.
+fn kind_names(args: &BenchArgs) -> Vec<&'static str> {
+    args.rays.iter().map(|k| k.name()).collect()
+}
+
+/// `--json`: the settings, one row per scene and ray kind (throughput over all threads and
+/// per thread, each timed run's), and the path tracer's rows (samples per second, all threads
+/// and per thread, each round's).
+fn bench_json(
+    args: &BenchArgs,
+    options: &BenchOptions,
+    threads: usize,
+    partial: Option<&str>,
+    measured: &Measured,
+) -> serde_json::Value {
+    let rows: Vec<serde_json::Value> = measured
+        .rows
+        .iter()
+        .map(|r| {
+            serde_json::json!({
+                "scene": r.name,
+                "rays": r.kind.name(),
+                "triangles": r.triangles,
+                "traced": r.rays,
+                "threads": r.threads,
+                "build_ms": r.build.as_secs_f64() * 1e3,
+                "mrays_per_second": r.bvh_mrays,
+                "mrays_per_second_per_thread": r.bvh_mrays / r.threads.max(1) as f64,
+                "run_mrays_per_second": r.bvh_run_mrays,
+                "linear_mrays_per_second": r.linear_mrays,
+                "soup_bytes": r.soup_bytes,
+                "bvh_bytes": r.accel_bytes,
+            })
+        })
+        .collect();
+    let path: Vec<serde_json::Value> = measured
+        .path_rows
+        .iter()
+        .map(|r| {
+            let samples = median_f64(&r.samples_per_second);
+            serde_json::json!({
+                "scene": r.name,
+                "width": r.render.0,
+                "height": r.render.1,
+                "spp": r.render.2,
+                "threads": r.threads,
+                "samples_per_second": samples,
+                "samples_per_second_per_thread": samples / r.threads.max(1) as f64,
+                "run_samples_per_second": r.samples_per_second,
+                "path_mrays_per_second": median_f64(&r.path_mrays),
+                "bvh_diffuse_mrays_per_second": median_f64(&r.bvh_mrays),
+            })
+        })
+        .collect();
+    serde_json::json!({
+        "settings": {
+            "rays": kind_names(args),
+            "side": args.side,
+            "runs": options.runs,
+            "threads": threads,
+            "bvh_preset": format!("{:?}", args.bvh_preset),
+            "double_sided": args.double_sided,
+            "cpu": cpu_name(),
+            "partial": partial,
+        },
+        "rows": rows,
+        "path": path,
+    })
 }
