@@ -183,10 +183,10 @@ fn ctrl_c_stops_a_benchmark_with_its_finished_measurements() {
     );
     for text in [&out, &std::fs::read_to_string(&report).unwrap()] {
         assert!(text.contains("| generated 1000000 |"), "{text}");
-        // Once in the measurements table (name, then its 1,024 triangles); the build-steps
-        // table names it again.
+        // Once in the measurements table (name, ray kind, then its 1,024 triangles); the
+        // build-steps table names it again.
         assert_eq!(
-            text.matches("| generated 1000 | 1024 |").count(),
+            text.matches("| generated 1000 | primary | 1024 |").count(),
             1,
             "{text}"
         );
