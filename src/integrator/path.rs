@@ -391,7 +391,14 @@ impl PathTracer {
         radiance: &mut Vec3,
         counts: &mut RayCounts,
     ) {
-        let Some(shadow) = vertex.surface.shadow_ray_for(sample) else {
+        // A punctual light behind a rough thin sheet shines through it (below); any other
+        // light must be on the eye's side.
+        let through = sample.pdf.is_none() && vertex.bsdf.transmits_thin_rough();
+        let shadow = match vertex.surface.shadow_ray_for(sample) {
+            None if through => vertex.surface.shadow_ray_through(sample),
+            shadow => shadow,
+        };
+        let Some(shadow) = shadow else {
             return;
         };
         counts.shadow += 1;
@@ -401,7 +408,10 @@ impl PathTracer {
             // A delta light: light sampling alone finds it.
             None => {
                 if transmittance > 0.0 {
-                    let f = vertex.bsdf.eval_cos(to_eye, sample.to_light);
+                    // Reflected, or (a rough thin sheet) transmitted toward the eye: BSDF
+                    // samples never find a punctual light, so both lobes are evaluated here.
+                    let f = vertex.bsdf.eval_cos(to_eye, sample.to_light)
+                        + vertex.bsdf.thin_transmission_cos(to_eye, sample.to_light);
                     *radiance += throughput * f * sample.arriving(vertex.scene) * transmittance;
                 }
             }

@@ -15,7 +15,9 @@
 
 use crate::color::luminance;
 use crate::sampling::{cosine_hemisphere, frame};
-use crate::shading::ggx::{sample_visible_normal, smith_g1, smith_lambda, visible_normal_pdf};
+use crate::shading::ggx::{
+    ggx_d, sample_visible_normal, smith_g1, smith_lambda, visible_normal_pdf,
+};
 use crate::shading::{
     gltf_brdf, sheen_albedo, Clearcoat, SurfaceMaterial, MIN_COSINE, MIN_GGX_ALPHA,
 };
@@ -93,9 +95,11 @@ struct Core {
 /// through Rough Surfaces", EGSR 2007) through a volume, and for a thin-walled sheet the
 /// reflection about the microfacet mirrored through the surface (the glTF transmission
 /// extension's thin-walled BTDF). Either way the sample's weight is (1 - F(v·m))·G2/G1 times
-/// the lobe's tint. The lobe is drawn by [`Bsdf::sample`] only, never evaluated for light
-/// samples (shadow rays do not pass through glass volumes), so its samples count as
-/// delta ones: emission they reach is counted in full, which keeps the estimate unbiased.
+/// the lobe's tint. The lobe is drawn by [`Bsdf::sample`], and evaluated for light samples
+/// only for punctual lights through a rough thin sheet ([`Bsdf::thin_transmission_cos`]),
+/// which nothing else can find (shadow rays do not pass through glass volumes); its samples
+/// count as delta ones: emission they reach is counted in full, which keeps the estimate
+/// unbiased.
 #[derive(Clone, Copy, Debug)]
 struct Transmission {
     /// `transmission` × (1 - metallic).
@@ -401,6 +405,52 @@ impl Bsdf {
             pdf,
             delta: false,
         })
+    }
+
+    /// Whether light passes through this point as through a rough thin-walled sheet (a
+    /// transmission lobe, no bending, roughness above the mirror floor): what
+    /// [`Bsdf::thin_transmission_cos`] evaluates.
+    #[inline]
+    pub fn transmits_thin_rough(&self) -> bool {
+        self.transmission.is_some_and(|t| t.eta == 1.0) && self.alpha > MIN_ALPHA
+    }
+
+    /// f(v, l) · |n·l| of the transmission lobe of a rough thin-walled sheet, for `to_light` on
+    /// the far side of the sheet (zero otherwise, and for smooth sheets and volumes). The lobe
+    /// [`Bsdf::sample_transmission`] draws mirrors a GGX reflection through the sheet, so its
+    /// value is the reflection's with the light mirrored back to the eye's side, l' = l -
+    /// 2(n·l)n, h = normalize(v + l'), (1 - F(v·h)) for F and the base colour as tint:
+    /// factor · base · (1 - F) · D(h) · G2(v, l') / (4 n·v). Its ratio to the density of the
+    /// draw (the visible normals' D·G1/(4 n·v)) is the draw's weight, (1 - F) · G2/G1.
+    ///
+    /// Only punctual lights use it ([`crate::integrator::PathTracer`]): BSDF samples never
+    /// find them, so light through a frosted sheet (a lamp's shade around its bulb) reaches
+    /// the eye by this term or not at all. Area lights and the environment behind a sheet are
+    /// found by the drawn lobe, counted in full, and need no second estimate.
+    pub fn thin_transmission_cos(&self, to_eye: Vec3, to_light: Vec3) -> Vec3 {
+        if !self.transmits_thin_rough() {
+            return Vec3::ZERO;
+        }
+        let Some(t) = self.transmission else {
+            return Vec3::ZERO;
+        };
+        let n = self.normal;
+        let (n_dot_v, n_dot_l) = (n.dot(to_eye), n.dot(to_light));
+        if n_dot_v <= 0.0 || n_dot_l >= 0.0 {
+            return Vec3::ZERO;
+        }
+        let mirrored = to_light - 2.0 * n_dot_l * n;
+        let h = (to_eye + mirrored).normalize_or_zero();
+        let n_dot_h = n.dot(h);
+        if n_dot_h <= 0.0 {
+            return Vec3::ZERO;
+        }
+        let v_dot_h = to_eye.dot(h).clamp(0.0, 1.0);
+        let fresnel = luminance(self.material.reflectance(v_dot_h, n_dot_v));
+        let g2 =
+            1.0 / (1.0 + smith_lambda(n_dot_v, self.alpha) + smith_lambda(-n_dot_l, self.alpha));
+        let d = ggx_d(n_dot_h, self.alpha);
+        self.material.base_color * (t.factor * (1.0 - fresnel) * d * g2 / (4.0 * n_dot_v))
     }
 
     /// The transmission lobe: straight through a thin sheet, refracted by Snell's law into or
@@ -743,6 +793,70 @@ mod tests {
                     assert!(mean > 0.95 * smooth_weight, "{roughness}: {mean}");
                 }
             }
+        }
+    }
+
+    /// The thin sheet's transmission lobe evaluated for light samples agrees with the lobe it
+    /// draws: for each of several views and roughnesses, the integral of
+    /// [`Bsdf::thin_transmission_cos`] over the far hemisphere (uniform directions) equals
+    /// the mean weight of the drawn transmission samples (times the chance of drawing that
+    /// lobe), within 2%; so does the integral over a cone (the lobe's shape, not only its
+    /// total). Volumes, smooth sheets and directions on the eye's side evaluate to zero.
+    #[test]
+    fn thin_sheet_transmission_evaluates_as_it_samples() {
+        for (cos_v, roughness) in [(0.9f32, 0.3f32), (0.6, 0.5), (0.3, 0.8)] {
+            let to_eye = Vec3::new((1.0 - cos_v * cos_v).sqrt(), 0.0, cos_v);
+            let bsdf = Bsdf::new(material(0.8, 0.0, roughness), Vec3::Z, to_eye)
+                .with_transmission(to_eye, 1.0, 1.5, true, true);
+            let t = bsdf.transmission.expect("a transmission lobe");
+            // The cone about the straight-through direction that the check also integrates.
+            let axis = -to_eye;
+            let in_cone = |d: Vec3| d.dot(axis) > 0.8;
+            let mut rng = Rng::new(11);
+            let n = 400_000;
+            let (mut eval_all, mut eval_cone) = (0.0f64, 0.0f64);
+            for _ in 0..n {
+                // Uniform on the lower hemisphere: pdf 1/(2π).
+                let z = -rng.next_f32();
+                let phi = std::f32::consts::TAU * rng.next_f32();
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let d = Vec3::new(r * phi.cos(), r * phi.sin(), z);
+                let f = f64::from(bsdf.thin_transmission_cos(to_eye, d).x) * std::f64::consts::TAU;
+                eval_all += f;
+                if in_cone(d) {
+                    eval_cone += f;
+                }
+            }
+            let (mut drawn_all, mut drawn_cone) = (0.0f64, 0.0f64);
+            for _ in 0..n {
+                if let Some(s) = bsdf.sample_transmission(to_eye, t, rng.next_f32(), rng.next_f32())
+                {
+                    let w = f64::from(s.weight.x * t.probability);
+                    drawn_all += w;
+                    if in_cone(s.direction) {
+                        drawn_cone += w;
+                    }
+                }
+            }
+            let n = f64::from(n);
+            for (what, eval, drawn) in [
+                ("all", eval_all / n, drawn_all / n),
+                ("cone", eval_cone / n, drawn_cone / n),
+            ] {
+                assert!(
+                    (eval - drawn).abs() < 0.02 * drawn.max(1e-3),
+                    "cos {cos_v}, roughness {roughness}, {what}: evaluated {eval}, drawn {drawn}"
+                );
+            }
+            let below = Vec3::new(0.1, 0.2, -0.97).normalize();
+            assert!(bsdf.thin_transmission_cos(to_eye, below).x > 0.0);
+            assert_eq!(bsdf.thin_transmission_cos(to_eye, Vec3::Z), Vec3::ZERO);
+            let volume = Bsdf::new(material(0.8, 0.0, roughness), Vec3::Z, to_eye)
+                .with_transmission(to_eye, 1.0, 1.5, false, true);
+            assert_eq!(volume.thin_transmission_cos(to_eye, below), Vec3::ZERO);
+            let smooth = Bsdf::new(material(0.8, 0.0, 0.0), Vec3::Z, to_eye)
+                .with_transmission(to_eye, 1.0, 1.5, true, true);
+            assert_eq!(smooth.thin_transmission_cos(to_eye, below), Vec3::ZERO);
         }
     }
 }

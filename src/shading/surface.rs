@@ -105,6 +105,32 @@ impl Surface<'_> {
         }
     }
 
+    /// The shadow ray toward a light sample on the far side of a thin sheet that lets light
+    /// through ([`crate::shading::bsdf::Bsdf::thin_transmission_cos`]): from the sheet's far
+    /// side (off it by its error bound), aimed at the light's point or along its direction.
+    /// `None` when the light is not behind the sheet (its shading and smooth normals both
+    /// point away from it).
+    #[inline]
+    pub fn shadow_ray_through(&self, sample: &LightSample) -> Option<Ray> {
+        let to_light = sample.to_light;
+        if to_light.dot(self.smooth) >= 0.0 || to_light.dot(self.normal) >= 0.0 {
+            return None;
+        }
+        let origin = self.spawn.origin(to_light);
+        let Some(target) = sample.target else {
+            return Some(Ray::new(
+                origin,
+                to_light,
+                0.0,
+                spawn::ray_extent(sample.distance),
+            ));
+        };
+        let offset = target - origin;
+        let distance = offset.length();
+        (distance > 0.0 && distance.is_finite())
+            .then(|| Ray::new(origin, offset / distance, 0.0, spawn::ray_extent(distance)))
+    }
+
     /// The shadow ray toward a light sample: aimed at its point where it has one
     /// ([`Surface::shadow_ray_to`]), else along its direction to infinity.
     #[inline(always)]
