@@ -247,6 +247,15 @@ pub enum DenoiseError {
         /// Guide rows.
         guides_height: u32,
     },
+    /// The image's per-pixel variance does not match its pixels (a bug in the caller: an
+    /// [`Image`] built by hand rather than by the renderer or [`Image::new`]).
+    #[error("denoise: {variances} variances for an image of {pixels} pixels")]
+    VarianceSize {
+        /// Pixels in the image.
+        pixels: usize,
+        /// Entries of [`Image::variance`].
+        variances: usize,
+    },
     /// Open Image Denoise refused or failed.
     #[error("Open Image Denoise: {step}: {message}")]
     Library {
@@ -270,13 +279,18 @@ pub fn denoise(image: &mut Image, guides: &Guides) -> Result<Denoised, DenoiseEr
         || guides.albedo.len() != pixels
         || guides.normal.len() != pixels
         || guides.depth.len() != pixels
-        || image.variance.len() != pixels
     {
         return Err(DenoiseError::GuideSize {
             width: image.width,
             height: image.height,
             guides_width: guides.width,
             guides_height: guides.height,
+        });
+    }
+    if image.variance.len() != pixels {
+        return Err(DenoiseError::VarianceSize {
+            pixels,
+            variances: image.variance.len(),
         });
     }
     #[cfg(feature = "denoise")]
@@ -316,6 +330,19 @@ mod tests {
         assert!(matches!(
             denoise(&mut image, &blank(2, 2)),
             Err(DenoiseError::GuideSize { .. })
+        ));
+    }
+
+    #[test]
+    fn a_missing_variance_is_refused() {
+        let mut image = Image::new(2, 2);
+        image.variance.clear();
+        assert!(matches!(
+            denoise(&mut image, &blank(2, 2)),
+            Err(DenoiseError::VarianceSize {
+                pixels: 4,
+                variances: 0
+            })
         ));
     }
 
