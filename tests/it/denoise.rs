@@ -53,10 +53,10 @@ fn against(reference: &Path, image: &Path) -> Metrics {
 /// The denoiser's whole point, with the margins it must clear: at 4 spp the denoised image's
 /// mean FLIP against a reference (`REFERENCE`: spp and seed) is at most `FLIP_MARGIN` of the
 /// noisy image's, and its RMSE at most `RMSE_MARGIN`. Built-in filter, 64 spp and another
-/// seed (in a few seconds of a dev build): measured 0.105 against 0.144 (72%) and 0.040
-/// against 0.100 (40%). OIDN, 256 spp with the same seed: 0.083 against 0.143 (58%), 0.023
-/// against 0.095 (25%). FLIP gains less because the reference's own noise and the box's edges
-/// stay in it.
+/// seed (in a few seconds of a dev build): measured 0.107 against 0.138 (78%) and 0.036
+/// against 0.092 (39%) with the Owen-scrambled Sobol sampler. OIDN, 256 spp with the same
+/// seed, measured before that sampler: 0.083 against 0.143 (58%), 0.023 against 0.095 (25%).
+/// FLIP gains less because the reference's own noise and the box's edges stay in it.
 #[test]
 fn a_denoised_low_spp_render_is_closer_to_the_reference() {
     #[cfg(feature = "denoise")]
@@ -64,7 +64,7 @@ fn a_denoised_low_spp_render_is_closer_to_the_reference() {
     #[cfg(feature = "denoise")]
     const REFERENCE: [&str; 2] = ["256", "7"];
     #[cfg(not(feature = "denoise"))]
-    const FLIP_MARGIN: f64 = 0.8;
+    const FLIP_MARGIN: f64 = 0.85;
     #[cfg(not(feature = "denoise"))]
     const REFERENCE: [&str; 2] = ["64", "1"];
     const RMSE_MARGIN: f64 = 0.5;
