@@ -269,7 +269,6 @@ pub fn render_region(
             image.variance[begin..begin + chunk.len()]
                 .copy_from_slice(&tile.variance[at..at + chunk.len()]);
             if let Some(a) = aovs.as_mut() {
-                let at = row * tile.width as usize;
                 let n = chunk.len();
                 a.depth[begin..begin + n].copy_from_slice(&tile.aovs.depth[at..at + n]);
                 a.normal[begin..begin + n].copy_from_slice(&tile.aovs.normal[at..at + n]);
