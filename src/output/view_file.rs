@@ -153,11 +153,12 @@ impl ViewDisplay {
 /// How a view's image was denoised (`--denoise`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ViewDenoise {
-    /// The library: "Intel Open Image Denoise".
+    /// Who made the filter: "meshtracer" (the built-in one) or "Intel Open Image Denoise".
     pub denoiser: String,
-    /// Its version, as the library reports it ("2.5.1").
+    /// Its version: meshtracer's, or OIDN's as the library reports it ("2.5.1").
     pub version: String,
-    /// The filter: "RT" (ray-traced images).
+    /// The filter: "atrous" (the built-in edge-avoiding à-trous wavelets) or OIDN's "RT"
+    /// (ray-traced images).
     pub filter: String,
     /// Whether the filter ran on the linear HDR film (always, before any encoding).
     pub hdr: bool,
@@ -165,7 +166,8 @@ pub struct ViewDenoise {
     pub guides: Vec<String>,
     /// Rays a pixel traced for the guides (a jittered grid of first hits).
     pub guide_samples_per_pixel: u32,
-    /// Whether the guides are noise-free, so the filter trusts them (`cleanAux`).
+    /// Whether the guides are noise-free, so the filter trusts them (OIDN's `cleanAux`; the
+    /// built-in filter always does).
     pub clean_aux: bool,
 }
 

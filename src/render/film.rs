@@ -12,15 +12,22 @@ pub struct Image {
     pub height: u32,
     /// `width * height` pixels.
     pub pixels: Vec<Vec4>,
+    /// Per pixel, the variance of its mean luminance (after exposure), estimated from the
+    /// spread of its samples: the squared standard error. 0 where one sample was taken or
+    /// nothing was covered. The built-in denoiser weighs neighbours by it
+    /// ([`crate::render::denoise::atrous`]).
+    pub variance: Vec<f32>,
 }
 
 impl Image {
-    /// A transparent black image.
+    /// A transparent black image, its variance 0.
     pub fn new(width: u32, height: u32) -> Image {
+        let count = width as usize * height as usize;
         Image {
             width,
             height,
-            pixels: vec![Vec4::ZERO; width as usize * height as usize],
+            pixels: vec![Vec4::ZERO; count],
+            variance: vec![0.0; count],
         }
     }
 

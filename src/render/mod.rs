@@ -265,8 +265,10 @@ pub fn render_region(
             let y = tile.y - region.y + row as u32;
             let begin = (y * width + tile.x - region.x) as usize;
             image.pixels[begin..begin + chunk.len()].copy_from_slice(chunk);
+            let at = row * tile.width as usize;
+            image.variance[begin..begin + chunk.len()]
+                .copy_from_slice(&tile.variance[at..at + chunk.len()]);
             if let Some(a) = aovs.as_mut() {
-                let at = row * tile.width as usize;
                 let n = chunk.len();
                 a.depth[begin..begin + n].copy_from_slice(&tile.aovs.depth[at..at + n]);
                 a.normal[begin..begin + n].copy_from_slice(&tile.aovs.normal[at..at + n]);
@@ -323,6 +325,8 @@ struct Tile {
     y: u32,
     width: u32,
     pixels: Vec<Vec4>,
+    /// Per pixel, the variance of its mean luminance ([`Image::variance`]).
+    variance: Vec<f32>,
     aovs: Aovs,
     counts: RayCounts,
     /// Sum over covered pixels of the standard error of their mean luminance.
@@ -401,6 +405,7 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
             y: y0,
             width: x1 - x0,
             pixels: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
+            variance: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
             aovs: Aovs::default(),
             counts: RayCounts::default(),
             noise_sum: 0.0,
@@ -453,12 +458,16 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                 }
                 tile.samples += u64::from(taken);
                 tile.pixels.push(sum / taken as f32);
+                let mut variance = 0.0f32;
                 if taken > 1 && sum.w > 0.0 {
                     let n = f64::from(taken);
                     let mean = f64::from(luminance(sum.truncate())) / n;
-                    tile.noise_sum += standard_error(luminance_squares, mean, taken);
+                    let error = standard_error(luminance_squares, mean, taken);
+                    tile.noise_sum += error;
                     tile.noise_pixels += 1;
+                    variance = (error * error) as f32;
                 }
+                tile.variance.push(variance);
                 if self.settings.aovs {
                     let ray = view.ray(x as f32 + 0.5, y as f32 + 0.5);
                     // One sample a pixel went through the centre: its first surface is the

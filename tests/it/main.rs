@@ -18,7 +18,7 @@ mod broken_files;
 mod bundled_assets;
 /// `compare`: metrics, difference images, thresholds and refusals.
 mod compare;
-/// `render --denoise` (feature `denoise`).
+/// `render --denoise`: the built-in filter, or OIDN with the feature `denoise`.
 mod denoise;
 /// Draco, meshopt, quantized, WebP and KTX2 variants render like their plain sibling.
 mod encoded_variants;

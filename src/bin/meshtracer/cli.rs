@@ -195,10 +195,11 @@ pub struct RenderArgs {
     /// that count, so the same spp reached gives the same image.
     #[arg(long, value_name = "SECS")]
     pub time_limit: Option<f64>,
-    /// Denoise the image with Intel Open Image Denoise (its RT filter on the linear HDR image,
-    /// guided by first-hit albedo and normals), with either integrator; the view file and the
-    /// summary say so. Only in builds made with `--features denoise` (docs/denoising.md);
-    /// other builds refuse it. Not with --views, --turntable, --tile or --crop.
+    /// Denoise the linear HDR image, guided by the albedo, normals and depth of the first
+    /// surfaces, with either integrator: the built-in edge-avoiding à-trous filter, or Intel
+    /// Open Image Denoise's RT filter in builds made with `--features denoise`
+    /// (docs/denoising.md); the view file, --stats and the summary say which. Not with
+    /// --views, --turntable, --tile or --crop.
     #[arg(long, conflicts_with_all = ["views", "turntable", "tile", "crop"])]
     pub denoise: bool,
     /// Seed of the sample pattern (the output is identical for the same seed).

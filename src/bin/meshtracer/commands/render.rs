@@ -20,7 +20,7 @@ use meshtracer::light::environment::Environment;
 use meshtracer::output::view_file::ViewFile;
 use meshtracer::output::PendingOutput;
 use meshtracer::prepare::Prepared;
-use meshtracer::render::denoise::Denoised;
+use meshtracer::render::denoise::{Denoised, Denoiser};
 use meshtracer::render::{render, render_region, Aovs, Image, Region, RenderSettings, RenderStats};
 use meshtracer::scene::{Camera, Light, Projection, Scene};
 use meshtracer::setup::{lighting, Lighting, RecordedLighting};
@@ -95,8 +95,8 @@ pub(super) fn render_model(
 }
 
 /// Refuses, in this order, the sampling and image options that are wrong on their own:
-/// `--spp` (1 to `--max-spp`), `--time-limit`, `--exposure`, `--denoise` (built in, and for a
-/// single image only), `--yfov`, and `--width`/`--height` (at least 1, and within
+/// `--spp` (1 to `--max-spp`), `--time-limit`, `--exposure`, `--denoise` (for a single image
+/// only), `--yfov`, and `--width`/`--height` (at least 1, and within
 /// `--max-pixels` when both are given).
 fn check_image_options(args: &RenderArgs) -> Result<()> {
     if args.spp() == 0 || args.spp() > args.max_spp {
@@ -114,14 +114,9 @@ fn check_image_options(args: &RenderArgs) -> Result<()> {
     if !args.exposure.is_finite() {
         bail!("--exposure must be a finite number");
     }
-    if args.denoise {
-        if !meshtracer::render::denoise::AVAILABLE {
-            bail!(meshtracer::render::denoise::NOT_BUILT);
-        }
-        // The command line refuses these combinations; a batch job's manifest can still ask.
-        if args.views.is_some() || args.turntable.is_some() {
-            bail!("--denoise denoises a single image: not with --views or --turntable (yet)");
-        }
+    // The command line refuses these combinations; a batch job's manifest can still ask.
+    if args.denoise && (args.views.is_some() || args.turntable.is_some()) {
+        bail!("--denoise denoises a single image: not with --views or --turntable (yet)");
     }
     if let Some(yfov) = args.yfov {
         if !(yfov > 0.0 && yfov < 180.0) {
@@ -386,7 +381,7 @@ struct Rendered {
 
 /// What `--denoise` did.
 struct Denoising {
-    /// The denoiser's own report (its version).
+    /// The denoiser's own report (which filter, its version).
     report: Denoised,
     /// Guide rays per pixel.
     guide_samples: u32,
@@ -631,11 +626,17 @@ fn view_record(args: &RenderArgs, done: &Finished) -> ViewFile {
             .denoised
             .as_ref()
             .map(|d| meshtracer::output::view_file::ViewDenoise {
-                denoiser: "Intel Open Image Denoise".into(),
-                version: d.report.library_version.clone(),
-                filter: "RT".into(),
+                denoiser: d.report.denoiser.name().into(),
+                version: d.report.version.clone(),
+                filter: d.report.denoiser.filter().into(),
                 hdr: true,
-                guides: vec!["albedo".into(), "normal".into()],
+                guides: d
+                    .report
+                    .denoiser
+                    .guides()
+                    .iter()
+                    .map(|g| g.to_string())
+                    .collect(),
                 guide_samples_per_pixel: d.guide_samples,
                 clean_aux: true,
             });
@@ -667,6 +668,7 @@ fn write_stats(
         "rays": stats.rays(),
         "mrays_per_second": stats.mrays_per_second(),
         "denoised": done.rendered.denoised.is_some(),
+        "denoiser": done.rendered.denoised.as_ref().map(|d| d.report.denoiser.id()),
     });
     meshtracer::output::write_atomic(path, serde_json::to_string_pretty(&json)?.as_bytes())?;
     Ok(())
@@ -694,8 +696,11 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
     };
     let denoise_note = match denoised {
         Some(d) => format!(
-            ", denoised by Open Image Denoise {} in {:.3} s (guides and filter)",
-            d.report.library_version,
+            ", denoised by {} in {:.3} s (guides and filter)",
+            match d.report.denoiser {
+                Denoiser::Oidn => format!("Open Image Denoise {}", d.report.version),
+                Denoiser::Atrous => "the built-in à-trous filter".to_string(),
+            },
             d.time.as_secs_f64()
         ),
         None => String::new(),
