@@ -417,7 +417,7 @@ impl Bsdf {
 
     /// f(v, l) · |n·l| of the transmission lobe of a rough thin-walled sheet, for `to_light` on
     /// the far side of the sheet (zero otherwise, and for smooth sheets and volumes). The lobe
-    /// [`Bsdf::sample_transmission`] draws mirrors a GGX reflection through the sheet, so its
+    /// `Bsdf::sample_transmission` draws mirrors a GGX reflection through the sheet, so its
     /// value is the reflection's with the light mirrored back to the eye's side, l' = l -
     /// 2(n·l)n, h = normalize(v + l'), (1 - F(v·h)) for F and the base colour as tint:
     /// factor · base · (1 - F) · D(h) · G2(v, l') / (4 n·v). Its ratio to the density of the
