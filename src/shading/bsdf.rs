@@ -122,7 +122,8 @@ impl Bsdf {
         let (scale, albedo) = material.specular_response(n_dot_v);
         let c_diff = material.base_color * (1.0 - material.metallic);
         let fresnel = luminance(albedo);
-        let mut diffuse = luminance(c_diff * (Vec3::ONE - albedo));
+        let kept = material.diffuse_kept(n_dot_v);
+        let mut diffuse = luminance(c_diff * kept);
         // A sheen is drawn with the cosine lobe: its albedo joins the diffuse one.
         if let Some(sheen) = material.sheen {
             diffuse += sheen.color.max_element() * sheen_albedo(n_dot_v, sheen.roughness);
@@ -159,7 +160,7 @@ impl Bsdf {
                 vis_v: (n_dot_v * n_dot_v * (1.0 - a2) + a2).sqrt(),
                 f0: (f0 * scale).into(),
                 f90: (f90 * scale).into(),
-                diffuse: (c_diff * (Vec3::ONE - albedo) / PI).into(),
+                diffuse: (c_diff * kept / PI).into(),
                 specular_pdf: p_specular * smith_g1(n_dot_v_raw, alpha) / (4.0 * n_dot_v_raw),
                 diffuse_pdf: (1.0 - p_specular) / PI,
             }
@@ -569,8 +570,14 @@ mod tests {
         let f0 = f0.as_dvec3();
         let fresnel = f0 + (DVec3::splat(f64::from(f90)) - f0) * (1.0 - v.dot(h)).powi(5);
         let c_diff = (m.base_color * (1.0 - m.metallic)).as_dvec3();
-        // Multiple scattering and albedo scaling (crate::shading's docs), from the same table.
-        let (scale, albedo) = m.specular_response(n.dot(v) as f32);
+        // Multiple scattering and albedo scaling (crate::shading's docs), from the same table;
+        // the diffuse base lies under the dielectric's specular albedo (metallic 0).
+        let (scale, _) = m.specular_response(n.dot(v) as f32);
+        let dielectric = SurfaceMaterial {
+            metallic: 0.0,
+            ..*m
+        };
+        let albedo = dielectric.specular_response(n.dot(v) as f32).1;
         let f = (DVec3::ONE - albedo.as_dvec3()) * c_diff / std::f64::consts::PI
             + fresnel * scale.as_dvec3() * (d * vis);
         ((f * cos).to_array(), d, d_denom)

@@ -151,6 +151,22 @@ impl SurfaceMaterial {
         f0 + (Vec3::splat(f90) - f0) * (1.0 - cos).powi(5)
     }
 
+    /// What the diffuse base keeps of the light at the view (cos θ_v = `n_dot_v`): 1 - the
+    /// directional albedo of the *dielectric's* specular lobe. glTF's material is
+    /// mix(dielectric, metal, metallic) (Appendix B): the diffuse base belongs to the dielectric
+    /// alone, under the dielectric's own Fresnel, and the mixed Fresnel of the specular lobe is
+    /// that mix because Schlick's form is linear in F0. Putting the diffuse under the mixed
+    /// Fresnel instead (the simplified form the specification's implementation notes give)
+    /// loses light wherever metallic lies strictly between 0 and 1: a white half-metal sphere
+    /// in a white furnace returned 0.77 of the light.
+    pub fn diffuse_kept(&self, n_dot_v: f32) -> Vec3 {
+        let dielectric = SurfaceMaterial {
+            metallic: 0.0,
+            ..*self
+        };
+        Vec3::ONE - dielectric.specular_response(n_dot_v).1
+    }
+
     /// The specular lobe's multiple-scattering scale and its directional albedo at the view
     /// (cos θ_v = `n_dot_v`), as [`ggx::multiple_scattering`] gives them for this material's
     /// Fresnel; with a thin film, the albedo's Fresnel is mixed with the film's reflectance at
@@ -365,8 +381,8 @@ pub fn gltf_brdf(material: &SurfaceMaterial, n: Vec3, to_light: Vec3, to_eye: Ve
     let n_dot_v = n.dot(to_eye);
     let fresnel = material.reflectance(v_dot_h, n_dot_v);
     let c_diff = material.base_color * (1.0 - material.metallic);
-    let (scale, albedo) = material.specular_response(n_dot_v);
-    let mut f = (Vec3::ONE - albedo) * c_diff / PI + fresnel * specular * scale;
+    let (scale, _) = material.specular_response(n_dot_v);
+    let mut f = material.diffuse_kept(n_dot_v) * c_diff / PI + fresnel * specular * scale;
     if let Some(sheen) = material.sheen {
         f = f * sheen_scaling(&sheen, n.dot(to_eye), n.dot(to_light))
             + sheen.color * sheen_dv(sheen.roughness, n, to_light, to_eye, h);
@@ -536,15 +552,18 @@ mod tests {
     use super::test_material as material;
 
     /// At normal incidence (n = l = v): D = 1/(πα²), V = 1/4, F = F0, so
-    /// f = (1 - E_s)·c_diff/π + k·F0/(4πα²), with the multiple-scattering scale k and the
-    /// specular albedo E_s at n·v = 1 (module docs).
+    /// f = (1 - E_d)·c_diff/π + k·F0/(4πα²), with the multiple-scattering scale k at n·v = 1
+    /// (module docs) and E_d the specular albedo of the material made dielectric (metallic 0),
+    /// under which the diffuse base lies.
     #[test]
     fn gltf_brdf_has_the_closed_form_value_at_normal_incidence() {
         for (base, metallic, roughness) in [(0.8, 0.0, 0.5), (0.5, 1.0, 0.3), (0.2, 0.5, 1.0)] {
             let m = material(base, metallic, roughness);
             let alpha = roughness * roughness;
             let f0 = 0.04 * (1.0 - metallic) + base * metallic;
-            let (scale, albedo) = m.specular_response(1.0);
+            let (scale, _) = m.specular_response(1.0);
+            let dielectric = material(base, 0.0, roughness);
+            let albedo = dielectric.specular_response(1.0).1;
             let expected = (1.0 - albedo.x) * base * (1.0 - metallic) / PI
                 + scale.x * f0 / (4.0 * PI * alpha * alpha);
             let got = gltf_brdf(&m, Vec3::Z, Vec3::Z, Vec3::Z).x;

@@ -95,12 +95,22 @@ fn furnace_sphere(metallic: f32, roughness: f32, spp: u32) -> (Vec<[f32; 4]>, Ve
 /// roughness 0, 0.25, 0.5, 0.75 and 1, alone in a uniform environment of radiance 1, return it
 /// within 2%: over the whole sphere (the mean of every covered pixel, silhouette included)
 /// and at its centre (the pixels facing the camera within 25°), at 256 spp (measured: within
-/// 0.6% everywhere; at 32 spp the rough metal's centre alone is off by 2.3%, by noise). Single-scattering GGX
-/// returned 0.39 of it over a rough white metal sphere and 0.31 at its centre.
+/// 0.6% everywhere; at 32 spp the rough metal's centre alone is off by 2.3%, by noise).
+/// Single-scattering GGX returned 0.39 of it over a rough white metal sphere and 0.31 at its
+/// centre. A white half-metal (metallic 0.5) at roughness 0 and 0.25 too (measured 1.000 and
+/// 0.997; it returned 0.77 while its diffuse base sat under the mixed Fresnel). Rougher
+/// half-metals still fall short (0.97, 0.90 and 0.80 at roughness 0.5, 0.75 and 1): their
+/// multiple-scattering compensation is computed for the mixed Fresnel, not mixed from the
+/// metal's and the dielectric's, and is left out of this test until it is.
 #[test]
 fn white_spheres_return_the_environment_at_every_roughness() {
-    for metallic in [1.0f32, 0.0] {
-        for roughness in [0.0f32, 0.25, 0.5, 0.75, 1.0] {
+    let mut failures = Vec::new();
+    let cases = [1.0f32, 0.0]
+        .into_iter()
+        .flat_map(|m| [0.0f32, 0.25, 0.5, 0.75, 1.0].map(|r| (m, r)))
+        .chain([(0.5, 0.0), (0.5, 0.25)]);
+    for (metallic, roughness) in cases {
+        {
             let (radiance, normal) = furnace_sphere(metallic, roughness, 256);
             let (mut all, mut count, mut centre, mut facing) = (0.0f64, 0, 0.0f64, 0);
             for (l, n) in radiance.iter().zip(&normal) {
@@ -120,12 +130,14 @@ fn white_spheres_return_the_environment_at_every_roughness() {
                 "{count} covered, {facing} facing"
             );
             let (all, centre) = (all / f64::from(count), centre / f64::from(facing));
-            assert!(
-                (all - 1.0).abs() < 0.02 && (centre - 1.0).abs() < 0.02,
-                "metallic {metallic} roughness {roughness}: sphere {all:.4}, centre {centre:.4}"
-            );
+            if (all - 1.0).abs() >= 0.02 || (centre - 1.0).abs() >= 0.02 {
+                failures.push(format!(
+                    "metallic {metallic} roughness {roughness}: sphere {all:.4}, centre {centre:.4}"
+                ));
+            }
         }
     }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 /// White furnace: a white rough dielectric sphere (base colour 1, metallic 0, roughness 1) in a
