@@ -119,7 +119,7 @@ impl Bsdf {
         let n_dot_v = normal.dot(to_eye).clamp(0.0, 1.0);
         // The lobes' albedos at the view: the multiply scattered specular lobe's, and the
         // diffuse base's, which keeps what the specular lobe does not reflect.
-        let (scale, albedo) = material.specular_response(n_dot_v);
+        let (_, albedo) = material.specular_response(n_dot_v);
         let c_diff = material.base_color * (1.0 - material.metallic);
         let fresnel = luminance(albedo);
         let kept = material.diffuse_kept(n_dot_v);
@@ -152,14 +152,14 @@ impl Bsdf {
             let ggx_alpha = (material.roughness * material.roughness).max(MIN_GGX_ALPHA);
             let a2 = ggx_alpha * ggx_alpha;
             let n_dot_v = n_dot_v_raw.max(MIN_COSINE);
-            let (f0, f90) = material.fresnel_ends();
+            let (f0s, f90s) = material.scaled_fresnel_ends(n_dot_v_raw.clamp(0.0, 1.0));
             Core {
                 n_dot_v,
                 n_dot_v_raw,
                 a2,
                 vis_v: (n_dot_v * n_dot_v * (1.0 - a2) + a2).sqrt(),
-                f0: (f0 * scale).into(),
-                f90: (f90 * scale).into(),
+                f0: f0s.into(),
+                f90: f90s.into(),
                 diffuse: (c_diff * kept / PI).into(),
                 specular_pdf: p_specular * smith_g1(n_dot_v_raw, alpha) / (4.0 * n_dot_v_raw),
                 diffuse_pdf: (1.0 - p_specular) / PI,
@@ -566,20 +566,21 @@ mod tests {
         let vis = 0.5
             / (n_dot_l * (n_dot_v * n_dot_v * (1.0 - a2) + a2).sqrt()
                 + n_dot_v * (n_dot_l * n_dot_l * (1.0 - a2) + a2).sqrt());
-        let (f0, f90) = m.fresnel_ends();
-        let f0 = f0.as_dvec3();
-        let fresnel = f0 + (DVec3::splat(f64::from(f90)) - f0) * (1.0 - v.dot(h)).powi(5);
+        // Fresnel times the multiple-scattering scale, each part of a half-metal compensated
+        // for its own Fresnel (crate::shading's docs), from the same table.
+        let (f0s, f90s) = m.scaled_fresnel_ends(n.dot(v).clamp(0.0, 1.0) as f32);
+        let (f0s, f90s) = (f0s.as_dvec3(), f90s.as_dvec3());
+        let fresnel = f0s + (f90s - f0s) * (1.0 - v.dot(h)).powi(5);
         let c_diff = (m.base_color * (1.0 - m.metallic)).as_dvec3();
         // Multiple scattering and albedo scaling (crate::shading's docs), from the same table;
         // the diffuse base lies under the dielectric's specular albedo (metallic 0).
-        let (scale, _) = m.specular_response(n.dot(v) as f32);
         let dielectric = SurfaceMaterial {
             metallic: 0.0,
             ..*m
         };
         let albedo = dielectric.specular_response(n.dot(v) as f32).1;
-        let f = (DVec3::ONE - albedo.as_dvec3()) * c_diff / std::f64::consts::PI
-            + fresnel * scale.as_dvec3() * (d * vis);
+        let f =
+            (DVec3::ONE - albedo.as_dvec3()) * c_diff / std::f64::consts::PI + fresnel * (d * vis);
         ((f * cos).to_array(), d, d_denom)
     }
 

@@ -151,6 +151,37 @@ impl SurfaceMaterial {
         f0 + (Vec3::splat(f90) - f0) * (1.0 - cos).powi(5)
     }
 
+    /// Whether `metallic` lies strictly between 0 and 1: the material is a mix of two.
+    fn is_half_metal(&self) -> bool {
+        self.metallic > 0.0 && self.metallic < 1.0
+    }
+
+    /// This material made all dielectric (`metallic` 0) or all metal (1).
+    fn part(&self, metallic: f32) -> SurfaceMaterial {
+        SurfaceMaterial { metallic, ..*self }
+    }
+
+    /// Schlick's (F0, F90) of the specular lobe, each end already multiplied by the lobe's
+    /// multiple-scattering scale at the view: F(v·h)·k = f0s + (f90s - f0s)(1 - v·h)⁵. For a
+    /// mix of metal and dielectric (0 < metallic < 1) each part is compensated for its own
+    /// Fresnel and the two mixed, as mix(dielectric, metal, metallic) has it; Schlick's form is
+    /// linear in its ends, so the mix is one such pair. (Compensating the mixed Fresnel once
+    /// instead left a white half-metal at roughness 1 with 0.80 of the light.) Not for thin
+    /// films, whose reflectance is not a Schlick pair ([`SurfaceMaterial::reflectance`]).
+    pub fn scaled_fresnel_ends(&self, n_dot_v: f32) -> (Vec3, Vec3) {
+        let ends = |m: &SurfaceMaterial| {
+            let (f0, f90) = m.fresnel_ends();
+            let (scale, _) = ggx::multiple_scattering(f0, Vec3::splat(f90), n_dot_v, m.roughness);
+            (f0 * scale, Vec3::splat(f90) * scale)
+        };
+        if !self.is_half_metal() {
+            return ends(self);
+        }
+        let (d0, d90) = ends(&self.part(0.0));
+        let (m0, m90) = ends(&self.part(1.0));
+        (d0.lerp(m0, self.metallic), d90.lerp(m90, self.metallic))
+    }
+
     /// What the diffuse base keeps of the light at the view (cos θ_v = `n_dot_v`): 1 - the
     /// directional albedo of the *dielectric's* specular lobe. glTF's material is
     /// mix(dielectric, metal, metallic) (Appendix B): the diffuse base belongs to the dielectric
@@ -160,11 +191,7 @@ impl SurfaceMaterial {
     /// loses light wherever metallic lies strictly between 0 and 1: a white half-metal sphere
     /// in a white furnace returned 0.77 of the light.
     pub fn diffuse_kept(&self, n_dot_v: f32) -> Vec3 {
-        let dielectric = SurfaceMaterial {
-            metallic: 0.0,
-            ..*self
-        };
-        Vec3::ONE - dielectric.specular_response(n_dot_v).1
+        Vec3::ONE - self.part(0.0).specular_response(n_dot_v).1
     }
 
     /// The specular lobe's multiple-scattering scale and its directional albedo at the view
@@ -176,6 +203,14 @@ impl SurfaceMaterial {
         let (f0, f90) = self.fresnel_ends();
         let (scale, albedo) =
             ggx::multiple_scattering(f0, Vec3::splat(f90), n_dot_v, self.roughness);
+        if self.is_half_metal() && self.iridescence.is_none() {
+            // The lobe is the mix of the dielectric's and the metal's, each compensated for
+            // its own Fresnel ([`SurfaceMaterial::scaled_fresnel_ends`]): its albedo is theirs
+            // mixed. (The scale returned is the mixed Fresnel's, for callers that need one.)
+            let (_, albedo_d) = self.part(0.0).specular_response(n_dot_v);
+            let (_, albedo_m) = self.part(1.0).specular_response(n_dot_v);
+            return (scale, albedo_d.lerp(albedo_m, self.metallic));
+        }
         match self.iridescence {
             Some(film) if film.factor > 0.0 => {
                 let (a, _) = ggx::directional_albedo(n_dot_v, self.roughness);
@@ -379,10 +414,19 @@ pub fn gltf_brdf(material: &SurfaceMaterial, n: Vec3, to_light: Vec3, to_eye: Ve
     let v_dot_h = to_eye.dot(h).max(0.0);
     let specular = ggx_dv(material.roughness, n, to_light, to_eye, h);
     let n_dot_v = n.dot(to_eye);
-    let fresnel = material.reflectance(v_dot_h, n_dot_v);
     let c_diff = material.base_color * (1.0 - material.metallic);
-    let (scale, _) = material.specular_response(n_dot_v);
-    let mut f = material.diffuse_kept(n_dot_v) * c_diff / PI + fresnel * specular * scale;
+    // The Fresnel factor times the multiple-scattering scale.
+    let fresnel_scaled = match material.iridescence {
+        Some(film) if film.factor > 0.0 => {
+            let (scale, _) = material.specular_response(n_dot_v);
+            material.reflectance(v_dot_h, n_dot_v) * scale
+        }
+        _ => {
+            let (f0s, f90s) = material.scaled_fresnel_ends(n_dot_v);
+            f0s + (f90s - f0s) * (1.0 - v_dot_h).powi(5)
+        }
+    };
+    let mut f = material.diffuse_kept(n_dot_v) * c_diff / PI + fresnel_scaled * specular;
     if let Some(sheen) = material.sheen {
         f = f * sheen_scaling(&sheen, n.dot(to_eye), n.dot(to_light))
             + sheen.color * sheen_dv(sheen.roughness, n, to_light, to_eye, h);
@@ -553,19 +597,23 @@ mod tests {
 
     /// At normal incidence (n = l = v): D = 1/(πα²), V = 1/4, F = F0, so
     /// f = (1 - E_d)·c_diff/π + k·F0/(4πα²), with the multiple-scattering scale k at n·v = 1
-    /// (module docs) and E_d the specular albedo of the material made dielectric (metallic 0),
+    /// (module docs; for a half-metal, each part's k·F0 mixed) and E_d the specular albedo of the material made dielectric (metallic 0),
     /// under which the diffuse base lies.
     #[test]
     fn gltf_brdf_has_the_closed_form_value_at_normal_incidence() {
         for (base, metallic, roughness) in [(0.8, 0.0, 0.5), (0.5, 1.0, 0.3), (0.2, 0.5, 1.0)] {
             let m = material(base, metallic, roughness);
             let alpha = roughness * roughness;
-            let f0 = 0.04 * (1.0 - metallic) + base * metallic;
-            let (scale, _) = m.specular_response(1.0);
+            // F(1)·k: each part's F0 times its own scale, mixed.
+            let part = |metallic: f32| {
+                let p = material(base, metallic, roughness);
+                p.specular_response(1.0).0.x * (0.04 * (1.0 - metallic) + base * metallic)
+            };
+            let f0_scaled = part(0.0) * (1.0 - metallic) + part(1.0) * metallic;
             let dielectric = material(base, 0.0, roughness);
             let albedo = dielectric.specular_response(1.0).1;
             let expected = (1.0 - albedo.x) * base * (1.0 - metallic) / PI
-                + scale.x * f0 / (4.0 * PI * alpha * alpha);
+                + f0_scaled / (4.0 * PI * alpha * alpha);
             let got = gltf_brdf(&m, Vec3::Z, Vec3::Z, Vec3::Z).x;
             assert!(
                 (got - expected).abs() < 1e-5 * expected.max(1.0),
