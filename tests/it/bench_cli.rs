@@ -155,7 +155,8 @@ fn bench_sets_the_path_tracer_against_the_bvh() {
 /// The comparison `scripts/bench/peers.py` makes: three ray kinds in one run as JSON, one
 /// thread, per-thread throughput, and the exported arrays: the triangles and, per kind, as
 /// many rays as the row says were traced, with a hit file of one entry a ray. An export with
-/// generated meshes is refused up front.
+/// generated meshes is refused up front; one into a folder that cannot be made fails with an
+/// error naming it.
 #[test]
 fn bench_reports_every_ray_kind_as_json_and_exports_what_it_traces() {
     let dir = tempfile::tempdir().unwrap();
@@ -226,6 +227,30 @@ fn bench_reports_every_ray_kind_as_json_and_exports_what_it_traces() {
         "{}",
         stderr(&refused)
     );
+    // A folder that cannot be made (a file is in the way): one error naming it, no arrays.
+    let blocked = dir.path().join("blocked");
+    std::fs::write(&blocked, b"a file").unwrap();
+    let refused = run(
+        &[
+            "bench",
+            "assets/cornell-box.gltf",
+            "--sizes=",
+            "--side",
+            "8",
+            "--runs",
+            "1",
+            "-q",
+            "--export-rays",
+            s(&blocked),
+        ],
+        false,
+    );
+    assert!(
+        stderr(&refused).contains(s(&blocked)),
+        "{}",
+        stderr(&refused)
+    );
+    assert_eq!(std::fs::read(&blocked).unwrap(), b"a file");
     // The plot draws one kind's time per ray.
     let plot = dir.path().join("two.svg");
     let refused = run(
