@@ -59,10 +59,17 @@ pub(crate) fn sample_visible_normal(v: Vec3, alpha: f32, u1: f32, u2: f32) -> Ve
 /// Cells of the directional albedo table per axis (cos θ_v and perceptual roughness).
 const ALBEDO_TABLE: usize = 32;
 
+/// The directional albedo table of [`directional_albedo`]: entry `j · 32 + i` is
+/// [`integrate_albedo`] at cos θ_v = max(i / 31, [`ALBEDO_MIN_COSINE`]) and roughness j / 31.
+/// Written by `MESHTRACER_BLESS=1 cargo test --lib ggx::tests::the_baked_albedo_table`.
+const ALBEDO: [[f32; 2]; ALBEDO_TABLE * ALBEDO_TABLE] = include!("ggx_albedo.in");
+
 /// Stratified visible-normal draws per table entry, per axis (32 × 32 = 1024 draws).
+#[cfg(test)]
 const ALBEDO_STRATA: usize = 32;
 
 /// Smallest view cosine the albedo table is integrated at (the lobe is degenerate at 0).
+#[cfg(test)]
 const ALBEDO_MIN_COSINE: f32 = 0.02;
 
 /// The single-scattering GGX lobe's directional albedo at cos θ_v = `cos` for perceptual
@@ -71,24 +78,14 @@ const ALBEDO_MIN_COSINE: f32 = 0.02;
 /// `F0·a + (F90 - F0)·b` of the light arriving from the view direction: a = ∫ D·V·cos θ_l dω,
 /// b = ∫ (1 - v·h)⁵·D·V·cos θ_l dω (the "split-sum" or DFG table of real-time renderers).
 ///
-/// Bilinear in a 32 × 32 table integrated once, the first time it is needed (about a
-/// millisecond): each entry averages the weight G2/G1 of 1024 stratified draws from the
-/// distribution of visible normals, which is exactly f·cos/pdf for F = 1 (Heitz 2018), so
-/// the table has no variance from the lobe's peak. Unit-tested against an independent
-/// quadrature of the BRDF.
+/// Bilinear in a 32 × 32 table (baked into the source, src/shading/ggx_albedo.in; a test
+/// recomputes every entry): each entry averages the weight G2/G1
+/// of 1024 stratified draws from the distribution of visible normals, which is exactly
+/// f·cos/pdf for F = 1 (Heitz 2018), so the table has no variance from the lobe's peak. Baked,
+/// not integrated at first use: that took 30-40 ms of every render, a tenth of a small
+/// model's whole run. Unit-tested against an independent quadrature of the BRDF.
 pub fn directional_albedo(cos: f32, roughness: f32) -> (f32, f32) {
-    static TABLE: std::sync::OnceLock<Vec<[f32; 2]>> = std::sync::OnceLock::new();
-    let table = TABLE.get_or_init(|| {
-        let n = ALBEDO_TABLE;
-        (0..n * n)
-            .map(|k| {
-                let (i, j) = (k % n, k / n);
-                let cos_v = (i as f32 / (n - 1) as f32).max(ALBEDO_MIN_COSINE);
-                let roughness = j as f32 / (n - 1) as f32;
-                integrate_albedo(cos_v, roughness)
-            })
-            .collect()
-    });
+    let table = &ALBEDO;
     let n = ALBEDO_TABLE;
     let x = cos.clamp(0.0, 1.0) * (n - 1) as f32;
     let y = roughness.clamp(0.0, 1.0) * (n - 1) as f32;
@@ -103,9 +100,20 @@ pub fn directional_albedo(cos: f32, roughness: f32) -> (f32, f32) {
     (a, b)
 }
 
+/// The view cosine and roughness of entry `k` of [`ALBEDO`] (row-major, cosine fastest).
+#[cfg(test)]
+fn albedo_entry(k: usize) -> (f32, f32) {
+    let n = ALBEDO_TABLE;
+    let (i, j) = (k % n, k / n);
+    let cos_v = (i as f32 / (n - 1) as f32).max(ALBEDO_MIN_COSINE);
+    (cos_v, j as f32 / (n - 1) as f32)
+}
+
 /// One entry of [`directional_albedo`]'s table: the mean of G2/G1 (and of (1 - v·h)⁵·G2/G1)
 /// over stratified visible-normal draws, where G2/G1 = (1 + Λ(v)) / (1 + Λ(v) + Λ(l)) for
-/// the height-correlated masking-shadowing of the glTF BRDF's visibility term.
+/// the height-correlated masking-shadowing of the glTF BRDF's visibility term. Run by the
+/// test that checks the baked table (and writes it anew with `MESHTRACER_BLESS=1`).
+#[cfg(test)]
 fn integrate_albedo(cos_v: f32, roughness: f32) -> [f32; 2] {
     let alpha = (roughness * roughness).max(crate::shading::MIN_GGX_ALPHA);
     let v = Vec3::new((1.0 - cos_v * cos_v).max(0.0).sqrt(), 0.0, cos_v);
@@ -184,6 +192,38 @@ pub fn average_albedo(roughness: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every baked entry is the integral it stands for (to 1e-6: the integral's sums are in
+    /// f64, its sines and cosines from the platform's libm). With `MESHTRACER_BLESS=1` the
+    /// table file is written anew instead.
+    #[test]
+    fn the_baked_albedo_table_is_the_integral() {
+        let computed: Vec<[f32; 2]> = (0..ALBEDO.len())
+            .map(|k| {
+                let (cos_v, roughness) = albedo_entry(k);
+                integrate_albedo(cos_v, roughness)
+            })
+            .collect();
+        if std::env::var_os("MESHTRACER_BLESS").is_some() {
+            let mut text = String::from("[\n");
+            for [a, b] in &computed {
+                text += &format!("    [{a:?}, {b:?}],\n");
+            }
+            text += "]\n";
+            let path = concat!(env!("CARGO_MANIFEST_DIR"), "/src/shading/ggx_albedo.in");
+            std::fs::write(path, text).expect("the table file is writable");
+            return;
+        }
+        for (k, (baked, fresh)) in ALBEDO.iter().zip(&computed).enumerate() {
+            for c in 0..2 {
+                assert!(
+                    (baked[c] - fresh[c]).abs() <= 1e-6,
+                    "entry {k} {albedo_entry:?}: baked {baked:?}, integrated {fresh:?}",
+                    albedo_entry = albedo_entry(k)
+                );
+            }
+        }
+    }
 
     /// The table against an independent Monte Carlo estimate: the glTF BRDF's own D·V
     /// (F = 1 and F = (1 - v·h)⁵) integrated by drawing half vectors from D(h)·n·h (not the
