@@ -92,14 +92,20 @@ def main():
     parser.add_argument("--reference-spp", type=int, default=256)
     parser.add_argument("--no-reference", action="store_true", help="times only")
     parser.add_argument("--only", help="comma-separated folder names")
-    parser.add_argument("--out", help="folder for the images (default: a temporary one)")
+    parser.add_argument("--out", help="folder for the images (default: a temporary one); "
+                        "references already in it are reused")
+    parser.add_argument("--extra", default="",
+                        help="options added to the default command, to try a candidate default "
+                        "(e.g. \"--noise 0.2\")")
+    parser.add_argument("--no-f3d", action="store_true", help="meshtracer only (no timing ratio)")
     args = parser.parse_args()
     if not args.samples:
         sys.exit("--samples DIR or MESHTRACER_SAMPLES is needed")
-    try:
-        import f3d  # noqa: F401  (checked here so a missing F3D fails before any render)
-    except ImportError:
-        sys.exit("F3D is not installed in this Python: pip install f3d==4.0.0")
+    if not args.no_f3d:
+        try:
+            import f3d  # noqa: F401  (checked here so a missing F3D fails before any render)
+        except ImportError:
+            sys.exit("F3D is not installed in this Python: pip install f3d==4.0.0")
     out = args.out or tempfile.mkdtemp(prefix="default-vs-f3d-")
     os.makedirs(out, exist_ok=True)
     models = [m for m in MODELS if not args.only or m.split("/")[0] in args.only.split(",")]
@@ -116,25 +122,27 @@ def main():
         ours, theirs = [], []
         for _ in range(args.rounds):
             # Interleaved: F3D, then meshtracer, each round, so a busy moment hits both.
-            theirs.append(
-                timed([sys.executable, "-c", F3D_RENDER, path, os.path.join(out, f"{name}-f3d.png")])
-            )
+            if not args.no_f3d:
+                theirs.append(timed([sys.executable, "-c", F3D_RENDER, path,
+                                     os.path.join(out, f"{name}-f3d.png")]))
             ours.append(
                 timed([args.meshtracer, "render", path, "-o", ours_png, "--width", str(WIDTH),
-                       "--height", str(HEIGHT), "--quiet", "--no-warnings"])
+                       "--height", str(HEIGHT), "--quiet", "--no-warnings", *args.extra.split()])
             )
-        t_ours, t_f3d = statistics.median(ours), statistics.median(theirs)
+        t_ours = statistics.median(ours)
+        t_f3d = statistics.median(theirs) if theirs else float("nan")
         times.append((name, t_ours, t_f3d))
         print(f"{name}: meshtracer {t_ours:.2f} s, F3D {t_f3d:.2f} s", file=sys.stderr, flush=True)
         if args.no_reference:
             continue
-        reference = os.path.join(out, f"{name}-reference.png")
-        subprocess.run(
-            [args.meshtracer, "render", path, "-o", reference, "--width", str(WIDTH), "--height",
-             str(HEIGHT), "--spp", str(args.reference_spp), "--seed", "1", "--quiet",
-             "--no-warnings"],
-            check=True,
-        )
+        reference = os.path.join(out, f"{name}-reference-{args.reference_spp}.png")
+        if not os.path.exists(reference):
+            subprocess.run(
+                [args.meshtracer, "render", path, "-o", reference, "--width", str(WIDTH),
+                 "--height", str(HEIGHT), "--spp", str(args.reference_spp), "--seed", "1",
+                 "--quiet", "--no-warnings"],
+                check=True,
+            )
         compared = subprocess.run(
             [args.meshtracer, "compare", reference, ours_png, "--json"],
             check=True, capture_output=True, text=True,
@@ -145,7 +153,7 @@ def main():
     print("|---|---:|---:|---:|")
     for name, t_ours, t_f3d in times:
         print(f"| {name} | {t_ours:.2f} | {t_f3d:.2f} | {t_ours / t_f3d:.2f} |")
-    if times:
+    if times and not args.no_f3d:
         ratios = [t / f for _, t, f in times]
         print(f"\nmedian ratio {statistics.median(ratios):.2f}, "
               f"{sum(r <= 1.0 for r in ratios)} of {len(ratios)} models at most F3D's time")

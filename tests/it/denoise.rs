@@ -346,9 +346,26 @@ mod guides {
         (prepared, settings)
     }
 
+    /// Adaptive sampling takes 4 to `spp` samples a pixel: the guides follow the 4 (2 x 2).
+    #[test]
+    fn adaptive_guides_follow_the_fewest_samples() {
+        let (prepared, mut settings) = cornell(32);
+        settings.noise = Some(0.1);
+        assert_eq!(
+            guides(&prepared, &settings, Region::full(8, 6)).samples_per_pixel,
+            4
+        );
+        settings.noise = None;
+        assert_eq!(
+            guides(&prepared, &settings, Region::full(8, 6)).samples_per_pixel,
+            16
+        );
+    }
+
     #[test]
     fn guides_are_in_range_and_cover_the_box() {
-        let (prepared, settings) = cornell(16);
+        let (prepared, mut settings) = cornell(16);
+        settings.noise = None;
         let g = guides(&prepared, &settings, Region::full(40, 30));
         assert_eq!(g.samples_per_pixel, 16);
         assert_eq!((g.albedo.len(), g.normal.len()), (1200, 1200));

@@ -91,6 +91,50 @@ const SAME_SURFACE_COSINE: f32 = 0.9;
 /// filter then mixes only neighbours equal to within this, in linear radiance.
 const MIN_LUMINANCE_SIGMA: f32 = 1e-4;
 
+/// Taps whose normal weight is below this are skipped: against the centre tap's own weight
+/// (at least 1/16 of the kernel's, times 1) they would change the result by less than f32
+/// resolves. Most of a silhouette's or a corner's taps end here, before any exponential.
+const MIN_NORMAL_WEIGHT: f32 = 1e-8;
+
+/// Taps whose edge-stopping exponent is this or more (weight e^-18 = 1.5e-8) are skipped,
+/// for the same reason.
+const MAX_EXPONENT: f32 = 18.0;
+
+/// e^-x for x in [0, [`MAX_EXPONENT`]), to about 1e-6 relative: 2^(-x·log2 e) split into an
+/// integer power (the exponent bits) and a fraction within 1/2 (a degree-6 polynomial). The filter's
+/// hundred weights a pixel and pass spent most of their time in libm's `expf`; this is
+/// several times cheaper and deterministic on every platform (no libm).
+#[inline(always)]
+fn exp_negative(x: f32) -> f32 {
+    let y = -x * std::f32::consts::LOG2_E;
+    // Rounded to the nearest integer by a truncating conversion of a non-negative number (one
+    // instruction, where `round` is a libm call on baseline x86-64).
+    let whole = -((0.5 - y) as i32) as f32;
+    let f = y - whole;
+    // 2^f on [-1/2, 1/2]: Taylor series of e^(f ln 2), Horner form.
+    const L: f32 = std::f32::consts::LN_2;
+    let p = 1.0
+        + f * (L + f
+            * (L * L / 2.0
+                + f * (L * L * L / 6.0
+                    + f * (L * L * L * L / 24.0
+                        + f * (L * L * L * L * L / 120.0 + f * (L * L * L * L * L * L / 720.0))))));
+    // `whole` is in [-26, 0]: a normal float's exponent.
+    p * f32::from_bits(((whole as i32 + 127) as u32) << 23)
+}
+
+/// `facing` to the power [`NORMAL_POWER`] (128) by seven squarings: `powi` with a constant
+/// exponent is a loop in a runtime library call on some targets.
+#[inline(always)]
+fn pow_normal(facing: f32) -> f32 {
+    const _: () = assert!(NORMAL_POWER == 128);
+    let mut p = facing;
+    for _ in 0..7 {
+        p *= p;
+    }
+    p
+}
+
 /// What every pass reads of a pixel besides its illumination and variance.
 #[derive(Clone, Copy)]
 struct Pixel {
@@ -141,6 +185,7 @@ pub fn filter(image: &mut Image, guides: &Guides) {
     for pass in 0..ITERATIONS {
         let step = 1usize << pass;
         let blurred = blur_variance(&variance, &pixels, width, height);
+        let luminances: Vec<f32> = illumination.par_iter().map(|c| luminance(*c)).collect();
         let mut next_illumination = vec![Vec3::ZERO; width * height];
         let mut next_variance = vec![0.0f32; width * height];
         next_illumination
@@ -155,6 +200,7 @@ pub fn filter(image: &mut Image, guides: &Guides) {
                         (width, height),
                         &pixels,
                         &illumination,
+                        &luminances,
                         &variance,
                         blurred[y * width + x],
                     );
@@ -194,6 +240,7 @@ fn geometry(image: &Image, guides: &Guides) -> Vec<Pixel> {
             .fold(f32::INFINITY, f32::min)
     };
     (0..width * height)
+        .into_par_iter()
         .map(|i| {
             let (x, y) = (i % width, i / width);
             if !surface(i) {
@@ -306,6 +353,7 @@ fn tap_sum(
     (width, height): (usize, usize),
     pixels: &[Pixel],
     illumination: &[Vec3],
+    luminances: &[f32],
     variance: &[f32],
     blurred_variance: f32,
 ) -> (Vec3, f32) {
@@ -314,10 +362,21 @@ fn tap_sum(
     if !centre.surface {
         return (illumination[i], variance[i]);
     }
-    let centre_luminance = luminance(illumination[i]);
+    let centre_luminance = luminances[i];
     let luminance_scale =
         1.0 / (LUMINANCE_SIGMA * blurred_variance.max(0.0).sqrt()).max(MIN_LUMINANCE_SIGMA);
     let depth_tolerance = DEPTH_RELATIVE * centre.depth;
+    // 1 / the depth change expected at tap offset (|tx|, |ty|): the centre's plane, plus the
+    // tolerance. Nine reciprocals instead of 25 divisions.
+    let mut depth_scale = [[0.0f32; 3]; 3];
+    for (ay, row) in depth_scale.iter_mut().enumerate() {
+        for (ax, scale) in row.iter_mut().enumerate() {
+            let expected = DEPTH_SIGMA
+                * (centre.gradient.0 * (ax * step) as f32 + centre.gradient.1 * (ay * step) as f32)
+                + depth_tolerance;
+            *scale = 1.0 / expected;
+        }
+    }
     let (mut sum, mut sum_variance, mut weights) = (Vec3::ZERO, 0.0f32, 0.0f32);
     for ty in -2isize..=2 {
         let qy = y as isize + ty * step as isize;
@@ -335,32 +394,54 @@ fn tap_sum(
                 continue;
             }
             let facing = centre.normal.dot(neighbour.normal).max(0.0);
-            let normal_weight = facing.powi(NORMAL_POWER as i32);
-            let expected_depth_change = DEPTH_SIGMA
-                * (centre.gradient.0 * (tx.unsigned_abs() * step) as f32
-                    + centre.gradient.1 * (ty.unsigned_abs() * step) as f32)
-                + depth_tolerance;
-            let depth_term = (centre.depth - neighbour.depth).abs() / expected_depth_change;
-            let luminance_term =
-                (centre_luminance - luminance(illumination[q])).abs() * luminance_scale;
-            let albedo_term = (centre.albedo - neighbour.albedo).abs().max_element() / ALBEDO_SIGMA;
+            let normal_weight = pow_normal(facing);
+            if normal_weight < MIN_NORMAL_WEIGHT {
+                // Another surface: its weight would vanish against the centre's own.
+                continue;
+            }
+            let depth_term = (centre.depth - neighbour.depth).abs()
+                * depth_scale[ty.unsigned_abs()][tx.unsigned_abs()];
+            let luminance_term = (centre_luminance - luminances[q]).abs() * luminance_scale;
+            let albedo_term =
+                (centre.albedo - neighbour.albedo).abs().max_element() * (1.0 / ALBEDO_SIGMA);
+            let exponent = depth_term + luminance_term + albedo_term;
+            if exponent >= MAX_EXPONENT {
+                continue;
+            }
             let w = KERNEL[tx.unsigned_abs()]
                 * KERNEL[ty.unsigned_abs()]
                 * normal_weight
-                * (-(depth_term + luminance_term + albedo_term)).exp();
+                * exp_negative(exponent);
             sum += w * illumination[q];
             sum_variance += w * w * variance[q];
             weights += w;
         }
     }
     // The centre tap weighs KERNEL[0]² > 0 (its own normal, depth and luminance match), so
-    // `weights` is positive.
+    // `weights` is positive, unless the normal guide averaged to nothing (opposite faces
+    // within one pixel): such a pixel is left as it is.
+    if weights <= 0.0 {
+        return (illumination[i], variance[i]);
+    }
     (sum / weights, sum_variance / (weights * weights))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_fast_exponential_matches_libm() {
+        let mut x = 0.0f32;
+        while x < MAX_EXPONENT {
+            let (fast, exact) = (exp_negative(x), (-x).exp());
+            assert!(
+                (fast - exact).abs() <= 2e-6 * exact,
+                "e^-{x}: {fast} against {exact}"
+            );
+            x += 0.001;
+        }
+    }
     use crate::sampling::Rng;
     use glam::Vec4;
 
