@@ -199,8 +199,7 @@ pub fn filter(image: &mut Image, guides: &Guides) {
                         step,
                         (width, height),
                         &pixels,
-                        &illumination,
-                        &luminances,
+                        (&illumination, &luminances),
                         &variance,
                         blurred[y * width + x],
                     );
@@ -352,8 +351,7 @@ fn tap_sum(
     step: usize,
     (width, height): (usize, usize),
     pixels: &[Pixel],
-    illumination: &[Vec3],
-    luminances: &[f32],
+    (illumination, luminances): (&[Vec3], &[f32]),
     variance: &[f32],
     blurred_variance: f32,
 ) -> (Vec3, f32) {
