@@ -4,8 +4,8 @@
 use crate::camera::{auto_camera, View};
 use crate::color::ViewTransform;
 use crate::defaults::{
-    AMBIENT_WITH_DEFAULT_RIG, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_BOUNCES, DEFAULT_NOISE,
-    DEFAULT_PATH_SPP, DEFAULT_SPP, FILL_LIGHT_LUX, KEY_LIGHT_LUX,
+    AMBIENT_WITH_DEFAULT_RIG, AMBIENT_WITH_FILE_LIGHTS, DEFAULT_BOUNCES, DEFAULT_DENOISED_NOISE,
+    DEFAULT_NOISE, DEFAULT_PATH_SPP, DEFAULT_SPP, FILL_LIGHT_LUX, KEY_LIGHT_LUX,
 };
 use crate::integrator::IntegratorKind;
 use crate::light::environment::Environment;
@@ -167,26 +167,52 @@ pub fn lighting(
 /// [`ViewTransform::default`], the clipping `standard`.)
 pub const DEFAULT_VIEW_TRANSFORM: ViewTransform = ViewTransform::KhronosPbrNeutral;
 
-/// Samples per pixel and the adaptive sampler's noise target of a render asked for `spp`
+/// The samples per pixel and the adaptive noise target (`None`: fixed spp) of a render given
 /// samples (`--spp`, if given) and `noise` (`--noise`) with `integrator`, with
-/// `time_limited` when a time budget picks the count: `spp` is exact when given; else the path
-/// tracer takes up to [`DEFAULT_PATH_SPP`] adaptively to [`DEFAULT_NOISE`] (unless a time
-/// budget decides), the direct integrator [`DEFAULT_SPP`]. The CLI and the Python package
-/// both decide this way.
+/// `time_limited` when a time budget picks the count, and `denoised` when the image will be
+/// denoised: `spp` is exact when given; else the path tracer takes up to [`DEFAULT_PATH_SPP`]
+/// adaptively to [`DEFAULT_NOISE`], or to [`DEFAULT_DENOISED_NOISE`] when denoised (unless a
+/// time budget decides), the direct integrator [`DEFAULT_SPP`]. The CLI and the Python
+/// package both decide this way.
 pub fn sampling(
     integrator: IntegratorKind,
     spp: Option<u32>,
     noise: Option<f32>,
     time_limited: bool,
+    denoised: bool,
 ) -> (u32, Option<f32>) {
+    let default_noise = if denoised {
+        DEFAULT_DENOISED_NOISE
+    } else {
+        DEFAULT_NOISE
+    };
     match (spp, integrator) {
         (Some(spp), _) => (spp, noise),
         (None, IntegratorKind::Direct) => (DEFAULT_SPP, noise),
         (None, IntegratorKind::Path) => (
             DEFAULT_PATH_SPP,
-            noise.or((!time_limited).then_some(DEFAULT_NOISE)),
+            noise.or((!time_limited).then_some(default_noise)),
         ),
     }
+}
+
+/// Whether a render that neither asks for denoising nor refuses it (`--denoise`,
+/// `--no-denoise`) is denoised: the default render is, that is the path tracer with its
+/// default sampling (no `--spp`, `--noise` or time budget) making one whole image
+/// (`single_image`: not several views, a turntable, a tile or a crop, which the filter does
+/// not handle). Asking for a sampling is asking for exactly that image.
+pub fn denoises_by_default(
+    integrator: IntegratorKind,
+    spp: Option<u32>,
+    noise: Option<f32>,
+    time_limited: bool,
+    single_image: bool,
+) -> bool {
+    integrator == IntegratorKind::Path
+        && spp.is_none()
+        && noise.is_none()
+        && !time_limited
+        && single_image
 }
 
 /// The default render of `scene` at `width` x `height`: its first camera (else the automatic

@@ -217,7 +217,7 @@ impl PyScene {
         lighting_options.no_default_lights = !o.default_lights;
         let lit = self
             .with_scene(|scene| setup::lighting(&scene.lights, None, rig_view, lighting_options))?;
-        let (spp, noise) = setup::sampling(o.integrator, o.spp, o.noise, false);
+        let (spp, noise) = setup::sampling(o.integrator, o.spp, o.noise, false, false);
         Ok(RenderSettings {
             view,
             spp,

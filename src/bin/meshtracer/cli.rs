@@ -179,8 +179,9 @@ pub struct RenderArgs {
     pub height: Option<u32>,
     /// Samples per pixel, exactly: 1 shoots through pixel centres; N > 1 takes
     /// Owen-scrambled Sobol samples (powers of two stratify best) [default: the path tracer samples each
-    /// pixel adaptively, up to 32, until its noise is under --noise 0.1; the direct
-    /// integrator takes 4]. Read it through [`RenderArgs::spp`].
+    /// pixel adaptively, up to 32, until its noise is under --noise (0.5 when denoised, as the
+    /// default render is, else 0.1); the direct integrator takes 4]. Read it through
+    /// [`RenderArgs::spp`].
     #[arg(long = "spp", value_name = "N")]
     pub spp_given: Option<u32>,
     /// Adaptive sampling: each pixel stops once the standard error of its luminance is at most
@@ -199,9 +200,14 @@ pub struct RenderArgs {
     /// surfaces, with either integrator: the built-in edge-avoiding à-trous filter, or Intel
     /// Open Image Denoise's RT filter in builds made with `--features denoise`
     /// (docs/denoising.md); the view file, --stats and the summary say which. Not with
-    /// --views, --turntable, --tile or --crop.
-    #[arg(long, conflicts_with_all = ["views", "turntable", "tile", "crop"])]
+    /// --views, --turntable, --tile or --crop. [default: on for the default render (the path
+    /// tracer without --spp, --noise or --time-limit, one whole image), whose noise target is
+    /// then 0.5; off otherwise]. Read it through [`RenderArgs::denoises`].
+    #[arg(long, conflicts_with_all = ["views", "turntable", "tile", "crop", "no_denoise"])]
     pub denoise: bool,
+    /// Do not denoise the default render: it then samples to --noise 0.1 instead of 0.5.
+    #[arg(long)]
+    pub no_denoise: bool,
     /// Seed of the sample pattern (the output is identical for the same seed).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -496,7 +502,25 @@ impl RenderArgs {
             self.spp_given,
             self.noise_given,
             self.time_limit.is_some(),
+            self.denoises(),
         )
+    }
+
+    /// Whether the image is denoised: `--denoise`, else unless `--no-denoise` for the default
+    /// render ([`meshtracer::setup::denoises_by_default`]).
+    pub fn denoises(&self) -> bool {
+        self.denoise
+            || (!self.no_denoise
+                && meshtracer::setup::denoises_by_default(
+                    self.integrator,
+                    self.spp_given,
+                    self.noise_given,
+                    self.time_limit.is_some(),
+                    self.views.is_none()
+                        && self.turntable.is_none()
+                        && self.tile.is_none()
+                        && self.crop.is_none(),
+                ))
     }
 
     /// The files a render writes beside its image, each with the option that names it, in

@@ -522,7 +522,8 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         spp_given: _,
         noise_given: _,
         time_limit,
-        denoise,
+        denoise: _,
+        no_denoise: _,
         seed,
         camera,
         look_from,
@@ -597,7 +598,8 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         .field("height", height)
         .field("spp", &args.spp())
         .field("time_limit", time_limit)
-        .field("denoise", denoise)
+        // Whether it is denoised, asked for or by default (the default render is).
+        .field("denoise", &args.denoises())
         .field("seed", seed)
         .field("camera", camera)
         .field("look_from", look_from)

@@ -427,7 +427,7 @@ fn prepare_and_render(
     bar.finish_and_clear();
     phases.mark("render", render_start);
     let (mut image, stats, aovs) = result?;
-    let denoised = if args.denoise {
+    let denoised = if args.denoises() {
         Some(denoise_image(
             &prepared,
             settings,
