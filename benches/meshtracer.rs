@@ -365,6 +365,7 @@ fn render(c: &mut Criterion) {
         environment_visible: false,
         noise: None,
         clamp_indirect: None,
+        guides: false,
     };
     let scene = meshtracer::prepare::Prepared::from_parts(
         scene,
@@ -454,6 +455,7 @@ fn path_tracer(c: &mut Criterion) {
         environment_visible: false,
         noise: None,
         clamp_indirect: None,
+        guides: false,
     };
     let cancel = std::sync::atomic::AtomicBool::new(false);
     let (reference, stats, _) = pool

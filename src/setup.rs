@@ -250,5 +250,6 @@ pub fn default_settings(scene: &Scene, width: u32, height: u32) -> RenderSetting
         environment_visible: false,
         noise: Some(DEFAULT_NOISE),
         clamp_indirect: None,
+        guides: false,
     }
 }

@@ -233,6 +233,7 @@ impl PyScene {
             environment_visible: false,
             noise,
             clamp_indirect: o.clamp_indirect,
+            guides: false,
         })
     }
 

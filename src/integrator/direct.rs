@@ -38,6 +38,7 @@ impl Integrator for Direct {
         _sampler: &mut Sampler,
         counts: &mut RayCounts,
         first: &mut Option<Hit>,
+        _guide: Option<&mut crate::integrator::GuideSample>,
     ) -> (Vec3, f32) {
         let mut color = Vec3::ZERO;
         let mut transmittance = 1.0f32;

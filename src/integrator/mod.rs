@@ -57,6 +57,23 @@ pub enum IntegratorKind {
     Path,
 }
 
+/// What the denoiser's guides ([`crate::render::denoise`]) take from one camera sample: the
+/// albedo and shading normal of the surface it stops at (the first one, or one behind a BLEND
+/// layer it passed through), its first hit's distance, or the background radiance it met.
+/// The pixel loop averages them over the pixel's samples, which makes the guides as
+/// anti-aliased as the image at no cost in rays.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct GuideSample {
+    /// Base colour in [0, 1] of the surface the sample stopped at (zero on a miss).
+    pub albedo: Vec3,
+    /// Its shading normal (zero on a miss).
+    pub normal: Vec3,
+    /// Distance along the camera ray to the first surface, if any.
+    pub depth: Option<f32>,
+    /// On a miss, the radiance of the visible environment behind (zero when none is seen).
+    pub background: Vec3,
+}
+
 /// Computes the radiance along camera rays.
 pub trait Integrator: Sync {
     /// Radiance (premultiplied by coverage, linear, photometric units as in [`crate::light`])
@@ -64,7 +81,9 @@ pub trait Integrator: Sync {
     /// current sample's numbers (deterministic for a seed, whatever thread runs it); `counts` tallies the rays.
     /// `first` gets the first surface the camera ray meets (the one the AOVs record: at one
     /// sample a pixel, through its centre, they need no ray of their own), left `None` when
-    /// the ray meets nothing.
+    /// the ray meets nothing. `guide`, when given, gets this sample's [`GuideSample`] (it
+    /// starts as the default); an integrator that does not fill it leaves `None` in the
+    /// pixel's guides, and the denoiser traces its own.
     fn radiance(
         &self,
         scene: &Prepared,
@@ -72,5 +91,6 @@ pub trait Integrator: Sync {
         sampler: &mut Sampler,
         counts: &mut RayCounts,
         first: &mut Option<Hit>,
+        guide: Option<&mut GuideSample>,
     ) -> (Vec3, f32);
 }

@@ -116,6 +116,7 @@ impl Integrator for PathTracer {
         sampler: &mut Sampler,
         counts: &mut RayCounts,
         first: &mut Option<Hit>,
+        mut guide: Option<&mut super::GuideSample>,
     ) -> (Vec3, f32) {
         let mut ray = camera.ray;
         let mut throughput = Vec3::ONE;
@@ -141,6 +142,9 @@ impl Integrator for PathTracer {
             let Some(hit) = scene.intersect_camera(&ray) else {
                 if bsdf_pdf.is_none() && self.environment_visible && self.environment.is_some() {
                     coverage = 1.0;
+                    if let (Some(g), Some(env)) = (guide.as_deref_mut(), &self.environment) {
+                        g.background = env.radiance(direction);
+                    }
                 }
                 if let Some(seen) = self.escaped(scene, throughput, direction, bsdf_pdf) {
                     radiance += seen;
@@ -149,6 +153,11 @@ impl Integrator for PathTracer {
             };
             if first.is_none() {
                 *first = Some(hit);
+            }
+            if bsdf_pdf.is_none() && pass_throughs == 0 {
+                if let Some(g) = guide.as_deref_mut() {
+                    g.depth = Some(hit.t);
+                }
             }
             if let Some(sigma) = medium {
                 // KHR_materials_volume: T = exp(-σ·d) along the segment inside the volume.
@@ -167,6 +176,11 @@ impl Integrator for PathTracer {
             }
             if bsdf_pdf.is_none() {
                 coverage = 1.0;
+                // The surface this camera sample stops at: the guides' albedo and normal.
+                if let Some(g) = guide.as_deref_mut() {
+                    g.albedo = surface.material.base_color.clamp(Vec3::ZERO, Vec3::ONE);
+                    g.normal = surface.normal;
+                }
             }
             if surface.source.unlit {
                 // KHR_materials_unlit: the base colour is what the camera (or a path) sees;

@@ -17,6 +17,9 @@ pub struct Image {
     /// nothing was covered. The built-in denoiser weighs neighbours by it
     /// ([`crate::render::denoise::atrous`]).
     pub variance: Vec<f32>,
+    /// The denoiser's guides averaged over each pixel's own samples, when the render was asked
+    /// for them ([`crate::render::RenderSettings::guides`]) and its integrator gives them.
+    pub guides: Option<crate::render::denoise::Guides>,
 }
 
 impl Image {
@@ -28,6 +31,7 @@ impl Image {
             height,
             pixels: vec![Vec4::ZERO; count],
             variance: vec![0.0; count],
+            guides: None,
         }
     }
 

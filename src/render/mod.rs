@@ -15,7 +15,9 @@ use crate::accel::Hit;
 use crate::camera::{Lens, View};
 use crate::color::luminance;
 use crate::geometry::Ray;
-use crate::integrator::{CameraRay, Direct, Integrator, IntegratorKind, PathTracer, RayCounts};
+use crate::integrator::{
+    CameraRay, Direct, GuideSample, Integrator, IntegratorKind, PathTracer, RayCounts,
+};
 use crate::light::environment::Environment;
 use crate::light::PunctualLight;
 use crate::prepare::Prepared;
@@ -66,6 +68,9 @@ pub struct RenderSettings {
     /// Path tracer: the most a sample's indirect light may bring (`--clamp-indirect`,
     /// [`crate::integrator::PathTracer::clamp_indirect`]); `None`: unbiased.
     pub clamp_indirect: Option<f32>,
+    /// Also average the denoiser's guides over each pixel's own samples ([`Image::guides`]):
+    /// the path tracer fills them from its camera rays' first surfaces at no cost in rays.
+    pub guides: bool,
 }
 
 /// Adaptive sampling's first check: a pixel takes at least this many samples (or `spp`, if
@@ -246,6 +251,18 @@ pub fn render_region(
     };
     let mut image = Image::new(width, height);
     let pixel_count = width as usize * height as usize;
+    let mut guides =
+        (settings.guides && settings.integrator == IntegratorKind::Path).then(|| denoise::Guides {
+            width,
+            height,
+            albedo: vec![Vec3::ZERO; pixel_count],
+            normal: vec![Vec3::ZERO; pixel_count],
+            depth: vec![0.0; pixel_count],
+            samples_per_pixel: match settings.noise {
+                Some(_) => settings.spp.clamp(1, ADAPTIVE_BATCH),
+                None => settings.spp.max(1),
+            },
+        });
     let mut aovs = settings.aovs.then(|| Aovs {
         depth: vec![0.0; pixel_count],
         normal: vec![Vec3::ZERO; pixel_count],
@@ -268,6 +285,12 @@ pub fn render_region(
             let at = row * tile.width as usize;
             image.variance[begin..begin + chunk.len()]
                 .copy_from_slice(&tile.variance[at..at + chunk.len()]);
+            if let (Some(g), Some(t)) = (guides.as_mut(), tile.guides.as_ref()) {
+                let n = chunk.len();
+                g.albedo[begin..begin + n].copy_from_slice(&t.albedo[at..at + n]);
+                g.normal[begin..begin + n].copy_from_slice(&t.normal[at..at + n]);
+                g.depth[begin..begin + n].copy_from_slice(&t.depth[at..at + n]);
+            }
             if let Some(a) = aovs.as_mut() {
                 let n = chunk.len();
                 a.depth[begin..begin + n].copy_from_slice(&tile.aovs.depth[at..at + n]);
@@ -276,6 +299,7 @@ pub fn render_region(
             }
         }
     }
+    image.guides = guides;
     stats.time = start.elapsed();
     stats.noise = (noise_pixels > 0).then(|| (noise_sum / noise_pixels as f64) as f32);
     Ok((image, stats, aovs))
@@ -327,6 +351,8 @@ struct Tile {
     pixels: Vec<Vec4>,
     /// Per pixel, the variance of its mean luminance ([`Image::variance`]).
     variance: Vec<f32>,
+    /// The denoiser's guides of the tile's pixels, when asked for (`samples_per_pixel` unused).
+    guides: Option<denoise::Guides>,
     aovs: Aovs,
     counts: RayCounts,
     /// Sum over covered pixels of the standard error of their mean luminance.
@@ -349,6 +375,9 @@ struct PixelLoop<'a, I> {
     /// Ray-cone footprint of a pixel: width at distance t is `spread.0 + spread.1 · t`
     /// (perspective: angle per pixel; orthographic: pixel size).
     spread: (f32, f32),
+    /// Whether the tiles average the denoiser's guides ([`RenderSettings::guides`], path
+    /// tracer only).
+    collect_guides: bool,
 }
 
 impl<'a, I: Integrator> PixelLoop<'a, I> {
@@ -370,6 +399,7 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
             region,
             scale: settings.exposure.exp2(),
             spread,
+            collect_guides: settings.guides && settings.integrator == IntegratorKind::Path,
         }
     }
 
@@ -406,6 +436,14 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
             width: x1 - x0,
             pixels: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
             variance: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
+            guides: self.collect_guides.then(|| denoise::Guides {
+                width: x1 - x0,
+                height: y1 - y0,
+                albedo: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
+                normal: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
+                depth: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
+                samples_per_pixel: 0,
+            }),
             aovs: Aovs::default(),
             counts: RayCounts::default(),
             noise_sum: 0.0,
@@ -420,6 +458,8 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                 let mut luminance_squares = 0.0f64;
                 let mut first = None;
                 let mut taken = spp;
+                let (mut albedo, mut normal) = (Vec3::ZERO, Vec3::ZERO);
+                let (mut depth, mut depth_hits) = (0.0f32, 0u32);
                 for s in 0..spp {
                     sampler.start_sample(s);
                     // The pixel position is the sample's first two numbers: any prefix of 2^m
@@ -435,13 +475,26 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                         spread_base: self.spread.0,
                         spread_per_distance: self.spread.1,
                     };
+                    let mut guide = GuideSample::default();
                     let (color, coverage) = self.integrator.radiance(
                         self.scene,
                         &camera,
                         &mut sampler,
                         &mut tile.counts,
                         &mut first,
+                        self.collect_guides.then_some(&mut guide),
                     );
+                    if self.collect_guides {
+                        // As the denoiser's own guide rays: albedo in [0, 1], a visible
+                        // background's radiance (after exposure, clamped) as its albedo.
+                        albedo += guide.albedo
+                            + (guide.background * self.scale).clamp(Vec3::ZERO, Vec3::ONE);
+                        normal += guide.normal;
+                        if let Some(t) = guide.depth {
+                            depth += t;
+                            depth_hits += 1;
+                        }
+                    }
                     sum += (color * self.scale).extend(coverage);
                     luminance_squares += f64::from(luminance(color * self.scale)).powi(2);
                     if let Some(target) = self.settings.noise {
@@ -468,6 +521,16 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                     variance = (error * error) as f32;
                 }
                 tile.variance.push(variance);
+                if let Some(g) = tile.guides.as_mut() {
+                    let n = taken as f32;
+                    g.albedo.push((albedo / n).clamp(Vec3::ZERO, Vec3::ONE));
+                    g.normal.push(normal / n);
+                    g.depth.push(if depth_hits > 0 {
+                        depth / depth_hits as f32
+                    } else {
+                        0.0
+                    });
+                }
                 if self.settings.aovs {
                     let ray = view.ray(x as f32 + 0.5, y as f32 + 0.5);
                     // One sample a pixel went through the centre: its first surface is the

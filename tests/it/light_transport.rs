@@ -1191,6 +1191,7 @@ fn path_estimate(
             &mut sampler,
             &mut RayCounts::default(),
             &mut None,
+            None,
         );
         assert_eq!(coverage, 1.0, "the camera ray must meet the scene");
         let x = f64::from(radiance.y);

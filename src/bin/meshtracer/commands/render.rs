@@ -358,6 +358,7 @@ fn render_settings(args: &RenderArgs, view: View, lit: Lighting) -> RenderSettin
         environment_visible: args.env_visible,
         noise: args.noise(),
         clamp_indirect: args.clamp_indirect,
+        guides: args.denoises(),
     }
 }
 
@@ -465,6 +466,7 @@ fn spp_for_time_limit(
         spp: 1,
         aovs: false,
         noise: None,
+        guides: false,
         ..settings.clone()
     };
     let (_, stats, _) = render(prepared, &calibration, cancel, &|_, _| {})?;
@@ -503,7 +505,12 @@ fn denoise_image(
     phases: &mut Phases,
 ) -> Result<Denoising> {
     let guide_start = Instant::now();
-    let guides = meshtracer::render::denoise::guides(prepared, settings, region);
+    // The path tracer averaged the guides over each pixel's own samples; the direct
+    // integrator's are traced here.
+    let guides = match image.guides.take() {
+        Some(guides) => guides,
+        None => meshtracer::render::denoise::guides(prepared, settings, region),
+    };
     phases.mark("denoise guides", guide_start);
     let denoise_start = Instant::now();
     let report = meshtracer::render::denoise::denoise(image, &guides)?;

@@ -732,6 +732,7 @@ impl ViewRun<'_> {
             environment_visible: args.env_visible,
             noise: args.noise(),
             clamp_indirect: args.clamp_indirect,
+            guides: false,
         };
         let image_path = dir.join(&names.image);
         let output = PendingOutput::reserve(&image_path, args.no_clobber)?;
