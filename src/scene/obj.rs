@@ -15,14 +15,24 @@
 //! - metallic is 0: MTL has no metalness (mirrors, `illum 5`, are left to the specular term).
 //! - `illum` 4, 6, 7 and 9 are glass: transmission 1, `Ni` the index of refraction, `Tf` (not
 //!   `Kd`) the tint of what passes.
+//! - The dielectric's reflection follows `Ni` and `Ks` as Blender's MTL importer reads them
+//!   (Blender 5.2, checked): `Ni` is the index of refraction (1.5 when absent) and the mean of
+//!   `Ks` its "Specular IOR Level" s, which scales F0 by 2s (0.5: unchanged; 1: doubled; 0: no
+//!   reflection at all). So F0 = ((Ni - 1)/(Ni + 1))² · 2·mean(Ks), and the material's ior is
+//!   the one with that F0; `Ks 0 0 0` or `Ni 1` (what most exporters write for plain diffuse
+//!   surfaces, the Cornell box's walls among them) leave a Lambertian surface, as
+//!   `KHR_materials_specular` with factor 0. Without `Ks` F0 is the index's. A white 4%
+//!   reflection on every OBJ surface made the OBJ Cornell boxes 4.6-7% brighter than Cycles.
 //! - `illum 0` and `illum 1` (colour, or colour and ambient, without highlights) turn the
-//!   specular term off: Blinn-Phong specular 0 and roughness 1.
+//!   specular term off: no dielectric reflection, Blinn-Phong specular 0 and roughness 1.
 //! - `map_Bump`/`bump`/`norm` -> normal map.
 
 use super::builder::{SoupBuilder, TriangleIn, VerticesIn};
 use super::error::{LoadError, LoadErrorKind};
 use super::image_source::ImageSource;
-use super::material::{draw_without, AlphaMode, Material, TextureRef, UnusableImage};
+use super::material::{
+    draw_without, AlphaMode, Material, SpecularLayer, TextureRef, UnusableImage,
+};
 use super::model::Scene;
 use super::options::{Format, LoadOptions};
 use super::paths::FileAccess;
@@ -619,6 +629,12 @@ fn mtl_material(m: &tobj::Material) -> Material {
         .filter(|ns| ns.is_finite() && *ns >= 0.0)
         .map_or(1.0, |ns| 1.0 - (ns.min(1000.0) / 1000.0).sqrt());
     let no_highlights = matches!(m.illumination_model, Some(0 | 1));
+    // Ni, the index of refraction (1.5 when absent or unusable).
+    let index = m
+        .optical_density
+        .filter(|n| n.is_finite() && *n >= 1.0)
+        .unwrap_or(1.5);
+    let reflection = opaque_reflection(index, m.specular, no_highlights);
     // illum 4 and 9 are glass, 6 and 7 refraction (Blender's MTL importer reads all four as
     // transparent).
     let glass = matches!(m.illumination_model, Some(4 | 6 | 7 | 9));
@@ -661,13 +677,10 @@ fn mtl_material(m: &tobj::Material) -> Material {
             AlphaMode::Opaque
         },
         // illum 4, 6, 7 and 9 are glass (refraction, with Ni as the index); Tf tints what passes.
-        // Other illumination models do not use Ni (exporters write Ni 1.0 for plain diffuse
-        // materials), so their reflectance stays the core material's (F0 4%, ior 1.5).
+        // Other illumination models reflect as Blender reads Ni and Ks (module docs).
         transmission: if glass { 1.0 } else { 0.0 },
-        ior: m
-            .optical_density
-            .filter(|n| glass && n.is_finite() && *n >= 1.0)
-            .unwrap_or(1.5),
+        ior: if glass { index } else { reflection.0 },
+        specular_layer: reflection.1,
         thin_walled: false,
         attenuation_color: Vec3::ONE,
         attenuation_distance: f32::INFINITY,
@@ -679,6 +692,39 @@ fn mtl_material(m: &tobj::Material) -> Material {
         },
         ..Material::default()
     }
+}
+
+/// The ior and `KHR_materials_specular` layer of a non-glass MTL material of index `index`
+/// (`Ni`) and specular colour `ks` (`Ks`), as Blender's importer reads them (module docs):
+/// F0 = F0(index) · 2·mean(Ks), or no reflection at all when that is 0 or the material has no
+/// highlights.
+fn opaque_reflection(
+    index: f32,
+    ks: Option<[f32; 3]>,
+    no_highlights: bool,
+) -> (f32, Option<SpecularLayer>) {
+    let level = ks.map_or(0.5, |k| {
+        let mean = (k[0] + k[1] + k[2]) / 3.0;
+        if mean.is_finite() {
+            mean.clamp(0.0, 1.0)
+        } else {
+            0.5
+        }
+    });
+    let f0 = ((index - 1.0) / (index + 1.0)).powi(2) * 2.0 * level;
+    if no_highlights || f0 <= 0.0 {
+        let none = SpecularLayer {
+            factor: 0.0,
+            texture: None,
+            color: Vec3::ONE,
+            color_texture: None,
+        };
+        return (index, Some(none));
+    }
+    // The index whose F0 is f0: (1 + √F0) / (1 - √F0), F0 capped at 0.9 (an index of 37) so
+    // that the denominator stays positive.
+    let root = f0.min(0.9).sqrt();
+    ((1.0 + root) / (1.0 - root), None)
 }
 
 #[cfg(test)]
@@ -716,7 +762,7 @@ mod tests {
     }
 
     /// Every glass `illum` refracts with `Ni` (water: 1.33) and is tinted by `Tf`, not `Kd`;
-    /// other models keep the core material's index.
+    /// other models do not transmit.
     #[test]
     fn glass_illumination_models_refract_with_ni() {
         for illum in [4, 6, 7, 9] {
@@ -739,10 +785,52 @@ mod tests {
             optical_density: Some(1.0),
             ..Default::default()
         };
-        assert_eq!(
-            (mtl_material(&plain).transmission, mtl_material(&plain).ior),
-            (0.0, 1.5)
-        );
+        assert_eq!(mtl_material(&plain).transmission, 0.0);
+    }
+
+    /// Opaque materials reflect as Blender reads `Ni` and `Ks`: F0 = F0(Ni)·2·mean(Ks) through
+    /// the ior; `Ks 0`, `Ni 1` and `illum 1` reflect nothing (a specular layer of factor 0);
+    /// no `Ks` keeps the index's own F0.
+    #[test]
+    fn opaque_reflection_follows_ni_and_ks_as_blender_reads_them() {
+        let f0 = |ior: f32| ((ior - 1.0) / (ior + 1.0)).powi(2);
+        let material = |ni: Option<f32>, ks: Option<[f32; 3]>, illum: u8| {
+            mtl_material(&tobj::Material {
+                illumination_model: Some(illum),
+                optical_density: ni,
+                specular: ks,
+                ..Default::default()
+            })
+        };
+        let unchanged = material(None, None, 2);
+        assert_eq!((unchanged.ior, &unchanged.specular_layer), (1.5, &None));
+        for (ni, ks, expected) in [
+            (Some(1.5), [0.5; 3], 0.04),
+            (Some(1.5), [1.0; 3], 0.08),
+            (Some(1.5), [0.2, 0.4, 0.6], 0.032),
+            (Some(2.0), [0.25; 3], f0(2.0) * 0.5),
+        ] {
+            let m = material(ni, Some(ks), 2);
+            assert!(m.specular_layer.is_none());
+            assert!(
+                (f0(m.ior) - expected).abs() < 1e-5,
+                "Ni {ni:?} Ks {ks:?}: F0 {} against {expected}",
+                f0(m.ior)
+            );
+        }
+        for (ni, ks, illum) in [
+            (Some(1.5), Some([0.0; 3]), 2),
+            (Some(1.0), Some([0.5; 3]), 2),
+            (Some(1.0), None, 2),
+            (None, Some([1.0; 3]), 1),
+        ] {
+            let layer = material(ni, ks, illum).specular_layer;
+            assert_eq!(
+                layer.map(|l| l.factor),
+                Some(0.0),
+                "Ni {ni:?} Ks {ks:?} illum {illum}: no reflection"
+            );
+        }
     }
 
     #[test]
