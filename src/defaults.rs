@@ -24,12 +24,13 @@ pub const DEFAULT_SPP: u32 = 4;
 /// of the reference, 64 within 0.005-0.011 at 4x the time; 32 leaves noisy pixels room.
 pub const DEFAULT_PATH_SPP: u32 = 32;
 
-/// The default render's noise target (`--noise`): a pixel stops, after its first 4 samples
-/// (checked every 4, [`crate::render::ADAPTIVE_BATCH`]), once the standard error of its
-/// luminance is at most this fraction of it. Smooth pixels and the background stop at 4; with
-/// the Sobol sampler the default render stays within mean FLIP 0.03 of its own 128-spp image
-/// on every shared model at 640x480 (docs/path-tracer.md, "The default render"); 0.05 instead
-/// took about as long as a fixed 64 for a FLIP difference under 0.001.
+/// The default render's noise target (`--noise`) without the denoiser (`--no-denoise`, and
+/// the renders the filter does not handle: views, turntables, tiles, crops): a pixel stops,
+/// after its first 4 samples (checked every 4, [`crate::render::ADAPTIVE_BATCH`]), once the
+/// standard error of its luminance is at most this fraction of it. Smooth pixels and the
+/// background stop at 4; with the Sobol sampler such a render stays within mean FLIP 0.03 of
+/// its own 128-spp image on every shared model at 640x480 (docs/path-tracer.md, "The default
+/// render"); 0.05 instead took about as long as a fixed 64 for a FLIP difference under 0.001.
 pub const DEFAULT_NOISE: f32 = 0.1;
 
 /// The default render's noise target when it is denoised (as it is unless `--no-denoise`,
