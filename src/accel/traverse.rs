@@ -1,0 +1,378 @@
+//! Traversal of the obvhs CWBVH with our own node test.
+//!
+//! The loop is obvhs 0.4's `traverse!` macro (MIT OR Apache-2.0, after Ylitie, Karras and
+//! Laine, "Efficient Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs", HPG 2017)
+//! written as a function: a node's hit children and hit leaf primitives are kept as bit groups
+//! (`UVec2`: a base index and a mask), children are taken nearest octant first, and groups
+//! not yet done wait on a small stack. What differs is the node test ([`NodeTest`]): obvhs's
+//! SSE test converts the quantised child bounds to floats one byte at a time (its own comment
+//! calls that the most expensive part) and clamps box entry to a fixed 1e-4 instead of the
+//! ray's `tmin`; [`Avx2`] tests all eight children in one register and uses the ray's own
+//! interval, and [`Portable`] does the same four children at a time for CPUs without AVX2.
+
+use super::{Accel, Accept, Closest};
+use crate::geometry::Ray;
+use glam::{UVec2, Vec3A, Vec4};
+use obvhs::cwbvh::node::CwBvhNode;
+use obvhs::cwbvh::CwBvh;
+use std::mem::offset_of;
+
+/// Direction components smaller than this in magnitude are replaced by it (with their sign)
+/// before inverting, so inverse directions stay finite and a slab test never multiplies zero by
+/// infinity. A ray leaning 1e-18 off an axis stays in a slab for 1e18 units of `t`, far past
+/// any scene: the slab bounds computed from the clamped component are still on the same side.
+const MIN_DIRECTION: f32 = 1e-18;
+
+/// How far before `ray.tmin` boxes still count as entered. Both the box and the triangle
+/// round the point where the ray meets a surface, differently; a ray starting on a surface
+/// (`tmin` 0, as the linear scan sees it) must not lose the triangle it starts on because the
+/// box's far side rounded to just behind the origin. This is the slack the earlier obvhs-based
+/// traversal had (it tested boxes from a point 2e-4 behind the origin, clamped at 1e-4).
+const BOX_TMIN_SLACK: f32 = 1e-4;
+
+/// Byte offset of the near-plane bytes of x, y and z in a node (`child_min_x` ...): each axis
+/// has eight min bytes followed by eight max bytes.
+const PLANES: usize = offset_of!(CwBvhNode, child_min_x);
+/// Byte offset of the eight child meta bytes.
+const META: usize = offset_of!(CwBvhNode, child_meta);
+const _: () = assert!(
+    offset_of!(CwBvhNode, child_max_x) == PLANES + 8
+        && offset_of!(CwBvhNode, child_min_y) == PLANES + 16
+        && offset_of!(CwBvhNode, child_min_z) == PLANES + 32
+        && offset_of!(CwBvhNode, child_max_z) == PLANES + 40
+        && std::mem::size_of::<CwBvhNode>() == PLANES + 48
+);
+
+/// What the node test needs of a ray, computed once per query.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct NodeRay {
+    origin: Vec3A,
+    /// 1 / direction, with tiny components clamped ([`MIN_DIRECTION`]).
+    inv_direction: Vec3A,
+    /// Per axis, the byte offset in a node of the eight child planes the ray enters by (the
+    /// min planes for a positive direction component, the max planes for a negative one), and
+    /// of those it leaves by. The sign bit decides, so -0.0 goes with its -inverse.
+    near: [usize; 3],
+    far: [usize; 3],
+    /// obvhs's `oct_inv4` octant code in one byte: 4 for x ≥ 0, 2 for y ≥ 0, 1 for z ≥ 0.
+    oct_inv: u32,
+    /// Box interval: boxes outside (`tmin`, `tmax`) are culled.
+    tmin: f32,
+    tmax: f32,
+}
+
+impl NodeRay {
+    pub(super) fn new(ray: &Ray) -> NodeRay {
+        let d = ray.direction;
+        let safe = |x: f32| {
+            if x.abs() < MIN_DIRECTION {
+                MIN_DIRECTION.copysign(x)
+            } else {
+                x
+            }
+        };
+        let inv_direction = Vec3A::ONE / Vec3A::new(safe(d.x), safe(d.y), safe(d.z));
+        let negative = [
+            d.x.is_sign_negative(),
+            d.y.is_sign_negative(),
+            d.z.is_sign_negative(),
+        ];
+        let plane = |axis: usize, max: bool| PLANES + 16 * axis + if max { 8 } else { 0 };
+        NodeRay {
+            origin: ray.origin,
+            inv_direction,
+            near: [0, 1, 2].map(|a| plane(a, negative[a])),
+            far: [0, 1, 2].map(|a| plane(a, !negative[a])),
+            oct_inv: u32::from(!negative[0]) << 2
+                | u32::from(!negative[1]) << 1
+                | u32::from(!negative[2]),
+            tmin: ray.tmin - BOX_TMIN_SLACK,
+            tmax: ray.tmax,
+        }
+    }
+
+    /// The ray in the node's quantised grid: `t = q · scale + offset` per axis, q the 0-255
+    /// plane byte (obvhs `intersect_ray_simd`'s `adj_ray_dir_inv` and `adj_ray_origin`).
+    #[inline(always)]
+    fn in_grid(&self, node: &CwBvhNode) -> (Vec3A, Vec3A) {
+        // The grid step per axis is 2^(e - 127): the exponent byte shifted into a float.
+        let extent = Vec3A::new(
+            f32::from_bits(u32::from(node.e[0]) << 23),
+            f32::from_bits(u32::from(node.e[1]) << 23),
+            f32::from_bits(u32::from(node.e[2]) << 23),
+        );
+        (
+            extent * self.inv_direction,
+            (Vec3A::from(node.p) - self.origin) * self.inv_direction,
+        )
+    }
+}
+
+/// A CWBVH node test: the hit mask of obvhs's `CwBvhNode::intersect_ray` (for each child whose
+/// box meets the ray's interval, its meta bits shifted into place: internal children in the
+/// top byte at their octant-ordered slot, leaves' primitives in the low 24 bits).
+pub(super) trait NodeTest: Copy {
+    fn hits(self, node: &CwBvhNode, ray: &NodeRay) -> u32;
+}
+
+/// Four children at a time with glam's `Vec4` (SSE2 on x86-64, scalar elsewhere): the test for
+/// CPUs without AVX2, and the reference [`Avx2`] is tested against.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Portable;
+
+impl NodeTest for Portable {
+    #[inline(always)]
+    fn hits(self, node: &CwBvhNode, ray: &NodeRay) -> u32 {
+        let (scale, offset) = ray.in_grid(node);
+        let bytes = bytemuck::bytes_of(node);
+        let (child_bits8, bit_index8) = node.get_child_and_index_bits(ray.oct_inv * 0x0101_0101);
+        let mut hits = 0;
+        for half in [0, 4] {
+            let q = |at: usize| {
+                let b = &bytes[at + half..at + half + 4];
+                Vec4::new(b[0] as f32, b[1] as f32, b[2] as f32, b[3] as f32)
+            };
+            let slab = |axis: usize| {
+                let (s, o) = (Vec4::splat(scale[axis]), Vec4::splat(offset[axis]));
+                (q(ray.near[axis]) * s + o, q(ray.far[axis]) * s + o)
+            };
+            let (nx, fx) = slab(0);
+            let (ny, fy) = slab(1);
+            let (nz, fz) = slab(2);
+            let enter = nx.max(ny).max(nz.max(Vec4::splat(ray.tmin)));
+            let leave = fx.min(fy).min(fz.min(Vec4::splat(ray.tmax)));
+            let mut mask = enter.cmple(leave).bitmask();
+            while mask != 0 {
+                let child = half + mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let byte = |x: u64| ((x >> (8 * child)) & 0xff) as u32;
+                hits |= byte(child_bits8) << byte(bit_index8);
+            }
+        }
+        hits
+    }
+}
+
+/// All eight children in one AVX2 register. Only made where the CPU has AVX2 and FMA
+/// ([`Avx2::new`]), so its test may use them.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Avx2(());
+
+#[cfg(target_arch = "x86_64")]
+impl Avx2 {
+    /// The test, when this CPU runs x86-64-v3 code.
+    pub(super) fn new() -> Option<Avx2> {
+        crate::cpu::has_v3().then_some(Avx2(()))
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl NodeTest for Avx2 {
+    #[inline(always)]
+    fn hits(self, node: &CwBvhNode, ray: &NodeRay) -> u32 {
+        // SAFETY: an `Avx2` exists only where the CPU has AVX2 (`Avx2::new`).
+        unsafe { hits_avx2(node, ray) }
+    }
+}
+
+/// [`Avx2`]'s test. The arithmetic is [`Portable`]'s lane for lane (multiply, then add; max
+/// and min are exact), so both give the same mask.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn hits_avx2(node: &CwBvhNode, ray: &NodeRay) -> u32 {
+    use std::arch::x86_64::*;
+    let (scale, offset) = ray.in_grid(node);
+    let base = (node as *const CwBvhNode).cast::<u8>();
+    // Eight plane bytes at `at` as eight floats.
+    macro_rules! planes {
+        ($at:expr) => {
+            // SAFETY: `at` is one of `NodeRay`'s plane offsets, eight bytes inside the node
+            // (the layout is asserted above); the load is unaligned.
+            _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(unsafe {
+                _mm_loadl_epi64(base.add($at).cast::<__m128i>())
+            }))
+        };
+    }
+    macro_rules! slab {
+        ($axis:expr) => {{
+            let s = _mm256_set1_ps(scale[$axis]);
+            let o = _mm256_set1_ps(offset[$axis]);
+            (
+                _mm256_add_ps(_mm256_mul_ps(planes!(ray.near[$axis]), s), o),
+                _mm256_add_ps(_mm256_mul_ps(planes!(ray.far[$axis]), s), o),
+            )
+        }};
+    }
+    let (nx, fx) = slab!(0);
+    let (ny, fy) = slab!(1);
+    let (nz, fz) = slab!(2);
+    let enter = _mm256_max_ps(
+        _mm256_max_ps(nx, ny),
+        _mm256_max_ps(nz, _mm256_set1_ps(ray.tmin)),
+    );
+    let leave = _mm256_min_ps(
+        _mm256_min_ps(fx, fy),
+        _mm256_min_ps(fz, _mm256_set1_ps(ray.tmax)),
+    );
+    let hit = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LE_OQ>(enter, leave));
+    // obvhs `get_child_and_index_bits`, a lane per child: internal children (meta 24..31 in
+    // the low five bits, so bits 3 and 4 both set) go to bit 24 + (slot ^ octant), leaves'
+    // unary primitive counts (meta's top three bits) to their first primitive's offset.
+    // SAFETY: the eight meta bytes lie inside the node.
+    let meta = _mm256_cvtepu8_epi32(unsafe { _mm_loadl_epi64(base.add(META).cast::<__m128i>()) });
+    let sixteen = _mm256_set1_epi32(0x10);
+    let inner = _mm256_cmpeq_epi32(
+        _mm256_and_si256(_mm256_and_si256(meta, _mm256_slli_epi32::<1>(meta)), sixteen),
+        sixteen,
+    );
+    let octant = _mm256_and_si256(inner, _mm256_set1_epi32(ray.oct_inv as i32));
+    let bit_index = _mm256_and_si256(_mm256_xor_si256(meta, octant), _mm256_set1_epi32(0x1f));
+    let bits = _mm256_and_si256(
+        _mm256_sllv_epi32(_mm256_srli_epi32::<5>(meta), bit_index),
+        hit,
+    );
+    // The children's bits never overlap: OR the eight lanes together.
+    let x = _mm_or_si128(
+        _mm256_castsi256_si128(bits),
+        _mm256_extracti128_si256::<1>(bits),
+    );
+    let x = _mm_or_si128(x, _mm_shuffle_epi32::<0b01_00_11_10>(x));
+    let x = _mm_or_si128(x, _mm_shuffle_epi32::<0b10_11_00_01>(x));
+    _mm_cvtsi128_si32(x) as u32
+}
+
+/// The traversal stack: groups of children still to visit. A wide BVH is shallow (obvhs keeps
+/// 32 entries and overwrites the last when full); this holds 64 and spills beyond that to the
+/// heap rather than lose a group, so a pathologically deep tree is slow, never wrong.
+struct Stack {
+    entries: [UVec2; 64],
+    len: usize,
+    spill: Vec<UVec2>,
+}
+
+impl Stack {
+    #[inline(always)]
+    fn new() -> Stack {
+        Stack {
+            entries: [UVec2::ZERO; 64],
+            len: 0,
+            spill: Vec::new(),
+        }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, group: UVec2) {
+        if let Some(entry) = self.entries.get_mut(self.len) {
+            *entry = group;
+            self.len += 1;
+        } else {
+            self.spill.push(group);
+        }
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<UVec2> {
+        if let Some(group) = self.spill.pop() {
+            return Some(group);
+        }
+        self.len = self.len.checked_sub(1)?;
+        Some(self.entries[self.len])
+    }
+}
+
+/// Walks `bvh` for `ray` (whose node-test form `node_ray` may be narrowed by `leaf` as hits
+/// are found), calling `leaf(slot, node_ray)` for each primitive slot of each leaf whose box
+/// the ray enters; `leaf` returns true to stop.
+#[inline(always)]
+fn walk<K: NodeTest>(
+    k: K,
+    bvh: &CwBvh,
+    node_ray: &mut NodeRay,
+    mut leaf: impl FnMut(usize, &mut NodeRay) -> bool,
+) {
+    if bvh.nodes.is_empty() {
+        return;
+    }
+    let mut stack = Stack::new();
+    // The root as a group of one internal child (slot 7 in the top byte).
+    let mut nodes = UVec2::new(0, 0x8000_0000);
+    let mut prims = UVec2::ZERO;
+    loop {
+        while prims.y != 0 {
+            let i = 31 - prims.y.leading_zeros();
+            prims.y &= !(1 << i);
+            if leaf((prims.x + i) as usize, node_ray) {
+                return;
+            }
+        }
+        if nodes.y & 0xff00_0000 != 0 {
+            let hits_imask = nodes.y;
+            let child_bit = 31 - hits_imask.leading_zeros();
+            nodes.y &= !(1 << child_bit);
+            if nodes.y & 0xff00_0000 != 0 {
+                stack.push(nodes);
+            }
+            let slot = (child_bit - 24) ^ node_ray.oct_inv;
+            let relative = (hits_imask & !(u32::MAX << slot)).count_ones();
+            let node = &bvh.nodes[(nodes.x + relative) as usize];
+            let hits = k.hits(node, node_ray);
+            nodes = UVec2::new(node.child_base_idx, (hits & 0xff00_0000) | u32::from(node.imask));
+            prims = UVec2::new(node.primitive_base_idx, hits & 0x00ff_ffff);
+        } else if let Some(group) = stack.pop() {
+            nodes = group;
+        } else {
+            return;
+        }
+    }
+}
+
+/// The closest hit: every leaf the ray enters before its current best.
+#[inline(always)]
+pub(super) fn closest<K: NodeTest>(
+    k: K,
+    accel: &Accel,
+    bvh: &CwBvh,
+    ray: &Ray,
+    accept: Option<&Accept>,
+) -> Option<Closest> {
+    let mut best: Option<Closest> = None;
+    let mut local = *ray;
+    let mut node_ray = NodeRay::new(ray);
+    walk(k, bvh, &mut node_ray, |slot, node_ray| {
+        let t = accel.test(slot, &local, true, accept);
+        if t < f32::INFINITY {
+            Closest::offer(&mut best, t, accel.ids[slot], slot);
+            if let Some(b) = best {
+                // Keep hits at exactly the best t (for the tie rule) but cull everything
+                // farther: the next float up is the tightest such bound.
+                local.tmax = b.t.next_up();
+                node_ray.tmax = local.tmax;
+            }
+        }
+        false
+    });
+    best
+}
+
+/// Whether anything blocks the ray: stops at the first blocker.
+#[inline(always)]
+pub(super) fn occluded<K: NodeTest>(
+    k: K,
+    accel: &Accel,
+    bvh: &CwBvh,
+    ray: &Ray,
+    accept: Option<&Accept>,
+) -> bool {
+    let mut node_ray = NodeRay::new(ray);
+    let mut blocked = false;
+    walk(k, bvh, &mut node_ray, |slot, _| {
+        blocked = accel.test(slot, ray, false, accept) < f32::INFINITY;
+        blocked
+    });
+    blocked
+}
