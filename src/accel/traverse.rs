@@ -55,7 +55,11 @@ pub(super) struct NodeRay {
     near: [usize; 3],
     far: [usize; 3],
     /// obvhs's `oct_inv4` octant code in one byte: 4 for x ≥ 0, 2 for y ≥ 0, 1 for z ≥ 0.
+    /// A node's children are stored so that child `slot ^ oct_inv` is the `slot`-th nearest
+    /// for rays of this octant (the converter's `order_children`).
     oct_inv: u32,
+    /// Lane `p` holds `p ^ oct_inv`: the children's lanes in visiting order.
+    order: [i32; 8],
     /// Box interval: boxes outside (`tmin`, `tmax`) are culled.
     tmin: f32,
     tmax: f32,
@@ -77,18 +81,26 @@ impl NodeRay {
             d.y.is_sign_negative(),
             d.z.is_sign_negative(),
         ];
+        let oct_inv = u32::from(!negative[0]) << 2
+            | u32::from(!negative[1]) << 1
+            | u32::from(!negative[2]);
         let plane = |axis: usize, max: bool| PLANES + 16 * axis + if max { 8 } else { 0 };
         NodeRay {
             origin: ray.origin,
             inv_direction,
             near: [0, 1, 2].map(|a| plane(a, negative[a])),
             far: [0, 1, 2].map(|a| plane(a, !negative[a])),
-            oct_inv: u32::from(!negative[0]) << 2
-                | u32::from(!negative[1]) << 1
-                | u32::from(!negative[2]),
+            oct_inv,
+            order: [0, 1, 2, 3, 4, 5, 6, 7].map(|p| p ^ oct_inv as i32),
             tmin: ray.tmin - BOX_TMIN_SLACK,
             tmax: ray.tmax,
         }
+    }
+
+    /// Narrows the box interval's far end.
+    #[inline(always)]
+    pub(super) fn set_tmax(&mut self, tmax: f32) {
+        self.tmax = tmax;
     }
 
     /// The ray in the node's quantised grid: `t = q · scale + offset` per axis, q the 0-255
@@ -108,11 +120,40 @@ impl NodeRay {
     }
 }
 
-/// A CWBVH node test: the hit mask of obvhs's `CwBvhNode::intersect_ray` (for each child whose
-/// box meets the ray's interval, its meta bits shifted into place: internal children in the
-/// top byte at their octant-ordered slot, leaves' primitives in the low 24 bits).
+/// Which children of a node the ray enters (their boxes meet the ray's interval).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Hits {
+    /// Internal children in visiting order: bit `p` for child `p ^ oct_inv`, so the highest
+    /// bit is the nearest (as in obvhs's hit mask's top byte).
+    pub(super) nodes: u32,
+    /// Leaf children, bit `i` for child `i`.
+    pub(super) leaves: u32,
+}
+
+impl Hits {
+    /// From the children hit (bit `i` for child `i`, empty slots included or not).
+    #[inline(always)]
+    fn from_mask(node: &CwBvhNode, ray: &NodeRay, mask: u32) -> Hits {
+        let inner = mask & u32::from(node.imask);
+        let filled = u64::from_le_bytes(node.child_meta);
+        let mut leaves = 0;
+        let mut nodes = 0;
+        for i in 0..8 {
+            let bit = 1 << i;
+            if mask & bit != 0 && inner & bit == 0 && (filled >> (8 * i)) & 0xff != 0 {
+                leaves |= bit;
+            }
+            if inner & (1 << (i ^ ray.oct_inv)) != 0 {
+                nodes |= bit;
+            }
+        }
+        Hits { nodes, leaves }
+    }
+}
+
+/// A CWBVH node test.
 pub(super) trait NodeTest: Copy {
-    fn hits(self, node: &CwBvhNode, ray: &NodeRay) -> u32;
+    fn hits(self, node: &CwBvhNode, ray: &NodeRay) -> Hits;
 }
 
 /// Four children at a time with glam's `Vec4` (SSE2 on x86-64, scalar elsewhere): the test for
@@ -122,11 +163,10 @@ pub(super) struct Portable;
 
 impl NodeTest for Portable {
     #[inline(always)]
-    fn hits(self, node: &CwBvhNode, ray: &NodeRay) -> u32 {
+    fn hits(self, node: &CwBvhNode, ray: &NodeRay) -> Hits {
         let (scale, offset) = ray.in_grid(node);
         let bytes = bytemuck::bytes_of(node);
-        let (child_bits8, bit_index8) = node.get_child_and_index_bits(ray.oct_inv * 0x0101_0101);
-        let mut hits = 0;
+        let mut mask = 0;
         for half in [0, 4] {
             let q = |at: usize| {
                 let b = &bytes[at + half..at + half + 4];
@@ -141,15 +181,9 @@ impl NodeTest for Portable {
             let (nz, fz) = slab(2);
             let enter = nx.max(ny).max(nz.max(Vec4::splat(ray.tmin)));
             let leave = fx.min(fy).min(fz.min(Vec4::splat(ray.tmax)));
-            let mut mask = enter.cmple(leave).bitmask();
-            while mask != 0 {
-                let child = half + mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                let byte = |x: u64| ((x >> (8 * child)) & 0xff) as u32;
-                hits |= byte(child_bits8) << byte(bit_index8);
-            }
+            mask |= enter.cmple(leave).bitmask() << half;
         }
-        hits
+        Hits::from_mask(node, ray, mask)
     }
 }
 
@@ -170,7 +204,7 @@ impl Avx2 {
 #[cfg(target_arch = "x86_64")]
 impl NodeTest for Avx2 {
     #[inline(always)]
-    fn hits(self, node: &CwBvhNode, ray: &NodeRay) -> u32 {
+    fn hits(self, node: &CwBvhNode, ray: &NodeRay) -> Hits {
         // SAFETY: an `Avx2` exists only where the CPU has AVX2 (`Avx2::new`).
         unsafe { hits_avx2(node, ray) }
     }
@@ -184,7 +218,7 @@ impl NodeTest for Avx2 {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn hits_avx2(node: &CwBvhNode, ray: &NodeRay) -> u32 {
+unsafe fn hits_avx2(node: &CwBvhNode, ray: &NodeRay) -> Hits {
     use std::arch::x86_64::*;
     let (scale, offset) = ray.in_grid(node);
     let base = (node as *const CwBvhNode).cast::<u8>();
@@ -219,31 +253,25 @@ unsafe fn hits_avx2(node: &CwBvhNode, ray: &NodeRay) -> u32 {
         _mm256_min_ps(fx, fy),
         _mm256_min_ps(fz, _mm256_set1_ps(ray.tmax)),
     );
-    let hit = _mm256_castps_si256(_mm256_cmp_ps::<_CMP_LE_OQ>(enter, leave));
-    // obvhs `get_child_and_index_bits`, a lane per child: internal children (meta 24..31 in
-    // the low five bits, so bits 3 and 4 both set) go to bit 24 + (slot ^ octant), leaves'
-    // unary primitive counts (meta's top three bits) to their first primitive's offset.
+    let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(enter, leave);
+    // Internal children: meta 24..31 in the low five bits, so bits 3 and 4 both set (obvhs
+    // `get_child_and_index_bits`); empty slots have meta 0.
     // SAFETY: the eight meta bytes lie inside the node.
     let meta = _mm256_cvtepu8_epi32(unsafe { _mm_loadl_epi64(base.add(META).cast::<__m128i>()) });
     let sixteen = _mm256_set1_epi32(0x10);
-    let inner = _mm256_cmpeq_epi32(
+    let inner = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
         _mm256_and_si256(_mm256_and_si256(meta, _mm256_slli_epi32::<1>(meta)), sixteen),
         sixteen,
-    );
-    let octant = _mm256_and_si256(inner, _mm256_set1_epi32(ray.oct_inv as i32));
-    let bit_index = _mm256_and_si256(_mm256_xor_si256(meta, octant), _mm256_set1_epi32(0x1f));
-    let bits = _mm256_and_si256(
-        _mm256_sllv_epi32(_mm256_srli_epi32::<5>(meta), bit_index),
-        hit,
-    );
-    // The children's bits never overlap: OR the eight lanes together.
-    let x = _mm_or_si128(
-        _mm256_castsi256_si128(bits),
-        _mm256_extracti128_si256::<1>(bits),
-    );
-    let x = _mm_or_si128(x, _mm_shuffle_epi32::<0b01_00_11_10>(x));
-    let x = _mm_or_si128(x, _mm_shuffle_epi32::<0b10_11_00_01>(x));
-    _mm_cvtsi128_si32(x) as u32
+    ));
+    let empty = _mm256_castsi256_ps(_mm256_cmpeq_epi32(meta, _mm256_setzero_si256()));
+    let leaves = _mm256_andnot_ps(_mm256_or_ps(inner, empty), hit);
+    // SAFETY: `order` is eight lanes.
+    let order = unsafe { _mm256_loadu_si256(ray.order.as_ptr().cast::<__m256i>()) };
+    let nodes = _mm256_permutevar8x32_ps(_mm256_and_ps(inner, hit), order);
+    Hits {
+        nodes: _mm256_movemask_ps(nodes) as u32,
+        leaves: _mm256_movemask_ps(leaves) as u32,
+    }
 }
 
 /// The traversal stack: groups of children still to visit. A wide BVH is shallow (obvhs keeps
@@ -286,47 +314,54 @@ impl Stack {
 }
 
 /// Walks `bvh` for `ray` (whose node-test form `node_ray` may be narrowed by `leaf` as hits
-/// are found), calling `leaf(slot, node_ray)` for each primitive slot of each leaf whose box
-/// the ray enters; `leaf` returns true to stop.
+/// are found), calling `leaf(first, count, node_ray)` for the primitive slots of each leaf
+/// whose box the ray enters; `leaf` returns true to stop.
+///
+/// A group of internal children to visit is a `UVec2`: their first node's index, and the
+/// children hit (bits 0-7, in visiting order, [`Hits::nodes`]) with their parent's `imask`
+/// (bits 8-15), which counts internal children stored before a given one. A node's leaves
+/// are tested before its children are visited, the nearest child first.
 #[inline(always)]
 fn walk<K: NodeTest>(
     k: K,
     bvh: &CwBvh,
     node_ray: &mut NodeRay,
-    mut leaf: impl FnMut(usize, &mut NodeRay) -> bool,
+    mut leaf: impl FnMut(u32, u32, &mut NodeRay) -> bool,
 ) {
     if bvh.nodes.is_empty() {
         return;
     }
     let mut stack = Stack::new();
-    // The root as a group of one internal child (slot 7 in the top byte).
-    let mut nodes = UVec2::new(0, 0x8000_0000);
-    let mut prims = UVec2::ZERO;
+    // The root: a group of one child at index 0.
+    let mut group = UVec2::new(0, 1);
     loop {
-        while prims.y != 0 {
-            let i = 31 - prims.y.leading_zeros();
-            prims.y &= !(1 << i);
-            if leaf((prims.x + i) as usize, node_ray) {
-                return;
+        if group.y & 0xff == 0 {
+            match stack.pop() {
+                Some(g) => group = g,
+                None => return,
             }
         }
-        if nodes.y & 0xff00_0000 != 0 {
-            let hits_imask = nodes.y;
-            let child_bit = 31 - hits_imask.leading_zeros();
-            nodes.y &= !(1 << child_bit);
-            if nodes.y & 0xff00_0000 != 0 {
-                stack.push(nodes);
+        let p = 31 - (group.y & 0xff).leading_zeros();
+        let mut rest = group;
+        rest.y &= !(1 << p);
+        if rest.y & 0xff != 0 {
+            stack.push(rest);
+        }
+        let slot = p ^ node_ray.oct_inv;
+        let relative = ((group.y >> 8) & !(u32::MAX << slot)).count_ones();
+        let node = &bvh.nodes[(group.x + relative) as usize];
+        let hits = k.hits(node, node_ray);
+        group = UVec2::new(node.child_base_idx, hits.nodes | u32::from(node.imask) << 8);
+        let mut leaves = hits.leaves;
+        while leaves != 0 {
+            let meta = node.child_meta[leaves.trailing_zeros() as usize];
+            leaves &= leaves - 1;
+            // The leaf's first primitive's offset in the low five bits, its count in unary in
+            // the top three.
+            let first = node.primitive_base_idx + u32::from(meta & 0x1f);
+            if leaf(first, u32::from(meta >> 5).count_ones(), node_ray) {
+                return;
             }
-            let slot = (child_bit - 24) ^ node_ray.oct_inv;
-            let relative = (hits_imask & !(u32::MAX << slot)).count_ones();
-            let node = &bvh.nodes[(nodes.x + relative) as usize];
-            let hits = k.hits(node, node_ray);
-            nodes = UVec2::new(node.child_base_idx, (hits & 0xff00_0000) | u32::from(node.imask));
-            prims = UVec2::new(node.primitive_base_idx, hits & 0x00ff_ffff);
-        } else if let Some(group) = stack.pop() {
-            nodes = group;
-        } else {
-            return;
         }
     }
 }
@@ -343,15 +378,17 @@ pub(super) fn closest<K: NodeTest>(
     let mut best: Option<Closest> = None;
     let mut local = *ray;
     let mut node_ray = NodeRay::new(ray);
-    walk(k, bvh, &mut node_ray, |slot, node_ray| {
-        let t = accel.test(slot, &local, true, accept);
-        if t < f32::INFINITY {
-            Closest::offer(&mut best, t, accel.ids[slot], slot);
-            if let Some(b) = best {
-                // Keep hits at exactly the best t (for the tie rule) but cull everything
-                // farther: the next float up is the tightest such bound.
-                local.tmax = b.t.next_up();
-                node_ray.tmax = local.tmax;
+    walk(k, bvh, &mut node_ray, |first, count, node_ray| {
+        for slot in first as usize..(first + count) as usize {
+            let t = accel.test(slot, &local, true, accept);
+            if t < f32::INFINITY {
+                Closest::offer(&mut best, t, accel.ids[slot], slot);
+                if let Some(b) = best {
+                    // Keep hits at exactly the best t (for the tie rule) but cull everything
+                    // farther: the next float up is the tightest such bound.
+                    local.tmax = b.t.next_up();
+                    node_ray.set_tmax(local.tmax);
+                }
             }
         }
         false
@@ -370,8 +407,9 @@ pub(super) fn occluded<K: NodeTest>(
 ) -> bool {
     let mut node_ray = NodeRay::new(ray);
     let mut blocked = false;
-    walk(k, bvh, &mut node_ray, |slot, _| {
-        blocked = accel.test(slot, ray, false, accept) < f32::INFINITY;
+    walk(k, bvh, &mut node_ray, |first, count, _| {
+        blocked = (first as usize..(first + count) as usize)
+            .any(|slot| accel.test(slot, ray, false, accept) < f32::INFINITY);
         blocked
     });
     blocked
