@@ -396,8 +396,9 @@ fn the_portable_traversal_finds_what_the_linear_scan_finds() {
     }
 }
 
-/// The AVX2 node test gives the portable one's answer for every node a ray reaches (the
-/// same arithmetic, lane for lane), on every test ray.
+/// The AVX2 node test gives the portable one's answer (with fused multiply-adds, as the AVX2
+/// one uses) for every node, on every test ray; the portable one without them differs at most
+/// in a few boxes the ray grazes.
 #[test]
 #[cfg(target_arch = "x86_64")]
 fn the_avx2_node_test_agrees_with_the_portable_one() {
@@ -408,18 +409,21 @@ fn the_avx2_node_test_agrees_with_the_portable_one() {
     let (soup, materials) = test_soup();
     let bvh = Accel::build(&soup, &materials, AccelKind::Bvh, BvhPreset::Medium);
     let nodes = &bvh.bvh.as_ref().expect("a BVH").nodes;
-    let mut entered = 0;
+    let (mut entered, mut differ) = (0, 0);
     for ray in all_test_rays(&soup).iter().step_by(7) {
         let mut node_ray = traverse::NodeRay::new(ray);
         for tmax in [ray.tmax, 3.0, 0.5] {
             node_ray.set_tmax(tmax);
             for node in nodes {
-                let portable = traverse::NodeTest::hits(traverse::Portable, node, &node_ray);
+                let fused = traverse::fused_hits(node, &node_ray);
                 let wide = traverse::NodeTest::hits(avx2, node, &node_ray);
-                assert_eq!(portable, wide, "{ray:?} tmax {tmax} {node:?}");
-                entered += (portable.nodes | portable.leaves).count_ones();
+                assert_eq!(fused, wide, "{ray:?} tmax {tmax} {node:?}");
+                let portable = traverse::NodeTest::hits(traverse::Portable, node, &node_ray);
+                differ += u32::from(portable != fused);
+                entered += (fused.nodes | fused.leaves).count_ones();
             }
         }
     }
     assert!(entered > 10_000, "the rays must enter boxes ({entered})");
+    assert!(differ * 1000 < entered, "{differ} of {entered}");
 }
