@@ -15,7 +15,7 @@ use crate::geometry::Ray;
 use glam::{UVec2, Vec3A, Vec4};
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::cwbvh::CwBvh;
-use std::mem::offset_of;
+use std::mem::{offset_of, MaybeUninit};
 
 /// Direction components smaller than this in magnitude are replaced by it (with their sign)
 /// before inverting, so inverse directions stay finite and a slab test never multiplies zero by
@@ -33,8 +33,6 @@ const BOX_TMIN_SLACK: f32 = 1e-4;
 /// Byte offset of the near-plane bytes of x, y and z in a node (`child_min_x` ...): each axis
 /// has eight min bytes followed by eight max bytes.
 const PLANES: usize = offset_of!(CwBvhNode, child_min_x);
-/// Byte offset of the eight child meta bytes.
-const META: usize = offset_of!(CwBvhNode, child_meta);
 const _: () = assert!(
     offset_of!(CwBvhNode, child_max_x) == PLANES + 8
         && offset_of!(CwBvhNode, child_min_y) == PLANES + 16
@@ -126,28 +124,26 @@ pub(super) struct Hits {
     /// Internal children in visiting order: bit `p` for child `p ^ oct_inv`, so the highest
     /// bit is the nearest (as in obvhs's hit mask's top byte).
     pub(super) nodes: u32,
-    /// Leaf children, bit `i` for child `i`.
+    /// Leaf children, bit `i` for child `i`. Empty slots count as leaves (their meta byte is 0:
+    /// no primitives), should the ray meet their (empty) box.
     pub(super) leaves: u32,
 }
 
 impl Hits {
-    /// From the children hit (bit `i` for child `i`, empty slots included or not).
+    /// From the children hit (bit `i` for child `i`).
     #[inline(always)]
     fn from_mask(node: &CwBvhNode, ray: &NodeRay, mask: u32) -> Hits {
         let inner = mask & u32::from(node.imask);
-        let filled = u64::from_le_bytes(node.child_meta);
-        let mut leaves = 0;
         let mut nodes = 0;
-        for i in 0..8 {
-            let bit = 1 << i;
-            if mask & bit != 0 && inner & bit == 0 && (filled >> (8 * i)) & 0xff != 0 {
-                leaves |= bit;
-            }
-            if inner & (1 << (i ^ ray.oct_inv)) != 0 {
-                nodes |= bit;
+        for p in 0..8 {
+            if inner & (1 << (p ^ ray.oct_inv)) != 0 {
+                nodes |= 1 << p;
             }
         }
-        Hits { nodes, leaves }
+        Hits {
+            nodes,
+            leaves: mask & !u32::from(node.imask),
+        }
     }
 }
 
@@ -236,8 +232,20 @@ impl NodeTest for Avx2 {
 #[inline]
 unsafe fn hits_avx2(node: &CwBvhNode, ray: &NodeRay) -> Hits {
     use std::arch::x86_64::*;
-    let (scale, offset) = ray.in_grid(node);
     let base = (node as *const CwBvhNode).cast::<u8>();
+    // `NodeRay::in_grid` from one load of the node's first 16 bytes (p, then the three
+    // exponent bytes and imask): the same operations on the same values.
+    // SAFETY: the node is 80 bytes; the load is unaligned.
+    let head = unsafe { _mm_loadu_ps(base.cast::<f32>()) };
+    let exponents = _mm_cvtepu8_epi32(_mm_srli_si128::<12>(_mm_castps_si128(head)));
+    let extent = _mm_castsi128_ps(_mm_slli_epi32::<23>(exponents));
+    let inv: __m128 = ray.inv_direction.into();
+    let origin: __m128 = ray.origin.into();
+    let scale = _mm_mul_ps(extent, inv);
+    let offset = _mm_mul_ps(_mm_sub_ps(head, origin), inv);
+    // Both in both halves, to splat a lane with an in-lane permute.
+    let scale = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(scale), scale);
+    let offset = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(offset), offset);
     // Eight plane bytes at `at` as eight floats.
     macro_rules! planes {
         ($at:expr) => {
@@ -249,18 +257,18 @@ unsafe fn hits_avx2(node: &CwBvhNode, ray: &NodeRay) -> Hits {
         };
     }
     macro_rules! slab {
-        ($axis:expr) => {{
-            let s = _mm256_set1_ps(scale[$axis]);
-            let o = _mm256_set1_ps(offset[$axis]);
+        ($axis:expr, $lane:expr) => {{
+            let s = _mm256_permute_ps::<$lane>(scale);
+            let o = _mm256_permute_ps::<$lane>(offset);
             (
                 _mm256_fmadd_ps(planes!(ray.near[$axis]), s, o),
                 _mm256_fmadd_ps(planes!(ray.far[$axis]), s, o),
             )
         }};
     }
-    let (nx, fx) = slab!(0);
-    let (ny, fy) = slab!(1);
-    let (nz, fz) = slab!(2);
+    let (nx, fx) = slab!(0, 0b00_00_00_00);
+    let (ny, fy) = slab!(1, 0b01_01_01_01);
+    let (nz, fz) = slab!(2, 0b10_10_10_10);
     let enter = _mm256_max_ps(
         _mm256_max_ps(nx, ny),
         _mm256_max_ps(nz, _mm256_set1_ps(ray.tmin)),
@@ -270,31 +278,29 @@ unsafe fn hits_avx2(node: &CwBvhNode, ray: &NodeRay) -> Hits {
         _mm256_min_ps(fz, _mm256_set1_ps(ray.tmax)),
     );
     let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(enter, leave);
-    // Internal children: meta 24..31 in the low five bits, so bits 3 and 4 both set (obvhs
-    // `get_child_and_index_bits`); empty slots have meta 0.
-    // SAFETY: the eight meta bytes lie inside the node.
-    let meta = _mm256_cvtepu8_epi32(unsafe { _mm_loadl_epi64(base.add(META).cast::<__m128i>()) });
-    let sixteen = _mm256_set1_epi32(0x10);
+    // Internal children are the node's imask bits, a lane each.
     let inner = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
-        _mm256_and_si256(_mm256_and_si256(meta, _mm256_slli_epi32::<1>(meta)), sixteen),
-        sixteen,
+        _mm256_and_si256(
+            _mm256_set1_epi32(i32::from(node.imask)),
+            _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128),
+        ),
+        _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128),
     ));
-    let empty = _mm256_castsi256_ps(_mm256_cmpeq_epi32(meta, _mm256_setzero_si256()));
-    let leaves = _mm256_andnot_ps(_mm256_or_ps(inner, empty), hit);
     // SAFETY: `order` is eight lanes.
     let order = unsafe { _mm256_loadu_si256(ray.order.as_ptr().cast::<__m256i>()) };
     let nodes = _mm256_permutevar8x32_ps(_mm256_and_ps(inner, hit), order);
     Hits {
         nodes: _mm256_movemask_ps(nodes) as u32,
-        leaves: _mm256_movemask_ps(leaves) as u32,
+        leaves: _mm256_movemask_ps(hit) as u32 & !u32::from(node.imask),
     }
 }
 
 /// The traversal stack: groups of children still to visit. A wide BVH is shallow (obvhs keeps
 /// 32 entries and overwrites the last when full); this holds 64 and spills beyond that to the
-/// heap rather than lose a group, so a pathologically deep tree is slow, never wrong.
+/// heap rather than lose a group, so a pathologically deep tree is slow, never wrong. The
+/// entries start uninitialised: zeroing 512 bytes a ray cost more than the few pushes.
 struct Stack {
-    entries: [UVec2; 64],
+    entries: [MaybeUninit<UVec2>; 64],
     len: usize,
     spill: Vec<UVec2>,
 }
@@ -303,7 +309,7 @@ impl Stack {
     #[inline(always)]
     fn new() -> Stack {
         Stack {
-            entries: [UVec2::ZERO; 64],
+            entries: [MaybeUninit::uninit(); 64],
             len: 0,
             spill: Vec::new(),
         }
@@ -312,7 +318,7 @@ impl Stack {
     #[inline(always)]
     fn push(&mut self, group: UVec2) {
         if let Some(entry) = self.entries.get_mut(self.len) {
-            *entry = group;
+            entry.write(group);
             self.len += 1;
         } else {
             self.spill.push(group);
@@ -325,7 +331,9 @@ impl Stack {
             return Some(group);
         }
         self.len = self.len.checked_sub(1)?;
-        Some(self.entries[self.len])
+        // SAFETY: entries below `len` were written by `push` (`len` only grows there, by one,
+        // after the write).
+        Some(unsafe { self.entries[self.len].assume_init() })
     }
 }
 
@@ -338,7 +346,7 @@ impl Stack {
 /// (bits 8-15), which counts internal children stored before a given one. A node's leaves
 /// are tested before its children are visited, the nearest child first.
 #[inline(always)]
-fn walk<K: NodeTest>(
+pub(super) fn walk<K: NodeTest>(
     k: K,
     bvh: &CwBvh,
     node_ray: &mut NodeRay,
