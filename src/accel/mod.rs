@@ -381,21 +381,22 @@ pub type Accept<'a> = dyn Fn(u32, Vec3) -> bool + 'a;
 #[derive(Clone, Copy, Debug)]
 struct Closest {
     t: f32,
-    id: u32,
     slot: usize,
 }
 
 impl Closest {
-    /// Keeps the nearer of the current best and a new hit; equal `t` goes to the lower soup
-    /// index, so the answer does not depend on traversal order.
+    /// Keeps the nearer of the current best and a new hit in `slot`; equal `t` goes to the
+    /// lower soup index (`ids`), so the answer does not depend on traversal order. The soup
+    /// indices are read only for a tie: a nearer hit needs no look-up (a cache miss on large
+    /// models).
     #[inline(always)]
-    fn offer(best: &mut Option<Closest>, t: f32, id: u32, slot: usize) {
+    fn offer(best: &mut Option<Closest>, t: f32, slot: usize, ids: &[u32]) {
         let better = match best {
             None => true,
-            Some(b) => t < b.t || (t == b.t && id < b.id),
+            Some(b) => t < b.t || (t == b.t && ids[slot] < ids[b.slot]),
         };
         if better {
-            *best = Some(Closest { t, id, slot });
+            *best = Some(Closest { t, slot });
         }
     }
 }

@@ -427,3 +427,4 @@ fn the_avx2_node_test_agrees_with_the_portable_one() {
     assert!(entered > 10_000, "the rays must enter boxes ({entered})");
     assert!(differ * 1000 < entered, "{differ} of {entered}");
 }
+

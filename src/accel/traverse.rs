@@ -11,7 +11,7 @@
 //! interval, and [`Portable`] does the same four children at a time for CPUs without AVX2.
 
 use super::{Accel, Accept, Closest};
-use crate::geometry::Ray;
+use crate::geometry::{PreparedTriangle, Ray};
 use glam::{UVec2, Vec3A, Vec4};
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::cwbvh::CwBvh;
@@ -337,6 +337,27 @@ impl Stack {
     }
 }
 
+/// Asks for the triangles of every leaf the ray enters before testing the first: on large
+/// models they come from memory, and asked for together their fetches overlap.
+#[inline(always)]
+fn prefetch_leaves(node: &CwBvhNode, mut leaves: u32, triangles: &[PreparedTriangle]) {
+    #[cfg(target_arch = "x86_64")]
+    while leaves != 0 {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let meta = node.child_meta[leaves.trailing_zeros() as usize];
+        leaves &= leaves - 1;
+        let first = (node.primitive_base_idx + u32::from(meta & 0x1f)) as usize;
+        let at = triangles.as_ptr().wrapping_add(first).cast::<i8>();
+        for k in 0..u32::from(meta >> 5).count_ones() as usize {
+            // SAFETY: a prefetch never faults and changes nothing the program can observe, so
+            // any address is sound.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(at.wrapping_add(64 * k)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (node, leaves, triangles);
+}
+
 /// Walks `bvh` for `ray` (whose node-test form `node_ray` may be narrowed by `leaf` as hits
 /// are found), calling `leaf(first, count, node_ray)` for the primitive slots of each leaf
 /// whose box the ray enters; `leaf` returns true to stop.
@@ -349,6 +370,7 @@ impl Stack {
 pub(super) fn walk<K: NodeTest>(
     k: K,
     bvh: &CwBvh,
+    triangles: &[PreparedTriangle],
     node_ray: &mut NodeRay,
     mut leaf: impl FnMut(u32, u32, &mut NodeRay) -> bool,
 ) {
@@ -376,6 +398,7 @@ pub(super) fn walk<K: NodeTest>(
         let node = &bvh.nodes[(group.x + relative) as usize];
         let hits = k.hits(node, node_ray);
         group = UVec2::new(node.child_base_idx, hits.nodes | u32::from(node.imask) << 8);
+        prefetch_leaves(node, hits.leaves, triangles);
         let mut leaves = hits.leaves;
         while leaves != 0 {
             let meta = node.child_meta[leaves.trailing_zeros() as usize];
@@ -402,11 +425,11 @@ pub(super) fn closest<K: NodeTest>(
     let mut best: Option<Closest> = None;
     let mut local = *ray;
     let mut node_ray = NodeRay::new(ray);
-    walk(k, bvh, &mut node_ray, |first, count, node_ray| {
+    walk(k, bvh, &accel.triangles, &mut node_ray, |first, count, node_ray| {
         for slot in first as usize..(first + count) as usize {
             let t = accel.test(slot, &local, true, accept);
             if t < f32::INFINITY {
-                Closest::offer(&mut best, t, accel.ids[slot], slot);
+                Closest::offer(&mut best, t, slot, &accel.ids);
                 if let Some(b) = best {
                     // Keep hits at exactly the best t (for the tie rule) but cull everything
                     // farther: the next float up is the tightest such bound.
@@ -431,7 +454,7 @@ pub(super) fn occluded<K: NodeTest>(
 ) -> bool {
     let mut node_ray = NodeRay::new(ray);
     let mut blocked = false;
-    walk(k, bvh, &mut node_ray, |first, count, _| {
+    walk(k, bvh, &accel.triangles, &mut node_ray, |first, count, _| {
         blocked = (first as usize..(first + count) as usize)
             .any(|slot| accel.test(slot, ray, false, accept) < f32::INFINITY);
         blocked
