@@ -64,7 +64,10 @@ pub(super) struct NodeRay {
 }
 
 impl NodeRay {
-    pub(super) fn new(ray: &Ray) -> NodeRay {
+    /// The node-test form of `ray`; `ordered` to visit children nearest first (closest-hit
+    /// queries), else in storage order (any-hit queries, which need no order and skip the
+    /// lane permutation that makes it).
+    pub(super) fn new(ray: &Ray, ordered: bool) -> NodeRay {
         let d = ray.direction;
         let safe = |x: f32| {
             if x.abs() < MIN_DIRECTION {
@@ -79,9 +82,11 @@ impl NodeRay {
             d.y.is_sign_negative(),
             d.z.is_sign_negative(),
         ];
-        let oct_inv = u32::from(!negative[0]) << 2
-            | u32::from(!negative[1]) << 1
-            | u32::from(!negative[2]);
+        let oct_inv = if ordered {
+            u32::from(!negative[0]) << 2 | u32::from(!negative[1]) << 1 | u32::from(!negative[2])
+        } else {
+            0
+        };
         let plane = |axis: usize, max: bool| PLANES + 16 * axis + if max { 8 } else { 0 };
         NodeRay {
             origin: ray.origin,
@@ -149,7 +154,9 @@ impl Hits {
 
 /// A CWBVH node test.
 pub(super) trait NodeTest: Copy {
-    fn hits(self, node: &CwBvhNode, ray: &NodeRay) -> Hits;
+    /// The children `ray` enters; with `ORDERED` false the ray's `oct_inv` must be 0 (its
+    /// visiting order is then storage order).
+    fn hits<const ORDERED: bool>(self, node: &CwBvhNode, ray: &NodeRay) -> Hits;
 }
 
 /// Four children at a time with glam's `Vec4` (SSE2 on x86-64, scalar elsewhere): the test for
@@ -159,7 +166,7 @@ pub(super) struct Portable;
 
 impl NodeTest for Portable {
     #[inline(always)]
-    fn hits(self, node: &CwBvhNode, ray: &NodeRay) -> Hits {
+    fn hits<const ORDERED: bool>(self, node: &CwBvhNode, ray: &NodeRay) -> Hits {
         portable_hits(node, ray, false)
     }
 }
@@ -215,9 +222,9 @@ impl Avx2 {
 #[cfg(target_arch = "x86_64")]
 impl NodeTest for Avx2 {
     #[inline(always)]
-    fn hits(self, node: &CwBvhNode, ray: &NodeRay) -> Hits {
+    fn hits<const ORDERED: bool>(self, node: &CwBvhNode, ray: &NodeRay) -> Hits {
         // SAFETY: an `Avx2` exists only where the CPU has AVX2 (`Avx2::new`).
-        unsafe { hits_avx2(node, ray) }
+        unsafe { hits_avx2::<ORDERED>(node, ray) }
     }
 }
 
@@ -230,7 +237,7 @@ impl NodeTest for Avx2 {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[inline]
-unsafe fn hits_avx2(node: &CwBvhNode, ray: &NodeRay) -> Hits {
+unsafe fn hits_avx2<const ORDERED: bool>(node: &CwBvhNode, ray: &NodeRay) -> Hits {
     use std::arch::x86_64::*;
     let base = (node as *const CwBvhNode).cast::<u8>();
     // `NodeRay::in_grid` from one load of the node's first 16 bytes (p, then the three
@@ -286,9 +293,14 @@ unsafe fn hits_avx2(node: &CwBvhNode, ray: &NodeRay) -> Hits {
         ),
         _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128),
     ));
-    // SAFETY: `order` is eight lanes.
-    let order = unsafe { _mm256_loadu_si256(ray.order.as_ptr().cast::<__m256i>()) };
-    let nodes = _mm256_permutevar8x32_ps(_mm256_and_ps(inner, hit), order);
+    let nodes = _mm256_and_ps(inner, hit);
+    let nodes = if ORDERED {
+        // SAFETY: `order` is eight lanes.
+        let order = unsafe { _mm256_loadu_si256(ray.order.as_ptr().cast::<__m256i>()) };
+        _mm256_permutevar8x32_ps(nodes, order)
+    } else {
+        nodes
+    };
     Hits {
         nodes: _mm256_movemask_ps(nodes) as u32,
         leaves: _mm256_movemask_ps(hit) as u32 & !u32::from(node.imask),
@@ -367,7 +379,7 @@ fn prefetch_leaves(node: &CwBvhNode, mut leaves: u32, triangles: &[PreparedTrian
 /// (bits 8-15), which counts internal children stored before a given one. A node's leaves
 /// are tested before its children are visited, the nearest child first.
 #[inline(always)]
-pub(super) fn walk<K: NodeTest>(
+pub(super) fn walk<K: NodeTest, const ORDERED: bool>(
     k: K,
     bvh: &CwBvh,
     triangles: &[PreparedTriangle],
@@ -396,7 +408,7 @@ pub(super) fn walk<K: NodeTest>(
         let slot = p ^ node_ray.oct_inv;
         let relative = ((group.y >> 8) & !(u32::MAX << slot)).count_ones();
         let node = &bvh.nodes[(group.x + relative) as usize];
-        let hits = k.hits(node, node_ray);
+        let hits = k.hits::<ORDERED>(node, node_ray);
         group = UVec2::new(node.child_base_idx, hits.nodes | u32::from(node.imask) << 8);
         prefetch_leaves(node, hits.leaves, triangles);
         let mut leaves = hits.leaves;
@@ -424,8 +436,8 @@ pub(super) fn closest<K: NodeTest>(
 ) -> Option<Closest> {
     let mut best: Option<Closest> = None;
     let mut local = *ray;
-    let mut node_ray = NodeRay::new(ray);
-    walk(k, bvh, &accel.triangles, &mut node_ray, |first, count, node_ray| {
+    let mut node_ray = NodeRay::new(ray, true);
+    walk::<K, true>(k, bvh, &accel.triangles, &mut node_ray, |first, count, node_ray| {
         for slot in first as usize..(first + count) as usize {
             let t = accel.test(slot, &local, true, accept);
             if t < f32::INFINITY {
@@ -452,9 +464,9 @@ pub(super) fn occluded<K: NodeTest>(
     ray: &Ray,
     accept: Option<&Accept>,
 ) -> bool {
-    let mut node_ray = NodeRay::new(ray);
+    let mut node_ray = NodeRay::new(ray, false);
     let mut blocked = false;
-    walk(k, bvh, &accel.triangles, &mut node_ray, |first, count, _| {
+    walk::<K, false>(k, bvh, &accel.triangles, &mut node_ray, |first, count, _| {
         blocked = (first as usize..(first + count) as usize)
             .any(|slot| accel.test(slot, ray, false, accept) < f32::INFINITY);
         blocked
