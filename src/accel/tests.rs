@@ -332,7 +332,11 @@ fn rays_from_surfaces(soup: &TriangleSoup, n: usize, seed: u64) -> Vec<Ray> {
             let k = (rng.next_f32() * soup.len() as f32) as usize % soup.len();
             let [a, b, c] = soup.triangle(k);
             let (u, v) = (rng.next_f32(), rng.next_f32());
-            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+            let (u, v) = if u + v > 1.0 {
+                (1.0 - u, 1.0 - v)
+            } else {
+                (u, v)
+            };
             let origin = a + (b - a) * u + (c - a) * v;
             let dir = match i % 4 {
                 0 => [Vec3::X, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_X][i % 16 / 4],

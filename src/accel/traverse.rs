@@ -461,21 +461,27 @@ pub(super) fn closest<K: NodeTest>(
     let mut best: Option<Closest> = None;
     let mut local = *ray;
     let mut node_ray = NodeRay::new(ray, true);
-    walk::<K, true>(k, bvh, &accel.triangles, &mut node_ray, |first, count, node_ray| {
-        for slot in first as usize..(first + count) as usize {
-            let t = accel.test(slot, &local, true, accept);
-            if t < f32::INFINITY {
-                Closest::offer(&mut best, t, slot, &accel.ids);
-                if let Some(b) = best {
-                    // Keep hits at exactly the best t (for the tie rule) but cull everything
-                    // farther: the next float up is the tightest such bound.
-                    local.tmax = b.t.next_up();
-                    node_ray.set_tmax(local.tmax);
+    walk::<K, true>(
+        k,
+        bvh,
+        &accel.triangles,
+        &mut node_ray,
+        |first, count, node_ray| {
+            for slot in first as usize..(first + count) as usize {
+                let t = accel.test(slot, &local, true, accept);
+                if t < f32::INFINITY {
+                    Closest::offer(&mut best, t, slot, &accel.ids);
+                    if let Some(b) = best {
+                        // Keep hits at exactly the best t (for the tie rule) but cull everything
+                        // farther: the next float up is the tightest such bound.
+                        local.tmax = b.t.next_up();
+                        node_ray.set_tmax(local.tmax);
+                    }
                 }
             }
-        }
-        false
-    });
+            false
+        },
+    );
     best
 }
 
@@ -490,10 +496,16 @@ pub(super) fn occluded<K: NodeTest>(
 ) -> bool {
     let mut node_ray = NodeRay::new(ray, false);
     let mut blocked = false;
-    walk::<K, false>(k, bvh, &accel.triangles, &mut node_ray, |first, count, _| {
-        blocked = (first as usize..(first + count) as usize)
-            .any(|slot| accel.test(slot, ray, false, accept) < f32::INFINITY);
-        blocked
-    });
+    walk::<K, false>(
+        k,
+        bvh,
+        &accel.triangles,
+        &mut node_ray,
+        |first, count, _| {
+            blocked = (first as usize..(first + count) as usize)
+                .any(|slot| accel.test(slot, ray, false, accept) < f32::INFINITY);
+            blocked
+        },
+    );
     blocked
 }
