@@ -363,8 +363,12 @@ impl Stack {
 
     #[inline(always)]
     fn pop(&mut self) -> Option<UVec2> {
-        if let Some(group) = self.spill.pop() {
-            return Some(group);
+        // The spill holds groups only while the array is full (it takes pushes only then, and
+        // the array shrinks only once it is empty).
+        if self.len == self.entries.len() {
+            if let Some(group) = self.spill.pop() {
+                return Some(group);
+            }
         }
         self.len = self.len.checked_sub(1)?;
         // SAFETY: entries below `len` were written by `push` (`len` only grows there, by one,
@@ -508,4 +512,25 @@ pub(super) fn occluded<K: NodeTest>(
         },
     );
     blocked
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Past its 64 entries the stack spills to the heap and still pops last in, first out,
+    /// through the spill and back into the array, twice over.
+    #[test]
+    fn the_stack_spills_in_order() {
+        let mut stack = Stack::new();
+        for round in 0..2 {
+            for i in 0..150 {
+                stack.push(UVec2::new(i, round));
+            }
+            for i in (0..150).rev() {
+                assert_eq!(stack.pop(), Some(UVec2::new(i, round)));
+            }
+            assert_eq!(stack.pop(), None);
+        }
+    }
 }
