@@ -333,19 +333,25 @@ unsafe fn hits_avx2<const ORDERED: bool>(node: &CwBvhNode, ray: &NodeRay) -> Hit
 
 /// The traversal stack: groups of children still to visit. A wide BVH is shallow (obvhs keeps
 /// 32 entries and overwrites the last when full); this holds 64 and spills beyond that to the
-/// heap rather than lose a group, so a pathologically deep tree is slow, never wrong. The
-/// entries start uninitialised: zeroing 512 bytes a ray cost more than the few pushes.
-struct Stack {
-    entries: [MaybeUninit<UVec2>; 64],
+/// heap rather than lose a group, so a pathologically deep tree is slow, never wrong.
+///
+/// The entries start uninitialised and live in the caller's frame ([`Entries`]), apart from
+/// `len`: with the array beside the zeroed `len` in one struct, LLVM merged the two into a
+/// 520-byte `memset` call per ray (the Cornell box's rays are short enough for that to show).
+struct Stack<'a> {
+    entries: &'a mut Entries,
     len: usize,
     spill: Vec<UVec2>,
 }
 
-impl Stack {
+/// [`Stack`]'s fixed entries.
+type Entries = [MaybeUninit<UVec2>; 64];
+
+impl<'a> Stack<'a> {
     #[inline(always)]
-    fn new() -> Stack {
+    fn new(entries: &'a mut Entries) -> Stack<'a> {
         Stack {
-            entries: [MaybeUninit::uninit(); 64],
+            entries,
             len: 0,
             spill: Vec::new(),
         }
@@ -417,7 +423,8 @@ pub(super) fn walk<K: NodeTest, const ORDERED: bool>(
     if bvh.nodes.is_empty() {
         return;
     }
-    let mut stack = Stack::new();
+    let mut entries: Entries = [MaybeUninit::uninit(); 64];
+    let mut stack = Stack::new(&mut entries);
     // The root: a group of one child at index 0.
     let mut group = UVec2::new(0, 1);
     loop {
@@ -522,7 +529,8 @@ mod tests {
     /// through the spill and back into the array, twice over.
     #[test]
     fn the_stack_spills_in_order() {
-        let mut stack = Stack::new();
+        let mut entries: Entries = [MaybeUninit::uninit(); 64];
+        let mut stack = Stack::new(&mut entries);
         for round in 0..2 {
             for i in 0..150 {
                 stack.push(UVec2::new(i, round));
