@@ -1,11 +1,10 @@
 //! The obvhs compressed wide BVH (CWBVH): built with PLOC and reinsertion, traversed eight
-//! children at a time with obvhs's `traverse!` macro and our own triangle test.
+//! children at a time by `super::traverse` with our own node and triangle tests.
 
-use super::{Accel, Accept, Closest};
-use crate::geometry::{Ray, EDGE_EPSILON};
+use crate::geometry::EDGE_EPSILON;
 use crate::measure::Steps;
 use crate::scene::TriangleSoup;
-use glam::{UVec2, Vec3A};
+use glam::Vec3A;
 use obvhs::aabb::Aabb;
 use rayon::prelude::*;
 use std::time::Duration;
@@ -179,96 +178,4 @@ pub(super) fn pair_neighbours(boxes: &[Aabb]) -> (Vec<Aabb>, Vec<u32>) {
         })
         .collect();
     (pair_boxes, starts)
-}
-
-/// How far (in ray parameter units) obvhs's box test is blind: its CWBVH node test clamps box
-/// entry to this constant (`cwbvh::node::EPSILON`, "//ray.tmin?" in obvhs 0.4), ignoring
-/// `ray.tmin`, so a leaf lying wholly within t < 1e-4 of the origin is culled. Shadow rays
-/// start a hair's breadth above a surface (a bound on the hit point's rounding error), so a
-/// contact shadow or a small model lost its nearest occluders that way.
-const OBVHS_BOX_TMIN: f32 = 1e-4;
-
-/// How far the box-test ray starts behind the real one: past obvhs's blind range, with margin.
-const BOX_RAY_SHIFT: f32 = 2.0 * OBVHS_BOX_TMIN;
-
-/// The ray obvhs culls boxes with: the same line, started [`BOX_RAY_SHIFT`] earlier so that
-/// every point of the real ray (t ≥ 0) lies at t + shift ≥ obvhs's clamp, with `tmax` moved to
-/// match (rounded up, so the far end is never cut). Only boxes see it; triangles are tested
-/// with the real ray, which keeps `tmin` exact.
-///
-/// Adding +0.0 turns a -0.0 direction component into +0.0: obvhs's `safe_inverse` gives -0.0
-/// a negative inverse while its octant code counts it as positive, and the mismatch makes box
-/// tests miss (a shadow ray along (-1, -0, 1) passed straight through an occluder before this).
-fn to_obvhs(ray: &Ray) -> obvhs::ray::Ray {
-    let direction = ray.direction + Vec3A::ZERO;
-    let origin = ray.origin - direction * BOX_RAY_SHIFT;
-    obvhs::ray::Ray::new(origin, direction, 0.0, box_tmax(ray.tmax))
-}
-
-/// The box-test ray's `tmax` for the real ray's `tmax`.
-fn box_tmax(tmax: f32) -> f32 {
-    (tmax + BOX_RAY_SHIFT).next_up()
-}
-
-#[inline(always)]
-pub(super) fn closest(
-    accel: &Accel,
-    bvh: &obvhs::cwbvh::CwBvh,
-    ray: &Ray,
-    accept: Option<&Accept>,
-) -> Option<Closest> {
-    let mut best: Option<Closest> = None;
-    let mut node_ray = to_obvhs(ray);
-    let mut local = *ray;
-    let mut state = bvh.new_traversal(node_ray.direction);
-    let mut node;
-    obvhs::traverse!(
-        bvh,
-        node,
-        state,
-        node.intersect_ray(&node_ray, state.oct_inv4),
-        {
-            let slot = state.primitive_id as usize;
-            let t = accel.test(slot, &local, true, accept);
-            if t < f32::INFINITY {
-                Closest::offer(&mut best, t, accel.ids[slot], slot);
-                if let Some(b) = best {
-                    // Keep hits at exactly the best t (for the tie rule) but cull everything
-                    // farther: the next float up is the tightest such bound.
-                    local.tmax = b.t.next_up();
-                    node_ray.tmax = box_tmax(local.tmax);
-                }
-            }
-        }
-    );
-    best
-}
-
-#[inline(always)]
-pub(super) fn occluded(
-    accel: &Accel,
-    bvh: &obvhs::cwbvh::CwBvh,
-    ray: &Ray,
-    accept: Option<&Accept>,
-) -> bool {
-    let node_ray = to_obvhs(ray);
-    let mut state = bvh.new_traversal(node_ray.direction);
-    let mut node;
-    let mut blocked = false;
-    // A plain `break` would only leave the macro's inner primitive loop.
-    'traversal: {
-        obvhs::traverse!(
-            bvh,
-            node,
-            state,
-            node.intersect_ray(&node_ray, state.oct_inv4),
-            {
-                if accel.test(state.primitive_id as usize, ray, false, accept) < f32::INFINITY {
-                    blocked = true;
-                    break 'traversal;
-                }
-            }
-        );
-    }
-    blocked
 }

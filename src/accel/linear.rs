@@ -9,7 +9,7 @@ pub(super) fn closest(accel: &Accel, ray: &Ray, accept: Option<&Accept>) -> Opti
     for slot in 0..accel.triangles.len() {
         let t = accel.test(slot, ray, true, accept);
         if t < f32::INFINITY {
-            Closest::offer(&mut best, t, accel.ids[slot], slot);
+            Closest::offer(&mut best, t, slot, &accel.ids);
         }
     }
     best

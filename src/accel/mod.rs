@@ -8,6 +8,7 @@
 
 mod bvh;
 mod linear;
+mod traverse;
 mod wide;
 
 use crate::geometry::{PreparedTriangle, Ray};
@@ -272,23 +273,31 @@ impl Accel {
     /// `accept(triangle, barycentric)` says so (alpha testing). Opaque triangles never call it.
     pub fn intersect_filtered(&self, ray: &Ray, accept: Option<&Accept>) -> Option<Hit> {
         #[cfg(target_arch = "x86_64")]
-        if crate::cpu::has_v3() {
-            // SAFETY: the CPU has every feature `closest_hit_v3` is compiled for.
-            return unsafe { self.closest_hit_v3(ray, accept) };
+        if let Some(avx2) = traverse::Avx2::new() {
+            // SAFETY: `Avx2::new` checked that the CPU has every feature `closest_hit_v3` is
+            // compiled for.
+            return unsafe { self.closest_hit_v3(avx2, ray, accept) };
         }
-        self.closest_hit(ray, accept)
+        self.closest_hit(traverse::Portable, ray, accept)
     }
 
+    #[cfg(target_arch = "x86_64")]
     crate::cpu::v3! {
         /// [`Accel::closest_hit`] for x86-64-v3 CPUs ([`crate::cpu`]).
-        fn closest_hit_v3(&self, ray: &Ray, accept: Option<&Accept>) -> Option<Hit> = closest_hit
+        fn closest_hit_v3(&self, k: traverse::Avx2, ray: &Ray, accept: Option<&Accept>) -> Option<Hit> = closest_hit
     }
 
-    /// The body of [`Accel::intersect_filtered`], compiled for each CPU level.
+    /// The body of [`Accel::intersect_filtered`], compiled for each CPU level with its node
+    /// test `k`.
     #[inline(always)]
-    fn closest_hit(&self, ray: &Ray, accept: Option<&Accept>) -> Option<Hit> {
+    fn closest_hit<K: traverse::NodeTest>(
+        &self,
+        k: K,
+        ray: &Ray,
+        accept: Option<&Accept>,
+    ) -> Option<Hit> {
         let closest = match &self.bvh {
-            Some(bvh) => bvh::closest(self, bvh, ray, accept),
+            Some(bvh) => traverse::closest(k, self, bvh, ray, accept),
             None => linear::closest(self, ray, accept),
         }?;
         let tri = &self.triangles[closest.slot];
@@ -313,23 +322,26 @@ impl Accel {
     /// `accept` may be called for several candidates, in any order, before one blocks.
     pub fn occluded_filtered(&self, ray: &Ray, accept: Option<&Accept>) -> bool {
         #[cfg(target_arch = "x86_64")]
-        if crate::cpu::has_v3() {
-            // SAFETY: the CPU has every feature `any_hit_v3` is compiled for.
-            return unsafe { self.any_hit_v3(ray, accept) };
+        if let Some(avx2) = traverse::Avx2::new() {
+            // SAFETY: `Avx2::new` checked that the CPU has every feature `any_hit_v3` is
+            // compiled for.
+            return unsafe { self.any_hit_v3(avx2, ray, accept) };
         }
-        self.any_hit(ray, accept)
+        self.any_hit(traverse::Portable, ray, accept)
     }
 
+    #[cfg(target_arch = "x86_64")]
     crate::cpu::v3! {
         /// [`Accel::any_hit`] for x86-64-v3 CPUs ([`crate::cpu`]).
-        fn any_hit_v3(&self, ray: &Ray, accept: Option<&Accept>) -> bool = any_hit
+        fn any_hit_v3(&self, k: traverse::Avx2, ray: &Ray, accept: Option<&Accept>) -> bool = any_hit
     }
 
-    /// The body of [`Accel::occluded_filtered`], compiled for each CPU level.
+    /// The body of [`Accel::occluded_filtered`], compiled for each CPU level with its node
+    /// test `k`.
     #[inline(always)]
-    fn any_hit(&self, ray: &Ray, accept: Option<&Accept>) -> bool {
+    fn any_hit<K: traverse::NodeTest>(&self, k: K, ray: &Ray, accept: Option<&Accept>) -> bool {
         match &self.bvh {
-            Some(bvh) => bvh::occluded(self, bvh, ray, accept),
+            Some(bvh) => traverse::occluded(k, self, bvh, ray, accept),
             None => linear::occluded(self, ray, accept),
         }
     }
@@ -369,21 +381,22 @@ pub type Accept<'a> = dyn Fn(u32, Vec3) -> bool + 'a;
 #[derive(Clone, Copy, Debug)]
 struct Closest {
     t: f32,
-    id: u32,
     slot: usize,
 }
 
 impl Closest {
-    /// Keeps the nearer of the current best and a new hit; equal `t` goes to the lower soup
-    /// index, so the answer does not depend on traversal order.
+    /// Keeps the nearer of the current best and a new hit in `slot`; equal `t` goes to the
+    /// lower soup index (`ids`), so the answer does not depend on traversal order. The soup
+    /// indices are read only for a tie: a nearer hit needs no look-up (a cache miss on large
+    /// models).
     #[inline(always)]
-    fn offer(best: &mut Option<Closest>, t: f32, id: u32, slot: usize) {
+    fn offer(best: &mut Option<Closest>, t: f32, slot: usize, ids: &[u32]) {
         let better = match best {
             None => true,
-            Some(b) => t < b.t || (t == b.t && id < b.id),
+            Some(b) => t < b.t || (t == b.t && ids[slot] < ids[b.slot]),
         };
         if better {
-            *best = Some(Closest { t, id, slot });
+            *best = Some(Closest { t, slot });
         }
     }
 }

@@ -322,3 +322,118 @@ fn triangle_data_reuses_the_binary_trees_node_buffer() {
         assert!(fresh.is_empty() && fresh.capacity() >= n);
     }
 }
+
+/// Rays from points on the soup's triangles (as shadow and bounce rays start, but with
+/// `tmin` 0 so the triangle itself is in reach), in random directions and along the axes.
+fn rays_from_surfaces(soup: &TriangleSoup, n: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = Rng::new(seed);
+    (0..n)
+        .map(|i| {
+            let k = (rng.next_f32() * soup.len() as f32) as usize % soup.len();
+            let [a, b, c] = soup.triangle(k);
+            let (u, v) = (rng.next_f32(), rng.next_f32());
+            let (u, v) = if u + v > 1.0 {
+                (1.0 - u, 1.0 - v)
+            } else {
+                (u, v)
+            };
+            let origin = a + (b - a) * u + (c - a) * v;
+            let dir = match i % 4 {
+                0 => [Vec3::X, Vec3::NEG_Y, Vec3::Z, Vec3::NEG_X][i % 16 / 4],
+                _ => (vec3(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0 - 1.0)
+                    .try_normalize()
+                    .unwrap_or(Vec3::Y),
+            };
+            Ray::new(origin, dir, 0.0, f32::INFINITY)
+        })
+        .collect()
+}
+
+/// Every ray kind the tests use: random, axis-parallel, zero components of either sign,
+/// grazing, starting just above or on a surface.
+fn all_test_rays(soup: &TriangleSoup) -> Vec<Ray> {
+    let mut rays = random_rays(10_000, 21);
+    rays.extend(rays_from_surfaces(soup, 10_000, 22));
+    rays
+}
+
+#[test]
+fn rays_starting_on_triangles_find_what_the_linear_scan_finds() {
+    let (soup, materials) = test_soup();
+    let linear = Accel::build(&soup, &materials, AccelKind::Linear, BvhPreset::Medium);
+    let bvh = Accel::build(&soup, &materials, AccelKind::Bvh, BvhPreset::Medium);
+    let mut hits = 0;
+    for (i, ray) in rays_from_surfaces(&soup, 20_000, 5).iter().enumerate() {
+        let a = linear.intersect(ray);
+        hits += usize::from(a.is_some());
+        assert_eq!(
+            a.map(|h| (h.triangle, h.t)),
+            bvh.intersect(ray).map(|h| (h.triangle, h.t)),
+            "ray {i} {ray:?}"
+        );
+        assert_eq!(linear.occluded(ray), bvh.occluded(ray), "ray {i} {ray:?}");
+    }
+    assert!(hits > 5_000, "the rays must hit things ({hits})");
+}
+
+/// The portable traversal (CPUs without AVX2) against the linear scan, called directly so it
+/// is tested on any CPU.
+#[test]
+fn the_portable_traversal_finds_what_the_linear_scan_finds() {
+    let (soup, materials) = test_soup();
+    let linear = Accel::build(&soup, &materials, AccelKind::Linear, BvhPreset::Medium);
+    for pair in [false, true] {
+        let bvh = Accel::build_pairing(&soup, &materials, AccelKind::Bvh, BvhPreset::Medium, pair);
+        for (i, ray) in all_test_rays(&soup).iter().enumerate() {
+            assert_eq!(
+                linear.intersect(ray).map(|h| (h.triangle, h.t)),
+                bvh.closest_hit(traverse::Portable, ray, None)
+                    .map(|h| (h.triangle, h.t)),
+                "ray {i} {ray:?} pair {pair}"
+            );
+            assert_eq!(
+                linear.occluded(ray),
+                bvh.any_hit(traverse::Portable, ray, None),
+                "ray {i} {ray:?} pair {pair}"
+            );
+        }
+    }
+}
+
+/// The AVX2 node test gives the portable one's answer (with fused multiply-adds, as the AVX2
+/// one uses) for every node, on every test ray; the portable one without them differs at most
+/// in a few boxes the ray grazes.
+#[test]
+#[cfg(target_arch = "x86_64")]
+fn the_avx2_node_test_agrees_with_the_portable_one() {
+    let Some(avx2) = traverse::Avx2::new() else {
+        eprintln!("no AVX2 on this CPU: nothing to compare");
+        return;
+    };
+    let (soup, materials) = test_soup();
+    let bvh = Accel::build(&soup, &materials, AccelKind::Bvh, BvhPreset::Medium);
+    let nodes = &bvh.bvh.as_ref().expect("a BVH").nodes;
+    let (mut entered, mut differ) = (0, 0);
+    for (i, ray) in all_test_rays(&soup).iter().enumerate().step_by(7) {
+        let ordered = i % 2 == 0;
+        let mut node_ray = traverse::NodeRay::new(ray, ordered);
+        for tmax in [ray.tmax, 3.0, 0.5] {
+            node_ray.set_tmax(tmax);
+            for node in nodes {
+                use traverse::NodeTest;
+                let fused = traverse::fused_hits(node, &node_ray);
+                let wide = if ordered {
+                    avx2.hits::<true>(node, &node_ray)
+                } else {
+                    avx2.hits::<false>(node, &node_ray)
+                };
+                assert_eq!(fused, wide, "{ray:?} tmax {tmax} {node:?}");
+                let portable = traverse::Portable.hits::<true>(node, &node_ray);
+                differ += u32::from(portable != fused);
+                entered += (fused.nodes | fused.leaves).count_ones();
+            }
+        }
+    }
+    assert!(entered > 10_000, "the rays must enter boxes ({entered})");
+    assert!(differ * 1000 < entered, "{differ} of {entered}");
+}

@@ -1,0 +1,544 @@
+//! Traversal of the obvhs CWBVH with our own node test.
+//!
+//! The loop is obvhs 0.4's `traverse!` macro (MIT OR Apache-2.0, after Ylitie, Karras and
+//! Laine, "Efficient Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs", HPG 2017)
+//! written as a function: a node's hit children and hit leaf primitives are kept as bit groups
+//! (`UVec2`: a base index and a mask), children are taken nearest octant first, and groups
+//! not yet done wait on a small stack. What differs is the node test ([`NodeTest`]): obvhs's
+//! SSE test converts the quantised child bounds to floats one byte at a time (its own comment
+//! calls that the most expensive part) and clamps box entry to a fixed 1e-4 instead of the
+//! ray's `tmin`; [`Avx2`] tests all eight children in one register and uses the ray's own
+//! interval, and [`Portable`] does the same four children at a time for CPUs without AVX2.
+
+use super::{Accel, Accept, Closest};
+use crate::geometry::{PreparedTriangle, Ray};
+use glam::{UVec2, Vec3A, Vec4};
+use obvhs::cwbvh::node::CwBvhNode;
+use obvhs::cwbvh::CwBvh;
+use std::mem::{offset_of, MaybeUninit};
+
+/// Direction components smaller than this in magnitude are replaced by it (with their sign)
+/// before inverting, so inverse directions stay finite and a slab test never multiplies zero by
+/// infinity. A ray leaning 1e-18 off an axis stays in a slab for 1e18 units of `t`, far past
+/// any scene: the slab bounds computed from the clamped component are still on the same side.
+const MIN_DIRECTION: f32 = 1e-18;
+
+/// How far before `ray.tmin` boxes still count as entered. Both the box and the triangle
+/// round the point where the ray meets a surface, differently; a ray starting on a surface
+/// (`tmin` 0, as the linear scan sees it) must not lose the triangle it starts on because the
+/// box's far side rounded to just behind the origin. This is the slack the earlier obvhs-based
+/// traversal had (it tested boxes from a point 2e-4 behind the origin, clamped at 1e-4).
+const BOX_TMIN_SLACK: f32 = 1e-4;
+
+/// Byte offset of the near-plane bytes of x, y and z in a node (`child_min_x` ...): each axis
+/// has eight min bytes followed by eight max bytes.
+const PLANES: usize = offset_of!(CwBvhNode, child_min_x);
+const _: () = assert!(
+    offset_of!(CwBvhNode, child_max_x) == PLANES + 8
+        && offset_of!(CwBvhNode, child_min_y) == PLANES + 16
+        && offset_of!(CwBvhNode, child_min_z) == PLANES + 32
+        && offset_of!(CwBvhNode, child_max_z) == PLANES + 40
+        && std::mem::size_of::<CwBvhNode>() == PLANES + 48
+);
+
+/// What the node test needs of a ray, computed once per query.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct NodeRay {
+    origin: Vec3A,
+    /// 1 / direction, with tiny components clamped ([`MIN_DIRECTION`]).
+    inv_direction: Vec3A,
+    /// Per axis, the byte offset in a node of the eight child planes the ray enters by (the
+    /// min planes for a positive direction component, the max planes for a negative one), and
+    /// of those it leaves by. The sign bit decides, so -0.0 goes with its -inverse.
+    near: [usize; 3],
+    far: [usize; 3],
+    /// obvhs's `oct_inv4` octant code in one byte: 4 for x ≥ 0, 2 for y ≥ 0, 1 for z ≥ 0.
+    /// A node's children are stored so that child `slot ^ oct_inv` is the `slot`-th nearest
+    /// for rays of this octant (the converter's `order_children`).
+    oct_inv: u32,
+    /// Lane `p` holds `p ^ oct_inv`: the children's lanes in visiting order.
+    order: [i32; 8],
+    /// Box interval: boxes outside (`tmin`, `tmax`) are culled.
+    tmin: f32,
+    tmax: f32,
+}
+
+impl NodeRay {
+    /// The node-test form of `ray`; `ordered` to visit children nearest first (closest-hit
+    /// queries), else in storage order (any-hit queries, which need no order and skip the
+    /// lane permutation that makes it).
+    pub(super) fn new(ray: &Ray, ordered: bool) -> NodeRay {
+        let d = ray.direction;
+        let safe = |x: f32| {
+            if x.abs() < MIN_DIRECTION {
+                MIN_DIRECTION.copysign(x)
+            } else {
+                x
+            }
+        };
+        let inv_direction = Vec3A::ONE / Vec3A::new(safe(d.x), safe(d.y), safe(d.z));
+        let negative = [
+            d.x.is_sign_negative(),
+            d.y.is_sign_negative(),
+            d.z.is_sign_negative(),
+        ];
+        let oct_inv = if ordered {
+            u32::from(!negative[0]) << 2 | u32::from(!negative[1]) << 1 | u32::from(!negative[2])
+        } else {
+            0
+        };
+        let plane = |axis: usize, max: bool| PLANES + 16 * axis + if max { 8 } else { 0 };
+        NodeRay {
+            origin: ray.origin,
+            inv_direction,
+            near: [0, 1, 2].map(|a| plane(a, negative[a])),
+            far: [0, 1, 2].map(|a| plane(a, !negative[a])),
+            oct_inv,
+            order: [0, 1, 2, 3, 4, 5, 6, 7].map(|p| p ^ oct_inv as i32),
+            tmin: ray.tmin - BOX_TMIN_SLACK,
+            tmax: ray.tmax,
+        }
+    }
+
+    /// Narrows the box interval's far end.
+    #[inline(always)]
+    pub(super) fn set_tmax(&mut self, tmax: f32) {
+        self.tmax = tmax;
+    }
+
+    /// The ray in the node's quantised grid: `t = q · scale + offset` per axis, q the 0-255
+    /// plane byte (obvhs `intersect_ray_simd`'s `adj_ray_dir_inv` and `adj_ray_origin`).
+    #[inline(always)]
+    fn in_grid(&self, node: &CwBvhNode) -> (Vec3A, Vec3A) {
+        // The grid step per axis is 2^(e - 127): the exponent byte shifted into a float.
+        let extent = Vec3A::new(
+            f32::from_bits(u32::from(node.e[0]) << 23),
+            f32::from_bits(u32::from(node.e[1]) << 23),
+            f32::from_bits(u32::from(node.e[2]) << 23),
+        );
+        (
+            extent * self.inv_direction,
+            (Vec3A::from(node.p) - self.origin) * self.inv_direction,
+        )
+    }
+}
+
+/// Which children of a node the ray enters (their boxes meet the ray's interval).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct Hits {
+    /// Internal children in visiting order: bit `p` for child `p ^ oct_inv`, so the highest
+    /// bit is the nearest (as in obvhs's hit mask's top byte).
+    pub(super) nodes: u32,
+    /// Leaf children, bit `i` for child `i`. Empty slots count as leaves (their meta byte is 0:
+    /// no primitives), should the ray meet their (empty) box.
+    pub(super) leaves: u32,
+}
+
+impl Hits {
+    /// From the children hit (bit `i` for child `i`).
+    #[inline(always)]
+    fn from_mask(node: &CwBvhNode, ray: &NodeRay, mask: u32) -> Hits {
+        // Bit p of `nodes` is bit p ^ oct_inv of `inner`: each bit of oct_inv swaps the bits
+        // that differ in it (nibbles, pairs, neighbours), without branches.
+        let mut nodes = mask & u32::from(node.imask);
+        let swap = |m: u32, bit: u32, low: u32| {
+            let (a, b) = ((m >> bit) & low, (m << bit) & (low << bit));
+            let swapped = a | b;
+            if ray.oct_inv & bit != 0 {
+                swapped
+            } else {
+                m
+            }
+        };
+        nodes = swap(nodes, 4, 0x0f);
+        nodes = swap(nodes, 2, 0x33);
+        nodes = swap(nodes, 1, 0x55);
+        Hits {
+            nodes,
+            leaves: mask & !u32::from(node.imask),
+        }
+    }
+}
+
+/// A CWBVH node test.
+pub(super) trait NodeTest: Copy {
+    /// The children `ray` enters; with `ORDERED` false the ray's `oct_inv` must be 0 (its
+    /// visiting order is then storage order).
+    fn hits<const ORDERED: bool>(self, node: &CwBvhNode, ray: &NodeRay) -> Hits;
+}
+
+/// Four children at a time with glam's `Vec4` (SSE2 on x86-64, scalar elsewhere): the test for
+/// CPUs without AVX2, and the reference [`Avx2`] is tested against.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Portable;
+
+impl NodeTest for Portable {
+    #[inline(always)]
+    fn hits<const ORDERED: bool>(self, node: &CwBvhNode, ray: &NodeRay) -> Hits {
+        portable_hits(node, ray, false)
+    }
+}
+
+/// [`Portable`]'s test; with `fused`, each `q · scale + offset` is rounded once (as [`Avx2`]'s
+/// fused multiply-add does) instead of twice: the reference the AVX2 test is held to. Without
+/// FMA hardware `mul_add` is a library call, too slow for the fallback.
+#[inline(always)]
+fn portable_hits(node: &CwBvhNode, ray: &NodeRay, fused: bool) -> Hits {
+    let (scale, offset) = ray.in_grid(node);
+    let bytes = bytemuck::bytes_of(node);
+    let mut mask = 0;
+    for half in [0, 4] {
+        let q = |at: usize| four_bytes(&bytes[at + half..at + half + 4]);
+        let slab = |axis: usize| {
+            let (s, o) = (Vec4::splat(scale[axis]), Vec4::splat(offset[axis]));
+            let t = |q: Vec4| if fused { q.mul_add(s, o) } else { q * s + o };
+            (t(q(ray.near[axis])), t(q(ray.far[axis])))
+        };
+        let (nx, fx) = slab(0);
+        let (ny, fy) = slab(1);
+        let (nz, fz) = slab(2);
+        let enter = nx.max(ny).max(nz.max(Vec4::splat(ray.tmin)));
+        let leave = fx.min(fy).min(fz.min(Vec4::splat(ray.tmax)));
+        mask |= enter.cmple(leave).bitmask() << half;
+    }
+    Hits::from_mask(node, ray, mask)
+}
+
+/// Four bytes as four floats: SSE2's integer unpacks and one conversion on x86-64 (converting
+/// one byte at a time was most of the portable test's time), one at a time elsewhere.
+#[inline(always)]
+fn four_bytes(b: &[u8]) -> Vec4 {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::*;
+        let word = i32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+        // SAFETY: SSE2 is part of x86-64; these only move and convert register contents.
+        unsafe {
+            let zero = _mm_setzero_si128();
+            let wide = _mm_unpacklo_epi16(_mm_unpacklo_epi8(_mm_cvtsi32_si128(word), zero), zero);
+            Vec4::from(_mm_cvtepi32_ps(wide))
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    Vec4::new(b[0] as f32, b[1] as f32, b[2] as f32, b[3] as f32)
+}
+
+/// [`portable_hits`] with fused multiply-adds, for tests.
+#[cfg(test)]
+pub(super) fn fused_hits(node: &CwBvhNode, ray: &NodeRay) -> Hits {
+    portable_hits(node, ray, true)
+}
+
+/// All eight children in one AVX2 register. Only made where the CPU has AVX2 and FMA
+/// ([`Avx2::new`]), so its test may use them.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Avx2(());
+
+#[cfg(target_arch = "x86_64")]
+impl Avx2 {
+    /// The test, when this CPU runs x86-64-v3 code.
+    pub(super) fn new() -> Option<Avx2> {
+        crate::cpu::has_v3().then_some(Avx2(()))
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl NodeTest for Avx2 {
+    #[inline(always)]
+    fn hits<const ORDERED: bool>(self, node: &CwBvhNode, ray: &NodeRay) -> Hits {
+        // SAFETY: an `Avx2` exists only where the CPU has AVX2 (`Avx2::new`).
+        unsafe { hits_avx2::<ORDERED>(node, ray) }
+    }
+}
+
+/// [`Avx2`]'s test. The arithmetic is [`Portable`]'s lane for lane, but with fused
+/// multiply-adds (3% more rays a second on the bunny; the boxes' margins absorb either
+/// rounding), so it gives [`fused_hits`]'s mask.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+unsafe fn hits_avx2<const ORDERED: bool>(node: &CwBvhNode, ray: &NodeRay) -> Hits {
+    use std::arch::x86_64::*;
+    let base = (node as *const CwBvhNode).cast::<u8>();
+    // `NodeRay::in_grid` from one load of the node's first 16 bytes (p, then the three
+    // exponent bytes and imask): the same operations on the same values.
+    // SAFETY: the node is 80 bytes; the load is unaligned.
+    let head = unsafe { _mm_loadu_ps(base.cast::<f32>()) };
+    let exponents = _mm_cvtepu8_epi32(_mm_srli_si128::<12>(_mm_castps_si128(head)));
+    let extent = _mm_castsi128_ps(_mm_slli_epi32::<23>(exponents));
+    let inv: __m128 = ray.inv_direction.into();
+    let origin: __m128 = ray.origin.into();
+    let scale = _mm_mul_ps(extent, inv);
+    let offset = _mm_mul_ps(_mm_sub_ps(head, origin), inv);
+    // Both in both halves, to splat a lane with an in-lane permute.
+    let scale = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(scale), scale);
+    let offset = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(offset), offset);
+    // Eight plane bytes at `at` as eight floats.
+    macro_rules! planes {
+        ($at:expr) => {
+            // SAFETY: `at` is one of `NodeRay`'s plane offsets, eight bytes inside the node
+            // (the layout is asserted above); the load is unaligned.
+            _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(unsafe {
+                _mm_loadl_epi64(base.add($at).cast::<__m128i>())
+            }))
+        };
+    }
+    macro_rules! slab {
+        ($axis:expr, $lane:expr) => {{
+            let s = _mm256_permute_ps::<$lane>(scale);
+            let o = _mm256_permute_ps::<$lane>(offset);
+            (
+                _mm256_fmadd_ps(planes!(ray.near[$axis]), s, o),
+                _mm256_fmadd_ps(planes!(ray.far[$axis]), s, o),
+            )
+        }};
+    }
+    let (nx, fx) = slab!(0, 0b00_00_00_00);
+    let (ny, fy) = slab!(1, 0b01_01_01_01);
+    let (nz, fz) = slab!(2, 0b10_10_10_10);
+    let enter = _mm256_max_ps(
+        _mm256_max_ps(nx, ny),
+        _mm256_max_ps(nz, _mm256_set1_ps(ray.tmin)),
+    );
+    let leave = _mm256_min_ps(
+        _mm256_min_ps(fx, fy),
+        _mm256_min_ps(fz, _mm256_set1_ps(ray.tmax)),
+    );
+    let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(enter, leave);
+    // Internal children are the node's imask bits, a lane each.
+    let inner = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+        _mm256_and_si256(
+            _mm256_set1_epi32(i32::from(node.imask)),
+            _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128),
+        ),
+        _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128),
+    ));
+    let nodes = _mm256_and_ps(inner, hit);
+    let nodes = if ORDERED {
+        // SAFETY: `order` is eight lanes.
+        let order = unsafe { _mm256_loadu_si256(ray.order.as_ptr().cast::<__m256i>()) };
+        _mm256_permutevar8x32_ps(nodes, order)
+    } else {
+        nodes
+    };
+    Hits {
+        nodes: _mm256_movemask_ps(nodes) as u32,
+        leaves: _mm256_movemask_ps(hit) as u32 & !u32::from(node.imask),
+    }
+}
+
+/// The traversal stack: groups of children still to visit. A wide BVH is shallow (obvhs keeps
+/// 32 entries and overwrites the last when full); this holds 64 and spills beyond that to the
+/// heap rather than lose a group, so a pathologically deep tree is slow, never wrong.
+///
+/// The entries start uninitialised and live in the caller's frame ([`Entries`]), apart from
+/// `len`: with the array beside the zeroed `len` in one struct, LLVM merged the two into a
+/// 520-byte `memset` call per ray (the Cornell box's rays are short enough for that to show).
+struct Stack<'a> {
+    entries: &'a mut Entries,
+    len: usize,
+    spill: Vec<UVec2>,
+}
+
+/// [`Stack`]'s fixed entries.
+type Entries = [MaybeUninit<UVec2>; 64];
+
+impl<'a> Stack<'a> {
+    #[inline(always)]
+    fn new(entries: &'a mut Entries) -> Stack<'a> {
+        Stack {
+            entries,
+            len: 0,
+            spill: Vec::new(),
+        }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, group: UVec2) {
+        if let Some(entry) = self.entries.get_mut(self.len) {
+            entry.write(group);
+            self.len += 1;
+        } else {
+            self.spill.push(group);
+        }
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<UVec2> {
+        // The spill holds groups only while the array is full (it takes pushes only then, and
+        // the array shrinks only once it is empty).
+        if self.len == self.entries.len() {
+            if let Some(group) = self.spill.pop() {
+                return Some(group);
+            }
+        }
+        self.len = self.len.checked_sub(1)?;
+        // SAFETY: entries below `len` were written by `push` (`len` only grows there, by one,
+        // after the write).
+        Some(unsafe { self.entries[self.len].assume_init() })
+    }
+}
+
+/// Asks for the triangles of every leaf the ray enters before testing the first: on large
+/// models they come from memory, and asked for together their fetches overlap.
+#[inline(always)]
+fn prefetch_leaves(node: &CwBvhNode, mut leaves: u32, triangles: &[PreparedTriangle]) {
+    #[cfg(target_arch = "x86_64")]
+    while leaves != 0 {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let meta = node.child_meta[leaves.trailing_zeros() as usize];
+        leaves &= leaves - 1;
+        let first = (node.primitive_base_idx + u32::from(meta & 0x1f)) as usize;
+        let at = triangles.as_ptr().wrapping_add(first).cast::<i8>();
+        for k in 0..u32::from(meta >> 5).count_ones() as usize {
+            // SAFETY: a prefetch never faults and changes nothing the program can observe, so
+            // any address is sound.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(at.wrapping_add(64 * k)) };
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (node, leaves, triangles);
+}
+
+/// Walks `bvh` for `ray` (whose node-test form `node_ray` may be narrowed by `leaf` as hits
+/// are found), calling `leaf(first, count, node_ray)` for the primitive slots of each leaf
+/// whose box the ray enters; `leaf` returns true to stop.
+///
+/// A group of internal children to visit is a `UVec2`: their first node's index, and the
+/// children hit (bits 0-7, in visiting order, [`Hits::nodes`]) with their parent's `imask`
+/// (bits 8-15), which counts internal children stored before a given one. A node's leaves
+/// are tested before its children are visited, the nearest child first.
+#[inline(always)]
+pub(super) fn walk<K: NodeTest, const ORDERED: bool>(
+    k: K,
+    bvh: &CwBvh,
+    triangles: &[PreparedTriangle],
+    node_ray: &mut NodeRay,
+    mut leaf: impl FnMut(u32, u32, &mut NodeRay) -> bool,
+) {
+    if bvh.nodes.is_empty() {
+        return;
+    }
+    let mut entries: Entries = [MaybeUninit::uninit(); 64];
+    let mut stack = Stack::new(&mut entries);
+    // The root: a group of one child at index 0.
+    let mut group = UVec2::new(0, 1);
+    loop {
+        if group.y & 0xff == 0 {
+            match stack.pop() {
+                Some(g) => group = g,
+                None => return,
+            }
+        }
+        let p = 31 - (group.y & 0xff).leading_zeros();
+        let mut rest = group;
+        rest.y &= !(1 << p);
+        if rest.y & 0xff != 0 {
+            stack.push(rest);
+        }
+        let slot = p ^ node_ray.oct_inv;
+        let relative = ((group.y >> 8) & !(u32::MAX << slot)).count_ones();
+        let node = &bvh.nodes[(group.x + relative) as usize];
+        let hits = k.hits::<ORDERED>(node, node_ray);
+        group = UVec2::new(node.child_base_idx, hits.nodes | u32::from(node.imask) << 8);
+        prefetch_leaves(node, hits.leaves, triangles);
+        let mut leaves = hits.leaves;
+        while leaves != 0 {
+            let meta = node.child_meta[leaves.trailing_zeros() as usize];
+            leaves &= leaves - 1;
+            // The leaf's first primitive's offset in the low five bits, its count in unary in
+            // the top three.
+            let first = node.primitive_base_idx + u32::from(meta & 0x1f);
+            if leaf(first, u32::from(meta >> 5).count_ones(), node_ray) {
+                return;
+            }
+        }
+    }
+}
+
+/// The closest hit: every leaf the ray enters before its current best.
+#[inline(always)]
+pub(super) fn closest<K: NodeTest>(
+    k: K,
+    accel: &Accel,
+    bvh: &CwBvh,
+    ray: &Ray,
+    accept: Option<&Accept>,
+) -> Option<Closest> {
+    let mut best: Option<Closest> = None;
+    let mut local = *ray;
+    let mut node_ray = NodeRay::new(ray, true);
+    walk::<K, true>(
+        k,
+        bvh,
+        &accel.triangles,
+        &mut node_ray,
+        |first, count, node_ray| {
+            for slot in first as usize..(first + count) as usize {
+                let t = accel.test(slot, &local, true, accept);
+                if t < f32::INFINITY {
+                    Closest::offer(&mut best, t, slot, &accel.ids);
+                    if let Some(b) = best {
+                        // Keep hits at exactly the best t (for the tie rule) but cull everything
+                        // farther: the next float up is the tightest such bound.
+                        local.tmax = b.t.next_up();
+                        node_ray.set_tmax(local.tmax);
+                    }
+                }
+            }
+            false
+        },
+    );
+    best
+}
+
+/// Whether anything blocks the ray: stops at the first blocker.
+#[inline(always)]
+pub(super) fn occluded<K: NodeTest>(
+    k: K,
+    accel: &Accel,
+    bvh: &CwBvh,
+    ray: &Ray,
+    accept: Option<&Accept>,
+) -> bool {
+    let mut node_ray = NodeRay::new(ray, false);
+    let mut blocked = false;
+    walk::<K, false>(
+        k,
+        bvh,
+        &accel.triangles,
+        &mut node_ray,
+        |first, count, _| {
+            blocked = (first as usize..(first + count) as usize)
+                .any(|slot| accel.test(slot, ray, false, accept) < f32::INFINITY);
+            blocked
+        },
+    );
+    blocked
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Past its 64 entries the stack spills to the heap and still pops last in, first out,
+    /// through the spill and back into the array, twice over.
+    #[test]
+    fn the_stack_spills_in_order() {
+        let mut entries: Entries = [MaybeUninit::uninit(); 64];
+        let mut stack = Stack::new(&mut entries);
+        for round in 0..2 {
+            for i in 0..150 {
+                stack.push(UVec2::new(i, round));
+            }
+            for i in (0..150).rev() {
+                assert_eq!(stack.pop(), Some(UVec2::new(i, round)));
+            }
+            assert_eq!(stack.pop(), None);
+        }
+    }
+}
