@@ -64,7 +64,8 @@ pub enum IntegratorKind {
 /// anti-aliased as the image at no cost in rays.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct GuideSample {
-    /// Base colour in [0, 1] of the surface the sample stopped at (zero on a miss).
+    /// Base colour of the surface the sample stopped at (zero on a miss); the pixel loop
+    /// clamps it to [0, 1].
     pub albedo: Vec3,
     /// Its shading normal (zero on a miss).
     pub normal: Vec3,

@@ -178,8 +178,7 @@ impl Integrator for PathTracer {
                 coverage = 1.0;
                 // The surface this camera sample stops at: the guides' albedo and normal.
                 if let Some(g) = guide.as_deref_mut() {
-                    g.albedo = surface.material.base_color.clamp(Vec3::ZERO, Vec3::ONE);
-                    g.normal = surface.normal;
+                    (g.albedo, g.normal) = (surface.material.base_color, surface.normal);
                 }
             }
             if surface.source.unlit {
@@ -250,12 +249,8 @@ impl Integrator for PathTracer {
             cone = (cone.0 + cone.1 * hit.t, cone.1);
             ray = surface.ray(sample.direction, f32::INFINITY);
             bounces += 1;
-            if bounces >= ROULETTE_DEPTH {
-                let survive = throughput.max_element().clamp(MIN_SURVIVAL, 1.0);
-                if sampler.next_f32() >= survive {
-                    break;
-                }
-                throughput /= survive;
+            if bounces >= ROULETTE_DEPTH && !survives_roulette(&mut throughput, sampler) {
+                break;
             }
             if !throughput.is_finite() || throughput == Vec3::ZERO {
                 break;
@@ -443,6 +438,19 @@ impl PathTracer {
             }
         }
     }
+}
+
+/// Russian roulette after [`ROULETTE_DEPTH`] bounces: the path goes on with probability
+/// max(throughput) (clamped to [`MIN_SURVIVAL`], 1), its throughput divided by that
+/// probability so the estimate stays unbiased. Draws one number of the sample.
+#[inline(always)]
+fn survives_roulette(throughput: &mut Vec3, sampler: &mut Sampler) -> bool {
+    let survive = throughput.max_element().clamp(MIN_SURVIVAL, 1.0);
+    if sampler.next_f32() >= survive {
+        return false;
+    }
+    *throughput /= survive;
+    true
 }
 
 /// The extinction coefficient σ of a `KHR_materials_volume`: light keeps

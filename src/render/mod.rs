@@ -498,7 +498,7 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                     if self.collect_guides {
                         // As the denoiser's own guide rays: albedo in [0, 1], a visible
                         // background's radiance (after exposure, clamped) as its albedo.
-                        albedo += guide.albedo
+                        albedo += guide.albedo.clamp(Vec3::ZERO, Vec3::ONE)
                             + (guide.background * self.scale).clamp(Vec3::ZERO, Vec3::ONE);
                         normal += guide.normal;
                         if let Some(t) = guide.depth {
