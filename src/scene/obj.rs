@@ -804,6 +804,16 @@ mod tests {
         };
         let unchanged = material(None, None, 2);
         assert_eq!((unchanged.ior, &unchanged.specular_layer), (1.5, &None));
+        // Unusable values (a hostile MTL) fall back to the defaults: Ni 1.5, Ks level 0.5.
+        for (ni, ks) in [(Some(f32::NAN), None), (None, Some([f32::NAN, 0.5, 0.5]))] {
+            let m = material(ni, ks, 2);
+            assert!(
+                (m.ior - 1.5).abs() < 1e-5 && m.specular_layer.is_none(),
+                "{ni:?} {ks:?}"
+            );
+        }
+        let m = material(Some(f32::INFINITY), Some([f32::INFINITY; 3]), 2);
+        assert!(m.ior.is_finite() && m.ior >= 1.0, "ior {}", m.ior);
         for (ni, ks, expected) in [
             (Some(1.5), [0.5; 3], 0.04),
             (Some(1.5), [1.0; 3], 0.08),
