@@ -19,7 +19,7 @@ allow_external_files=False) -> Scene``
 
 ``Scene.render(width, height, *, spp=None, integrator="path", seed=0, bounces=8, exposure=0.0,
 camera=None, aovs=("depth", "mask"), srgb8=False, tonemap="khronos-pbr-neutral", noise=None,
-clamp_indirect=None) -> dict``
+clamp_indirect=None, denoise=None) -> dict``
     One view from the file's camera ``camera`` (default its first, else a camera framing the
     model), lit as the CLI lights it. The dict holds "color" (linear RGBA float32, H x W x 4,
     premultiplied by coverage, as the film is before it is written) and the AOVs asked for:
@@ -28,8 +28,10 @@ clamp_indirect=None) -> dict``
     "segmentation" (uint32 H x W, mesh instance + 1, 0 for the background). ``srgb8=True``
     adds "srgb8": uint8 H x W x 4, the bytes of the CLI's PNG through the view transform
     ``tonemap`` (the CLI's ``--tonemap``; "color" stays linear). ``noise`` and
-    ``clamp_indirect`` are the CLI's ``--noise`` and ``--clamp-indirect``. The GIL is released while the
-    scene is prepared (first render) and rendered.
+    ``clamp_indirect`` are the CLI's ``--noise`` and ``--clamp-indirect``. Without ``spp`` or
+    ``noise`` the render is the CLI's default one, adaptive and denoised by the built-in
+    filter; ``denoise=False`` or ``True`` is the CLI's ``--no-denoise`` or ``--denoise``. The
+    GIL is released while the scene is prepared (first render) and rendered.
 
 ``Scene.render(..., ambient=None, default_lights=True, progress=None)``
     ``ambient`` and ``default_lights=False`` are the CLI's ``--ambient`` and

@@ -23,7 +23,7 @@ use meshtracer::jobs::views::{
 };
 use meshtracer::output::dataset::{camera_to_world, Intrinsics};
 use meshtracer::prepare::{PrepareOptions, Prepared};
-use meshtracer::render::{render, RenderSettings};
+use meshtracer::render::{render, Region, RenderSettings};
 use meshtracer::scene::{Camera, Light, LoadOptions, MeshArrays, PoseOptions, Projection};
 use meshtracer::setup::{self, LightingOptions};
 use meshtracer::shading::ShadingModel;
@@ -217,7 +217,8 @@ impl PyScene {
         lighting_options.no_default_lights = !o.default_lights;
         let lit = self
             .with_scene(|scene| setup::lighting(&scene.lights, None, rig_view, lighting_options))?;
-        let (spp, noise) = setup::sampling(o.integrator, o.spp, o.noise, false, false);
+        let denoised = o.denoises();
+        let (spp, noise) = setup::sampling(o.integrator, o.spp, o.noise, false, denoised);
         Ok(RenderSettings {
             view,
             spp,
@@ -233,7 +234,8 @@ impl PyScene {
             environment_visible: false,
             noise,
             clamp_indirect: o.clamp_indirect,
-            guides: false,
+            // The path tracer averages the denoiser's guides from its own samples.
+            guides: denoised,
         })
     }
 
@@ -266,26 +268,72 @@ impl PyScene {
                 let k = k as u64;
                 // Tiles of view k count after those of the views before it.
                 let per_view = |done: u64, total: u64| report(k * total + done, count * total);
-                out.push(render(&prepared, settings, cancel, &per_view)?);
+                let (mut image, stats, aovs) = render(&prepared, settings, cancel, &per_view)?;
+                let denoise_seconds = if o.denoises() {
+                    Some(denoise(&prepared, settings, &mut image)?)
+                } else {
+                    None
+                };
+                out.push((image, stats, aovs, denoise_seconds));
             }
             Ok(out)
         })?
-        .map_err(|_: meshtracer::render::Cancelled| Error::new_err("the render was cancelled"))?;
+        .map_err(|e: Failed| match e {
+            Failed::Cancelled => Error::new_err("the render was cancelled"),
+            Failed::Denoise(message) => Error::new_err(message),
+        })?;
         rendered
             .into_iter()
             .zip(views)
-            .map(|((image, stats, aovs), settings)| {
+            .map(|((image, stats, aovs, denoise_seconds), settings)| {
                 let out = arrays(py, &settings.view, &image, aovs, o)?;
                 let numbers = PyDict::new(py);
                 numbers.set_item("render_seconds", stats.time.as_secs_f64())?;
                 numbers.set_item("primary_rays", stats.primary_rays)?;
                 numbers.set_item("shadow_rays", stats.shadow_rays)?;
                 numbers.set_item("indirect_rays", stats.indirect_rays)?;
+                numbers.set_item("denoise_seconds", denoise_seconds)?;
                 out.set_item("stats", numbers)?;
                 Ok(out)
             })
             .collect()
     }
+}
+
+/// Why a render ended without its images.
+enum Failed {
+    /// Ctrl-C or the progress callback.
+    Cancelled,
+    /// The denoiser refused (its message).
+    Denoise(String),
+}
+
+impl From<meshtracer::render::Cancelled> for Failed {
+    fn from(_: meshtracer::render::Cancelled) -> Failed {
+        Failed::Cancelled
+    }
+}
+
+/// Denoises `image` with the built-in filter, as `meshtracer render` does: the guides the path
+/// tracer averaged from its samples, else (the direct integrator) traced ones. Returns the
+/// seconds it took.
+fn denoise(
+    prepared: &Prepared,
+    settings: &RenderSettings,
+    image: &mut meshtracer::render::Image,
+) -> Result<f64, Failed> {
+    let start = std::time::Instant::now();
+    let guides = match image.guides.take() {
+        Some(guides) => guides,
+        None => meshtracer::render::denoise::guides(
+            prepared,
+            settings,
+            Region::full(settings.view.width, settings.view.height),
+        ),
+    };
+    meshtracer::render::denoise::denoise(image, &guides)
+        .map_err(|e| Failed::Denoise(e.to_string()))?;
+    Ok(start.elapsed().as_secs_f64())
 }
 
 /// The options every render takes, checked.
@@ -304,9 +352,26 @@ struct RenderOptions {
     clamp_indirect: Option<f32>,
     ambient: Option<Vec3>,
     default_lights: bool,
+    /// Denoise each view with the built-in filter; `None` until [`RenderOptions::for_views`]
+    /// decides as the CLI does ([`setup::denoises_by_default`]).
+    denoise: Option<bool>,
 }
 
 impl RenderOptions {
+    /// These options for a `single_image` render (`Scene.render`) or views (`render_views`):
+    /// unless `denoise` was given, a single image with the path tracer's default sampling is
+    /// denoised (the CLI's default render), views are not (as `meshtracer render --views`).
+    fn resolved(mut self, single_image: bool) -> RenderOptions {
+        self.denoise = Some(self.denoise.unwrap_or_else(|| {
+            setup::denoises_by_default(self.integrator, self.spp, self.noise, false, single_image)
+        }));
+        self
+    }
+
+    fn denoises(&self) -> bool {
+        self.denoise == Some(true)
+    }
+
     fn wants(&self, name: &str) -> bool {
         self.aovs.iter().any(|a| a == name)
     }
@@ -583,7 +648,7 @@ impl PyScene {
         progress: Option<Bound<'py, PyAny>>,
         options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let o = RenderOptions::from_kwargs(options)?;
+        let o = RenderOptions::from_kwargs(options)?.resolved(true);
         check_size(width, height)?;
         let view = self.view(camera, width, height)?;
         let settings = self.settings(view.clone(), &view, &o)?;
@@ -612,7 +677,7 @@ impl PyScene {
         progress: Option<Bound<'py, PyAny>>,
         options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        let o = RenderOptions::from_kwargs(options)?;
+        let o = RenderOptions::from_kwargs(options)?.resolved(false);
         check_size(width, height)?;
         let views_error = |e: ViewsError| Error::new_err(e.to_string());
         let (parsed, explicit) = match views_json {
@@ -693,6 +758,7 @@ impl RenderOptions {
             clamp_indirect: None,
             ambient: None,
             default_lights: true,
+            denoise: None,
         };
         for (key, value) in kwargs.into_iter().flat_map(|d| d.iter()) {
             let key: String = key.extract()?;
@@ -732,11 +798,12 @@ impl RenderOptions {
                         .map(Vec3::from)
                 }
                 "default_lights" => o.default_lights = value.extract().map_err(bad)?,
+                "denoise" => o.denoise = value.extract().map_err(bad)?,
                 _ => {
                     return Err(Error::new_err(format!(
                         "unknown render option '{key}': use spp, integrator, seed, bounces, \
                          exposure, aovs, srgb8, tonemap, noise, clamp_indirect, ambient, \
-                         default_lights"
+                         default_lights, denoise"
                     )))
                 }
             }

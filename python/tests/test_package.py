@@ -123,6 +123,22 @@ def test_path_tracer_colour_equals_the_clis_png(cli, tmp_path):
     np.testing.assert_array_equal(arrays["srgb8"], files["png"])
 
 
+def test_default_render_is_the_clis_denoised_default(cli, tmp_path):
+    # No spp, noise or denoise: the CLI's default render, adaptive and denoised, byte for byte.
+    arrays, files = render_both(cli, tmp_path, CORNELL, 64, 48)
+    np.testing.assert_array_equal(arrays["srgb8"], files["png"])
+    assert arrays["stats"]["denoise_seconds"] is not None
+    # denoise=False is the CLI's --no-denoise; an explicit spp is not denoised unless asked.
+    _, raw_files = render_both(cli, tmp_path, CORNELL, 64, 48, extra_cli=("--no-denoise",))
+    raw = meshtracer.load(CORNELL).render(64, 48, srgb8=True, denoise=False)
+    np.testing.assert_array_equal(raw["srgb8"], raw_files["png"])
+    assert raw["stats"]["denoise_seconds"] is None
+    assert not np.array_equal(raw["srgb8"], arrays["srgb8"])
+    scene = meshtracer.load(CORNELL)
+    assert scene.render(16, 12, spp=2)["stats"]["denoise_seconds"] is None
+    assert scene.render(16, 12, spp=2, denoise=True)["stats"]["denoise_seconds"] is not None
+
+
 @pytest.mark.parametrize("model", ["Box/glTF/Box.gltf", "Avocado/glTF/Avocado.gltf",
                                    "CornellBox-OBJ/CornellBox-Original.obj"])
 def test_sample_model_equals_the_cli(cli, samples, tmp_path, model):
