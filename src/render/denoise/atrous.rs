@@ -43,7 +43,7 @@ use rayon::prelude::*;
 pub const ITERATIONS: u32 = 4;
 
 /// The B3-spline kernel's weights by distance in taps, 0, 1, 2: (1, 4, 6, 4, 1) / 16.
-const KERNEL: [f32; 3] = [3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
+pub(super) const KERNEL: [f32; 3] = [3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
 
 /// The 3x3 Gaussian that blurs the variance before it scales the luminance weight (SVGF):
 /// weights by distance 0 and 1 along each axis.
@@ -55,11 +55,11 @@ pub const NORMAL_POWER: u32 = 128;
 
 /// Depth weight exp(-|z_p - z_q| / (σz · |∇z · offset|)) with σz = 1 (SVGF): a neighbour on
 /// the centre's plane differs by about the gradient times the offset and weighs e^-1.
-const DEPTH_SIGMA: f32 = 1.0;
+pub(super) const DEPTH_SIGMA: f32 = 1.0;
 
 /// Depth tolerance beside the gradient, relative to the centre's depth: 1% of the distance,
 /// so a plane seen face on (zero gradient) is not cut by rounding.
-const DEPTH_RELATIVE: f32 = 0.01;
+pub(super) const DEPTH_RELATIVE: f32 = 0.01;
 
 /// Luminance weight exp(-|l_p - l_q| / (σl · standard error)) with σl = 4 (SVGF). A trade:
 /// at 6 the Cornell box at 4 spp came 11% closer to its reference in mean FLIP (0.084 against
@@ -89,27 +89,34 @@ const SAME_SURFACE_COSINE: f32 = 0.9;
 
 /// Luminance tolerance where the variance is 0 (one sample, or every sample equal): the
 /// filter then mixes only neighbours equal to within this, in linear radiance.
-const MIN_LUMINANCE_SIGMA: f32 = 1e-4;
+pub(super) const MIN_LUMINANCE_SIGMA: f32 = 1e-4;
 
 /// Taps whose normal weight is below this are skipped: against the centre tap's own weight
 /// (at least 1/16 of the kernel's, times 1) they would change the result by less than f32
 /// resolves. Most of a silhouette's or a corner's taps end here, before any exponential.
-const MIN_NORMAL_WEIGHT: f32 = 1e-8;
+pub(super) const MIN_NORMAL_WEIGHT: f32 = 1e-8;
 
 /// Taps whose edge-stopping exponent is this or more (weight e^-18 = 1.5e-8) are skipped,
 /// for the same reason.
-const MAX_EXPONENT: f32 = 18.0;
+pub(super) const MAX_EXPONENT: f32 = 18.0;
 
-/// e^-x for x in [0, [`MAX_EXPONENT`]), to about 1e-6 relative: 2^(-x·log2 e) split into an
-/// integer power (the exponent bits) and a fraction within 1/2 (a degree-6 polynomial). The filter's
+/// e^-x for x in [0, [`MAX_EXPONENT`]] (below 0 as 0, above it as it), to about 1e-6 relative:
+/// 2^(-x·log2 e) split into an integer power (the exponent bits) and a fraction within 1/2 (a
+/// degree-6 polynomial). The filter's
 /// hundred weights a pixel and pass spent most of their time in libm's `expf`; this is
 /// several times cheaper and deterministic on every platform (no libm).
 #[inline(always)]
-fn exp_negative(x: f32) -> f32 {
-    let y = -x * std::f32::consts::LOG2_E;
-    // Rounded to the nearest integer by a truncating conversion of a non-negative number (one
-    // instruction, where `round` is a libm call on baseline x86-64).
-    let whole = -((0.5 - y) as i32) as f32;
+// `clamp` would pass a NaN through, and the unchecked conversion below must never see one.
+#[allow(clippy::manual_clamp)]
+pub(super) fn exp_negative(x: f32) -> f32 {
+    // NaN and values out of the range count as its ends (`max` returns 0 for NaN).
+    let y = -x.max(0.0).min(MAX_EXPONENT) * std::f32::consts::LOG2_E;
+    // Rounded to the nearest integer by a truncating conversion of a number in [0.5, 26.5]
+    // (one instruction, where `round` is a libm call on baseline x86-64; the saturating `as`
+    // would add range checks that keep the filter's eight lanes from running as one).
+    // SAFETY: 0.5 - y is finite and within i32's range (y is in [-26, 0]).
+    let negated = unsafe { (0.5 - y).to_int_unchecked::<i32>() };
+    let whole = -negated as f32;
     let f = y - whole;
     // 2^f on [-1/2, 1/2]: Taylor series of e^(f ln 2), Horner form.
     const L: f32 = std::f32::consts::LN_2;
@@ -120,13 +127,13 @@ fn exp_negative(x: f32) -> f32 {
                     + f * (L * L * L * L / 24.0
                         + f * (L * L * L * L * L / 120.0 + f * (L * L * L * L * L * L / 720.0))))));
     // `whole` is in [-26, 0]: a normal float's exponent.
-    p * f32::from_bits(((whole as i32 + 127) as u32) << 23)
+    p * f32::from_bits(((127 - negated) as u32) << 23)
 }
 
 /// `facing` to the power [`NORMAL_POWER`] (128) by seven squarings: `powi` with a constant
 /// exponent is a loop in a runtime library call on some targets.
 #[inline(always)]
-fn pow_normal(facing: f32) -> f32 {
+pub(super) fn pow_normal(facing: f32) -> f32 {
     const _: () = assert!(NORMAL_POWER == 128);
     let mut p = facing;
     for _ in 0..7 {
@@ -137,18 +144,18 @@ fn pow_normal(facing: f32) -> f32 {
 
 /// What every pass reads of a pixel besides its illumination and variance.
 #[derive(Clone, Copy)]
-struct Pixel {
+pub(super) struct Pixel {
     /// Whether the pixel is filtered: covered, and its first ray met a surface.
-    surface: bool,
+    pub(super) surface: bool,
     /// Unit normal (zero off surfaces).
-    normal: Vec3,
+    pub(super) normal: Vec3,
     /// First-hit distance.
-    depth: f32,
+    pub(super) depth: f32,
     /// Albedo guide.
-    albedo: Vec3,
+    pub(super) albedo: Vec3,
     /// Depth change to the next pixel along x and y (the smaller one-sided difference, so a
     /// silhouette beside the pixel does not count).
-    gradient: (f32, f32),
+    pub(super) gradient: (f32, f32),
 }
 
 /// Denoises `image` in place with the built-in filter. Preconditions (checked by
@@ -182,33 +189,19 @@ pub fn filter(image: &mut Image, guides: &Guides) {
     if variance.iter().all(|v| *v == 0.0) {
         variance = spatial_variance(&illumination, &pixels, width, height);
     }
+    let planes = super::lanes::GuidePlanes::new(&pixels, width, height);
     for pass in 0..ITERATIONS {
         let step = 1usize << pass;
         let blurred = blur_variance(&variance, &pixels, width, height);
         let luminances: Vec<f32> = illumination.par_iter().map(|c| luminance(*c)).collect();
-        let mut next_illumination = vec![Vec3::ZERO; width * height];
-        let mut next_variance = vec![0.0f32; width * height];
-        next_illumination
-            .par_chunks_mut(width)
-            .zip(next_variance.par_chunks_mut(width))
-            .enumerate()
-            .for_each(|(y, (row_illumination, row_variance))| {
-                for x in 0..width {
-                    let (c, v) = tap_sum(
-                        (x, y),
-                        step,
-                        (width, height),
-                        &pixels,
-                        (&illumination, &luminances),
-                        &variance,
-                        blurred[y * width + x],
-                    );
-                    row_illumination[x] = c;
-                    row_variance[x] = v;
-                }
-            });
-        illumination = next_illumination;
-        variance = next_variance;
+        (illumination, variance) = super::lanes::pass(
+            &planes,
+            step,
+            &illumination,
+            &luminances,
+            &variance,
+            &blurred,
+        );
     }
     for (i, pixel) in image.pixels.iter_mut().enumerate() {
         if pixels[i].surface {
@@ -344,9 +337,11 @@ fn spatial_variance(
         .collect()
 }
 
-/// One output pixel of a pass: the weighted mean of the 5x5 taps `step` apart around (`x`,
+/// One output pixel of a pass, as [`super::lanes::pass`] computes it eight at a time (the
+/// reference its tests compare with): the weighted mean of the 5x5 taps `step` apart around (`x`,
 /// `y`), and its variance (the taps' variances weighted by the squared normalised weights).
-fn tap_sum(
+#[cfg(test)]
+pub(super) fn tap_sum(
     (x, y): (usize, usize),
     step: usize,
     (width, height): (usize, usize),
