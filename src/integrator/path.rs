@@ -140,14 +140,14 @@ impl Integrator for PathTracer {
             }
             let direction = Vec3::from(ray.direction);
             let Some(hit) = scene.intersect_camera(&ray) else {
-                if bsdf_pdf.is_none() && self.environment_visible && self.environment.is_some() {
-                    coverage = 1.0;
-                    if let (Some(g), Some(env)) = (guide.as_deref_mut(), &self.environment) {
-                        g.background = env.radiance(direction);
+                if let Some((seen, background)) = self.escaped(throughput, direction, bsdf_pdf) {
+                    radiance += seen;
+                    if let (Some(background), Some(g)) = (background, guide.as_deref_mut()) {
+                        g.background = background;
                     }
                 }
-                if let Some(seen) = self.escaped(scene, throughput, direction, bsdf_pdf) {
-                    radiance += seen;
+                if bsdf_pdf.is_none() && self.environment_visible && self.environment.is_some() {
+                    coverage = 1.0;
                 }
                 break;
             };
@@ -316,23 +316,28 @@ impl PathTracer {
 
     /// What a ray that meets no surface brings back: the environment's radiance, seen directly
     /// by a camera ray when it is visible, or found by a BSDF sample (drawn with density
-    /// `bsdf_pdf`) and weighed against light sampling. `None` without an environment.
+    /// `bsdf_pdf`) and weighed against light sampling; with, for a camera ray, the radiance it
+    /// sees (the denoiser's background guide). `None` without an environment.
     #[inline(always)]
     fn escaped(
         &self,
-        scene: &Prepared,
         throughput: Vec3,
         direction: Vec3,
         bsdf_pdf: Option<f32>,
-    ) -> Option<Vec3> {
+    ) -> Option<(Vec3, Option<Vec3>)> {
         let env = self.environment.as_deref()?;
         match bsdf_pdf {
-            None if self.environment_visible => Some(throughput * env.radiance(direction)),
+            None if self.environment_visible => {
+                let seen = env.radiance(direction);
+                Some((throughput * seen, Some(seen)))
+            }
             None => None,
             Some(pdf) => {
-                let light_pdf = SceneLight::Environment(env).pdf(scene, direction, None);
+                // SceneLight::Environment's pdf, with the radiance from one mapping of the
+                // direction to the panorama.
+                let (seen, light_pdf) = env.radiance_and_pdf(direction);
                 let weight = self.estimator.bsdf_weight(pdf, light_pdf);
-                Some(throughput * env.radiance(direction) * weight)
+                Some((throughput * seen * weight, None))
             }
         }
     }
