@@ -62,6 +62,13 @@ pub struct EnvironmentError {
     pub problem: String,
 }
 
+/// A point of the panorama in map coordinates (u, v) in [0, 1)² (module docs).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MapPoint {
+    u: f32,
+    v: f32,
+}
+
 /// An environment light.
 #[derive(Clone, Debug)]
 pub struct Environment {
@@ -309,6 +316,16 @@ impl Environment {
     /// A direction toward the environment drawn in proportion to luminance × solid angle:
     /// (unit direction, radiance, pdf per steradian). `None` for a black environment.
     pub fn sample(&self, u1: f32, u2: f32) -> Option<(Vec3, Vec3, f32)> {
+        let (direction, pdf, at) = self.sample_direction(u1, u2)?;
+        Some((direction, self.radiance_at(at), pdf))
+    }
+
+    /// [`Environment::sample`] without the radiance: (unit direction, pdf per steradian, the
+    /// map coordinates for [`Environment::radiance_at`]). The path tracer looks the radiance
+    /// up only for samples that reach the surface unblocked (inside a Cornell box most do
+    /// not).
+    #[inline]
+    pub fn sample_direction(&self, u1: f32, u2: f32) -> Option<(Vec3, f32, MapPoint)> {
         if self.rows.total() <= 0.0 {
             return None;
         }
@@ -325,8 +342,14 @@ impl Environment {
         }
         let p_uv = self.p_uv[j * self.width + i];
         let pdf = p_uv / (2.0 * PI * PI * sin_theta);
-        let radiance = self.filtered(u, v) * self.intensity;
-        (pdf > 0.0 && pdf.is_finite()).then(|| (self.to_world(local), radiance, pdf))
+        (pdf > 0.0 && pdf.is_finite()).then(|| (self.to_world(local), pdf, MapPoint { u, v }))
+    }
+
+    /// The radiance at a point of the panorama [`Environment::sample_direction`] drew: the
+    /// same as [`Environment::radiance`] of its direction, without mapping it back.
+    #[inline]
+    pub fn radiance_at(&self, at: MapPoint) -> Vec3 {
+        self.filtered(at.u, at.v) * self.intensity
     }
 
     /// The pdf per steradian with which [`Environment::sample`] draws `direction`.

@@ -9,7 +9,7 @@
 //! for point and spot, lux for directional); emissive triangles and the environment radiance.
 
 use crate::geometry::SpawnPoint;
-use crate::light::environment::Environment;
+use crate::light::environment::{Environment, MapPoint};
 use crate::light::PunctualLight;
 use crate::prepare::Prepared;
 use glam::Vec3;
@@ -29,7 +29,7 @@ pub enum SceneLight<'a> {
 
 /// One light sample as seen from a shading point.
 #[derive(Clone, Copy, Debug)]
-pub struct LightSample {
+pub struct LightSample<'a> {
     /// Unit vector from the shading point toward the sampled point of the light.
     pub to_light: Vec3,
     /// Distance to the sampled point; infinite for the environment and directional lights.
@@ -42,14 +42,22 @@ pub struct LightSample {
     /// (a punctual one), which no BSDF sample can find.
     pub pdf: Option<f32>,
     /// Where what arrives comes from.
-    emitter: Emitter,
+    emitter: Emitter<'a>,
 }
 
 /// What arrives along a light sample, known at once or looked up on demand.
 #[derive(Clone, Copy, Debug)]
-enum Emitter {
-    /// Irradiance of a delta light, or radiance of the environment.
+enum Emitter<'a> {
+    /// Irradiance of a delta light.
     Known(Vec3),
+    /// A point of the environment: its radiance (a bilinear lookup in the panorama) is read
+    /// only for samples that arrive unblocked, as an emissive triangle's.
+    Environment {
+        /// The environment.
+        environment: &'a Environment,
+        /// Where in its panorama.
+        at: MapPoint,
+    },
     /// A point of an emissive triangle: its radiance needs the emissive texture, read only for
     /// samples whose shadow ray found the light visible.
     Triangle {
@@ -60,7 +68,7 @@ enum Emitter {
     },
 }
 
-impl LightSample {
+impl LightSample<'_> {
     /// What arrives at the shading point along [`LightSample::to_light`], before shadowing:
     /// irradiance for a delta light, radiance otherwise.
     #[inline(always)]
@@ -71,6 +79,7 @@ impl LightSample {
                 triangle,
                 barycentric,
             } => scene.emission_at(triangle, barycentric),
+            Emitter::Environment { environment, at } => environment.radiance_at(at),
         }
     }
 }
@@ -86,14 +95,14 @@ pub struct EmitterHit {
     pub cos: f32,
 }
 
-impl SceneLight<'_> {
+impl<'a> SceneLight<'a> {
     /// A sample of this light seen from `point`, drawn with the uniform numbers `u` (punctual
     /// lights use none, the environment the first two, the emissive triangles all three: one
     /// to pick a triangle by power, two for the point on it). `None` when the light delivers
     /// nothing there (behind a spot's cone, past its range, no emissive triangle, a point on
     /// the light at the shading point itself).
     #[inline(always)]
-    pub fn sample(&self, scene: &Prepared, point: Vec3, u: [f32; 3]) -> Option<LightSample> {
+    pub fn sample(&self, scene: &Prepared, point: Vec3, u: [f32; 3]) -> Option<LightSample<'a>> {
         match *self {
             SceneLight::Punctual(light) => {
                 let incident = light.incident(point)?;
@@ -138,13 +147,13 @@ impl SceneLight<'_> {
                 })
             }
             SceneLight::Environment(environment) => {
-                let (to_light, radiance, pdf) = environment.sample(u[0], u[1])?;
+                let (to_light, pdf, at) = environment.sample_direction(u[0], u[1])?;
                 Some(LightSample {
                     to_light,
                     distance: f32::INFINITY,
                     target: None,
                     pdf: Some(pdf),
-                    emitter: Emitter::Known(radiance),
+                    emitter: Emitter::Environment { environment, at },
                 })
             }
         }
