@@ -270,7 +270,7 @@ mod tests {
     #[test]
     fn the_shuffle_is_a_permutation_of_each_aligned_block() {
         let mut seen = [false; 256];
-        for i in 0..256 {
+        for i in 0..256u32 {
             let j = shuffled_index(i.reverse_bits(), 0x9e37_79b9) & 255;
             assert!(
                 !std::mem::replace(&mut seen[j as usize], true),
