@@ -400,6 +400,15 @@ fn the_portable_traversal_finds_what_the_linear_scan_finds() {
     }
 }
 
+/// The internal children of `Hits::nodes` (visiting order) as storage-order lanes.
+fn inner_lanes(node: &obvhs::cwbvh::node::CwBvhNode, ray: &traverse::NodeRay, nodes: u32) -> u32 {
+    (0..8)
+        .filter(|p| nodes & 1 << p != 0)
+        .map(|p| 1 << (p ^ ray.oct_inv()))
+        .fold(0, |m, lane| m | lane)
+        & u32::from(node.imask)
+}
+
 /// The AVX2 node test gives the portable one's answer (with fused multiply-adds, as the AVX2
 /// one uses) for every node, on every test ray; the portable one without them differs at most
 /// in a few boxes the ray grazes.
@@ -428,6 +437,23 @@ fn the_avx2_node_test_agrees_with_the_portable_one() {
                     avx2.hits::<false>(node, &node_ray)
                 };
                 assert_eq!(fused, wide, "{ray:?} tmax {tmax} {node:?}");
+                // The entry distances the closest-hit traversal sorts by: the same lanes
+                // entered, at the same distances.
+                let (mut fused_enter, mut wide_enter) = ([0.0; 8], [0.0; 8]);
+                let fused_mask = traverse::fused_entries(node, &node_ray, &mut fused_enter);
+                let wide_mask = avx2.entries(node, &node_ray, &mut wide_enter);
+                assert_eq!(fused_mask, wide_mask, "{ray:?} tmax {tmax} {node:?}");
+                assert_eq!(
+                    fused_mask,
+                    fused.leaves | inner_lanes(node, &node_ray, fused.nodes)
+                );
+                for lane in (0..8).filter(|lane| fused_mask & 1 << lane != 0) {
+                    assert_eq!(
+                        fused_enter[lane].to_bits(),
+                        wide_enter[lane].to_bits(),
+                        "{ray:?} lane {lane}"
+                    );
+                }
                 let portable = traverse::Portable.hits::<true>(node, &node_ray);
                 differ += u32::from(portable != fused);
                 entered += (fused.nodes | fused.leaves).count_ones();

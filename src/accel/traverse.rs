@@ -100,6 +100,12 @@ impl NodeRay {
         }
     }
 
+    /// The octant code children are visited in (`Hits::nodes`' bit order).
+    #[cfg(test)]
+    pub(super) fn oct_inv(&self) -> u32 {
+        self.oct_inv
+    }
+
     /// Narrows the box interval's far end.
     #[inline(always)]
     pub(super) fn set_tmax(&mut self, tmax: f32) {
@@ -165,6 +171,11 @@ pub(super) trait NodeTest: Copy {
     /// The children `ray` enters; with `ORDERED` false the ray's `oct_inv` must be 0 (its
     /// visiting order is then storage order).
     fn hits<const ORDERED: bool>(self, node: &CwBvhNode, ray: &NodeRay) -> Hits;
+
+    /// Every child `ray` enters (bit `i` for child `i`, leaf or internal, in storage order),
+    /// with the distance at which it enters each in lane `i` of `enter` (the box's near side,
+    /// clamped to the ray's box interval; the other lanes hold anything).
+    fn entries(self, node: &CwBvhNode, ray: &NodeRay, enter: &mut [f32; 8]) -> u32;
 }
 
 /// Four children at a time with glam's `Vec4` (SSE2 on x86-64, scalar elsewhere): the test for
@@ -177,6 +188,11 @@ impl NodeTest for Portable {
     fn hits<const ORDERED: bool>(self, node: &CwBvhNode, ray: &NodeRay) -> Hits {
         portable_hits(node, ray, false)
     }
+
+    #[inline(always)]
+    fn entries(self, node: &CwBvhNode, ray: &NodeRay, enter: &mut [f32; 8]) -> u32 {
+        portable_entries(node, ray, false, enter)
+    }
 }
 
 /// [`Portable`]'s test; with `fused`, each `q · scale + offset` is rounded once (as [`Avx2`]'s
@@ -184,6 +200,15 @@ impl NodeTest for Portable {
 /// FMA hardware `mul_add` is a library call, too slow for the fallback.
 #[inline(always)]
 fn portable_hits(node: &CwBvhNode, ray: &NodeRay, fused: bool) -> Hits {
+    let mut enter = [0.0; 8];
+    let mask = portable_entries(node, ray, fused, &mut enter);
+    Hits::from_mask(node, ray, mask)
+}
+
+/// [`Portable`]'s slab test of all eight children, four at a time: the children entered and
+/// where (see [`NodeTest::entries`]).
+#[inline(always)]
+fn portable_entries(node: &CwBvhNode, ray: &NodeRay, fused: bool, out: &mut [f32; 8]) -> u32 {
     let (scale, offset) = ray.in_grid(node);
     let bytes = bytemuck::bytes_of(node);
     let mut mask = 0;
@@ -200,8 +225,9 @@ fn portable_hits(node: &CwBvhNode, ray: &NodeRay, fused: bool) -> Hits {
         let enter = nx.max(ny).max(nz.max(Vec4::splat(ray.tmin)));
         let leave = fx.min(fy).min(fz.min(Vec4::splat(ray.tmax)));
         mask |= enter.cmple(leave).bitmask() << half;
+        out[half..half + 4].copy_from_slice(&enter.to_array());
     }
-    Hits::from_mask(node, ray, mask)
+    mask
 }
 
 /// Four bytes as four floats: SSE2's integer unpacks and one conversion on x86-64 (converting
@@ -229,6 +255,12 @@ pub(super) fn fused_hits(node: &CwBvhNode, ray: &NodeRay) -> Hits {
     portable_hits(node, ray, true)
 }
 
+/// [`portable_entries`] with fused multiply-adds, for tests.
+#[cfg(test)]
+pub(super) fn fused_entries(node: &CwBvhNode, ray: &NodeRay, enter: &mut [f32; 8]) -> u32 {
+    portable_entries(node, ray, true, enter)
+}
+
 /// All eight children in one AVX2 register. Only made where the CPU has AVX2 and FMA
 /// ([`Avx2::new`]), so its test may use them.
 #[cfg(target_arch = "x86_64")]
@@ -250,18 +282,28 @@ impl NodeTest for Avx2 {
         // SAFETY: an `Avx2` exists only where the CPU has AVX2 (`Avx2::new`).
         unsafe { hits_avx2::<ORDERED>(node, ray) }
     }
+
+    #[inline(always)]
+    fn entries(self, node: &CwBvhNode, ray: &NodeRay, enter: &mut [f32; 8]) -> u32 {
+        // SAFETY: an `Avx2` exists only where the CPU has AVX2 (`Avx2::new`).
+        unsafe { entries_avx2(node, ray, enter) }
+    }
 }
 
-/// [`Avx2`]'s test. The arithmetic is [`Portable`]'s lane for lane, but with fused
-/// multiply-adds (3% more rays a second on the bunny; the boxes' margins absorb either
-/// rounding), so it gives [`fused_hits`]'s mask.
+/// [`Avx2`]'s slab test: where the ray enters each child's box and whether it does (all
+/// lanes set). The arithmetic is [`Portable`]'s lane for lane, but with fused multiply-adds
+/// (3% more rays a second on the bunny; the boxes' margins absorb either rounding), so it
+/// gives [`fused_entries`]'s answer.
 ///
 /// # Safety
-/// The CPU must have AVX2.
+/// The CPU must have AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[inline]
-unsafe fn hits_avx2<const ORDERED: bool>(node: &CwBvhNode, ray: &NodeRay) -> Hits {
+unsafe fn slabs_avx2(
+    node: &CwBvhNode,
+    ray: &NodeRay,
+) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
     use std::arch::x86_64::*;
     let base = (node as *const CwBvhNode).cast::<u8>();
     // `NodeRay::in_grid` from one load of the node's first 16 bytes (p, then the three
@@ -308,7 +350,21 @@ unsafe fn hits_avx2<const ORDERED: bool>(node: &CwBvhNode, ray: &NodeRay) -> Hit
         _mm256_min_ps(fx, fy),
         _mm256_min_ps(fz, _mm256_set1_ps(ray.tmax)),
     );
-    let hit = _mm256_cmp_ps::<_CMP_LE_OQ>(enter, leave);
+    (enter, _mm256_cmp_ps::<_CMP_LE_OQ>(enter, leave))
+}
+
+/// [`Avx2`]'s [`NodeTest::hits`]: [`slabs_avx2`], with the internal children permuted into
+/// visiting order when `ORDERED`.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+unsafe fn hits_avx2<const ORDERED: bool>(node: &CwBvhNode, ray: &NodeRay) -> Hits {
+    use std::arch::x86_64::*;
+    // SAFETY: the caller's CPU has AVX2 and FMA.
+    let (_, hit) = unsafe { slabs_avx2(node, ray) };
     // Internal children are the node's imask bits, a lane each.
     let inner = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
         _mm256_and_si256(
@@ -331,6 +387,22 @@ unsafe fn hits_avx2<const ORDERED: bool>(node: &CwBvhNode, ray: &NodeRay) -> Hit
     }
 }
 
+/// [`Avx2`]'s [`NodeTest::entries`].
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+unsafe fn entries_avx2(node: &CwBvhNode, ray: &NodeRay, out: &mut [f32; 8]) -> u32 {
+    use std::arch::x86_64::*;
+    // SAFETY: the caller's CPU has AVX2 and FMA.
+    let (enter, hit) = unsafe { slabs_avx2(node, ray) };
+    // SAFETY: `out` is eight floats; the store is unaligned.
+    unsafe { _mm256_storeu_ps(out.as_mut_ptr(), enter) };
+    _mm256_movemask_ps(hit) as u32
+}
+
 /// The traversal stack: groups of children still to visit. A wide BVH is shallow (obvhs keeps
 /// 32 entries and overwrites the last when full); this holds 64 and spills beyond that to the
 /// heap rather than lose a group, so a pathologically deep tree is slow, never wrong.
@@ -338,18 +410,18 @@ unsafe fn hits_avx2<const ORDERED: bool>(node: &CwBvhNode, ray: &NodeRay) -> Hit
 /// The entries start uninitialised and live in the caller's frame ([`Entries`]), apart from
 /// `len`: with the array beside the zeroed `len` in one struct, LLVM merged the two into a
 /// 520-byte `memset` call per ray (the Cornell box's rays are short enough for that to show).
-struct Stack<'a> {
-    entries: &'a mut Entries,
+struct Stack<'a, T> {
+    entries: &'a mut Entries<T>,
     len: usize,
-    spill: Vec<UVec2>,
+    spill: Vec<T>,
 }
 
 /// [`Stack`]'s fixed entries.
-type Entries = [MaybeUninit<UVec2>; 64];
+type Entries<T> = [MaybeUninit<T>; 64];
 
-impl<'a> Stack<'a> {
+impl<'a, T: Copy> Stack<'a, T> {
     #[inline(always)]
-    fn new(entries: &'a mut Entries) -> Stack<'a> {
+    fn new(entries: &'a mut Entries<T>) -> Stack<'a, T> {
         Stack {
             entries,
             len: 0,
@@ -358,7 +430,7 @@ impl<'a> Stack<'a> {
     }
 
     #[inline(always)]
-    fn push(&mut self, group: UVec2) {
+    fn push(&mut self, group: T) {
         if let Some(entry) = self.entries.get_mut(self.len) {
             entry.write(group);
             self.len += 1;
@@ -368,7 +440,7 @@ impl<'a> Stack<'a> {
     }
 
     #[inline(always)]
-    fn pop(&mut self) -> Option<UVec2> {
+    fn pop(&mut self) -> Option<T> {
         // The spill holds groups only while the array is full (it takes pushes only then, and
         // the array shrinks only once it is empty).
         if self.len == self.entries.len() {
@@ -423,7 +495,7 @@ pub(super) fn walk<K: NodeTest, const ORDERED: bool>(
     if bvh.nodes.is_empty() {
         return;
     }
-    let mut entries: Entries = [MaybeUninit::uninit(); 64];
+    let mut entries: Entries<UVec2> = [MaybeUninit::uninit(); 64];
     let mut stack = Stack::new(&mut entries);
     // The root: a group of one child at index 0.
     let mut group = UVec2::new(0, 1);
@@ -460,7 +532,24 @@ pub(super) fn walk<K: NodeTest, const ORDERED: bool>(
     }
 }
 
+/// A float's bits as an unsigned integer of the same order (negative floats below positive
+/// ones, -0.0 just below +0.0), so that a node and its entry distance sort as one `u64`.
+#[inline(always)]
+fn ordered_bits(x: f32) -> u32 {
+    let bits = x.to_bits();
+    if bits & 0x8000_0000 == 0 {
+        bits | 0x8000_0000
+    } else {
+        !bits
+    }
+}
+
 /// The closest hit: every leaf the ray enters before its current best.
+///
+/// Children are visited nearest first by where the ray enters their boxes (as Embree's
+/// single-ray traversal sorts them), not by the ray's octant as [`walk`] does: a stack entry
+/// is a node with its entry distance, so once a hit is found, nodes waiting beyond it are
+/// dropped when popped without loading them, and leaves beyond it are not tested.
 #[inline(always)]
 pub(super) fn closest<K: NodeTest>(
     k: K,
@@ -469,16 +558,39 @@ pub(super) fn closest<K: NodeTest>(
     ray: &Ray,
     accept: Option<&Accept>,
 ) -> Option<Closest> {
+    if bvh.nodes.is_empty() {
+        return None;
+    }
     let mut best: Option<Closest> = None;
     let mut local = *ray;
-    let mut node_ray = NodeRay::new(ray, true);
-    walk::<K, true>(
-        k,
-        bvh,
-        &accel.triangles,
-        &mut node_ray,
-        |first, count, node_ray| {
-            for slot in first as usize..(first + count) as usize {
+    let mut node_ray = NodeRay::new(ray, false);
+    // Entries: the entry distance's `ordered_bits` above, the node's index below.
+    let mut entries: Entries<u64> = [MaybeUninit::uninit(); 64];
+    let mut stack = Stack::new(&mut entries);
+    // Nodes entered beyond this (`ordered_bits` of `local.tmax`; + 0.0 makes -0.0 +0.0,
+    // which keeps a box entered at -0.0 and at +0.0 alike) hold nothing nearer.
+    let mut cull = ordered_bits(local.tmax + 0.0);
+    let mut current = 0u32;
+    let mut enter = [0.0f32; 8];
+    loop {
+        let node = &bvh.nodes[current as usize];
+        let entered = k.entries(node, &node_ray, &mut enter);
+        let imask = u32::from(node.imask);
+        let mut leaves = entered & !imask;
+        prefetch_leaves(node, leaves, &accel.triangles);
+        let mut hit_here = false;
+        while leaves != 0 {
+            let child = leaves.trailing_zeros() as usize;
+            leaves &= leaves - 1;
+            // A hit in an earlier leaf of this node may already be nearer than this box.
+            if ordered_bits(enter[child]) > cull {
+                continue;
+            }
+            // The leaf's first primitive's offset in the low five bits, its count in unary in
+            // the top three.
+            let meta = node.child_meta[child];
+            let first = (node.primitive_base_idx + u32::from(meta & 0x1f)) as usize;
+            for slot in first..first + u32::from(meta >> 5).count_ones() as usize {
                 let t = accel.test(slot, &local, true, accept);
                 if t < f32::INFINITY {
                     Closest::offer(&mut best, t, slot, &accel.ids);
@@ -487,13 +599,74 @@ pub(super) fn closest<K: NodeTest>(
                         // farther: the next float up is the tightest such bound.
                         local.tmax = b.t.next_up();
                         node_ray.set_tmax(local.tmax);
+                        cull = ordered_bits(local.tmax + 0.0);
+                        hit_here = true;
                     }
                 }
             }
-            false
-        },
-    );
-    best
+        }
+        let mut inner = entered & imask;
+        if hit_here {
+            // A leaf of this node hit: children entered beyond that hit hold nothing nearer.
+            let mut far = inner;
+            while far != 0 {
+                let child = far.trailing_zeros();
+                far &= far - 1;
+                if ordered_bits(enter[child as usize]) > cull {
+                    inner &= !(1 << child);
+                }
+            }
+        }
+        // Internal children are stored in slot order from `child_base_idx`.
+        let index = |child: u32| node.child_base_idx + (imask & !(u32::MAX << child)).count_ones();
+        let key = |child: u32| {
+            u64::from(ordered_bits(enter[child as usize])) << 32 | u64::from(index(child))
+        };
+        match inner.count_ones() {
+            0 => loop {
+                let Some(key) = stack.pop() else {
+                    return best;
+                };
+                if (key >> 32) as u32 <= cull {
+                    current = key as u32;
+                    break;
+                }
+            },
+            1 => current = index(inner.trailing_zeros()),
+            2 => {
+                let (a, b) = (inner.trailing_zeros(), 31 - inner.leading_zeros());
+                let (near, far) = if enter[b as usize] < enter[a as usize] {
+                    (b, a)
+                } else {
+                    (a, b)
+                };
+                stack.push(key(far));
+                current = index(near);
+            }
+            count => {
+                // Insertion sort, nearest first; the rest wait farthest deepest.
+                let count = count as usize;
+                let mut keys = [0u64; 8];
+                for slot in keys.iter_mut().take(count) {
+                    *slot = key(inner.trailing_zeros());
+                    inner &= inner - 1;
+                }
+                for i in 1..count {
+                    let key = keys[i];
+                    let mut j = i;
+                    while j > 0 && keys[j - 1] > key {
+                        keys[j] = keys[j - 1];
+                        j -= 1;
+                    }
+                    keys[j] = key;
+                }
+                for &key in keys[1..count].iter().rev() {
+                    stack.push(key);
+                }
+                current = keys[0] as u32;
+            }
+        }
+    }
 }
 
 /// Whether anything blocks the ray: stops at the first blocker.
@@ -529,7 +702,7 @@ mod tests {
     /// through the spill and back into the array, twice over.
     #[test]
     fn the_stack_spills_in_order() {
-        let mut entries: Entries = [MaybeUninit::uninit(); 64];
+        let mut entries: Entries<UVec2> = [MaybeUninit::uninit(); 64];
         let mut stack = Stack::new(&mut entries);
         for round in 0..2 {
             for i in 0..150 {
