@@ -455,10 +455,18 @@ impl<'a, T: Copy> Stack<'a, T> {
     }
 }
 
+/// Triangles (64 bytes each) from which [`prefetch_leaves`] asks for them early: 8 MB, more
+/// than a core's L2 and a fair share of a shared L3. Below it they mostly come from cache, and
+/// the loop over the leaves' counts costs more than it hides (its branches mispredict).
+const PREFETCH_FROM: usize = 1 << 17;
+
 /// Asks for the triangles of every leaf the ray enters before testing the first: on large
 /// models they come from memory, and asked for together their fetches overlap.
 #[inline(always)]
 fn prefetch_leaves(node: &CwBvhNode, mut leaves: u32, triangles: &[PreparedTriangle]) {
+    if triangles.len() < PREFETCH_FROM {
+        return;
+    }
     #[cfg(target_arch = "x86_64")]
     while leaves != 0 {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
