@@ -1,14 +1,15 @@
-//! Traversal of the obvhs CWBVH with our own node test.
+//! Traversal of the obvhs CWBVH with our own loops and node test.
 //!
-//! The loop is obvhs 0.4's `traverse!` macro (MIT OR Apache-2.0, after Ylitie, Karras and
-//! Laine, "Efficient Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs", HPG 2017)
-//! written as a function: a node's hit children and hit leaf primitives are kept as bit groups
-//! (`UVec2`: a base index and a mask), children are taken nearest octant first, and groups
-//! not yet done wait on a small stack. What differs is the node test ([`NodeTest`]): obvhs's
-//! SSE test converts the quantised child bounds to floats one byte at a time (its own comment
-//! calls that the most expensive part) and clamps box entry to a fixed 1e-4 instead of the
-//! ray's `tmin`; [`Avx2`] tests all eight children in one register and uses the ray's own
-//! interval, and [`Portable`] does the same four children at a time for CPUs without AVX2.
+//! The node layout is obvhs 0.4's (MIT OR Apache-2.0, after Ylitie, Karras and Laine,
+//! "Efficient Incoherent Ray Traversal on GPUs Through Compressed Wide BVHs", HPG 2017): eight
+//! children a node, their boxes quantised to a byte a plane. The node test ([`NodeTest`])
+//! gives every child the ray enters and where: [`Avx2`] tests all eight in one register,
+//! [`Portable`] four at a time for CPUs without AVX2 (obvhs's own SSE test converts the planes
+//! to floats a byte at a time and clamps box entry to a fixed 1e-4 instead of the ray's
+//! `tmin`). Closest-hit queries ([`closest`]) visit children nearest entry first, as Embree's
+//! single-ray traversal does, with each waiting node's entry distance on the stack; any-hit
+//! queries ([`occluded`]) take them in storage order, in bit groups as obvhs's `traverse!`
+//! macro does.
 
 use super::{Accel, Accept, Closest};
 use crate::geometry::{PreparedTriangle, Ray};
@@ -52,22 +53,14 @@ pub(super) struct NodeRay {
     /// of those it leaves by. The sign bit decides, so -0.0 goes with its -inverse.
     near: [usize; 3],
     far: [usize; 3],
-    /// obvhs's `oct_inv4` octant code in one byte: 4 for x ≥ 0, 2 for y ≥ 0, 1 for z ≥ 0.
-    /// A node's children are stored so that child `slot ^ oct_inv` is the `slot`-th nearest
-    /// for rays of this octant (the converter's `order_children`).
-    oct_inv: u32,
-    /// Lane `p` holds `p ^ oct_inv`: the children's lanes in visiting order.
-    order: [i32; 8],
     /// Box interval: boxes outside (`tmin`, `tmax`) are culled.
     tmin: f32,
     tmax: f32,
 }
 
 impl NodeRay {
-    /// The node-test form of `ray`; `ordered` to visit children nearest first (closest-hit
-    /// queries), else in storage order (any-hit queries, which need no order and skip the
-    /// lane permutation that makes it).
-    pub(super) fn new(ray: &Ray, ordered: bool) -> NodeRay {
+    /// The node-test form of `ray`.
+    pub(super) fn new(ray: &Ray) -> NodeRay {
         let d = ray.direction;
         let safe = |x: f32| {
             if x.abs() < MIN_DIRECTION {
@@ -82,28 +75,15 @@ impl NodeRay {
             d.y.is_sign_negative(),
             d.z.is_sign_negative(),
         ];
-        let oct_inv = if ordered {
-            u32::from(!negative[0]) << 2 | u32::from(!negative[1]) << 1 | u32::from(!negative[2])
-        } else {
-            0
-        };
         let plane = |axis: usize, max: bool| PLANES + 16 * axis + if max { 8 } else { 0 };
         NodeRay {
             origin: ray.origin,
             inv_direction,
             near: [0, 1, 2].map(|a| plane(a, negative[a])),
             far: [0, 1, 2].map(|a| plane(a, !negative[a])),
-            oct_inv,
-            order: [0, 1, 2, 3, 4, 5, 6, 7].map(|p| p ^ oct_inv as i32),
             tmin: ray.tmin - BOX_TMIN_SLACK,
             tmax: ray.tmax,
         }
-    }
-
-    /// The octant code children are visited in (`Hits::nodes`' bit order).
-    #[cfg(test)]
-    pub(super) fn oct_inv(&self) -> u32 {
-        self.oct_inv
     }
 
     /// Narrows the box interval's far end.
@@ -129,49 +109,8 @@ impl NodeRay {
     }
 }
 
-/// Which children of a node the ray enters (their boxes meet the ray's interval).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct Hits {
-    /// Internal children in visiting order: bit `p` for child `p ^ oct_inv`, so the highest
-    /// bit is the nearest (as in obvhs's hit mask's top byte).
-    pub(super) nodes: u32,
-    /// Leaf children, bit `i` for child `i`. Empty slots count as leaves (their meta byte is 0:
-    /// no primitives), should the ray meet their (empty) box.
-    pub(super) leaves: u32,
-}
-
-impl Hits {
-    /// From the children hit (bit `i` for child `i`).
-    #[inline(always)]
-    fn from_mask(node: &CwBvhNode, ray: &NodeRay, mask: u32) -> Hits {
-        // Bit p of `nodes` is bit p ^ oct_inv of `inner`: each bit of oct_inv swaps the bits
-        // that differ in it (nibbles, pairs, neighbours), without branches.
-        let mut nodes = mask & u32::from(node.imask);
-        let swap = |m: u32, bit: u32, low: u32| {
-            let (a, b) = ((m >> bit) & low, (m << bit) & (low << bit));
-            let swapped = a | b;
-            if ray.oct_inv & bit != 0 {
-                swapped
-            } else {
-                m
-            }
-        };
-        nodes = swap(nodes, 4, 0x0f);
-        nodes = swap(nodes, 2, 0x33);
-        nodes = swap(nodes, 1, 0x55);
-        Hits {
-            nodes,
-            leaves: mask & !u32::from(node.imask),
-        }
-    }
-}
-
 /// A CWBVH node test.
 pub(super) trait NodeTest: Copy {
-    /// The children `ray` enters; with `ORDERED` false the ray's `oct_inv` must be 0 (its
-    /// visiting order is then storage order).
-    fn hits<const ORDERED: bool>(self, node: &CwBvhNode, ray: &NodeRay) -> Hits;
-
     /// Every child `ray` enters (bit `i` for child `i`, leaf or internal, in storage order),
     /// with the distance at which it enters each in lane `i` of `enter` (the box's near side,
     /// clamped to the ray's box interval; the other lanes hold anything).
@@ -185,28 +124,15 @@ pub(super) struct Portable;
 
 impl NodeTest for Portable {
     #[inline(always)]
-    fn hits<const ORDERED: bool>(self, node: &CwBvhNode, ray: &NodeRay) -> Hits {
-        portable_hits(node, ray, false)
-    }
-
-    #[inline(always)]
     fn entries(self, node: &CwBvhNode, ray: &NodeRay, enter: &mut [f32; 8]) -> u32 {
         portable_entries(node, ray, false, enter)
     }
 }
 
-/// [`Portable`]'s test; with `fused`, each `q · scale + offset` is rounded once (as [`Avx2`]'s
-/// fused multiply-add does) instead of twice: the reference the AVX2 test is held to. Without
-/// FMA hardware `mul_add` is a library call, too slow for the fallback.
-#[inline(always)]
-fn portable_hits(node: &CwBvhNode, ray: &NodeRay, fused: bool) -> Hits {
-    let mut enter = [0.0; 8];
-    let mask = portable_entries(node, ray, fused, &mut enter);
-    Hits::from_mask(node, ray, mask)
-}
-
 /// [`Portable`]'s slab test of all eight children, four at a time: the children entered and
-/// where (see [`NodeTest::entries`]).
+/// where (see [`NodeTest::entries`]). With `fused`, each `q · scale + offset` is rounded once
+/// (as [`Avx2`]'s fused multiply-add does) instead of twice: the reference the AVX2 test is
+/// held to. Without FMA hardware `mul_add` is a library call, too slow for the fallback.
 #[inline(always)]
 fn portable_entries(node: &CwBvhNode, ray: &NodeRay, fused: bool, out: &mut [f32; 8]) -> u32 {
     let (scale, offset) = ray.in_grid(node);
@@ -249,12 +175,6 @@ fn four_bytes(b: &[u8]) -> Vec4 {
     Vec4::new(b[0] as f32, b[1] as f32, b[2] as f32, b[3] as f32)
 }
 
-/// [`portable_hits`] with fused multiply-adds, for tests.
-#[cfg(test)]
-pub(super) fn fused_hits(node: &CwBvhNode, ray: &NodeRay) -> Hits {
-    portable_hits(node, ray, true)
-}
-
 /// [`portable_entries`] with fused multiply-adds, for tests.
 #[cfg(test)]
 pub(super) fn fused_entries(node: &CwBvhNode, ray: &NodeRay, enter: &mut [f32; 8]) -> u32 {
@@ -277,12 +197,6 @@ impl Avx2 {
 
 #[cfg(target_arch = "x86_64")]
 impl NodeTest for Avx2 {
-    #[inline(always)]
-    fn hits<const ORDERED: bool>(self, node: &CwBvhNode, ray: &NodeRay) -> Hits {
-        // SAFETY: an `Avx2` exists only where the CPU has AVX2 (`Avx2::new`).
-        unsafe { hits_avx2::<ORDERED>(node, ray) }
-    }
-
     #[inline(always)]
     fn entries(self, node: &CwBvhNode, ray: &NodeRay, enter: &mut [f32; 8]) -> u32 {
         // SAFETY: an `Avx2` exists only where the CPU has AVX2 (`Avx2::new`).
@@ -351,40 +265,6 @@ unsafe fn slabs_avx2(
         _mm256_min_ps(fz, _mm256_set1_ps(ray.tmax)),
     );
     (enter, _mm256_cmp_ps::<_CMP_LE_OQ>(enter, leave))
-}
-
-/// [`Avx2`]'s [`NodeTest::hits`]: [`slabs_avx2`], with the internal children permuted into
-/// visiting order when `ORDERED`.
-///
-/// # Safety
-/// The CPU must have AVX2 and FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-#[inline]
-unsafe fn hits_avx2<const ORDERED: bool>(node: &CwBvhNode, ray: &NodeRay) -> Hits {
-    use std::arch::x86_64::*;
-    // SAFETY: the caller's CPU has AVX2 and FMA.
-    let (_, hit) = unsafe { slabs_avx2(node, ray) };
-    // Internal children are the node's imask bits, a lane each.
-    let inner = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
-        _mm256_and_si256(
-            _mm256_set1_epi32(i32::from(node.imask)),
-            _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128),
-        ),
-        _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128),
-    ));
-    let nodes = _mm256_and_ps(inner, hit);
-    let nodes = if ORDERED {
-        // SAFETY: `order` is eight lanes.
-        let order = unsafe { _mm256_loadu_si256(ray.order.as_ptr().cast::<__m256i>()) };
-        _mm256_permutevar8x32_ps(nodes, order)
-    } else {
-        nodes
-    };
-    Hits {
-        nodes: _mm256_movemask_ps(nodes) as u32,
-        leaves: _mm256_movemask_ps(hit) as u32 & !u32::from(node.imask),
-    }
 }
 
 /// [`Avx2`]'s [`NodeTest::entries`].
@@ -484,62 +364,6 @@ fn prefetch_leaves(node: &CwBvhNode, mut leaves: u32, triangles: &[PreparedTrian
     let _ = (node, leaves, triangles);
 }
 
-/// Walks `bvh` for `ray` (whose node-test form `node_ray` may be narrowed by `leaf` as hits
-/// are found), calling `leaf(first, count, node_ray)` for the primitive slots of each leaf
-/// whose box the ray enters; `leaf` returns true to stop.
-///
-/// A group of internal children to visit is a `UVec2`: their first node's index, and the
-/// children hit (bits 0-7, in visiting order, [`Hits::nodes`]) with their parent's `imask`
-/// (bits 8-15), which counts internal children stored before a given one. A node's leaves
-/// are tested before its children are visited, the nearest child first.
-#[inline(always)]
-pub(super) fn walk<K: NodeTest, const ORDERED: bool>(
-    k: K,
-    bvh: &CwBvh,
-    triangles: &[PreparedTriangle],
-    node_ray: &mut NodeRay,
-    mut leaf: impl FnMut(u32, u32, &mut NodeRay) -> bool,
-) {
-    if bvh.nodes.is_empty() {
-        return;
-    }
-    let mut entries: Entries<UVec2> = [MaybeUninit::uninit(); 64];
-    let mut stack = Stack::new(&mut entries);
-    // The root: a group of one child at index 0.
-    let mut group = UVec2::new(0, 1);
-    loop {
-        if group.y & 0xff == 0 {
-            match stack.pop() {
-                Some(g) => group = g,
-                None => return,
-            }
-        }
-        let p = 31 - (group.y & 0xff).leading_zeros();
-        let mut rest = group;
-        rest.y &= !(1 << p);
-        if rest.y & 0xff != 0 {
-            stack.push(rest);
-        }
-        let slot = p ^ node_ray.oct_inv;
-        let relative = ((group.y >> 8) & !(u32::MAX << slot)).count_ones();
-        let node = &bvh.nodes[(group.x + relative) as usize];
-        let hits = k.hits::<ORDERED>(node, node_ray);
-        group = UVec2::new(node.child_base_idx, hits.nodes | u32::from(node.imask) << 8);
-        prefetch_leaves(node, hits.leaves, triangles);
-        let mut leaves = hits.leaves;
-        while leaves != 0 {
-            let meta = node.child_meta[leaves.trailing_zeros() as usize];
-            leaves &= leaves - 1;
-            // The leaf's first primitive's offset in the low five bits, its count in unary in
-            // the top three.
-            let first = node.primitive_base_idx + u32::from(meta & 0x1f);
-            if leaf(first, u32::from(meta >> 5).count_ones(), node_ray) {
-                return;
-            }
-        }
-    }
-}
-
 /// A float's bits as an unsigned integer of the same order (negative floats below positive
 /// ones, -0.0 just below +0.0), so that a node and its entry distance sort as one `u64`.
 #[inline(always)]
@@ -571,7 +395,7 @@ pub(super) fn closest<K: NodeTest>(
     }
     let mut best: Option<Closest> = None;
     let mut local = *ray;
-    let mut node_ray = NodeRay::new(ray, false);
+    let mut node_ray = NodeRay::new(ray);
     // Entries: the entry distance's `ordered_bits` above, the node's index below.
     let mut entries: Entries<u64> = [MaybeUninit::uninit(); 64];
     let mut stack = Stack::new(&mut entries);
@@ -678,6 +502,12 @@ pub(super) fn closest<K: NodeTest>(
 }
 
 /// Whether anything blocks the ray: stops at the first blocker.
+///
+/// Any blocker will do, so children are taken in storage order, without sorting: a group of
+/// internal children still to visit is a `UVec2`, their first node's index and the children
+/// entered (bits 0-7, the highest visited first) with their parent's `imask` (bits 8-15),
+/// which counts the internal children stored before a given one. A node's leaves are tested
+/// before its children are visited.
 #[inline(always)]
 pub(super) fn occluded<K: NodeTest>(
     k: K,
@@ -686,20 +516,49 @@ pub(super) fn occluded<K: NodeTest>(
     ray: &Ray,
     accept: Option<&Accept>,
 ) -> bool {
-    let mut node_ray = NodeRay::new(ray, false);
-    let mut blocked = false;
-    walk::<K, false>(
-        k,
-        bvh,
-        &accel.triangles,
-        &mut node_ray,
-        |first, count, _| {
-            blocked = (first as usize..(first + count) as usize)
-                .any(|slot| accel.test(slot, ray, false, accept) < f32::INFINITY);
-            blocked
-        },
-    );
-    blocked
+    if bvh.nodes.is_empty() {
+        return false;
+    }
+    let node_ray = NodeRay::new(ray);
+    let mut entries: Entries<UVec2> = [MaybeUninit::uninit(); 64];
+    let mut stack = Stack::new(&mut entries);
+    let mut enter = [0.0f32; 8];
+    // The root: a group of one child at index 0.
+    let mut group = UVec2::new(0, 1);
+    loop {
+        if group.y & 0xff == 0 {
+            match stack.pop() {
+                Some(g) => group = g,
+                None => return false,
+            }
+        }
+        let slot = 31 - (group.y & 0xff).leading_zeros();
+        let mut rest = group;
+        rest.y &= !(1 << slot);
+        if rest.y & 0xff != 0 {
+            stack.push(rest);
+        }
+        let relative = ((group.y >> 8) & !(u32::MAX << slot)).count_ones();
+        let node = &bvh.nodes[(group.x + relative) as usize];
+        let entered = k.entries(node, &node_ray, &mut enter);
+        let imask = u32::from(node.imask);
+        group = UVec2::new(node.child_base_idx, entered & imask | imask << 8);
+        let mut leaves = entered & !imask;
+        prefetch_leaves(node, leaves, &accel.triangles);
+        while leaves != 0 {
+            let meta = node.child_meta[leaves.trailing_zeros() as usize];
+            leaves &= leaves - 1;
+            // The leaf's first primitive's offset in the low five bits, its count in unary in
+            // the top three.
+            let first = (node.primitive_base_idx + u32::from(meta & 0x1f)) as usize;
+            let count = u32::from(meta >> 5).count_ones() as usize;
+            if (first..first + count)
+                .any(|slot| accel.test(slot, ray, false, accept) < f32::INFINITY)
+            {
+                return true;
+            }
+        }
+    }
 }
 
 #[cfg(test)]
