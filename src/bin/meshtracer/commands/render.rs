@@ -406,6 +406,7 @@ fn prepare_and_render(
     let rays = meshtracer::setup::expected_rays(
         u64::from(shot.width) * u64::from(shot.height),
         settings.spp,
+        settings.noise,
         settings.lights.len(),
         settings.integrator,
         settings.bounces,

@@ -480,6 +480,7 @@ fn render_all(
     let rays = meshtracer::setup::expected_rays(
         u64::from(width) * u64::from(height),
         args.spp(),
+        args.noise(),
         lit.lights.len(),
         args.integrator,
         args.bounces,
