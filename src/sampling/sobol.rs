@@ -220,9 +220,9 @@ mod tests {
         indices.extend([0, 1, 255, 256, u32::MAX, 1 << 31, 0x00ff_ff00]);
         for index in indices {
             let mut bitwise = 0;
-            for k in 0..32 {
+            for (k, direction) in SOBOL_SECOND_DIRECTIONS.iter().enumerate() {
                 if index & (1 << k) != 0 {
-                    bitwise ^= SOBOL_SECOND_DIRECTIONS[k];
+                    bitwise ^= direction;
                 }
             }
             assert_eq!(sobol_second_reversed(index), bitwise, "index {index:#x}");
