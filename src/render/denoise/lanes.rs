@@ -166,6 +166,35 @@ pub(super) fn pass(
 }
 
 /// One output row of a pass.
+/// Eight pixels' guides and lighting, read from the planes at one offset (row start plus
+/// padded column): the centre pixels of a chunk, or one of their taps.
+struct Gathered {
+    surface: Lanes,
+    normal: [Lanes; 3],
+    depth: Lanes,
+    albedo: [Lanes; 3],
+    luminance: Lanes,
+    illumination: [Lanes; 3],
+    variance: Lanes,
+}
+
+impl Gathered {
+    #[inline(always)]
+    fn at(g: &GuidePlanes, lit: &Lit, offset: usize) -> Gathered {
+        let read = |plane: &Plane| plane.lanes(offset, 0);
+        let three = |planes: &[Plane; 3]| [read(&planes[0]), read(&planes[1]), read(&planes[2])];
+        Gathered {
+            surface: read(&g.surface),
+            normal: three(&g.normal),
+            depth: read(&g.depth),
+            albedo: three(&g.albedo),
+            luminance: read(&lit.luminance),
+            illumination: three(&lit.illumination),
+            variance: read(&lit.variance),
+        }
+    }
+}
+
 struct Row<'a> {
     y: usize,
     step: usize,
@@ -203,19 +232,17 @@ impl Row<'_> {
         let (height, step) = (g.height, self.step);
         let centre_row = self.y * stride;
         let centre_column = PAD_LEFT + x0;
+        let Gathered {
+            surface,
+            normal,
+            depth,
+            albedo,
+            luminance,
+            illumination: own_illumination,
+            variance: own_variance,
+        } = Gathered::at(g, lit, centre_row + centre_column);
         let at = |plane: &Plane| plane.lanes(centre_row, centre_column);
-        let surface = at(&g.surface);
-        let normal = [at(&g.normal[0]), at(&g.normal[1]), at(&g.normal[2])];
-        let depth = at(&g.depth);
-        let albedo = [at(&g.albedo[0]), at(&g.albedo[1]), at(&g.albedo[2])];
         let gradient = [at(&g.gradient[0]), at(&g.gradient[1])];
-        let luminance = at(&lit.luminance);
-        let own_illumination = [
-            at(&lit.illumination[0]),
-            at(&lit.illumination[1]),
-            at(&lit.illumination[2]),
-        ];
-        let own_variance = at(&lit.variance);
         if surface.iter().all(|s| *s == 0.0) {
             // The background, which no pass changes.
             return (own_illumination, own_variance);
@@ -252,18 +279,15 @@ impl Row<'_> {
             for tx in -2isize..=2 {
                 // In the padding when the tap is past the left or right edge.
                 let column = (centre_column as isize + tx * step as isize) as usize;
-                let tap = |plane: &Plane| plane.lanes(tap_row, column);
-                let n_surface = tap(&g.surface);
-                let n_normal = [tap(&g.normal[0]), tap(&g.normal[1]), tap(&g.normal[2])];
-                let n_depth = tap(&g.depth);
-                let n_albedo = [tap(&g.albedo[0]), tap(&g.albedo[1]), tap(&g.albedo[2])];
-                let n_luminance = tap(&lit.luminance);
-                let n_illumination = [
-                    tap(&lit.illumination[0]),
-                    tap(&lit.illumination[1]),
-                    tap(&lit.illumination[2]),
-                ];
-                let n_variance = tap(&lit.variance);
+                let Gathered {
+                    surface: n_surface,
+                    normal: n_normal,
+                    depth: n_depth,
+                    albedo: n_albedo,
+                    luminance: n_luminance,
+                    illumination: n_illumination,
+                    variance: n_variance,
+                } = Gathered::at(g, lit, tap_row + column);
                 let kernel = KERNEL[tx.unsigned_abs()] * KERNEL[ty.unsigned_abs()];
                 let scales = &depth_scale[ty.unsigned_abs()][tx.unsigned_abs()];
                 for l in 0..LANES {
