@@ -34,7 +34,9 @@ each is skipped where the Blender at hand does not need it):
   film where `iridescenceFactor` is 0 (Cycles has no film factor: 0 < factor < 1 renders as 1);
 - OBJ: the importer turns an MTL `Tf` into transmission on every material, so `Tf 1 1 1` on an
   opaque `illum 2` material becomes clear glass: transmission is reset unless `illum` is 4, 6,
-  7 or 9.
+  7 or 9;
+- OBJ: a `usemtl` naming no material of the MTL becomes an empty material of that name;
+  where the MTL defines just one material, those faces get it, as meshtracer reads them.
 """
 import argparse
 import json
@@ -174,7 +176,8 @@ def fix_missing_materials(obj_file):
 
 
 def mtl_illum(model):
-    """MTL material name -> illum of the libraries the OBJ names."""
+    """MTL material name -> illum (2 where the MTL gives none), for every material the
+    libraries the OBJ names define."""
     illum, libraries = {}, []
     try:
         with open(model, errors="replace") as f:
@@ -191,6 +194,7 @@ def mtl_illum(model):
                     words = line.split()
                     if len(words) >= 2 and words[0] == "newmtl":
                         name = line.split(None, 1)[1].strip()
+                        illum.setdefault(name, 2)
                     elif len(words) >= 2 and words[0] == "illum" and name is not None:
                         illum[name] = int(float(words[1]))
         except (OSError, ValueError):
@@ -209,11 +213,32 @@ def fix_obj_transmission(model):
             node.inputs["Transmission Weight"].default_value = 0.0
 
 
+def fix_obj_undefined_materials(model):
+    """Faces whose `usemtl` names no material of the MTL get its only material when it defines
+    just one, as meshtracer (and tinyobjloader-based viewers) read them: VikingRoom says
+    `usemtl Texture1` and its MTL defines only `room`. Blender's importer makes an empty
+    material of that name instead, which renders the room untextured and white."""
+    defined = list(mtl_illum(model))
+    if len(defined) != 1:
+        return
+    only = bpy.data.materials.get(defined[0])
+    if only is None:
+        return
+    for obj in bpy.data.objects:
+        if obj.type != "MESH":
+            continue
+        slots = obj.data.materials
+        for i, material in enumerate(slots):
+            if material is None or material.name.split(".")[0] not in defined:
+                slots[i] = only
+
+
 def import_model(model):
     if model.lower().endswith(".obj"):
         if hasattr(bpy.ops.wm, "obj_import"):
             bpy.ops.wm.obj_import(filepath=model, forward_axis="NEGATIVE_Z", up_axis="Y")
             fix_obj_transmission(model)
+            fix_obj_undefined_materials(model)
         else:
             bpy.ops.import_scene.obj(filepath=model, axis_forward="-Z", axis_up="Y")
     else:
