@@ -21,7 +21,9 @@
 //!   reflection at all). So F0 = ((Ni - 1)/(Ni + 1))² · 2·mean(Ks), and the material's ior is
 //!   the one with that F0; `Ks 0 0 0` or `Ni 1` (what most exporters write for plain diffuse
 //!   surfaces, the Cornell box's walls among them) leave a Lambertian surface, as
-//!   `KHR_materials_specular` with factor 0. Without `Ks` F0 is the index's. A white 4%
+//!   `KHR_materials_specular` with factor 0. Without `Ks` the level is 1 for `illum 2` (F0
+//!   doubled: 8% at Ni 1.5) and 0 for every other `illum` or none, as Blender 5.2's importer
+//!   sets it (checked: `illum` 0, 1, 3 and absent give 0). A white 4%
 //!   reflection on every OBJ surface made the OBJ Cornell boxes 4.6-7% brighter than Cycles.
 //! - `illum 0` and `illum 1` (colour, or colour and ambient, without highlights) turn the
 //!   specular term off: no dielectric reflection, Blinn-Phong specular 0 and roughness 1.
@@ -634,7 +636,12 @@ fn mtl_material(m: &tobj::Material) -> Material {
         .optical_density
         .filter(|n| n.is_finite() && *n >= 1.0)
         .unwrap_or(1.5);
-    let reflection = opaque_reflection(index, m.specular, no_highlights);
+    let reflection = opaque_reflection(
+        index,
+        m.specular,
+        m.illumination_model == Some(2),
+        no_highlights,
+    );
     // illum 4 and 9 are glass, 6 and 7 refraction (Blender's MTL importer reads all four as
     // transparent).
     let glass = matches!(m.illumination_model, Some(4 | 6 | 7 | 9));
@@ -697,18 +704,20 @@ fn mtl_material(m: &tobj::Material) -> Material {
 /// The ior and `KHR_materials_specular` layer of a non-glass MTL material of index `index`
 /// (`Ni`) and specular colour `ks` (`Ks`), as Blender's importer reads them (module docs):
 /// F0 = F0(index) · 2·mean(Ks), or no reflection at all when that is 0 or the material has no
-/// highlights.
+/// highlights. Without `Ks` the level is 1 for `illum 2` (`illum_2`) and 0 otherwise.
 fn opaque_reflection(
     index: f32,
     ks: Option<[f32; 3]>,
+    illum_2: bool,
     no_highlights: bool,
 ) -> (f32, Option<SpecularLayer>) {
-    let level = ks.map_or(0.5, |k| {
+    let absent = if illum_2 { 1.0 } else { 0.0 };
+    let level = ks.map_or(absent, |k| {
         let mean = (k[0] + k[1] + k[2]) / 3.0;
         if mean.is_finite() {
             mean.clamp(0.0, 1.0)
         } else {
-            0.5
+            absent
         }
     });
     let f0 = ((index - 1.0) / (index + 1.0)).powi(2) * 2.0 * level;
@@ -790,29 +799,38 @@ mod tests {
 
     /// Opaque materials reflect as Blender reads `Ni` and `Ks`: F0 = F0(Ni)·2·mean(Ks) through
     /// the ior; `Ks 0`, `Ni 1` and `illum 1` reflect nothing (a specular layer of factor 0);
-    /// no `Ks` keeps the index's own F0.
+    /// without `Ks`, `illum 2` doubles the index's F0 and any other `illum` (or none) reflects
+    /// nothing, as Blender 5.2's importer sets the "Specular IOR Level" (1 and 0).
     #[test]
     fn opaque_reflection_follows_ni_and_ks_as_blender_reads_them() {
         let f0 = |ior: f32| ((ior - 1.0) / (ior + 1.0)).powi(2);
-        let material = |ni: Option<f32>, ks: Option<[f32; 3]>, illum: u8| {
+        let material = |ni: Option<f32>, ks: Option<[f32; 3]>, illum: Option<u8>| {
             mtl_material(&tobj::Material {
-                illumination_model: Some(illum),
+                illumination_model: illum,
                 optical_density: ni,
                 specular: ks,
                 ..Default::default()
             })
         };
-        let unchanged = material(None, None, 2);
-        assert_eq!((unchanged.ior, &unchanged.specular_layer), (1.5, &None));
-        // Unusable values (a hostile MTL) fall back to the defaults: Ni 1.5, Ks level 0.5.
-        for (ni, ks) in [(Some(f32::NAN), None), (None, Some([f32::NAN, 0.5, 0.5]))] {
-            let m = material(ni, ks, 2);
-            assert!(
-                (m.ior - 1.5).abs() < 1e-5 && m.specular_layer.is_none(),
-                "{ni:?} {ks:?}"
-            );
+        let no_reflection = Some(0.0);
+        let factor = |m: &Material| m.specular_layer.as_ref().map(|l| l.factor);
+        let doubled = material(None, None, Some(2));
+        assert!(doubled.specular_layer.is_none());
+        assert!(
+            (f0(doubled.ior) - 0.08).abs() < 1e-5,
+            "F0 {}",
+            f0(doubled.ior)
+        );
+        for illum in [None, Some(0), Some(1), Some(3), Some(5)] {
+            let m = material(None, None, illum);
+            assert_eq!(factor(&m), no_reflection, "illum {illum:?} without Ks");
         }
-        let m = material(Some(f32::INFINITY), Some([f32::INFINITY; 3]), 2);
+        // Unusable values (a hostile MTL) fall back to the defaults: Ni 1.5, Ks as if absent.
+        let hostile = material(Some(f32::NAN), Some([0.5; 3]), Some(2));
+        assert!((hostile.ior - 1.5).abs() < 1e-5 && hostile.specular_layer.is_none());
+        let hostile = material(None, Some([f32::NAN, 0.5, 0.5]), Some(2));
+        assert!((hostile.ior - doubled.ior).abs() < 1e-5 && hostile.specular_layer.is_none());
+        let m = material(Some(f32::INFINITY), Some([f32::INFINITY; 3]), Some(2));
         assert!(m.ior.is_finite() && m.ior >= 1.0, "ior {}", m.ior);
         for (ni, ks, expected) in [
             (Some(1.5), [0.5; 3], 0.04),
@@ -820,7 +838,7 @@ mod tests {
             (Some(1.5), [0.2, 0.4, 0.6], 0.032),
             (Some(2.0), [0.25; 3], f0(2.0) * 0.5),
         ] {
-            let m = material(ni, Some(ks), 2);
+            let m = material(ni, Some(ks), Some(2));
             assert!(m.specular_layer.is_none());
             assert!(
                 (f0(m.ior) - expected).abs() < 1e-5,
@@ -834,10 +852,10 @@ mod tests {
             (Some(1.0), None, 2),
             (None, Some([1.0; 3]), 1),
         ] {
-            let layer = material(ni, ks, illum).specular_layer;
+            let m = material(ni, ks, Some(illum));
             assert_eq!(
-                layer.map(|l| l.factor),
-                Some(0.0),
+                factor(&m),
+                no_reflection,
                 "Ni {ni:?} Ks {ks:?} illum {illum}: no reflection"
             );
         }
