@@ -435,6 +435,21 @@ mod tests {
             x += 0.001;
         }
     }
+
+    /// Inputs outside [0, MAX_EXPONENT] count as its ends, NaN as 0: the unchecked conversion
+    /// inside only ever sees a finite number in range, whatever a pixel held (an infinite or
+    /// NaN radiance gives such exponents).
+    #[test]
+    fn the_fast_exponential_clamps_what_is_out_of_range() {
+        let (one, floor) = (exp_negative(0.0), exp_negative(MAX_EXPONENT));
+        for x in [f32::NAN, -f32::NAN, f32::NEG_INFINITY, -1.0, -1e30, -0.0] {
+            assert_eq!(exp_negative(x).to_bits(), one.to_bits(), "{x}");
+        }
+        for x in [f32::INFINITY, 1e30, MAX_EXPONENT + 1.0, f32::MAX] {
+            assert_eq!(exp_negative(x).to_bits(), floor.to_bits(), "{x}");
+        }
+        assert!((one - 1.0).abs() < 1e-6 && floor > 0.0 && floor < 2e-8);
+    }
     use crate::sampling::Rng;
     use glam::Vec4;
 
@@ -499,6 +514,29 @@ mod tests {
         filter(&mut image, &guides);
         let after = rmse(&image, truth);
         assert!(after < 0.1 * before, "RMSE {before} -> {after}");
+    }
+
+    /// A NaN and an infinite pixel (and an infinite variance) in the image neither panic the
+    /// filter nor spread: pixels more than one tap reach (30 pixels) away stay finite and close
+    /// to the truth.
+    #[test]
+    fn non_finite_pixels_do_not_panic_or_spread() {
+        let truth = |_| Vec3::splat(0.5);
+        let guides = plane(96, 64, Vec3::ONE, Vec3::ONE);
+        let mut image = noisy(96, 64, truth, 0.1);
+        image.pixels[10 * 96 + 10] = Vec4::new(f32::NAN, 0.5, 0.5, 1.0);
+        image.pixels[12 * 96 + 14] = Vec4::new(f32::INFINITY, 0.5, 0.5, 1.0);
+        image.variance[12 * 96 + 14] = f32::INFINITY;
+        filter(&mut image, &guides);
+        for y in 0..64 {
+            for x in 50..96 {
+                let p = image.pixels[y * 96 + x];
+                assert!(
+                    p.is_finite() && (p.truncate() - Vec3::splat(0.5)).abs().max_element() < 0.2,
+                    "({x}, {y}): {p}"
+                );
+            }
+        }
     }
 
     /// At one sample a pixel the film has no variance; the filter estimates it from the
