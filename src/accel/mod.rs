@@ -351,11 +351,17 @@ impl Accel {
     /// test a triangle.
     #[inline(always)]
     fn test(&self, slot: usize, ray: &Ray, cull: bool, accept: Option<&Accept>) -> f32 {
-        let tri = &self.triangles[slot];
-        let t = tri.intersect_t(ray);
+        let t = self.triangles[slot].intersect_t(ray);
+        self.confirm(slot, t, ray, cull, accept)
+    }
+
+    /// [`Accel::test`] of the triangle in `slot` whose plane-and-edges test gave `t`.
+    #[inline(always)]
+    fn confirm(&self, slot: usize, t: f32, ray: &Ray, cull: bool, accept: Option<&Accept>) -> f32 {
         if t == f32::INFINITY {
             return t;
         }
+        let tri = &self.triangles[slot];
         if cull
             && self.flags[slot] & SINGLE_SIDED != 0
             && glam::Vec3A::from(tri.normal()).dot(ray.direction) > 0.0

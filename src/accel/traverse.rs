@@ -115,6 +115,12 @@ pub(super) trait NodeTest: Copy {
     /// with the distance at which it enters each in lane `i` of `enter` (the box's near side,
     /// clamped to the ray's box interval; the other lanes hold anything).
     fn entries(self, node: &CwBvhNode, ray: &NodeRay, enter: &mut [f32; 8]) -> u32;
+
+    /// [`PreparedTriangle::intersect_t`] of two triangles of a leaf.
+    #[inline(always)]
+    fn pair(self, a: &PreparedTriangle, b: &PreparedTriangle, ray: &Ray) -> (f32, f32) {
+        (a.intersect_t(ray), b.intersect_t(ray))
+    }
 }
 
 /// Four children at a time with glam's `Vec4` (SSE2 on x86-64, scalar elsewhere): the test for
@@ -201,6 +207,12 @@ impl NodeTest for Avx2 {
     fn entries(self, node: &CwBvhNode, ray: &NodeRay, enter: &mut [f32; 8]) -> u32 {
         // SAFETY: an `Avx2` exists only where the CPU has AVX2 (`Avx2::new`).
         unsafe { entries_avx2(node, ray, enter) }
+    }
+
+    #[inline(always)]
+    fn pair(self, a: &PreparedTriangle, b: &PreparedTriangle, ray: &Ray) -> (f32, f32) {
+        // SAFETY: an `Avx2` exists only where the CPU has AVX2, hence AVX (`Avx2::new`).
+        unsafe { PreparedTriangle::intersect_t_pair(a, b, ray) }
     }
 }
 
@@ -408,13 +420,16 @@ pub(super) fn closest<K: NodeTest>(
         let node = &bvh.nodes[current as usize];
         let entered = k.entries(node, &node_ray, &mut enter);
         let imask = u32::from(node.imask);
-        let mut leaves = entered & !imask;
+        let leaves = entered & !imask;
         prefetch_leaves(node, leaves, &accel.triangles);
         let mut hit_here = false;
+        let mut leaves = leaves;
         while leaves != 0 {
             let child = leaves.trailing_zeros() as usize;
             leaves &= leaves - 1;
             // A hit in an earlier leaf of this node may already be nearer than this box.
+            // (Gathering the node's leaves and testing them two at a time across leaves, as
+            // `occluded` does, loses this: 4% fewer camera rays a second.)
             if ordered_bits(enter[child]) > cull {
                 continue;
             }
@@ -422,13 +437,18 @@ pub(super) fn closest<K: NodeTest>(
             // the top three.
             let meta = node.child_meta[child];
             let first = (node.primitive_base_idx + u32::from(meta & 0x1f)) as usize;
-            for slot in first..first + u32::from(meta >> 5).count_ones() as usize {
-                let t = accel.test(slot, &local, true, accept);
+            // The leaf's triangles, the first two as a pair. The second of a pair is tested
+            // against the `tmax` from before the first's hit, not after it; when it hits
+            // between the two it is farther than the best, which `offer` keeps: the answer
+            // is the same.
+            let found = leaf_hits(k, accel, first, meta, &local);
+            for (slot, t) in (first..).zip(found) {
+                let t = accel.confirm(slot, t, &local, true, accept);
                 if t < f32::INFINITY {
                     Closest::offer(&mut best, t, slot, &accel.ids);
                     if let Some(b) = best {
-                        // Keep hits at exactly the best t (for the tie rule) but cull everything
-                        // farther: the next float up is the tightest such bound.
+                        // Keep hits at exactly the best t (for the tie rule) but cull
+                        // everything farther: the next float up is the tightest such bound.
                         local.tmax = b.t.next_up();
                         node_ray.set_tmax(local.tmax);
                         cull = ordered_bits(local.tmax + 0.0);
@@ -501,6 +521,25 @@ pub(super) fn closest<K: NodeTest>(
     }
 }
 
+/// The hit parameters (`f32::INFINITY` for a miss) of a leaf's triangles from slot `first`
+/// on, as many as `meta` counts (one to three, in unary in its top three bits), the first two
+/// as a pair; the rest of the three stay infinite.
+#[inline(always)]
+fn leaf_hits<K: NodeTest>(k: K, accel: &Accel, first: usize, meta: u8, ray: &Ray) -> [f32; 3] {
+    let mut found = [f32::INFINITY; 3];
+    match &accel.triangles[first..first + (meta >> 5).count_ones() as usize] {
+        [a] => found[0] = a.intersect_t(ray),
+        [a, b, rest @ ..] => {
+            (found[0], found[1]) = k.pair(a, b, ray);
+            if let [c] = rest {
+                found[2] = c.intersect_t(ray);
+            }
+        }
+        [] => {}
+    }
+    found
+}
+
 /// Whether anything blocks the ray: stops at the first blocker.
 ///
 /// Any blocker will do, so children are taken in storage order, without sorting: a group of
@@ -525,6 +564,7 @@ pub(super) fn occluded<K: NodeTest>(
     let mut enter = [0.0f32; 8];
     // The root: a group of one child at index 0.
     let mut group = UVec2::new(0, 1);
+    let mut found = Found::new();
     loop {
         if group.y & 0xff == 0 {
             match stack.pop() {
@@ -543,21 +583,86 @@ pub(super) fn occluded<K: NodeTest>(
         let entered = k.entries(node, &node_ray, &mut enter);
         let imask = u32::from(node.imask);
         group = UVec2::new(node.child_base_idx, entered & imask | imask << 8);
-        let mut leaves = entered & !imask;
+        let leaves = entered & !imask;
         prefetch_leaves(node, leaves, &accel.triangles);
+        // Every triangle of the leaves entered, two at a time across leaves (4-7% more shadow
+        // rays a second on the bunny and DamagedHelmet than leaf by leaf).
+        found.clear();
+        found.gather(node, leaves);
+        found.test(k, accel, ray);
+        if found
+            .slots()
+            .iter()
+            .zip(found.hits())
+            .any(|(&slot, &t)| accel.confirm(slot as usize, t, ray, false, accept) < f32::INFINITY)
+        {
+            return true;
+        }
+    }
+}
+
+/// The triangles of a node's entered leaves (at most eight leaves of three) and their hit
+/// parameters ([`PreparedTriangle::intersect_t`], `f32::INFINITY` for a miss), in leaf
+/// order. One per query, cleared for each node: filling its arrays anew each time cost 4%
+/// of the camera rays.
+struct Found {
+    slots: [u32; 24],
+    hits: [f32; 24],
+    len: usize,
+}
+
+impl Found {
+    #[inline(always)]
+    fn new() -> Found {
+        Found {
+            slots: [0; 24],
+            hits: [f32::INFINITY; 24],
+            len: 0,
+        }
+    }
+
+    #[inline(always)]
+    fn clear(&mut self) {
+        self.len = 0;
+    }
+
+    /// Adds the triangles of the leaves in `leaves` (bits of `node`'s children).
+    #[inline(always)]
+    fn gather(&mut self, node: &CwBvhNode, mut leaves: u32) {
         while leaves != 0 {
-            let meta = node.child_meta[leaves.trailing_zeros() as usize];
+            let child = leaves.trailing_zeros() as usize;
             leaves &= leaves - 1;
             // The leaf's first primitive's offset in the low five bits, its count in unary in
             // the top three.
-            let first = (node.primitive_base_idx + u32::from(meta & 0x1f)) as usize;
-            let count = u32::from(meta >> 5).count_ones() as usize;
-            if (first..first + count)
-                .any(|slot| accel.test(slot, ray, false, accept) < f32::INFINITY)
-            {
-                return true;
+            let meta = node.child_meta[child];
+            let first = node.primitive_base_idx + u32::from(meta & 0x1f);
+            for slot in first..first + (meta >> 5).count_ones() {
+                self.slots[self.len] = slot;
+                self.len += 1;
             }
         }
+    }
+
+    /// Tests every triangle gathered, two at a time.
+    #[inline(always)]
+    fn test<K: NodeTest>(&mut self, k: K, accel: &Accel, ray: &Ray) {
+        let triangle = |i: usize| &accel.triangles[self.slots[i] as usize];
+        let mut i = 0;
+        while i + 1 < self.len {
+            (self.hits[i], self.hits[i + 1]) = k.pair(triangle(i), triangle(i + 1), ray);
+            i += 2;
+        }
+        if i < self.len {
+            self.hits[i] = triangle(i).intersect_t(ray);
+        }
+    }
+
+    fn slots(&self) -> &[u32] {
+        &self.slots[..self.len]
+    }
+
+    fn hits(&self) -> &[f32] {
+        &self.hits[..self.len]
     }
 }
 

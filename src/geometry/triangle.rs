@@ -132,6 +132,62 @@ impl PreparedTriangle {
         }
     }
 
+    /// [`PreparedTriangle::intersect_t`] of two triangles at once, `a` in the low and `b` in
+    /// the high half of 256-bit AVX registers. Every lane sees the operations of
+    /// `intersect_t`'s lane in the same order (separate multiplies and adds, the same sign
+    /// flip and division), so each result is `intersect_t`'s, bit for bit (tested); two
+    /// triangles of a leaf then cost one pass instead of two.
+    ///
+    /// # Safety
+    /// The CPU must have AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    #[inline]
+    pub unsafe fn intersect_t_pair(a: &Self, b: &Self, ray: &Ray) -> (f32, f32) {
+        use std::arch::x86_64::*;
+        let pair = |lo: Vec4, hi: Vec4| _mm256_set_m128(hi.into(), lo.into());
+        let (x, y, z, w) = (
+            pair(a.x, b.x),
+            pair(a.y, b.y),
+            pair(a.z, b.z),
+            pair(a.w, b.w),
+        );
+        let (o, d) = (ray.origin, ray.direction);
+        let splat = _mm256_set1_ps;
+        let at_origin = _mm256_add_ps(
+            _mm256_add_ps(
+                _mm256_add_ps(_mm256_mul_ps(x, splat(o.x)), _mm256_mul_ps(y, splat(o.y))),
+                _mm256_mul_ps(z, splat(o.z)),
+            ),
+            w,
+        );
+        let along = _mm256_add_ps(
+            _mm256_add_ps(_mm256_mul_ps(x, splat(d.x)), _mm256_mul_ps(y, splat(d.y))),
+            _mm256_mul_ps(z, splat(d.z)),
+        );
+        // Lane 0 of each half (the supporting plane) to all four of its half.
+        let plane = |v: __m256| _mm256_permute_ps::<0>(v);
+        let t = _mm256_div_ps(_mm256_xor_ps(splat(-0.0), plane(at_origin)), plane(along));
+        let at_hit = _mm256_add_ps(at_origin, _mm256_mul_ps(along, t));
+        let bounds = _mm256_set_m128(LOWER_BOUNDS.into(), LOWER_BOUNDS.into());
+        let edges = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_GE_OS>(at_hit, bounds));
+        let (ta, tb) = (
+            _mm256_cvtss_f32(t),
+            _mm_cvtss_f32(_mm256_extractf128_ps::<1>(t)),
+        );
+        let hit = |t: f32, inside: bool| {
+            if (t > ray.tmin) & (t < ray.tmax) & inside {
+                t
+            } else {
+                f32::INFINITY
+            }
+        };
+        (
+            hit(ta, edges & 0b1111 == 0b1111),
+            hit(tb, edges >> 4 == 0b1111),
+        )
+    }
+
     /// Full hit record for a ray already known to hit at `t` (from [`Self::intersect_t`]).
     pub fn hit_at(&self, ray: &Ray, t: f32) -> TriangleHit {
         let x = ray.origin + ray.direction * t;
@@ -157,6 +213,66 @@ mod tests {
 
     fn ray(o: Vec3, d: Vec3) -> Ray {
         Ray::new(o, d, 0.0, f32::INFINITY)
+    }
+
+    /// The AVX pair gives each triangle `intersect_t`'s bits: random triangles against rays
+    /// through them, near their edges, grazing their planes, parallel to them (NaN `t`), with
+    /// zero direction components and with a `tmax` at the hit.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_pair_test_is_the_single_test_bit_for_bit() {
+        if !std::arch::is_x86_feature_detected!("avx") {
+            eprintln!("skipped: this CPU has no AVX");
+            return;
+        }
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move || {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((state >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+        };
+        let mut point = |scale: f32| vec3(next(), next(), next()) * scale;
+        let mut triangles = Vec::new();
+        while triangles.len() < 64 {
+            let (a, b, c) = (point(10.0), point(10.0), point(10.0));
+            triangles.extend(PreparedTriangle::new(a, b, c));
+        }
+        // Axis-aligned triangles, for rays parallel to their planes.
+        triangles.extend(PreparedTriangle::new(Vec3::ZERO, Vec3::X, Vec3::Y));
+        triangles.extend(PreparedTriangle::new(Vec3::ZERO, Vec3::Z, Vec3::X));
+        let mut rays = Vec::new();
+        for _ in 0..4000 {
+            let origin = point(20.0);
+            let target = point(10.0);
+            let mut direction = target - origin;
+            match rays.len() % 5 {
+                0 => direction.x = 0.0,
+                1 => direction = vec3(direction.x, 0.0, 0.0),
+                2 => direction.z = 0.0,
+                _ => {}
+            }
+            if direction == Vec3::ZERO {
+                continue;
+            }
+            let tmax = if rays.len() % 7 == 0 {
+                1.0
+            } else {
+                f32::INFINITY
+            };
+            rays.push(Ray::new(origin, direction, 1e-4, tmax));
+        }
+        let mut hits = 0;
+        for (i, ray) in rays.iter().enumerate() {
+            let a = &triangles[i % triangles.len()];
+            let b = &triangles[(i * 7 + 3) % triangles.len()];
+            // SAFETY: AVX was detected above.
+            let (ta, tb) = unsafe { PreparedTriangle::intersect_t_pair(a, b, ray) };
+            assert_eq!(ta.to_bits(), a.intersect_t(ray).to_bits(), "ray {i}, a");
+            assert_eq!(tb.to_bits(), b.intersect_t(ray).to_bits(), "ray {i}, b");
+            hits += usize::from(ta.is_finite()) + usize::from(tb.is_finite());
+        }
+        assert!(hits > 100, "too few hits to test anything: {hits}");
     }
 
     #[test]
