@@ -21,7 +21,7 @@ use std::sync::Arc;
 ///
 /// With adaptive sampling (`noise`), `spp` is only the cap: pixels take from
 /// [`crate::render::ADAPTIVE_BATCH`] samples up, most of them stopping at the first check (a
-/// mean of 4.1-6 samples on the shared models at the default render's noise 0.5), so twice the
+/// mean of 4-6 samples on the shared models at the default render's noise 1.0), so twice the
 /// batch stands for the count. Counting the cap chose the slower BVH build for the default
 /// render of MetalRoughSpheresNoTextures (1.04M triangles), which spent half its time on it.
 pub fn expected_rays(

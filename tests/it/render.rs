@@ -1480,7 +1480,7 @@ fn adaptive_sampling_stops_converged_pixels_early() {
 
 /// The default render (no option but the model, the size and the outputs) is the path tracer
 /// lit by the built-in studio (shapes.obj has no lights), sampled adaptively between 4 and 32
-/// samples a pixel to --noise 0.5, denoised by the built-in filter, and encoded with Khronos
+/// samples a pixel to --noise 1, denoised by the built-in filter, and encoded with Khronos
 /// PBR Neutral: the view file and the statistics say so, and the image is byte for byte the
 /// render that asks for exactly that. `--no-denoise` is the same render to --noise 0.1 without
 /// the filter.
@@ -1521,7 +1521,7 @@ fn the_default_render_is_the_adaptive_denoised_path_tracer_through_pbr_neutral()
         "--spp",
         "32",
         "--noise",
-        "0.5",
+        "1",
         "--denoise",
     ]);
     args.extend(["--tonemap", "khronos-pbr-neutral"]);

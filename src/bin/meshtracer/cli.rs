@@ -179,7 +179,7 @@ pub struct RenderArgs {
     pub height: Option<u32>,
     /// Samples per pixel, exactly: 1 shoots through pixel centres; N > 1 takes
     /// Owen-scrambled Sobol samples (powers of two stratify best) [default: the path tracer samples each
-    /// pixel adaptively, up to 32, until its noise is under --noise (0.5 when denoised, as the
+    /// pixel adaptively, up to 32, until its noise is under --noise (1.0 when denoised, as the
     /// default render is, else 0.1); the direct integrator takes 4]. Read it through
     /// [`RenderArgs::spp`].
     #[arg(long = "spp", value_name = "N")]
@@ -202,10 +202,10 @@ pub struct RenderArgs {
     /// (docs/denoising.md); the view file, --stats and the summary say which. Not with
     /// --views, --turntable, --tile or --crop. [default: on for the default render (the path
     /// tracer without --spp, --noise or --time-limit, one whole image), whose noise target is
-    /// then 0.5; off otherwise]. Read it through [`RenderArgs::denoises`].
+    /// then 1.0; off otherwise]. Read it through [`RenderArgs::denoises`].
     #[arg(long, conflicts_with_all = ["views", "turntable", "tile", "crop", "no_denoise"])]
     pub denoise: bool,
-    /// Do not denoise the default render: it then samples to --noise 0.1 instead of 0.5.
+    /// Do not denoise the default render: it then samples to --noise 0.1 instead of 1.0.
     #[arg(long)]
     pub no_denoise: bool,
     /// Seed of the sample pattern (the output is identical for the same seed).
