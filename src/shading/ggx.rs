@@ -163,14 +163,46 @@ pub fn multiple_scattering(f0: Vec3, f90: Vec3, cos: f32, roughness: f32) -> (Ve
     if f0 == Vec3::ZERO && f90 == Vec3::ZERO {
         return (Vec3::ONE, Vec3::ZERO);
     }
-    let (f0, f90) = (Vec3A::from(f0), Vec3A::from(f90));
-    let (a, b) = directional_albedo(cos, roughness);
-    let e_avg = average_albedo(roughness);
-    let f_avg = f0 + (f90 - f0) / 21.0;
-    // 1 - F_avg·(1 - E_avg), written so that F_avg = 1 gives exactly F_ms = 1.
-    let f_ms = f_avg * e_avg / (Vec3A::splat(e_avg) + (Vec3A::ONE - f_avg) * (1.0 - e_avg));
-    let scale = Vec3A::ONE + f_ms * ((1.0 - a) / a.max(1e-3));
-    (scale.into(), ((f0 * a + (f90 - f0) * b) * scale).into())
+    AlbedoTerms::at(cos, roughness).multiple_scattering(f0, f90)
+}
+
+/// What [`multiple_scattering`] reads from the albedo tables for one view and roughness,
+/// whatever the Fresnel: [`directional_albedo`]'s (a, b) and [`average_albedo`]. A material
+/// that mixes a dielectric and a metal (0 < metallic < 1) compensates both with one lookup.
+#[derive(Clone, Copy, Debug)]
+pub struct AlbedoTerms {
+    a: f32,
+    b: f32,
+    e_avg: f32,
+}
+
+impl AlbedoTerms {
+    /// The terms at cos θ_v = `cos` and perceptual `roughness`.
+    #[inline]
+    pub fn at(cos: f32, roughness: f32) -> Self {
+        let (a, b) = directional_albedo(cos, roughness);
+        AlbedoTerms {
+            a,
+            b,
+            e_avg: average_albedo(roughness),
+        }
+    }
+
+    /// [`multiple_scattering`] of Schlick's Fresnel (F0, F90) with these terms: the same
+    /// operations, so the same bits.
+    #[inline]
+    pub fn multiple_scattering(self, f0: Vec3, f90: Vec3) -> (Vec3, Vec3) {
+        if f0 == Vec3::ZERO && f90 == Vec3::ZERO {
+            return (Vec3::ONE, Vec3::ZERO);
+        }
+        let AlbedoTerms { a, b, e_avg } = self;
+        let (f0, f90) = (Vec3A::from(f0), Vec3A::from(f90));
+        let f_avg = f0 + (f90 - f0) / 21.0;
+        // 1 - F_avg·(1 - E_avg), written so that F_avg = 1 gives exactly F_ms = 1.
+        let f_ms = f_avg * e_avg / (Vec3A::splat(e_avg) + (Vec3A::ONE - f_avg) * (1.0 - e_avg));
+        let scale = Vec3A::ONE + f_ms * ((1.0 - a) / a.max(1e-3));
+        (scale.into(), ((f0 * a + (f90 - f0) * b) * scale).into())
+    }
 }
 
 /// The single-scattering GGX lobe's hemispherical average albedo for perceptual `roughness`
