@@ -38,7 +38,8 @@ pub const DEFAULT_NOISE: f32 = 0.1;
 /// and the built-in filter removes the grain they leave; only pixels whose error is still
 /// larger than their value sample on. Measured on every shared model at 640x480 against each
 /// one's 128-spp image (docs/path-tracer.md, "The default render"): median FLIP 0.0087, worst
-/// 0.0255 (the Cornell box), in 7% less time than 0.5 (0.0103, 0.0267). More samples in some
+/// 0.0255 (the Cornell box), in 7% less time than 0.5 (0.0103, 0.0267); 0.0084 and 0.0240
+/// since the filter's luminance tolerance doubled (docs/denoising.md). More samples in some
 /// pixels made the filtered image worse, not better: the filter trusts a pixel more the more
 /// its samples agree, so pixels that sampled on kept grain their 4-sample neighbours lost
 /// (MultipleScenes' rough metal: 0.0177 at 0.5, 0.0114 at 1.0, with a fifth less time). 2.0

@@ -61,10 +61,17 @@ pub(super) const DEPTH_SIGMA: f32 = 1.0;
 /// so a plane seen face on (zero gradient) is not cut by rounding.
 pub(super) const DEPTH_RELATIVE: f32 = 0.01;
 
-/// Luminance weight exp(-|l_p - l_q| / (σl · standard error)) with σl = 4 (SVGF). A trade:
-/// at 6 the Cornell box at 4 spp came 11% closer to its reference in mean FLIP (0.084 against
-/// 0.094) and DamagedHelmet at 8 spp 6% further (0.0126 against 0.0119), fine detail blurred.
-pub const LUMINANCE_SIGMA: f32 = 4.0;
+/// Luminance weight exp(-|l_p - l_q| / (σl · standard error)) with σl = 8 (SVGF has 4). A
+/// trade, measured with the default render (Sobol samples, about 4 a pixel, noise target 1)
+/// against each image's own converged one: at 4 the standard error of 4 samples is itself so
+/// noisy that clumps of noise stopped the filter and stayed as a mottle on smooth walls. At 8
+/// the bundled Cornell box (1024x768) went from mean FLIP 0.077 to 0.059 against its 256-spp
+/// image, and over the 28 shared models at 640x480 the median from 0.0087 to 0.0084 and the
+/// worst from 0.0255 to 0.0240; where lighting detail the guides do not show matters it blurs
+/// some: DamagedHelmet 0.0161 -> 0.0176, LightsPunctualLamp's hard shadows 0.0142 -> 0.0157.
+/// 16 blurred those further (0.0195, 0.0176) for little more on the walls; growing σl pass by
+/// pass instead (×2 each pass from 6) lost more on the helmet (0.0216).
+pub const LUMINANCE_SIGMA: f32 = 8.0;
 
 /// The least albedo a channel is divided by: black or near-black surfaces (and emissive ones
 /// seen without albedo) would otherwise blow their illumination up without bound. A floor,
