@@ -73,6 +73,12 @@ pub struct GuideSample {
     pub depth: Option<f32>,
     /// On a miss, the radiance of the visible environment behind (zero when none is seen).
     pub background: Vec3,
+    /// How much of the light the punctual lights would bring to that surface arrives past its
+    /// shadow rays: Σ T·E / Σ E over the lights, E the luminance of a light's irradiance there
+    /// (cosine included) and T its shadow ray's transmittance; `None` when no punctual light
+    /// would light it (counted as 1). It shows the denoiser where hard shadows fall, which
+    /// the albedo, normal and depth do not.
+    pub visibility: Option<f32>,
 }
 
 /// Computes the radiance along camera rays.

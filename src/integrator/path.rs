@@ -224,7 +224,19 @@ impl Integrator for PathTracer {
                 to_eye,
                 throughput,
             };
-            self.next_event(&vertex, &mut radiance, sampler, counts);
+            // The first surface's punctual-light visibility, for the denoiser's guide.
+            let mut seen = (0.0f32, 0.0f32);
+            let track = bounces == 0 && guide.is_some() && !self.lights.is_empty();
+            self.next_event(
+                &vertex,
+                &mut radiance,
+                sampler,
+                counts,
+                track.then_some(&mut seen),
+            );
+            if let (true, Some(g)) = (track, guide.as_deref_mut()) {
+                g.visibility = (seen.1 > 0.0).then(|| seen.0 / seen.1);
+            }
             let Some(sample) = continuation else {
                 break;
             };
@@ -350,6 +362,9 @@ impl PathTracer {
     /// traversal of the punctual lights' shadow rays. Seen from below its shading normal, the
     /// BSDF reflects nothing toward the eye ([`Bsdf::eval_pdf`] is zero for every light
     /// direction), so no light is sampled there.
+    ///
+    /// With `visibility`, the punctual lights' unblocked and total irradiance luminance at the
+    /// vertex are added to it ([`super::GuideSample::visibility`]).
     #[inline(always)]
     fn next_event(
         &self,
@@ -357,6 +372,7 @@ impl PathTracer {
         radiance: &mut Vec3,
         sampler: &mut Sampler,
         counts: &mut RayCounts,
+        mut visibility: Option<&mut (f32, f32)>,
     ) {
         let (scene, point) = (vertex.scene, vertex.surface.spawn.point);
         let lit = vertex.surface.normal.dot(vertex.to_eye) > 0.0;
@@ -384,7 +400,13 @@ impl PathTracer {
             let Some(sample) = SceneLight::Punctual(light).sample(scene, point, [0.0; 3]) else {
                 continue;
             };
-            self.light_sample(vertex, &sample, radiance, counts);
+            let transmittance = self.light_sample(vertex, &sample, radiance, counts);
+            if let (Some(seen), Some(t)) = (visibility.as_deref_mut(), transmittance) {
+                let cos = vertex.surface.normal.dot(sample.to_light).max(0.0);
+                let e = crate::color::luminance(sample.arriving(scene)) * cos;
+                seen.0 += e * t;
+                seen.1 += e;
+            }
         }
         if let Some(sample) = area {
             self.light_sample(vertex, &sample, radiance, counts);
@@ -396,7 +418,8 @@ impl PathTracer {
 
     /// Adds to `radiance` what one light sample brings to `vertex` (times its throughput): a
     /// shadow ray first, the BSDF only where light arrives (a blocked sample costs no
-    /// evaluation), weighed against BSDF sampling for lights that it can find too.
+    /// evaluation), weighed against BSDF sampling for lights that it can find too. Returns the
+    /// shadow ray's transmittance, `None` when the light is not on a side it can reach.
     #[inline(always)]
     fn light_sample(
         &self,
@@ -404,7 +427,7 @@ impl PathTracer {
         sample: &LightSample,
         radiance: &mut Vec3,
         counts: &mut RayCounts,
-    ) {
+    ) -> Option<f32> {
         // A punctual light behind a rough thin sheet shines through it (below); any other
         // light must be on the eye's side.
         let through = sample.pdf.is_none() && vertex.bsdf.transmits_thin_rough();
@@ -412,9 +435,7 @@ impl PathTracer {
             None if through => vertex.surface.shadow_ray_through(sample),
             shadow => shadow,
         };
-        let Some(shadow) = shadow else {
-            return;
-        };
+        let shadow = shadow?;
         counts.shadow += 1;
         let transmittance = vertex.scene.shadow_transmittance(&shadow);
         let (to_eye, throughput) = (vertex.to_eye, vertex.throughput);
@@ -442,6 +463,7 @@ impl PathTracer {
                 }
             }
         }
+        Some(transmittance)
     }
 }
 

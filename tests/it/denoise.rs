@@ -462,3 +462,24 @@ mod guides {
         }
     }
 }
+
+/// The default render (the path tracer with its own guides) of a scene with punctual lights
+/// is guided by their visibility too, and its view file says so; OIDN takes albedo and normal
+/// only.
+#[test]
+fn the_default_render_is_guided_by_the_lights_visibility() {
+    #[cfg(feature = "denoise")]
+    let guides = serde_json::json!(["albedo", "normal"]);
+    #[cfg(not(feature = "denoise"))]
+    let guides = serde_json::json!(["albedo", "normal", "depth", "variance", "visibility"]);
+    let dir = scratch("visibility");
+    let (out, view) = (dir.join("out.png"), dir.join("view.json"));
+    // The default render: nothing but the size besides the model and the outputs.
+    let model = cornell();
+    let mut args = vec!["render", &model, "-q", "--width", "48", "--height", "36"];
+    args.extend(["-o", s(&out), "--view-out", s(&view)]);
+    run(&args, true);
+    let view: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&view).expect("written")).expect("JSON");
+    assert_eq!(view["denoise"]["guides"], guides);
+}

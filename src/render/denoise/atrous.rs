@@ -86,6 +86,12 @@ const MIN_ALBEDO: f32 = 0.02;
 /// 0.0122 with 0.1, the Cornell box's unchanged.
 pub const ALBEDO_SIGMA: f32 = 0.03;
 
+/// Visibility weight exp(-|v_p - v_q| / σv) on the punctual lights' visibility guide
+/// ([`super::Guides::visibility`]): a pixel in a hard shadow and one beside it in the light
+/// differ by 1 and weigh e^-(1/σv), so the filter does not smear the edge; pixels of a
+/// penumbra, whose samples saw the light in part, mix with neighbours of about the same share.
+pub const VISIBILITY_SIGMA: f32 = 0.1;
+
 /// At one sample a pixel, the noise is estimated over the (2 · 3 + 1)² = 49 pixels around each
 /// (SVGF's 7x7 window for pixels without history).
 const SPATIAL_RADIUS: isize = 3;
@@ -163,6 +169,8 @@ pub(super) struct Pixel {
     /// Depth change to the next pixel along x and y (the smaller one-sided difference, so a
     /// silhouette beside the pixel does not count).
     pub(super) gradient: (f32, f32),
+    /// Punctual-light visibility guide (1 without one).
+    pub(super) visibility: f32,
 }
 
 /// Denoises `image` in place with the built-in filter. Preconditions (checked by
@@ -249,6 +257,7 @@ fn geometry(image: &Image, guides: &Guides) -> Vec<Pixel> {
                     depth: 0.0,
                     albedo: Vec3::ZERO,
                     gradient: (0.0, 0.0),
+                    visibility: 1.0,
                 };
             }
             let gx = one_sided(i, (x > 0).then(|| i - 1), (x + 1 < width).then_some(i + 1));
@@ -264,6 +273,7 @@ fn geometry(image: &Image, guides: &Guides) -> Vec<Pixel> {
                 depth: guides.depth[i],
                 albedo: guides.albedo[i],
                 gradient: (finite(gx), finite(gy)),
+                visibility: guides.visibility.get(i).copied().unwrap_or(1.0),
             }
         })
         .collect()
@@ -404,7 +414,9 @@ pub(super) fn tap_sum(
             let luminance_term = (centre_luminance - luminances[q]).abs() * luminance_scale;
             let albedo_term =
                 (centre.albedo - neighbour.albedo).abs().max_element() * (1.0 / ALBEDO_SIGMA);
-            let exponent = depth_term + luminance_term + albedo_term;
+            let visibility_term =
+                (centre.visibility - neighbour.visibility).abs() * (1.0 / VISIBILITY_SIGMA);
+            let exponent = depth_term + luminance_term + albedo_term + visibility_term;
             if exponent >= MAX_EXPONENT {
                 continue;
             }
@@ -478,6 +490,7 @@ mod tests {
                 .collect(),
             normal: vec![Vec3::Z; count],
             depth: vec![2.0; count],
+            visibility: Vec::new(),
             samples_per_pixel: 1,
         }
     }
@@ -610,6 +623,34 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// A hard shadow's edge under heavy noise: the luminance weight alone lets the lit side
+    /// bleed into the shadow, the punctual lights' visibility guide (0 in the shadow, 1 in
+    /// the light) keeps the two apart: the columns beside the edge stay within 5% of their
+    /// side's value on average (1.5% when written), where without the guide the shadow's last
+    /// column is off by more than 50% (112%).
+    #[test]
+    fn the_visibility_guide_keeps_a_noisy_shadow_edge() {
+        let truth = |i: usize| Vec3::splat(if i % 64 < 32 { 0.1 } else { 1.0 });
+        let column_error = |image: &Image, x: usize| {
+            let mean = (0..48).map(|y| image.pixels[y * 64 + x].x).sum::<f32>() / 48.0;
+            (mean - truth(x).x).abs() / truth(x).x
+        };
+        let mut guides = plane(64, 48, Vec3::ONE, Vec3::ONE);
+        let mut blind = noisy(64, 48, truth, 0.3);
+        let mut guided = blind.clone();
+        filter(&mut blind, &guides);
+        guides.visibility = (0..64 * 48)
+            .map(|i| if i % 64 < 32 { 0.0 } else { 1.0 })
+            .collect();
+        filter(&mut guided, &guides);
+        for x in [30usize, 31, 32, 33] {
+            let error = column_error(&guided, x);
+            assert!(error < 0.05, "column {x}: {error} off with the guide");
+        }
+        let error = column_error(&blind, 31);
+        assert!(error > 0.5, "column 31: {error} off without the guide");
     }
 
     /// Two planes at a corner (normals 90° apart) do not mix, and neither do uncovered pixels

@@ -14,7 +14,7 @@
 
 use super::atrous::{
     exp_negative, pow_normal, Pixel, ALBEDO_SIGMA, DEPTH_RELATIVE, DEPTH_SIGMA, ITERATIONS, KERNEL,
-    LUMINANCE_SIGMA, MAX_EXPONENT, MIN_LUMINANCE_SIGMA, MIN_NORMAL_WEIGHT,
+    LUMINANCE_SIGMA, MAX_EXPONENT, MIN_LUMINANCE_SIGMA, MIN_NORMAL_WEIGHT, VISIBILITY_SIGMA,
 };
 use glam::Vec3;
 use rayon::prelude::*;
@@ -80,6 +80,7 @@ pub(super) struct GuidePlanes {
     depth: Plane,
     albedo: [Plane; 3],
     gradient: [Plane; 2],
+    visibility: Plane,
 }
 
 impl GuidePlanes {
@@ -102,6 +103,7 @@ impl GuidePlanes {
                 plane(&|p| p.albedo.z),
             ],
             gradient: [plane(&|p| p.gradient.0), plane(&|p| p.gradient.1)],
+            visibility: plane(&|p| p.visibility),
         }
     }
 
@@ -173,6 +175,7 @@ struct Gathered {
     normal: [Lanes; 3],
     depth: Lanes,
     albedo: [Lanes; 3],
+    visibility: Lanes,
     luminance: Lanes,
     illumination: [Lanes; 3],
     variance: Lanes,
@@ -188,6 +191,7 @@ impl Gathered {
             normal: three(&g.normal),
             depth: read(&g.depth),
             albedo: three(&g.albedo),
+            visibility: read(&g.visibility),
             luminance: read(&lit.luminance),
             illumination: three(&lit.illumination),
             variance: read(&lit.variance),
@@ -237,6 +241,7 @@ impl Row<'_> {
             normal,
             depth,
             albedo,
+            visibility,
             luminance,
             illumination: own_illumination,
             variance: own_variance,
@@ -284,6 +289,7 @@ impl Row<'_> {
                     normal: n_normal,
                     depth: n_depth,
                     albedo: n_albedo,
+                    visibility: n_visibility,
                     luminance: n_luminance,
                     illumination: n_illumination,
                     variance: n_variance,
@@ -303,7 +309,9 @@ impl Row<'_> {
                             .abs()
                             .max((albedo[2][l] - n_albedo[2][l]).abs()),
                     ) * (1.0 / ALBEDO_SIGMA);
-                    let exponent = depth_term + luminance_term + albedo_term;
+                    let visibility_term =
+                        (visibility[l] - n_visibility[l]).abs() * (1.0 / VISIBILITY_SIGMA);
+                    let exponent = depth_term + luminance_term + albedo_term + visibility_term;
                     let keep = n_surface[l] != 0.0
                         && normal_weight >= MIN_NORMAL_WEIGHT
                         && exponent < MAX_EXPONENT;
@@ -388,6 +396,12 @@ mod tests {
                         Vec3::ZERO
                     },
                     gradient: (r.next() * 0.1, r.next() * 0.1),
+                    // Lit, shadowed, and a penumbra between.
+                    visibility: match i % 3 {
+                        0 => 1.0,
+                        1 => 0.0,
+                        _ => r.next(),
+                    },
                 }
             })
             .collect();

@@ -64,6 +64,11 @@ pub struct Guides {
     /// Distance along the camera ray to the first surface, in scene units, averaged over the
     /// pixel's guide rays that hit one; 0 where none did.
     pub depth: Vec<f32>,
+    /// How much of the punctual lights' light reaches the first surface unblocked, averaged
+    /// over the pixel's samples ([`crate::integrator::GuideSample::visibility`]): where hard
+    /// shadows fall. Empty when the guides do not have it (they were traced for the
+    /// denoiser, not taken from the render's samples): every pixel then counts as 1.
+    pub visibility: Vec<f32>,
     /// Guide rays per pixel (n x n).
     pub samples_per_pixel: u32,
 }
@@ -128,6 +133,7 @@ pub fn guides(scene: &Prepared, settings: &RenderSettings, region: Region) -> Gu
         albedo: pixels.iter().map(|p| p.0).collect(),
         normal: pixels.iter().map(|p| p.1).collect(),
         depth: pixels.iter().map(|p| p.2).collect(),
+        visibility: Vec::new(),
         samples_per_pixel: grid * grid,
     }
 }
@@ -220,7 +226,8 @@ impl Denoiser {
         }
     }
 
-    /// The images that guide it besides the film, in order.
+    /// The images that always guide it besides the film, in order (the built-in filter also
+    /// takes the punctual lights' visibility when the guides have it: [`Denoised::guides`]).
     pub fn guides(self) -> &'static [&'static str] {
         match self {
             Denoiser::Atrous => &["albedo", "normal", "depth", "variance"],
@@ -239,6 +246,20 @@ pub struct Denoised {
     pub version: String,
     /// Wall time of the filter (for OIDN: device creation, filtering, copies).
     pub time: Duration,
+    /// Whether the punctual lights' visibility guided it ([`Guides::visibility`]: the
+    /// built-in filter, given the path tracer's own guides).
+    pub visibility_guide: bool,
+}
+
+impl Denoised {
+    /// The images that guided it besides the film, in order, as the view file records them.
+    pub fn guides(&self) -> Vec<&'static str> {
+        let mut guides = self.denoiser.guides().to_vec();
+        if self.visibility_guide {
+            guides.push("visibility");
+        }
+        guides
+    }
 }
 
 /// Why denoising failed.
@@ -288,6 +309,7 @@ pub fn denoise(image: &mut Image, guides: &Guides) -> Result<Denoised, DenoiseEr
         || guides.albedo.len() != pixels
         || guides.normal.len() != pixels
         || guides.depth.len() != pixels
+        || !(guides.visibility.is_empty() || guides.visibility.len() == pixels)
     {
         return Err(DenoiseError::GuideSize {
             width: image.width,
@@ -312,6 +334,7 @@ pub fn denoise(image: &mut Image, guides: &Guides) -> Result<Denoised, DenoiseEr
             denoiser: Denoiser::Atrous,
             version: env!("CARGO_PKG_VERSION").to_string(),
             time: start.elapsed(),
+            visibility_guide: !guides.visibility.is_empty(),
         }
     };
     Ok(denoised)
@@ -329,6 +352,7 @@ mod tests {
             albedo: vec![Vec3::ZERO; pixels],
             normal: vec![Vec3::ZERO; pixels],
             depth: vec![0.0; pixels],
+            visibility: Vec::new(),
             samples_per_pixel: 1,
         }
     }

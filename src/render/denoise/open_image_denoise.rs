@@ -54,6 +54,7 @@ pub(super) fn filter(image: &mut Image, guides: &Guides) -> Result<Denoised, Den
         denoiser: Denoiser::Oidn,
         version: library_version,
         time: start.elapsed(),
+        visibility_guide: false,
     })
 }
 

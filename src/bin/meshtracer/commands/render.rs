@@ -638,13 +638,7 @@ fn view_record(args: &RenderArgs, done: &Finished) -> ViewFile {
                 version: d.report.version.clone(),
                 filter: d.report.denoiser.filter().into(),
                 hdr: true,
-                guides: d
-                    .report
-                    .denoiser
-                    .guides()
-                    .iter()
-                    .map(|g| g.to_string())
-                    .collect(),
+                guides: d.report.guides().iter().map(|g| g.to_string()).collect(),
                 guide_samples_per_pixel: d.guide_samples,
                 clean_aux: true,
             });
