@@ -197,7 +197,8 @@ pub struct RenderArgs {
     #[arg(long, value_name = "SECS")]
     pub time_limit: Option<f64>,
     /// Denoise the linear HDR image, guided by the albedo, normals and depth of the first
-    /// surfaces, with either integrator: the built-in edge-avoiding à-trous filter, or Intel
+    /// surfaces (and, in the path tracer, by where its punctual lights' hard shadows fall),
+    /// with either integrator: the built-in edge-avoiding à-trous filter, or Intel
     /// Open Image Denoise's RT filter in builds made with `--features denoise`
     /// (docs/denoising.md); the view file, --stats and the summary say which. Not with
     /// --views, --turntable, --tile or --crop. [default: on for the default render (the path
