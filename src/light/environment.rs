@@ -91,6 +91,11 @@ pub struct Environment {
     /// divide by 2π²·sin θ. Tabulated once by the same expression (two divisions and two
     /// scattered reads a lookup before).
     p_uv: Vec<f32>,
+    /// Whether every row holds one value (the built-in studio, a uniform environment): the
+    /// radiance and the density then depend on the elevation alone, so lookups skip the
+    /// azimuth (an `atan2`) and the rotation, and sampling draws the column uniformly instead
+    /// of searching its table (the same density, to the table's rounding).
+    azimuth_uniform: bool,
     /// What it is, for `VIEW.json`.
     pub source: EnvironmentSource,
 }
@@ -225,10 +230,14 @@ impl Environment {
                 p_uv.push(rows.probability(j) * row.probability(i) * (width * height) as f32);
             }
         }
+        let azimuth_uniform = texels
+            .chunks(width.max(1))
+            .all(|row| row.iter().all(|t| *t == row[0]));
         Environment {
             width,
             height,
             texels,
+            azimuth_uniform,
             rotation: 0.0,
             world_from_map: 0.0f32.sin_cos(),
             map_from_world: (-0.0f32).sin_cos(),
@@ -276,6 +285,24 @@ impl Environment {
         Vec3::new(c * d.x + s * d.z, d.y, -s * d.x + c * d.z)
     }
 
+    /// Map coordinates of world direction `direction` for the lookups: [`uv_of`] in the
+    /// panorama's frame, or where every row is one value, the first column's centre (whose
+    /// bilinear weight is then exactly 1) and the direction's elevation.
+    #[inline]
+    fn lookup_uv(&self, direction: Vec3) -> (f32, f32) {
+        if self.azimuth_uniform {
+            (self.first_column(), elevation_v(direction.y))
+        } else {
+            uv_of(self.to_map(direction))
+        }
+    }
+
+    /// u of the first column's centre.
+    #[inline]
+    fn first_column(&self) -> f32 {
+        0.5 / self.width as f32
+    }
+
     fn texel(&self, u: f32, v: f32) -> (usize, usize) {
         let i = ((u * self.width as f32) as usize).min(self.width - 1);
         let j = ((v * self.height as f32) as usize).min(self.height - 1);
@@ -284,14 +311,14 @@ impl Environment {
 
     /// Radiance arriving from world direction `direction` (unit length), bilinearly filtered.
     pub fn radiance(&self, direction: Vec3) -> Vec3 {
-        let (u, v) = uv_of(self.to_map(direction));
+        let (u, v) = self.lookup_uv(direction);
         self.filtered(u, v) * self.intensity
     }
 
     /// [`Environment::radiance`] and [`Environment::pdf`] of one direction, which map it to
     /// the panorama once (a BSDF-sampled ray that escapes needs both).
     pub fn radiance_and_pdf(&self, direction: Vec3) -> (Vec3, f32) {
-        let (u, v) = uv_of(self.to_map(direction));
+        let (u, v) = self.lookup_uv(direction);
         (self.filtered(u, v) * self.intensity, self.pdf_at(u, v))
     }
 
@@ -330,7 +357,14 @@ impl Environment {
             return None;
         }
         let (j, within_row) = self.rows.sample(u1)?;
-        let (i, within_column) = self.columns[j].sample(u2)?;
+        let (i, within_column) = if self.azimuth_uniform {
+            // Every column of the row is as likely: no search.
+            let x = u2 * self.width as f32;
+            let i = (x as usize).min(self.width - 1);
+            (i, (x - i as f32).clamp(0.0, 1.0 - f32::EPSILON))
+        } else {
+            self.columns[j].sample(u2)?
+        };
         let u = (i as f32 + within_column) / self.width as f32;
         let v = (j as f32 + within_row) / self.height as f32;
         // direction_of(u, v), keeping sin θ for the pdf.
@@ -342,7 +376,16 @@ impl Environment {
         }
         let p_uv = self.p_uv[j * self.width + i];
         let pdf = p_uv / (2.0 * PI * PI * sin_theta);
-        (pdf > 0.0 && pdf.is_finite()).then(|| (self.to_world(local), pdf, MapPoint { u, v }))
+        // Where the rows are uniform, the radiance is looked up where `lookup_uv` would.
+        let at = MapPoint {
+            u: if self.azimuth_uniform {
+                self.first_column()
+            } else {
+                u
+            },
+            v,
+        };
+        (pdf > 0.0 && pdf.is_finite()).then(|| (self.to_world(local), pdf, at))
     }
 
     /// The radiance at a point of the panorama [`Environment::sample_direction`] drew: the
@@ -354,7 +397,7 @@ impl Environment {
 
     /// The pdf per steradian with which [`Environment::sample`] draws `direction`.
     pub fn pdf(&self, direction: Vec3) -> f32 {
-        let (u, v) = uv_of(self.to_map(direction));
+        let (u, v) = self.lookup_uv(direction);
         self.pdf_at(u, v)
     }
 
@@ -417,8 +460,14 @@ fn filtered_luminance(width: usize, height: usize, texels: &[Vec3]) -> Vec<f32> 
 /// Map coordinates of a unit direction in the panorama's frame (module docs).
 fn uv_of(d: Vec3) -> (f32, f32) {
     let u = 0.5 + d.z.atan2(d.x) / TAU;
-    let v = d.y.clamp(-1.0, 1.0).acos() / PI;
-    (u.rem_euclid(1.0), v)
+    (u.rem_euclid(1.0), elevation_v(d.y))
+}
+
+/// v of a direction whose y (up) component is `y`: its polar angle over π (a turn about +Y
+/// leaves it alone).
+#[inline]
+fn elevation_v(y: f32) -> f32 {
+    y.clamp(-1.0, 1.0).acos() / PI
 }
 
 /// The unit direction at map coordinates (u, v), in the panorama's frame.
@@ -510,6 +559,58 @@ mod tests {
             (uniform - importance).abs() < 0.03 * importance,
             "uniform {uniform} vs importance {importance}"
         );
+    }
+
+    /// The built-in studio's rows are uniform, and its shortcuts (no azimuth, no column search)
+    /// give what the general lookups give: the radiance and the pdf of any direction to 1e-5
+    /// relative, turned or not; a sampled direction's pdf and radiance are `pdf()` and
+    /// `radiance()` of it (to 1e-3, but for a rare round trip across a row); and importance
+    /// sampling agrees with uniform sampling on the irradiance of a tilted plane.
+    #[test]
+    fn azimuth_uniform_panoramas_take_the_shortcuts_unchanged() {
+        let studio = Environment::studio().with_transform(40.0, 1.0);
+        assert!(studio.azimuth_uniform);
+        let mut general = studio.clone();
+        general.azimuth_uniform = false;
+        let mut rng = Rng::new(9);
+        let close = |a: f32, b: f32| (a - b).abs() <= 1e-5 * b.abs().max(1e-3);
+        let normal = Vec3::new(0.3, 0.2, 0.9).normalize();
+        let (mut uniform, mut importance) = (0.0f64, 0.0f64);
+        let mut mismatched = 0u32;
+        let count = 200_000u32;
+        for _ in 0..count {
+            let z = 1.0 - 2.0 * rng.next_f32();
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = TAU * rng.next_f32();
+            let d = Vec3::new(r * phi.cos(), z, r * phi.sin());
+            let (l, pdf) = studio.radiance_and_pdf(d);
+            let (l_general, pdf_general) = general.radiance_and_pdf(d);
+            assert!(close(l.x, l_general.x) && close(pdf, pdf_general), "{d}");
+            uniform += f64::from(l.x * normal.dot(d).max(0.0) * 4.0 * PI);
+            if let Some((d, l, pdf)) = studio.sample(rng.next_f32(), rng.next_f32()) {
+                // As in the general case, the round trip direction -> row may lose digits
+                // near the poles (acos) or cross a row's edge: rare, and harmless.
+                mismatched += u32::from((studio.pdf(d) - pdf).abs() > 1e-3 * pdf);
+                mismatched += u32::from((general.radiance(d).x - l.x).abs() > 1e-3 * l.x);
+                importance += f64::from(l.x * normal.dot(d).max(0.0) / pdf);
+            }
+        }
+        assert!(mismatched < count / 1000, "{mismatched} samples disagree");
+        let (uniform, importance) = (uniform / f64::from(count), importance / f64::from(count));
+        assert!(
+            (uniform - importance).abs() < 0.01 * importance,
+            "uniform {uniform} vs importance {importance}"
+        );
+        // A panorama with any column different takes the general path.
+        let mut texels = vec![Vec3::ONE; 8 * 4];
+        texels[9] = Vec3::splat(2.0);
+        let env = Environment::from_texels(
+            8,
+            4,
+            texels,
+            EnvironmentSource::Uniform { radiance: [0.0; 3] },
+        );
+        assert!(!env.azimuth_uniform);
     }
 
     /// Bilinear lookups: a texel's centre gives the texel, half way between two centres their
