@@ -224,19 +224,8 @@ impl Integrator for PathTracer {
                 to_eye,
                 throughput,
             };
-            // The first surface's punctual-light visibility, for the denoiser's guide.
-            let mut seen = (0.0f32, 0.0f32);
-            let track = bounces == 0 && guide.is_some() && !self.lights.is_empty();
-            self.next_event(
-                &vertex,
-                &mut radiance,
-                sampler,
-                counts,
-                track.then_some(&mut seen),
-            );
-            if let (true, Some(g)) = (track, guide.as_deref_mut()) {
-                g.visibility = (seen.1 > 0.0).then(|| seen.0 / seen.1);
-            }
+            let first_guide = guide.as_deref_mut().filter(|_| bounces == 0);
+            self.next_event(&vertex, &mut radiance, sampler, counts, first_guide);
             let Some(sample) = continuation else {
                 break;
             };
@@ -363,8 +352,8 @@ impl PathTracer {
     /// BSDF reflects nothing toward the eye ([`Bsdf::eval_pdf`] is zero for every light
     /// direction), so no light is sampled there.
     ///
-    /// With `visibility`, the punctual lights' unblocked and total irradiance luminance at the
-    /// vertex are added to it ([`super::GuideSample::visibility`]).
+    /// With `guide` (at the camera ray's surface), the punctual lights' visibility there goes
+    /// into it ([`super::GuideSample::visibility`]).
     #[inline(always)]
     fn next_event(
         &self,
@@ -372,8 +361,11 @@ impl PathTracer {
         radiance: &mut Vec3,
         sampler: &mut Sampler,
         counts: &mut RayCounts,
-        mut visibility: Option<&mut (f32, f32)>,
+        guide: Option<&mut super::GuideSample>,
     ) {
+        // The punctual lights' unblocked and total irradiance luminance, for `guide`.
+        let mut seen = (0.0f32, 0.0f32);
+        let track = guide.is_some() && !self.lights.is_empty();
         let (scene, point) = (vertex.scene, vertex.surface.spawn.point);
         let lit = vertex.surface.normal.dot(vertex.to_eye) > 0.0;
         let sample_lights = lit && self.estimator.samples_lights();
@@ -401,12 +393,15 @@ impl PathTracer {
                 continue;
             };
             let transmittance = self.light_sample(vertex, &sample, radiance, counts);
-            if let (Some(seen), Some(t)) = (visibility.as_deref_mut(), transmittance) {
+            if let (true, Some(t)) = (track, transmittance) {
                 let cos = vertex.surface.normal.dot(sample.to_light).max(0.0);
                 let e = crate::color::luminance(sample.arriving(scene)) * cos;
                 seen.0 += e * t;
                 seen.1 += e;
             }
+        }
+        if let (true, Some(g)) = (track, guide) {
+            g.visibility = (seen.1 > 0.0).then(|| seen.0 / seen.1);
         }
         if let Some(sample) = area {
             self.light_sample(vertex, &sample, radiance, counts);
