@@ -79,6 +79,12 @@ pub struct GuideSample {
     /// would light it (counted as 1). It shows the denoiser where hard shadows fall, which
     /// the albedo, normal and depth do not.
     pub visibility: Option<f32>,
+    /// What the camera ray itself sees emitted: the emission (or a `KHR_materials_unlit`
+    /// colour) of the surfaces along its first segment, times their coverage, part of the
+    /// sample's radiance with no Monte Carlo noise of its own. The denoiser takes it out of
+    /// what it smooths and adds it back, so emissive detail (a lit display, a texture of
+    /// lights) stays sharp whatever the albedo guide shows there.
+    pub emission: Vec3,
 }
 
 /// Computes the radiance along camera rays.

@@ -181,15 +181,14 @@ impl Integrator for PathTracer {
                     (g.albedo, g.normal) = (surface.material.base_color, surface.normal);
                 }
             }
-            if surface.source.unlit {
-                // KHR_materials_unlit: the base colour is what the camera (or a path) sees;
-                // it neither reflects nor transmits light.
-                radiance += throughput * surface.material.base_color;
-                break;
+            let emitted = self.emitted(scene, &hit, &surface, direction, bsdf_pdf, throughput);
+            radiance += emitted;
+            if let (None, Some(g)) = (bsdf_pdf, guide.as_deref_mut()) {
+                g.emission += emitted;
             }
-            if surface.emissive != Vec3::ZERO {
-                let weight = self.emission_weight(scene, &hit, &surface, direction, bsdf_pdf);
-                radiance += throughput * surface.emissive * weight;
+            if surface.source.unlit {
+                // KHR_materials_unlit: it neither reflects nor transmits light.
+                break;
             }
             if bounces == 1 {
                 direct = Some(radiance);
@@ -273,6 +272,29 @@ struct Vertex<'a> {
 }
 
 impl PathTracer {
+    /// What `surface` sends back along the path (reached along `direction` at `hit`, with
+    /// `throughput`): a `KHR_materials_unlit` surface's base colour, which is what the camera
+    /// (or a path) sees of it, or the emission, MIS-weighted ([`PathTracer::emission_weight`]).
+    #[inline(always)]
+    fn emitted(
+        &self,
+        scene: &Prepared,
+        hit: &Hit,
+        surface: &Surface,
+        direction: Vec3,
+        bsdf_pdf: Option<f32>,
+        throughput: Vec3,
+    ) -> Vec3 {
+        if surface.source.unlit {
+            return throughput * surface.material.base_color;
+        }
+        if surface.emissive == Vec3::ZERO {
+            return Vec3::ZERO;
+        }
+        let weight = self.emission_weight(scene, hit, surface, direction, bsdf_pdf);
+        throughput * surface.emissive * weight
+    }
+
     /// The MIS weight of emission a path reached along `direction` at `hit`: 1 for a camera
     /// ray (`bsdf_pdf` None: no light sample could have found it), else the estimator's BSDF
     /// weight against the area light's pdf of the same direction.

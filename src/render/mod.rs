@@ -264,6 +264,7 @@ pub fn render_region(
             normal: vec![Vec3::ZERO; pixel_count],
             depth: vec![0.0; pixel_count],
             visibility: vec![1.0; pixel_count],
+            emission: vec![Vec3::ZERO; pixel_count],
             samples_per_pixel: match settings.noise {
                 Some(_) => settings.spp.clamp(1, ADAPTIVE_BATCH),
                 None => settings.spp.max(1),
@@ -297,6 +298,7 @@ pub fn render_region(
                 g.normal[begin..begin + n].copy_from_slice(&t.normal[at..at + n]);
                 g.depth[begin..begin + n].copy_from_slice(&t.depth[at..at + n]);
                 g.visibility[begin..begin + n].copy_from_slice(&t.visibility[at..at + n]);
+                g.emission[begin..begin + n].copy_from_slice(&t.emission[at..at + n]);
             }
             if let Some(a) = aovs.as_mut() {
                 let n = chunk.len();
@@ -456,6 +458,7 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                 normal: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
                 depth: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
                 visibility: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
+                emission: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
                 samples_per_pixel: 0,
             }),
             aovs: Aovs::default(),
@@ -475,6 +478,7 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                 let (mut albedo, mut normal) = (Vec3::ZERO, Vec3::ZERO);
                 let (mut depth, mut depth_hits) = (0.0f32, 0u32);
                 let mut visibility = 0.0f32;
+                let mut emission = Vec3::ZERO;
                 for s in 0..spp {
                     sampler.start_sample(s);
                     // The pixel position is the sample's first two numbers: any prefix of 2^m
@@ -506,6 +510,7 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                             + (guide.background * self.scale).clamp(Vec3::ZERO, Vec3::ONE);
                         normal += guide.normal;
                         visibility += guide.visibility.unwrap_or(1.0);
+                        emission += guide.emission * self.scale;
                         if let Some(t) = guide.depth {
                             depth += t;
                             depth_hits += 1;
@@ -542,6 +547,7 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                     g.albedo.push((albedo / n).clamp(Vec3::ZERO, Vec3::ONE));
                     g.normal.push(normal / n);
                     g.visibility.push(visibility / n);
+                    g.emission.push(emission / n);
                     g.depth.push(if depth_hits > 0 {
                         depth / depth_hits as f32
                     } else {

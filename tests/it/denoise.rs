@@ -438,6 +438,31 @@ mod guides {
         assert!(image.guides.is_none());
     }
 
+    /// The path tracer's emission guide is the part of each pixel its camera rays saw
+    /// emitted: more than nothing where the ceiling's light panel is seen (a few pixels of
+    /// the 40x30 image, and not the walls), and never more than the pixel itself.
+    #[test]
+    fn the_emission_guide_is_what_the_camera_saw_emitted() {
+        use std::sync::atomic::AtomicBool;
+        let (prepared, mut settings) = cornell(16);
+        settings.noise = None;
+        settings.guides = true;
+        let (image, _, _) =
+            meshtracer::render::render(&prepared, &settings, &AtomicBool::new(false), &|_, _| {})
+                .unwrap();
+        let g = image.guides.expect("the path tracer collects guides");
+        assert_eq!(g.emission.len(), 1200);
+        let seen = g.emission.iter().filter(|e| **e != Vec3::ZERO).count();
+        assert!((1..=60).contains(&seen), "{seen} pixels see the light panel");
+        for (i, (e, p)) in g.emission.iter().zip(&image.pixels).enumerate() {
+            let excess = (*e - p.truncate()).max_element();
+            assert!(
+                e.min_element() >= 0.0 && excess <= 1e-5 * p.max_element().max(1.0),
+                "pixel {i}: {e} emitted of {p}"
+            );
+        }
+    }
+
     #[test]
     fn guides_of_a_region_are_the_same_pixels() {
         let (prepared, settings) = cornell(4);
@@ -464,14 +489,21 @@ mod guides {
 }
 
 /// The default render (the path tracer with its own guides) of a scene with punctual lights
-/// is guided by their visibility too, and its view file says so; OIDN takes albedo and normal
-/// only.
+/// is guided by their visibility too and keeps what the camera saw emitted out of the
+/// smoothing, and its view file says so; OIDN takes albedo and normal only.
 #[test]
-fn the_default_render_is_guided_by_the_lights_visibility() {
+fn the_default_render_is_guided_by_the_lights_visibility_and_keeps_emission_apart() {
     #[cfg(feature = "denoise")]
     let guides = serde_json::json!(["albedo", "normal"]);
     #[cfg(not(feature = "denoise"))]
-    let guides = serde_json::json!(["albedo", "normal", "depth", "variance", "visibility"]);
+    let guides = serde_json::json!([
+        "albedo",
+        "normal",
+        "depth",
+        "variance",
+        "visibility",
+        "emission"
+    ]);
     let dir = scratch("visibility");
     let (out, view) = (dir.join("out.png"), dir.join("view.json"));
     // The default render: nothing but the size besides the model and the outputs.

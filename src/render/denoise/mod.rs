@@ -69,6 +69,11 @@ pub struct Guides {
     /// shadows fall. Empty when the guides do not have it (they were traced for the
     /// denoiser, not taken from the render's samples): every pixel then counts as 1.
     pub visibility: Vec<f32>,
+    /// The part of each pixel the camera rays saw emitted at their first surfaces, averaged
+    /// over the pixel's samples as the pixel is ([`crate::integrator::GuideSample::emission`]):
+    /// the built-in filter smooths the rest only. Empty when the guides do not have it (traced
+    /// for the denoiser): then nothing is set apart.
+    pub emission: Vec<Vec3>,
     /// Guide rays per pixel (n x n).
     pub samples_per_pixel: u32,
 }
@@ -134,6 +139,7 @@ pub fn guides(scene: &Prepared, settings: &RenderSettings, region: Region) -> Gu
         normal: pixels.iter().map(|p| p.1).collect(),
         depth: pixels.iter().map(|p| p.2).collect(),
         visibility: Vec::new(),
+        emission: Vec::new(),
         samples_per_pixel: grid * grid,
     }
 }
@@ -249,6 +255,9 @@ pub struct Denoised {
     /// Whether the punctual lights' visibility guided it ([`Guides::visibility`]: the
     /// built-in filter, given the path tracer's own guides).
     pub visibility_guide: bool,
+    /// Whether what the camera saw emitted was kept out of the smoothing
+    /// ([`Guides::emission`]: the built-in filter, given the path tracer's own guides).
+    pub emission_apart: bool,
 }
 
 impl Denoised {
@@ -257,6 +266,9 @@ impl Denoised {
         let mut guides = self.denoiser.guides().to_vec();
         if self.visibility_guide {
             guides.push("visibility");
+        }
+        if self.emission_apart {
+            guides.push("emission");
         }
         guides
     }
@@ -310,6 +322,7 @@ pub fn denoise(image: &mut Image, guides: &Guides) -> Result<Denoised, DenoiseEr
         || guides.normal.len() != pixels
         || guides.depth.len() != pixels
         || !(guides.visibility.is_empty() || guides.visibility.len() == pixels)
+        || !(guides.emission.is_empty() || guides.emission.len() == pixels)
     {
         return Err(DenoiseError::GuideSize {
             width: image.width,
@@ -335,6 +348,7 @@ pub fn denoise(image: &mut Image, guides: &Guides) -> Result<Denoised, DenoiseEr
             version: env!("CARGO_PKG_VERSION").to_string(),
             time: start.elapsed(),
             visibility_guide: !guides.visibility.is_empty(),
+            emission_apart: !guides.emission.is_empty(),
         }
     };
     Ok(denoised)
@@ -353,6 +367,7 @@ mod tests {
             normal: vec![Vec3::ZERO; pixels],
             depth: vec![0.0; pixels],
             visibility: Vec::new(),
+            emission: Vec::new(),
             samples_per_pixel: 1,
         }
     }

@@ -55,6 +55,7 @@ pub(super) fn filter(image: &mut Image, guides: &Guides) -> Result<Denoised, Den
         version: library_version,
         time: start.elapsed(),
         visibility_guide: false,
+        emission_apart: false,
     })
 }
 
