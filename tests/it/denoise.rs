@@ -453,7 +453,10 @@ mod guides {
         let g = image.guides.expect("the path tracer collects guides");
         assert_eq!(g.emission.len(), 1200);
         let seen = g.emission.iter().filter(|e| **e != Vec3::ZERO).count();
-        assert!((1..=60).contains(&seen), "{seen} pixels see the light panel");
+        assert!(
+            (1..=60).contains(&seen),
+            "{seen} pixels see the light panel"
+        );
         for (i, (e, p)) in g.emission.iter().zip(&image.pixels).enumerate() {
             let excess = (*e - p.truncate()).max_element();
             assert!(
