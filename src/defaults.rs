@@ -34,9 +34,10 @@ pub const DEFAULT_PATH_SPP: u32 = 32;
 pub const DEFAULT_NOISE: f32 = 0.1;
 
 /// The default render's noise target when it is denoised (as it is unless `--no-denoise`,
-/// [`crate::setup::denoises_by_default`]): nearly every pixel stops at its first 4 samples
-/// and the built-in filter removes the grain they leave; only pixels whose error is still
-/// larger than their value sample on. Measured on every shared model at 640x480 against each
+/// [`crate::setup::denoises_by_default`]): nearly every pixel stops at its first samples (4
+/// when this was measured, 2 since: [`crate::render::DENOISED_BATCH`]) and the built-in
+/// filter removes the grain they leave; only pixels whose error is still larger than their
+/// value sample on. Measured on every shared model at 640x480 against each
 /// one's 128-spp image (docs/path-tracer.md, "The default render"): median FLIP 0.0087, worst
 /// 0.0255 (the Cornell box), in 7% less time than 0.5 (0.0103, 0.0267); 0.0084 and 0.0240
 /// since the filter's luminance tolerance doubled (docs/denoising.md). More samples in some
@@ -44,7 +45,8 @@ pub const DEFAULT_NOISE: f32 = 0.1;
 /// its samples agree, so pixels that sampled on kept grain their 4-sample neighbours lost
 /// (MultipleScenes' rough metal: 0.0177 at 0.5, 0.0114 at 1.0, with a fifth less time). 2.0
 /// gave 1.0's images; 0.25 took twice 0.5's time for the same FLIP. The shared models average
-/// 4.0 samples a pixel at 1.0: a pixel samples on only while its error exceeds its value.
+/// 4.0 samples a pixel at 1.0 (2.0 since the first batch is 2): a pixel samples on only while
+/// its error exceeds its value.
 pub const DEFAULT_DENOISED_NOISE: f32 = 1.0;
 
 /// Image width when none is given.

@@ -20,6 +20,10 @@ pub struct Image {
     /// The denoiser's guides averaged over each pixel's own samples, when the render was asked
     /// for them ([`crate::render::RenderSettings::guides`]) and its integrator gives them.
     pub guides: Option<crate::render::denoise::Guides>,
+    /// The fewest samples a pixel took (1 when not known): the number each `variance` was at
+    /// least estimated from, which tells the built-in denoiser how far to trust it
+    /// ([`crate::render::denoise::atrous::luminance_sigma`]).
+    pub samples: u32,
 }
 
 impl Image {
@@ -32,6 +36,7 @@ impl Image {
             pixels: vec![Vec4::ZERO; count],
             variance: vec![0.0; count],
             guides: None,
+            samples: 1,
         }
     }
 

@@ -185,7 +185,8 @@ pub struct RenderArgs {
     #[arg(long = "spp", value_name = "N")]
     pub spp_given: Option<u32>,
     /// Adaptive sampling: each pixel stops once the standard error of its luminance is at most
-    /// this fraction of it (of 0.05 in dark pixels), checked every 4 samples; --spp is then
+    /// this fraction of it (of 0.05 in dark pixels), checked every 4 samples (every 2 when
+    /// the image is denoised, as the default render is); --spp is then
     /// the cap (e.g. --noise 0.02 --spp 1024). Read it
     /// through [`RenderArgs::noise`].
     #[arg(long = "noise", value_name = "FRACTION", value_parser = parse_noise)]

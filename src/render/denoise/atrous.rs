@@ -14,7 +14,8 @@
 //!    (cosine to the power [`NORMAL_POWER`]), depth (relative to the depth gradient, so
 //!    slanted planes pass and silhouettes stop), albedo ([`ALBEDO_SIGMA`]), and illumination
 //!    luminance (relative to the
-//!    centre's noise: [`LUMINANCE_SIGMA`] standard errors, from the pixel loop's sample
+//!    centre's noise: [`LUMINANCE_SIGMA`] standard errors, more where the pixels took fewer than
+//!    4 samples ([`luminance_sigma`]), from the pixel loop's sample
 //!    variance, itself blurred 3x3 and carried through the passes as the filtered value's
 //!    variance). Where the noise is low the filter keeps detail; where it is high it averages.
 //! 3. **Remodulate** by the albedo, and add the emission back.
@@ -63,17 +64,45 @@ pub(super) const DEPTH_SIGMA: f32 = 1.0;
 /// so a plane seen face on (zero gradient) is not cut by rounding.
 pub(super) const DEPTH_RELATIVE: f32 = 0.01;
 
-/// Luminance weight exp(-|l_p - l_q| / (σl · standard error)) with σl = 8 (SVGF has 4). A
+/// Luminance weight exp(-|l_p - l_q| / (σl · standard error)) with σl = 8 (SVGF has 4) where
+/// each pixel's error was estimated from at least 4 samples ([`luminance_sigma`] for fewer). A
 /// trade, measured with the default render (Sobol samples, about 4 a pixel, noise target 1)
 /// against each image's own converged one: at 4 the standard error of 4 samples is itself so
 /// noisy that clumps of noise stopped the filter and stayed as a mottle on smooth walls. At 8
 /// the bundled Cornell box (1024x768) went from mean FLIP 0.077 to 0.059 against its 256-spp
 /// image, and over the 28 shared models at 640x480 the median from 0.0087 to 0.0084 and the
 /// worst from 0.0255 to 0.0240; where lighting detail the guides do not show matters it blurs
-/// some: DamagedHelmet 0.0161 -> 0.0176, LightsPunctualLamp's hard shadows 0.0142 -> 0.0157.
-/// 16 blurred those further (0.0195, 0.0176) for little more on the walls; growing σl pass by
-/// pass instead (×2 each pass from 6) lost more on the helmet (0.0216).
+/// some: LightsPunctualLamp's hard shadows 0.0142 -> 0.0157. 16 blurred those further (0.0176)
+/// for little more on the walls; growing σl pass by pass instead (×2 each pass from 6) lost
+/// more on DamagedHelmet (0.0216 against 0.0176).
 pub const LUMINANCE_SIGMA: f32 = 8.0;
+
+/// σl for an image whose pixels took at least `samples` samples: [`LUMINANCE_SIGMA`] from 4
+/// up, widened as 3 / (n - 1) below it, to 24 at 2 samples. The standard error a pixel
+/// estimates from n samples has n - 1 degrees of freedom: from 2 samples it falls below a
+/// seventh of the true one a tenth of the time (from 4, below 0.44 of it), and the clumps of
+/// such pixels, which believe themselves exact, survive a narrow tolerance. Measured with the
+/// default render at 2 samples a pixel ([`crate::render::DENOISED_BATCH`]) against each
+/// image's converged one: the bundled box (1024x768) at mean FLIP 0.079 with σl 8, 0.062 with
+/// 16, **0.057 with 24**, 0.055 with 32; the 28 shared models at 640x480 hardly moved (median
+/// 0.0114-0.0113, worst 0.0295-0.0294), while lighting detail the guides do not show blurs a
+/// little more the wider σl is (LightsPunctualLamp 0.0195, 0.0207, 0.0216). At 4 samples, 24
+/// instead of 8 blurred more than it smoothed (a 160x120 box at 4 spp, mean FLIP 0.107 ->
+/// 0.120). One sample a pixel (no spread of its own: the spatial estimate over 49 pixels)
+/// keeps [`LUMINANCE_SIGMA`].
+pub fn luminance_sigma(samples: u32) -> f32 {
+    match samples {
+        2 | 3 => LUMINANCE_SIGMA * 3.0 / (samples - 1) as f32,
+        _ => LUMINANCE_SIGMA,
+    }
+}
+
+/// 1 / (σl · standard error) of a pixel whose variance, blurred, is `blurred_variance`: the
+/// luminance weight's scale, computed once per pixel and pass for both the eight-lane pass and
+/// the scalar reference.
+pub(super) fn luminance_scale(blurred_variance: f32, sigma: f32) -> f32 {
+    1.0 / (sigma * blurred_variance.max(0.0).sqrt()).max(MIN_LUMINANCE_SIGMA)
+}
 
 /// The least albedo a channel is divided by: black or near-black surfaces (and emissive ones
 /// seen without albedo) would otherwise blow their illumination up without bound. A floor,
@@ -210,9 +239,13 @@ pub fn filter(image: &mut Image, guides: &Guides) {
         variance = spatial_variance(&illumination, &pixels, width, height);
     }
     let planes = super::lanes::GuidePlanes::new(&pixels, width, height);
+    let sigma = luminance_sigma(image.samples);
     for pass in 0..ITERATIONS {
         let step = 1usize << pass;
-        let blurred = blur_variance(&variance, &pixels, width, height);
+        let scales: Vec<f32> = blur_variance(&variance, &pixels, width, height)
+            .into_par_iter()
+            .map(|b| luminance_scale(b, sigma))
+            .collect();
         let luminances: Vec<f32> = illumination.par_iter().map(|c| luminance(*c)).collect();
         (illumination, variance) = super::lanes::pass(
             &planes,
@@ -220,7 +253,7 @@ pub fn filter(image: &mut Image, guides: &Guides) {
             &illumination,
             &luminances,
             &variance,
-            &blurred,
+            &scales,
         );
     }
     for (i, pixel) in image.pixels.iter_mut().enumerate() {
@@ -370,7 +403,7 @@ pub(super) fn tap_sum(
     pixels: &[Pixel],
     (illumination, luminances): (&[Vec3], &[f32]),
     variance: &[f32],
-    blurred_variance: f32,
+    luminance_scale: f32,
 ) -> (Vec3, f32) {
     let i = y * width + x;
     let centre = pixels[i];
@@ -378,8 +411,6 @@ pub(super) fn tap_sum(
         return (illumination[i], variance[i]);
     }
     let centre_luminance = luminances[i];
-    let luminance_scale =
-        1.0 / (LUMINANCE_SIGMA * blurred_variance.max(0.0).sqrt()).max(MIN_LUMINANCE_SIGMA);
     let depth_tolerance = DEPTH_RELATIVE * centre.depth;
     // 1 / the depth change expected at tap offset (|tx|, |ty|): the centre's plane, plus the
     // tolerance. Nine reciprocals instead of 25 divisions.
@@ -610,23 +641,36 @@ mod tests {
         }
     }
 
-    /// A shadow edge (illumination, not albedo: one albedo, two light levels) survives where
-    /// the noise is small against it: the pixels beside it stay within 10% of their side.
+    /// A shadow edge (illumination, not albedo: one albedo, two light levels of 0.1 and 1.0,
+    /// noise of 5%) survives where the noise is small against it. From errors of 4 samples a
+    /// pixel (σl 8) every pixel stays within 10% of its side. From 2 (σl 24) every pixel two or
+    /// more columns from the edge stays within 5% of its side (3% when written), and the two
+    /// columns beside it move less than a fifth of the step toward each other (each pixel;
+    /// 12% when written). That one pixel is the wider σl's price: at 24 standard errors the
+    /// lit side's tolerance (1.2) is above the step (0.9), and the dark column's variance,
+    /// blurred 3x3, takes the lit one's.
     #[test]
     fn a_lighting_edge_with_little_noise_stays() {
         let guides = plane(64, 48, Vec3::ONE, Vec3::ONE);
         let truth = |i: usize| Vec3::splat(if i % 64 < 32 { 0.1 } else { 1.0 });
-        let mut image = noisy(64, 48, truth, 0.05);
-        filter(&mut image, &guides);
-        for y in 0..48 {
-            for x in [31usize, 32] {
-                let i = y * 64 + x;
-                let got = image.pixels[i].x;
-                assert!(
-                    (got - truth(i).x).abs() < 0.1 * truth(i).x,
-                    "pixel ({x}, {y}): {got} for {}",
-                    truth(i).x
-                );
+        for samples in [4, 2] {
+            let mut image = noisy(64, 48, truth, 0.05);
+            image.samples = samples;
+            filter(&mut image, &guides);
+            for y in 0..48 {
+                for x in 0..64usize {
+                    let i = y * 64 + x;
+                    let (got, want) = (image.pixels[i].x, truth(i).x);
+                    let tolerance = match (samples, x) {
+                        (2, 31 | 32) => 0.2 * 0.9,
+                        (2, _) => 0.05 * want,
+                        _ => 0.1 * want,
+                    };
+                    assert!(
+                        (got - want).abs() < tolerance,
+                        "{samples} samples, pixel ({x}, {y}): {got} for {want}"
+                    );
+                }
             }
         }
     }
@@ -666,7 +710,7 @@ mod tests {
     /// than half of that stays (0.165).
     #[test]
     fn emission_set_apart_keeps_its_detail() {
-        let glow = |i: usize| Vec3::splat(if i % 64 % 4 == 0 { 0.5 } else { 0.0 });
+        let glow = |i: usize| Vec3::splat(if (i % 64).is_multiple_of(4) { 0.5 } else { 0.0 });
         let mut image = noisy(64, 48, |_| Vec3::splat(0.5), 0.3);
         for (i, p) in image.pixels.iter_mut().enumerate() {
             *p += glow(i).extend(0.0);
@@ -689,8 +733,14 @@ mod tests {
             sum / count as f32
         };
         let (apart, blind) = (contrast(&image), contrast(&blind));
-        assert!((apart - 0.5).abs() < 0.02, "lines {apart} above the surface");
-        assert!(blind < 0.25, "lines {blind} above the surface without the emission apart");
+        assert!(
+            (apart - 0.5).abs() < 0.02,
+            "lines {apart} above the surface"
+        );
+        assert!(
+            blind < 0.25,
+            "lines {blind} above the surface without the emission apart"
+        );
     }
 
     /// Two planes at a corner (normals 90° apart) do not mix, and neither do uncovered pixels

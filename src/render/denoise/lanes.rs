@@ -14,7 +14,7 @@
 
 use super::atrous::{
     exp_negative, pow_normal, Pixel, ALBEDO_SIGMA, DEPTH_RELATIVE, DEPTH_SIGMA, ITERATIONS, KERNEL,
-    LUMINANCE_SIGMA, MAX_EXPONENT, MIN_LUMINANCE_SIGMA, MIN_NORMAL_WEIGHT, VISIBILITY_SIGMA,
+    MAX_EXPONENT, MIN_NORMAL_WEIGHT, VISIBILITY_SIGMA,
 };
 use glam::Vec3;
 use rayon::prelude::*;
@@ -120,15 +120,15 @@ struct Lit {
 }
 
 /// One filter pass with taps `step` apart: the new illumination and variance of every pixel,
-/// as [`super::atrous`]'s scalar `tap_sum` computes them. `blurred` is the blurred variance
-/// that scales the luminance weights.
+/// as [`super::atrous`]'s scalar `tap_sum` computes them. `luminance_scale` is each pixel's
+/// 1 / (σl · standard error) ([`super::atrous::luminance_scale`]), the luminance weights' scale.
 pub(super) fn pass(
     guides: &GuidePlanes,
     step: usize,
     illumination: &[Vec3],
     luminances: &[f32],
     variance: &[f32],
-    blurred: &[f32],
+    luminance_scale: &[f32],
 ) -> (Vec<Vec3>, Vec<f32>) {
     let (width, height) = (guides.width, guides.height);
     let lit = Lit {
@@ -153,7 +153,7 @@ pub(super) fn pass(
                 step,
                 guides,
                 lit: &lit,
-                blurred: &blurred[y * width..(y + 1) * width],
+                luminance_scale: &luminance_scale[y * width..(y + 1) * width],
             };
             #[cfg(target_arch = "x86_64")]
             if v3 {
@@ -204,8 +204,8 @@ struct Row<'a> {
     step: usize,
     guides: &'a GuidePlanes,
     lit: &'a Lit,
-    /// The row's blurred variance.
-    blurred: &'a [f32],
+    /// The row's luminance scales.
+    luminance_scale: &'a [f32],
 }
 
 impl Row<'_> {
@@ -252,15 +252,12 @@ impl Row<'_> {
             // The background, which no pass changes.
             return (own_illumination, own_variance);
         }
-        let mut blurred = [0.0f32; LANES];
-        for (l, b) in blurred.iter_mut().enumerate() {
-            *b = self.blurred.get(x0 + l).copied().unwrap_or(0.0);
-        }
         let mut luminance_scale = [0.0f32; LANES];
+        for (l, scale) in luminance_scale.iter_mut().enumerate() {
+            *scale = self.luminance_scale.get(x0 + l).copied().unwrap_or(0.0);
+        }
         let mut depth_scale = [[[0.0f32; LANES]; 3]; 3];
         for l in 0..LANES {
-            luminance_scale[l] =
-                1.0 / (LUMINANCE_SIGMA * blurred[l].max(0.0).sqrt()).max(MIN_LUMINANCE_SIGMA);
             let tolerance = DEPTH_RELATIVE * depth[l];
             for (ay, row) in depth_scale.iter_mut().enumerate() {
                 for (ax, scale) in row.iter_mut().enumerate() {
@@ -350,7 +347,7 @@ impl Row<'_> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::atrous::tap_sum;
+    use super::super::atrous::{luminance_scale, tap_sum, LUMINANCE_SIGMA};
     use super::*;
 
     /// A little generator of numbers in [0, 1) (64-bit LCG, top bits).
@@ -421,7 +418,10 @@ mod tests {
                 }
             })
             .collect();
-        let blurred: Vec<f32> = variance.iter().map(|v| v * 0.9).collect();
+        let scales: Vec<f32> = variance
+            .iter()
+            .map(|v| luminance_scale(v * 0.9, LUMINANCE_SIGMA))
+            .collect();
         let planes = GuidePlanes::new(&pixels, width, height);
         let mut filtered = 0;
         for pass_index in 0..ITERATIONS {
@@ -432,7 +432,7 @@ mod tests {
                 &illumination,
                 &luminances,
                 &variance,
-                &blurred,
+                &scales,
             );
             for y in 0..height {
                 for x in 0..width {
@@ -444,7 +444,7 @@ mod tests {
                         &pixels,
                         (&illumination, &luminances),
                         &variance,
-                        blurred[i],
+                        scales[i],
                     );
                     assert_eq!(
                         lanes[i].to_array().map(f32::to_bits),

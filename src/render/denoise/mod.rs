@@ -12,7 +12,7 @@
 //!
 //! The guides ([`guides`]) are computed here from the prepared scene: each pixel averages an
 //! n x n grid of camera rays (n = ⌊√spp⌋, at most [`MAX_GUIDE_GRID`]; with adaptive sampling
-//! spp is the fewest samples a pixel takes, [`crate::render::ADAPTIVE_BATCH`]), so they are
+//! spp is the fewest samples a pixel takes, [`crate::render::RenderSettings::adaptive_batch`]), so they are
 //! anti-aliased like the beauty and free of Monte Carlo noise. That is what OIDN's `cleanAux`
 //! asks for ("the auxiliary images are noise-free"), so the filter trusts them fully instead of
 //! denoising them too. Following the OIDN documentation: albedo is the surface's base colour
@@ -82,11 +82,11 @@ pub struct Guides {
 /// matching what [`crate::render::render_region`] renders for the same arguments. Runs on the
 /// current rayon pool.
 pub fn guides(scene: &Prepared, settings: &RenderSettings, region: Region) -> Guides {
-    // Adaptive sampling takes from ADAPTIVE_BATCH samples a pixel up to `spp`: the guides follow
-    // the fewest (2 x 2), not the cap, which cost four times the rays (at the default cap of
+    // Adaptive sampling takes from its first batch of samples a pixel up to `spp`: the guides
+    // follow the fewest, not the cap, which cost many times the rays (at the default cap of
     // 32, 16 guide rays a pixel took longer than the 4-sample render they guided).
     let spp = match settings.noise {
-        Some(_) => settings.spp.min(crate::render::ADAPTIVE_BATCH),
+        Some(_) => settings.spp.min(settings.adaptive_batch()),
         None => settings.spp,
     };
     let grid = ((spp.max(1) as f32).sqrt().floor() as u32).clamp(1, MAX_GUIDE_GRID);
