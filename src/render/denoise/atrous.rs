@@ -275,14 +275,14 @@ fn geometry(image: &Image, guides: &Guides) -> Vec<Pixel> {
     let surface = |i: usize| {
         image.pixels[i].w > 0.0 && guides.normal[i] != Vec3::ZERO && guides.depth[i] > 0.0
     };
-    // The smaller one-sided depth difference at `i` to its neighbours `before` and `after`.
+    // The smaller one-sided depth difference at `i` to its neighbours `before` and `after`
+    // (infinite when neither is on a surface).
     let one_sided = |i: usize, before: Option<usize>, after: Option<usize>| {
-        [before, after]
-            .into_iter()
-            .flatten()
-            .filter(|&j| surface(j))
-            .map(|j| (guides.depth[j] - guides.depth[i]).abs())
-            .fold(f32::INFINITY, f32::min)
+        let side = |j: Option<usize>| match j {
+            Some(j) if surface(j) => (guides.depth[j] - guides.depth[i]).abs(),
+            _ => f32::INFINITY,
+        };
+        side(before).min(side(after))
     };
     (0..width * height)
         .into_par_iter()
