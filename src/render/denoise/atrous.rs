@@ -50,7 +50,7 @@ pub(super) const KERNEL: [f32; 3] = [3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0];
 
 /// The 3x3 Gaussian that blurs the variance before it scales the luminance weight (SVGF):
 /// weights by distance 0 and 1 along each axis.
-const VARIANCE_BLUR: [f32; 2] = [1.0 / 2.0, 1.0 / 4.0];
+pub(super) const VARIANCE_BLUR: [f32; 2] = [1.0 / 2.0, 1.0 / 4.0];
 
 /// Exponent of the normal weight max(0, n_p·n_q)^128 (SVGF's σn): 10° apart weigh 0.14,
 /// 20° apart 4e-4, so walls meeting at a corner do not mix.
@@ -220,7 +220,7 @@ pub fn filter(image: &mut Image, guides: &Guides) {
     let pixels = geometry(image, guides);
     // What the camera saw emitted: set apart, added back unfiltered.
     let emission = |i: usize| guides.emission.get(i).copied().map_or(Vec3::ZERO, sanitize);
-    let mut illumination: Vec<Vec3> = image
+    let illumination: Vec<Vec3> = image
         .pixels
         .iter()
         .zip(&divisor)
@@ -240,25 +240,19 @@ pub fn filter(image: &mut Image, guides: &Guides) {
     }
     let planes = super::lanes::GuidePlanes::new(&pixels, width, height);
     let sigma = luminance_sigma(image.samples);
+    // Two sets of planes, read and written in turn: the passes allocate nothing.
+    let mut lit = super::lanes::Lit::new(width, height, &illumination, &variance);
+    let mut next = super::lanes::Lit::new(width, height, &illumination, &variance);
+    let mut scales = vec![0.0f32; width * height];
     for pass in 0..ITERATIONS {
         let step = 1usize << pass;
-        let scales: Vec<f32> = blur_variance(&variance, &pixels, width, height)
-            .into_par_iter()
-            .map(|b| luminance_scale(b, sigma))
-            .collect();
-        let luminances: Vec<f32> = illumination.par_iter().map(|c| luminance(*c)).collect();
-        (illumination, variance) = super::lanes::pass(
-            &planes,
-            step,
-            &illumination,
-            &luminances,
-            &variance,
-            &scales,
-        );
+        super::lanes::luminance_scales(&planes, &lit, sigma, &mut scales);
+        super::lanes::pass(&planes, step, &lit, &scales, &mut next);
+        std::mem::swap(&mut lit, &mut next);
     }
     for (i, pixel) in image.pixels.iter_mut().enumerate() {
         if pixels[i].surface {
-            let rgb = (illumination[i] * divisor[i]).max(Vec3::ZERO) + emission(i);
+            let rgb = (lit.illumination(width, i) * divisor[i]).max(Vec3::ZERO) + emission(i);
             *pixel = rgb.extend(pixel.w);
         }
     }
@@ -313,37 +307,6 @@ fn geometry(image: &Image, guides: &Guides) -> Vec<Pixel> {
                 gradient: (finite(gx), finite(gy)),
                 visibility: guides.visibility.get(i).copied().unwrap_or(1.0),
             }
-        })
-        .collect()
-}
-
-/// The variance blurred by [`VARIANCE_BLUR`] over each surface pixel's surface neighbours: a
-/// few samples' variance is itself noisy, and one pixel's lucky zero must not freeze it.
-fn blur_variance(variance: &[f32], pixels: &[Pixel], width: usize, height: usize) -> Vec<f32> {
-    (0..width * height)
-        .into_par_iter()
-        .map(|i| {
-            if !pixels[i].surface {
-                return variance[i];
-            }
-            let (x, y) = ((i % width) as isize, (i / width) as isize);
-            let (mut sum, mut weights) = (0.0f32, 0.0f32);
-            for dy in -1isize..=1 {
-                for dx in -1isize..=1 {
-                    let (qx, qy) = (x + dx, y + dy);
-                    if qx < 0 || qy < 0 || qx >= width as isize || qy >= height as isize {
-                        continue;
-                    }
-                    let q = qy as usize * width + qx as usize;
-                    if !pixels[q].surface {
-                        continue;
-                    }
-                    let w = VARIANCE_BLUR[dx.unsigned_abs()] * VARIANCE_BLUR[dy.unsigned_abs()];
-                    sum += w * variance[q];
-                    weights += w;
-                }
-            }
-            sum / weights
         })
         .collect()
 }
