@@ -242,7 +242,7 @@ pub fn filter(image: &mut Image, guides: &Guides) {
     let sigma = luminance_sigma(image.samples);
     // Two sets of planes, read and written in turn: the passes allocate nothing.
     let mut lit = super::lanes::Lit::new(width, height, &illumination, &variance);
-    let mut next = super::lanes::Lit::new(width, height, &illumination, &variance);
+    let mut next = super::lanes::Lit::zeros(width, height);
     let mut scales = vec![0.0f32; width * height];
     for pass in 0..ITERATIONS {
         let step = 1usize << pass;

@@ -137,6 +137,18 @@ impl Lit {
         }
     }
 
+    /// Planes of zeros, `width` x `height`: what a pass writes into.
+    pub(super) fn zeros(width: usize, height: usize) -> Lit {
+        let zeros = || Plane {
+            values: vec![0.0; (width + PAD_LEFT + PAD_RIGHT) * height],
+        };
+        Lit {
+            illumination: [zeros(), zeros(), zeros()],
+            luminance: zeros(),
+            variance: zeros(),
+        }
+    }
+
     /// Where pixel `i` of a `width`-wide image is in the planes.
     fn at(width: usize, i: usize) -> usize {
         (i / width) * (width + PAD_LEFT + PAD_RIGHT) + PAD_LEFT + i % width
@@ -517,7 +529,7 @@ mod tests {
             .collect();
         let planes = GuidePlanes::new(&pixels, width, height);
         let lit = Lit::new(width, height, &illumination, &variance);
-        let mut next = Lit::new(width, height, &illumination, &variance);
+        let mut next = Lit::zeros(width, height);
         let mut filtered = 0;
         for pass_index in 0..ITERATIONS {
             let step = 1usize << pass_index;
