@@ -274,7 +274,9 @@ struct Vertex<'a> {
 impl PathTracer {
     /// What `surface` sends back along the path (reached along `direction` at `hit`, with
     /// `throughput`): a `KHR_materials_unlit` surface's base colour, which is what the camera
-    /// (or a path) sees of it, or the emission, MIS-weighted ([`PathTracer::emission_weight`]).
+    /// (or a path) sees of it, or the emission, MIS-weighted: in full for a camera ray
+    /// (`bsdf_pdf` None: no light sample could have found it), else by the estimator's BSDF
+    /// weight against the area light's pdf of the same direction.
     #[inline(always)]
     fn emitted(
         &self,
@@ -291,23 +293,7 @@ impl PathTracer {
         if surface.emissive == Vec3::ZERO {
             return Vec3::ZERO;
         }
-        let weight = self.emission_weight(scene, hit, surface, direction, bsdf_pdf);
-        throughput * surface.emissive * weight
-    }
-
-    /// The MIS weight of emission a path reached along `direction` at `hit`: 1 for a camera
-    /// ray (`bsdf_pdf` None: no light sample could have found it), else the estimator's BSDF
-    /// weight against the area light's pdf of the same direction.
-    #[inline(always)]
-    fn emission_weight(
-        &self,
-        scene: &Prepared,
-        hit: &Hit,
-        surface: &Surface,
-        direction: Vec3,
-        bsdf_pdf: Option<f32>,
-    ) -> f32 {
-        match bsdf_pdf {
+        let weight = match bsdf_pdf {
             None => 1.0,
             Some(pdf) => {
                 let at = EmitterHit {
@@ -318,7 +304,8 @@ impl PathTracer {
                 let light_pdf = SceneLight::Area.pdf(scene, direction, Some(at));
                 self.estimator.bsdf_weight(pdf, light_pdf)
             }
-        }
+        };
+        throughput * surface.emissive * weight
     }
 
     /// A sample's `radiance` with its indirect part (what it holds beyond `direct`, the first
