@@ -55,13 +55,26 @@ fn albedo(material: &SurfaceMaterial, cos_view: f32) -> f64 {
 /// A white sphere (base colour 1, `metallic`, `roughness`) alone in a uniform environment of
 /// radiance 1, path traced at 48 x 48 and `spp`: its radiance and its normals (RGBA each).
 fn furnace_sphere(metallic: f32, roughness: f32, spp: u32) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
-    let dir = tempfile::tempdir().unwrap();
     let white = json!({"pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
         "metallicFactor": metallic, "roughnessFactor": roughness}});
-    let (mut json, bin) =
-        crate::common::sphere_gltf((32, 64), glam::Vec3::ZERO, 1.0, glam::Vec3::Y, 0.0, white);
+    furnace(white, spp, &[])
+}
+
+/// A sphere of `material` alone in a uniform environment of radiance 1, path traced at
+/// 48 x 48 and `spp` with `more` arguments: its radiance and its normals (RGBA each).
+fn furnace(material: serde_json::Value, spp: u32, more: &[&str]) -> (Vec<[f32; 4]>, Vec<[f32; 4]>) {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut json, bin) = crate::common::sphere_gltf(
+        (32, 64),
+        glam::Vec3::ZERO,
+        1.0,
+        glam::Vec3::Y,
+        0.0,
+        material,
+    );
     // No punctual light: only the environment.
     json.as_object_mut().unwrap().remove("extensions");
+    json["extensionsUsed"] = json!(["KHR_materials_transmission", "KHR_materials_volume"]);
     json["nodes"].as_array_mut().unwrap().pop();
     json["scenes"] = json!([{"nodes": [0, 1]}]);
     let model = write_gltf(dir.path(), "furnace.gltf", json, &bin);
@@ -69,26 +82,79 @@ fn furnace_sphere(metallic: f32, roughness: f32, spp: u32) -> (Vec<[f32; 4]>, Ve
     let out = dir.path().join("furnace.exr");
     let normals = dir.path().join("normals.exr");
     let spp = spp.to_string();
-    render(
-        &model,
-        &out,
-        &[
-            "--quiet",
-            "--width",
-            "48",
-            "--height",
-            "48",
-            "--spp",
-            &spp,
-            "--integrator",
-            "path",
-            "--env",
-            s(&env),
-            "--normal-out",
-            s(&normals),
-        ],
-    );
+    let mut args = vec![
+        "--quiet",
+        "--width",
+        "48",
+        "--height",
+        "48",
+        "--spp",
+        &spp,
+        "--integrator",
+        "path",
+        "--env",
+        s(&env),
+        "--normal-out",
+        s(&normals),
+    ];
+    args.extend_from_slice(more);
+    render(&model, &out, &args);
     (read_rgba(&out).2, read_rgba(&normals).2)
+}
+
+/// The mean radiance of a furnace render over its covered pixels, and over those facing the
+/// camera within 25°.
+fn furnace_means(radiance: &[[f32; 4]], normal: &[[f32; 4]]) -> (f64, f64) {
+    let (mut all, mut count, mut centre, mut facing) = (0.0f64, 0, 0.0f64, 0);
+    for (l, n) in radiance.iter().zip(normal) {
+        if l[3] < 1.0 {
+            continue;
+        }
+        let mean = f64::from(l[0] + l[1] + l[2]) / 3.0;
+        all += mean;
+        count += 1;
+        if n[2] > 25f32.to_radians().cos() {
+            centre += mean;
+            facing += 1;
+        }
+    }
+    assert!(
+        count > 1000 && facing > 100,
+        "{count} covered, {facing} facing"
+    );
+    (all / f64::from(count), centre / f64::from(facing))
+}
+
+/// White furnace for clear white glass (transmission 1, index 1.5): a sphere of rough glass,
+/// as a volume (`KHR_materials_volume` thickness 1) and as a thin-walled shell (no volume),
+/// at roughness 0.25, 0.5 and 1, alone in a uniform environment of radiance 1 returns it
+/// within 3% (256 spp, 64 bounces so that light caught inside by total internal reflection
+/// gets out): all the light that enters leaves again. Measured: within 0.5% everywhere.
+/// Before the rough transmission lobes were compensated for multiple scattering, the glass
+/// sphere returned 0.81 of the light at roughness 1 and the thin shell 0.39 (0.88 at 0.5).
+#[test]
+fn white_glass_spheres_return_the_environment() {
+    let mut failures = Vec::new();
+    for volume in [true, false] {
+        for roughness in [0.25f32, 0.5, 1.0] {
+            let mut glass = json!({
+                "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0],
+                    "metallicFactor": 0.0, "roughnessFactor": roughness},
+                "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1.0}}
+            });
+            if volume {
+                glass["extensions"]["KHR_materials_volume"] = json!({"thicknessFactor": 1.0});
+            }
+            let (radiance, normal) = furnace(glass, 256, &["--bounces", "64"]);
+            let (all, centre) = furnace_means(&radiance, &normal);
+            if (all - 1.0).abs() >= 0.03 || (centre - 1.0).abs() >= 0.03 {
+                failures.push(format!(
+                    "volume {volume} roughness {roughness}: sphere {all:.4}, centre {centre:.4}"
+                ));
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 
 /// White furnace at every roughness: a white metal sphere and a white dielectric one, at
@@ -110,24 +176,7 @@ fn white_spheres_return_the_environment_at_every_roughness() {
     for (metallic, roughness) in cases {
         {
             let (radiance, normal) = furnace_sphere(metallic, roughness, 256);
-            let (mut all, mut count, mut centre, mut facing) = (0.0f64, 0, 0.0f64, 0);
-            for (l, n) in radiance.iter().zip(&normal) {
-                if l[3] < 1.0 {
-                    continue;
-                }
-                let mean = f64::from(l[0] + l[1] + l[2]) / 3.0;
-                all += mean;
-                count += 1;
-                if n[2] > 25f32.to_radians().cos() {
-                    centre += mean;
-                    facing += 1;
-                }
-            }
-            assert!(
-                count > 1000 && facing > 100,
-                "{count} covered, {facing} facing"
-            );
-            let (all, centre) = (all / f64::from(count), centre / f64::from(facing));
+            let (all, centre) = furnace_means(&radiance, &normal);
             if (all - 1.0).abs() >= 0.02 || (centre - 1.0).abs() >= 0.02 {
                 failures.push(format!(
                     "metallic {metallic} roughness {roughness}: sphere {all:.4}, centre {centre:.4}"
