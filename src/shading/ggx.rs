@@ -246,7 +246,7 @@ const REFRACTION_STRATA: usize = 16;
 /// [`integrate_refraction`] at cos θ_v = max(i / 15, 0.02), roughness j / 15 and index
 /// 1 / √(1 - l/9), entering (d = 0, η = 1/index) or leaving (d = 1, η = index). Written by
 /// `MESHTRACER_BLESS=1 cargo test --release --lib ggx::tests::the_baked_refraction_table`.
-const REFRACTION: [[f32; 2]; 2 * REFRACTION_IORS * REFRACTION_TABLE * REFRACTION_TABLE] =
+static REFRACTION: [[f32; 2]; 2 * REFRACTION_IORS * REFRACTION_TABLE * REFRACTION_TABLE] =
     include!("ggx_refraction.in");
 
 /// The rough refraction lobe's mean draw weight at cos θ_v = `cos` for perceptual
