@@ -181,8 +181,13 @@ impl Accel {
         let material_flags: Vec<u8> = materials
             .iter()
             .map(|m| {
-                // glTF 2.0 §3.9.6: `doubleSided: false` surfaces are invisible from behind.
-                let mut f = if m.double_sided { 0 } else { SINGLE_SIDED };
+                // glTF 2.0 §3.9.6: `doubleSided: false` surfaces are invisible from behind
+                // (volume boundaries excepted).
+                let mut f = if m.culls_back_faces() {
+                    SINGLE_SIDED
+                } else {
+                    0
+                };
                 if m.alpha_mode != crate::scene::AlphaMode::Opaque || m.see_through() {
                     f |= ALPHA_TESTED;
                 }

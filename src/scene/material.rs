@@ -75,7 +75,8 @@ pub struct Material {
     pub alpha_mode: AlphaMode,
     /// Cutoff for [`AlphaMode::Mask`].
     pub alpha_cutoff: f32,
-    /// When false the back face is invisible (glTF 2.0 §3.9.6).
+    /// When false the back face is invisible (glTF 2.0 §3.9.6), except on a volume boundary
+    /// ([`Material::culls_back_faces`]).
     pub double_sided: bool,
     /// Classic Phong specular colour, when the source had one (OBJ `Ks`); the Blinn-Phong
     /// shader otherwise derives it from metallic/roughness.
@@ -179,6 +180,15 @@ pub struct ClearcoatLayer {
 }
 
 impl Material {
+    /// Whether rays do not see this material's back faces: `doubleSided` false (glTF 2.0
+    /// §3.9.6), unless the surface bounds a transmissive volume. `KHR_materials_volume`: "The
+    /// doubleSided property has no effect on volume boundaries": light that refracted into a
+    /// closed glass mesh leaves it through the back of the far side (culled, a glass ball
+    /// bent light at its near side only and imaged the world as a lens of index 1.2 would).
+    pub fn culls_back_faces(&self) -> bool {
+        !self.double_sided && (self.transmission <= 0.0 || self.thin_walled)
+    }
+
     /// A thin-walled transmissive sheet (`KHR_materials_transmission` without a volume), at
     /// least where its thickness texture reads 0: light passes straight through it, so shadow
     /// rays do too (tinted). A glass *volume* bends light, which a straight shadow ray cannot
