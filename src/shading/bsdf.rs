@@ -194,7 +194,9 @@ struct Transmission {
 /// to the base (1 - its albedo, as the diffuse base is given it), so that a white sheet or
 /// glass surface reflects and transmits all the light that arrives: the albedo scaling the
 /// glTF specification uses for layering, applied to transmission.
-fn transmission_scale(material: &SurfaceMaterial, n_dot_v: f32, eta: f32) -> f32 {
+///
+/// `kept` is [`SurfaceMaterial::diffuse_kept`] at the view, which the caller has at hand.
+fn transmission_scale(material: &SurfaceMaterial, n_dot_v: f32, eta: f32, kept: Vec3) -> f32 {
     let (a, b) = if eta == 1.0 {
         super::ggx::directional_albedo(n_dot_v, material.roughness)
     } else {
@@ -202,7 +204,7 @@ fn transmission_scale(material: &SurfaceMaterial, n_dot_v: f32, eta: f32) -> f32
     };
     let (f0, f90) = material.fresnel_ends();
     let single = luminance((Vec3::ONE - f0) * a - (Vec3::splat(f90) - f0) * b);
-    let kept = luminance(material.diffuse_kept(n_dot_v));
+    let kept = luminance(kept);
     if single > 1e-4 {
         kept / single
     } else {
@@ -371,7 +373,8 @@ impl Bsdf {
             ior
         };
         let n_dot_v = self.normal.dot(to_eye).clamp(0.0, 1.0);
-        let fresnel = luminance(self.material.specular_response(n_dot_v).1);
+        let albedo = self.material.specular_response(n_dot_v).1;
+        let fresnel = luminance(albedo);
         let transmit = factor * luminance(self.material.base_color) * (1.0 - fresnel);
         let diffuse = luminance(self.material.base_color * (1.0 - self.material.metallic))
             * (1.0 - fresnel)
@@ -385,7 +388,14 @@ impl Bsdf {
             1.0
         };
         let scale = if self.alpha > MIN_ALPHA {
-            transmission_scale(&self.material, n_dot_v, eta)
+            // What the base keeps: for a dielectric 1 - the albedo just computed (the same
+            // evaluation `diffuse_kept` would repeat), else the dielectric part's.
+            let kept = if self.material.metallic == 0.0 {
+                Vec3::ONE - albedo
+            } else {
+                self.material.diffuse_kept(n_dot_v)
+            };
+            transmission_scale(&self.material, n_dot_v, eta, kept)
         } else {
             1.0
         };
