@@ -442,3 +442,98 @@ fn the_avx2_node_test_agrees_with_the_portable_one() {
     assert!(entered > 10_000, "the rays must enter boxes ({entered})");
     assert!(differ * 1000 < entered, "{differ} of {entered}");
 }
+
+/// Camera rays through a grid of pixels, in scanline order: the coherent rays packets are
+/// for, with neighbours entering the same nodes. Each also comes cut short at half its hit.
+fn camera_rays(linear: &Accel) -> Vec<Ray> {
+    let eye = vec3(0.3, 2.5, 9.0);
+    let side = 48;
+    let mut rays = Vec::new();
+    for y in 0..side {
+        for x in 0..side {
+            let target = vec3(x as f32, (side - y) as f32, 0.0) / side as f32 * 10.0 - 5.0;
+            let ray = Ray::new(eye, (target - eye).normalize(), 0.0, f32::INFINITY);
+            rays.push(ray);
+            if let Some(hit) = linear.intersect(&ray) {
+                let mut short = ray;
+                short.tmax = hit.t * 0.5;
+                rays.push(short);
+            }
+        }
+    }
+    rays
+}
+
+/// Eight rays at a time, AVX2 and portable, over plain and paired leaves: the same hit
+/// records as one ray at a time and the linear scan's triangle and distance, hit for hit,
+/// and the same occlusion, on random, axis-parallel, grazing, surface-starting and coherent
+/// camera rays, with a packet of fewer than eight at the end.
+#[test]
+fn packets_find_what_the_linear_scan_finds() {
+    let (soup, materials) = test_soup();
+    let linear = Accel::build(&soup, &materials, AccelKind::Linear, BvhPreset::Medium);
+    let mut rays = all_test_rays(&soup);
+    rays.extend(camera_rays(&linear));
+    rays.truncate(rays.len() / 8 * 8 - 3);
+    let want_hits: Vec<_> = rays.iter().map(|r| linear.intersect(r)).collect();
+    let want_blocked: Vec<_> = rays.iter().map(|r| linear.occluded(r)).collect();
+    assert!(want_hits.iter().flatten().count() > 8_000);
+    assert!(want_blocked.iter().any(|&b| !b));
+    for pair in [false, true] {
+        let bvh = Accel::build_pairing(&soup, &materials, AccelKind::Bvh, BvhPreset::Medium, pair);
+        let mut hits = vec![None; rays.len()];
+        let mut blocked = vec![false; rays.len()];
+        bvh.intersect_many(&rays, None, &mut hits);
+        bvh.occluded_many(&rays, None, &mut blocked);
+        for (i, ray) in rays.iter().enumerate() {
+            let key = |h: &Option<Hit>| h.map(|h| (h.triangle, h.t));
+            assert_eq!(key(&hits[i]), key(&want_hits[i]), "ray {i} {ray:?}");
+            assert_eq!(hits[i], bvh.intersect(ray), "ray {i} {ray:?}");
+            assert_eq!(blocked[i], want_blocked[i], "ray {i} {ray:?}");
+        }
+        // The portable node test (CPUs without AVX2), called directly.
+        for (at, packet) in rays.chunks(traverse::PACKET).enumerate() {
+            let at = at * traverse::PACKET;
+            let found = bvh.closest_hit_packet(traverse::Portable, packet, None);
+            let bits = bvh.any_hit_packet(traverse::Portable, packet, None);
+            for (i, ray) in packet.iter().enumerate() {
+                let key = found[i].map(|c| (bvh.ids[c.slot], c.t));
+                assert_eq!(key, want_hits[at + i].map(|h| (h.triangle, h.t)), "{ray:?}");
+                assert_eq!(bits >> i & 1 != 0, want_blocked[at + i], "{ray:?}");
+            }
+            assert_eq!(bits >> packet.len(), 0, "no answers past the packet");
+        }
+    }
+}
+
+/// The alpha test's callback is asked of packets as of single rays: with every hit on the
+/// even triangles refused, eight at a time finds what one at a time finds.
+#[test]
+fn packets_ask_the_alpha_test() {
+    let (soup, mut materials) = test_soup();
+    for m in &mut materials {
+        m.alpha_mode = crate::scene::AlphaMode::Mask;
+    }
+    let bvh = Accel::build(&soup, &materials, AccelKind::Bvh, BvhPreset::Medium);
+    let accept = |triangle: u32, _: Vec3| triangle % 2 == 1;
+    let rays = all_test_rays(&soup);
+    let mut hits = vec![None; rays.len()];
+    let mut blocked = vec![false; rays.len()];
+    bvh.intersect_many(&rays, Some(&accept), &mut hits);
+    bvh.occluded_many(&rays, Some(&accept), &mut blocked);
+    let mut refused = 0;
+    for (i, ray) in rays.iter().enumerate() {
+        let one = bvh.intersect_filtered(ray, Some(&accept));
+        refused += usize::from(one != bvh.intersect(ray));
+        assert_eq!(hits[i], one, "ray {i} {ray:?}");
+        assert_eq!(
+            blocked[i],
+            bvh.occluded_filtered(ray, Some(&accept)),
+            "ray {i}"
+        );
+    }
+    assert!(
+        refused > 1_000,
+        "the filter must change answers ({refused})"
+    );
+}

@@ -601,6 +601,297 @@ pub(super) fn occluded<K: NodeTest>(
     }
 }
 
+/// Rays in one [`occluded_packet`] query: one bit each in a byte.
+pub(super) const PACKET: usize = 8;
+
+/// Whether anything blocks each of up to [`PACKET`] rays (bit `i` for `rays[i]`): the
+/// answers [`occluded`] gives ray by ray, found by walking the tree once for all of them.
+///
+/// A stack entry is a node with the rays that enter it (a byte of ray bits beside the node's
+/// index). At a node each of those rays gets its own node test, and a child is visited by the
+/// rays that enter it, so every ray tests exactly the nodes and leaves it would alone, in the
+/// same order, until it is found blocked (then it leaves every waiting entry). What the rays
+/// share is the walk: a node's tests for several rays do not wait on one another, so they
+/// overlap where a lone ray waits on each node's load and test before the next, and the
+/// node and its leaves' triangles come into cache once for the packet. Coherent rays (shadow
+/// rays from neighbouring pixels toward one light) mostly enter the same nodes.
+#[inline(always)]
+pub(super) fn occluded_packet<K: NodeTest>(
+    k: K,
+    accel: &Accel,
+    bvh: &CwBvh,
+    rays: &[Ray],
+    accept: Option<&Accept>,
+) -> u32 {
+    let rays = &rays[..rays.len().min(PACKET)];
+    if bvh.nodes.is_empty() || rays.is_empty() {
+        return 0;
+    }
+    let mut node_rays = [NodeRay::new(&rays[0]); PACKET];
+    for (node_ray, ray) in node_rays.iter_mut().zip(rays) {
+        *node_ray = NodeRay::new(ray);
+    }
+    // Rays not yet found blocked.
+    let mut open = !(u32::MAX << rays.len());
+    let mut entries: Entries<u64> = [MaybeUninit::uninit(); 64];
+    let mut stack = Stack::new(&mut entries);
+    let mut enter = [[0.0f32; 8]; PACKET];
+    // Entries: the node's index above, its rays below.
+    let mut next = u64::from(open);
+    loop {
+        let waiting = next as u32 & open;
+        if waiting == 0 {
+            match stack.pop() {
+                Some(entry) => next = entry,
+                None => break,
+            }
+            continue;
+        }
+        let node = &bvh.nodes[(next >> 8) as usize];
+        let (columns, any) = packet_entries(k, node, &node_rays, waiting, &mut enter);
+        let imask = u32::from(node.imask);
+        let leaves = any & !imask;
+        prefetch_leaves(node, leaves, &accel.triangles);
+        for (_, first, meta, rays_in) in packet_leaves(node, leaves, columns) {
+            let mut bits = rays_in & open;
+            while bits != 0 {
+                let r = bits.trailing_zeros();
+                bits &= bits - 1;
+                let ray = &rays[r as usize];
+                let found = leaf_hits(k, accel, first, meta, ray);
+                if (first..)
+                    .zip(found)
+                    .any(|(slot, t)| accel.confirm(slot, t, ray, false, accept) < f32::INFINITY)
+                {
+                    open &= !(1 << r);
+                }
+            }
+        }
+        if open == 0 {
+            break;
+        }
+        let mut inner = any & imask;
+        next = 0;
+        while inner != 0 {
+            let child = inner.trailing_zeros();
+            inner &= inner - 1;
+            // Internal children are stored in slot order from `child_base_idx`.
+            let index = node.child_base_idx + (imask & !(u32::MAX << child)).count_ones();
+            let entry = u64::from(index) << 8 | (columns >> (8 * child)) & 0xff;
+            if next != 0 {
+                stack.push(next);
+            }
+            next = entry;
+        }
+    }
+    !open & !(u32::MAX << rays.len())
+}
+
+/// A stack entry of [`closest_packet`]: a node, the rays that enter it, and the nearest of
+/// their entry distances.
+#[derive(Clone, Copy)]
+struct Waiting {
+    /// `ordered_bits` of the nearest entry distance above, the node's index below.
+    key: u64,
+    /// The rays that enter the node (one bit each).
+    rays: u32,
+}
+
+/// The closest hit of each of up to [`PACKET`] rays (the answers [`closest`] gives ray by
+/// ray), found by walking the tree once for all of them, as [`occluded_packet`] does.
+///
+/// A ray goes on to a child only where it enters the child's box before its own best hit, so
+/// it tests no triangle [`closest`] would skip for it. Children are visited nearest first by
+/// the nearest entry among the rays that go on to them, and a waiting node is dropped, when
+/// popped, for the rays whose best hit is nearer than that entry: for every ray the leaves
+/// tested are a superset of those [`closest`] tests, all of them before the ray's best hit, so
+/// with the tie rule of [`Closest::offer`] the answers are the same.
+#[inline(always)]
+pub(super) fn closest_packet<K: NodeTest>(
+    k: K,
+    accel: &Accel,
+    bvh: &CwBvh,
+    rays: &[Ray],
+    accept: Option<&Accept>,
+) -> [Option<Closest>; PACKET] {
+    let mut best: [Option<Closest>; PACKET] = [None; PACKET];
+    let n = rays.len().min(PACKET);
+    if bvh.nodes.is_empty() || n == 0 {
+        return best;
+    }
+    let mut local = [rays[0]; PACKET];
+    local[..n].copy_from_slice(&rays[..n]);
+    let mut node_rays = local.map(|ray| NodeRay::new(&ray));
+    // Per ray: nodes entered beyond this hold nothing nearer (see `closest`).
+    let mut cull = local.map(|ray| ordered_bits(ray.tmax + 0.0));
+    let mut entries: Entries<Waiting> = [MaybeUninit::uninit(); 64];
+    let mut stack = Stack::new(&mut entries);
+    let mut enter = [[0.0f32; 8]; PACKET];
+    let mut current = 0u32;
+    let mut waiting = !(u32::MAX << n);
+    loop {
+        let node = &bvh.nodes[current as usize];
+        let (columns, any) = packet_entries(k, node, &node_rays, waiting, &mut enter);
+        let imask = u32::from(node.imask);
+        let leaves = any & !imask;
+        prefetch_leaves(node, leaves, &accel.triangles);
+        for (child, first, meta, rays_in) in packet_leaves(node, leaves, columns) {
+            let mut bits = rays_in;
+            while bits != 0 {
+                let r = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                // A hit of this ray in an earlier leaf may already be nearer than this box.
+                if ordered_bits(enter[r][child]) > cull[r] {
+                    continue;
+                }
+                let found = leaf_hits(k, accel, first, meta, &local[r]);
+                for (slot, t) in (first..).zip(found) {
+                    let t = accel.confirm(slot, t, &local[r], true, accept);
+                    if t < f32::INFINITY {
+                        Closest::offer(&mut best[r], t, slot, &accel.ids);
+                        if let Some(b) = best[r] {
+                            local[r].tmax = b.t.next_up();
+                            node_rays[r].set_tmax(local[r].tmax);
+                            cull[r] = ordered_bits(local[r].tmax + 0.0);
+                        }
+                    }
+                }
+            }
+        }
+        // The internal children with the rays that go on to each (those entering it before
+        // their best hit) and the nearest of their entries.
+        let mut keys = [0u64; 8];
+        let mut masks = [0u32; 8];
+        let mut count = 0;
+        let mut inner = any & imask;
+        while inner != 0 {
+            let child = inner.trailing_zeros();
+            inner &= inner - 1;
+            let mut bits = (columns >> (8 * child)) as u32 & 0xff;
+            let (mut rays_in, mut nearest) = (0u32, u32::MAX);
+            while bits != 0 {
+                let r = bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                let at = ordered_bits(enter[r][child as usize]);
+                if at <= cull[r] {
+                    rays_in |= 1 << r;
+                    nearest = nearest.min(at);
+                }
+            }
+            if rays_in != 0 {
+                // Internal children are stored in slot order from `child_base_idx`.
+                let index = node.child_base_idx + (imask & !(u32::MAX << child)).count_ones();
+                keys[count] = u64::from(nearest) << 32 | u64::from(index);
+                masks[count] = rays_in;
+                count += 1;
+            }
+        }
+        if count == 0 {
+            loop {
+                let Some(w) = stack.pop() else {
+                    return best;
+                };
+                let at = (w.key >> 32) as u32;
+                let mut bits = w.rays;
+                waiting = 0;
+                while bits != 0 {
+                    let r = bits.trailing_zeros() as usize;
+                    bits &= bits - 1;
+                    if at <= cull[r] {
+                        waiting |= 1 << r;
+                    }
+                }
+                if waiting != 0 {
+                    current = w.key as u32;
+                    break;
+                }
+            }
+            continue;
+        }
+        // Insertion sort, nearest first; the rest wait farthest deepest.
+        for i in 1..count {
+            let (key, mask) = (keys[i], masks[i]);
+            let mut j = i;
+            while j > 0 && keys[j - 1] > key {
+                keys[j] = keys[j - 1];
+                masks[j] = masks[j - 1];
+                j -= 1;
+            }
+            keys[j] = key;
+            masks[j] = mask;
+        }
+        for i in (1..count).rev() {
+            stack.push(Waiting {
+                key: keys[i],
+                rays: masks[i],
+            });
+        }
+        current = keys[0] as u32;
+        waiting = masks[0];
+    }
+}
+
+/// The node test of `node` for each ray of `waiting` (bit r for `node_rays[r]`), each ray's
+/// entry distances into `enter[r]`: the rays that enter each child (byte c for child c) and
+/// the children any of them enters. The rays' tests do not depend on one another, so they
+/// overlap in the CPU.
+#[inline(always)]
+fn packet_entries<K: NodeTest>(
+    k: K,
+    node: &CwBvhNode,
+    node_rays: &[NodeRay; PACKET],
+    waiting: u32,
+    enter: &mut [[f32; 8]; PACKET],
+) -> (u64, u32) {
+    // Row r of an 8x8 bit matrix (byte r): the children ray r enters.
+    let mut rows = 0u64;
+    let mut any = 0u32;
+    let mut bits = waiting;
+    while bits != 0 {
+        let r = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        let entered = k.entries(node, &node_rays[r], &mut enter[r]);
+        rows |= u64::from(entered) << (8 * r);
+        any |= entered;
+    }
+    (transpose_bits(rows), any)
+}
+
+/// Each leaf child of `node` in `leaves`, in storage order: the child's slot, its first
+/// triangle's slot, its meta byte (the count in unary in the top three bits) and the rays
+/// that enter it (byte `child` of `columns`).
+#[inline(always)]
+fn packet_leaves(
+    node: &CwBvhNode,
+    mut leaves: u32,
+    columns: u64,
+) -> impl Iterator<Item = (usize, usize, u8, u32)> + '_ {
+    std::iter::from_fn(move || {
+        if leaves == 0 {
+            return None;
+        }
+        let child = leaves.trailing_zeros() as usize;
+        leaves &= leaves - 1;
+        let meta = node.child_meta[child];
+        let first = (node.primitive_base_idx + u32::from(meta & 0x1f)) as usize;
+        Some((child, first, meta, (columns >> (8 * child)) as u32 & 0xff))
+    })
+}
+
+/// The transpose of an 8x8 bit matrix held row by row in the bytes of `x` (bit `8 r + c` is
+/// row r, column c): three exchanges of blocks along the diagonal (Warren, "Hacker's
+/// Delight", 7-3).
+#[inline(always)]
+fn transpose_bits(mut x: u64) -> u64 {
+    let t = (x ^ (x >> 7)) & 0x00AA_00AA_00AA_00AA;
+    x ^= t ^ (t << 7);
+    let t = (x ^ (x >> 14)) & 0x0000_CCCC_0000_CCCC;
+    x ^= t ^ (t << 14);
+    let t = (x ^ (x >> 28)) & 0x0000_0000_F0F0_F0F0;
+    x ^= t ^ (t << 28);
+    x
+}
+
 /// The triangles of a node's entered leaves (at most eight leaves of three) and their hit
 /// parameters ([`PreparedTriangle::intersect_t`], `f32::INFINITY` for a miss), in leaf
 /// order. One per query, cleared for each node: filling its arrays anew each time cost 4%
@@ -684,6 +975,27 @@ mod tests {
                 assert_eq!(stack.pop(), Some(UVec2::new(i, round)));
             }
             assert_eq!(stack.pop(), None);
+        }
+    }
+
+    /// Bit (r, c) of the transpose is bit (c, r) of the matrix, for every bit alone and for
+    /// dense patterns.
+    #[test]
+    fn bit_matrices_transpose() {
+        let slow = |x: u64| {
+            let mut t = 0u64;
+            for r in 0..8 {
+                for c in 0..8 {
+                    t |= (x >> (8 * r + c) & 1) << (8 * c + r);
+                }
+            }
+            t
+        };
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        for bit in 0..64 {
+            assert_eq!(transpose_bits(1 << bit), slow(1 << bit));
+            x = x.rotate_left(5).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            assert_eq!(transpose_bits(x), slow(x));
         }
     }
 }

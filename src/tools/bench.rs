@@ -189,24 +189,57 @@ pub struct Checksum {
 
 /// Runs every ray of `rays` through `accel` once on the current rayon pool.
 pub fn trace(accel: &Accel, rays: &[Ray], kind: RayKind) -> Checksum {
-    let chunk = |rays: &[Ray]| {
-        let mut c = Checksum::default();
-        for ray in rays {
-            if kind == RayKind::Shadow {
-                c.hits += u64::from(accel.occluded(ray));
-            } else if let Some(hit) = accel.intersect(ray) {
-                c.hits += 1;
-                c.triangle_sum += u64::from(hit.triangle);
-            }
+    in_chunks(rays, |rays| {
+        if kind == RayKind::Shadow {
+            Checksum::of_blocked(rays.iter().map(|ray| accel.occluded(ray)))
+        } else {
+            Checksum::of_hits(rays.iter().filter_map(|ray| accel.intersect(ray)))
         }
-        c
-    };
+    })
+}
+
+/// [`trace`] with the BVH's packet queries: the rays eight consecutive ones at a time through
+/// [`Accel::intersect_many`] or [`Accel::occluded_many`]. The same answers.
+pub fn trace_packets(accel: &Accel, rays: &[Ray], kind: RayKind) -> Checksum {
+    in_chunks(rays, |rays| {
+        if kind == RayKind::Shadow {
+            let mut blocked = vec![false; rays.len()];
+            accel.occluded_many(rays, None, &mut blocked);
+            Checksum::of_blocked(blocked.into_iter())
+        } else {
+            let mut hits = vec![None; rays.len()];
+            accel.intersect_many(rays, None, &mut hits);
+            Checksum::of_hits(hits.into_iter().flatten())
+        }
+    })
+}
+
+/// `chunk` over chunks of `rays` on the current rayon pool, the checksums added.
+fn in_chunks(rays: &[Ray], chunk: impl Fn(&[Ray]) -> Checksum + Sync + Send) -> Checksum {
     rays.par_chunks(4096)
         .map(chunk)
         .reduce(Checksum::default, |a, b| Checksum {
             hits: a.hits + b.hits,
             triangle_sum: a.triangle_sum + b.triangle_sum,
         })
+}
+
+impl Checksum {
+    /// The checksum of closest hits.
+    fn of_hits(hits: impl Iterator<Item = crate::accel::Hit>) -> Checksum {
+        hits.fold(Checksum::default(), |c, hit| Checksum {
+            hits: c.hits + 1,
+            triangle_sum: c.triangle_sum + u64::from(hit.triangle),
+        })
+    }
+
+    /// The checksum of shadow rays' answers.
+    fn of_blocked(blocked: impl Iterator<Item = bool>) -> Checksum {
+        Checksum {
+            hits: blocked.filter(|&b| b).count() as u64,
+            triangle_sum: 0,
+        }
+    }
 }
 
 /// One row of the benchmark table.
@@ -269,6 +302,8 @@ pub struct BenchOptions {
     pub linear_budget: u64,
     /// BVH build preset.
     pub preset: BvhPreset,
+    /// Trace eight rays at a time ([`trace_packets`]) instead of one at a time.
+    pub packets: bool,
 }
 
 impl Default for BenchOptions {
@@ -279,6 +314,7 @@ impl Default for BenchOptions {
             runs: 3,
             linear_budget: 2_000_000_000,
             preset: BvhPreset::Medium,
+            packets: false,
         }
     }
 }
@@ -323,12 +359,20 @@ pub fn measure(scene: &Scene, name: &str, options: &BenchOptions) -> Result<Row,
     builds.sort_by_key(|(time, _)| *time);
     let (build, build_steps) = builds.swap_remove(builds.len() / 2);
     let rays = make_rays(scene, &bvh, options.kind, options.side, 7);
-    // Warm-up run, which is also the reference answer.
+    let timed = |accel: &Accel, rays: &[Ray]| {
+        if options.packets {
+            trace_packets(accel, rays, options.kind)
+        } else {
+            trace(accel, rays, options.kind)
+        }
+    };
+    // Warm-up run, which is also the reference answer (one ray at a time, which packets must
+    // match).
     let expected = trace(&bvh, &rays, options.kind);
     let mut times = Vec::new();
     for _ in 0..options.runs.max(1) {
         let start = Instant::now();
-        let got = trace(&bvh, &rays, options.kind);
+        let got = timed(&bvh, &rays);
         times.push(start.elapsed());
         if got != expected {
             return Err(Mismatch(name.into(), got, expected));
@@ -351,7 +395,7 @@ pub fn measure(scene: &Scene, name: &str, options: &BenchOptions) -> Result<Row,
         let start = Instant::now();
         let got = trace(&linear, subset, options.kind);
         let time = start.elapsed();
-        let want = trace(&bvh, subset, options.kind);
+        let want = timed(&bvh, subset);
         (got, want, subset.len() as f64 / time.as_secs_f64() / 1e6)
     });
     if let Some((got, want, _)) = linear_mrays {
@@ -696,15 +740,18 @@ mod tests {
     fn measurement_checks_bvh_against_linear() {
         let scene = scene_from_soup(generated_mesh(2_000, 1), "test");
         for kind in [RayKind::Primary, RayKind::Shadow, RayKind::Diffuse] {
-            let options = BenchOptions {
-                kind,
-                side: 32,
-                runs: 1,
-                ..BenchOptions::default()
-            };
-            let row = measure(&scene, "test", &options).unwrap();
-            assert!(row.rays > 100, "{kind:?}: {}", row.rays);
-            assert!(row.linear_mrays.is_some());
+            for packets in [false, true] {
+                let options = BenchOptions {
+                    kind,
+                    side: 32,
+                    runs: 1,
+                    packets,
+                    ..BenchOptions::default()
+                };
+                let row = measure(&scene, "test", &options).unwrap();
+                assert!(row.rays > 100, "{kind:?}: {}", row.rays);
+                assert!(row.linear_mrays.is_some());
+            }
         }
     }
 

@@ -644,6 +644,11 @@ pub struct BenchArgs {
     /// obvhs build preset.
     #[arg(long, value_parser = choice::<BvhPreset>(), default_value = "medium")]
     pub bvh_preset: BvhPreset,
+    /// Trace the rays eight consecutive ones at a time through the BVH's packet queries
+    /// (one walk of the tree for eight rays) instead of one at a time; the answers are checked
+    /// to be the same.
+    #[arg(long)]
+    pub packets: bool,
     /// Worker threads (0 = one per core).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,

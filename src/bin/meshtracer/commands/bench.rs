@@ -26,6 +26,7 @@ pub(super) fn bench_command(args: &BenchArgs) -> Result<()> {
         runs: args.runs.max(1),
         linear_budget: args.linear_budget,
         preset: args.bvh_preset,
+        packets: args.packets,
     };
     // Ctrl-C once: finish the measurement under way, then report what is done (exit 130).
     // Twice: quit at once, writing nothing (a 1M-triangle linear scan can take a minute).
@@ -294,7 +295,7 @@ fn bench_path_settings(scene: &Scene, (width, height): (u32, u32), spp: u32) -> 
 }
 
 /// The line under the table: what was measured and how (ray kind, rays per run, runs,
-/// threads, BVH preset, linear budget), the CPU, and `partial` when Ctrl-C stopped it early.
+/// one or eight at a time, threads, BVH preset, linear budget), the CPU, and `partial` when Ctrl-C stopped it early.
 fn settings_line(
     args: &BenchArgs,
     options: &BenchOptions,
@@ -302,9 +303,14 @@ fn settings_line(
     partial: Option<&str>,
 ) -> String {
     format!(
-        "{} rays ({} primary rays per run, shadow/diffuse rays from their hits), median of {} runs, {threads} threads, obvhs preset {:?}, linear scan budget {} triangle tests{}; CPU: {}{}",
+        "{} rays ({} primary rays per run, shadow/diffuse rays from their hits, {}), median of {} runs, {threads} threads, obvhs preset {:?}, linear scan budget {} triangle tests{}; CPU: {}{}",
         kind_names(args).join(", "),
         u64::from(args.side) * u64::from(args.side),
+        if args.packets {
+            "eight at a time"
+        } else {
+            "one at a time"
+        },
         options.runs,
         args.bvh_preset,
         args.linear_budget,
@@ -413,6 +419,7 @@ fn bench_json(
             "runs": options.runs,
             "threads": threads,
             "bvh_preset": format!("{:?}", args.bvh_preset),
+            "packets": args.packets,
             "double_sided": args.double_sided,
             "cpu": cpu_name(),
             "partial": partial,
