@@ -23,8 +23,9 @@ builds a scene of the same triangles (build timed apart) and traces the same ray
 for primary and diffuse rays, occlusion for shadow rays. Its answers are checked ray for ray
 against meshtracer's; disagreements are counted, with ties (another triangle at the same t) and
 grazing hits (within EDGE of a triangle's edge) counted apart. Then `--rounds` interleaved
-rounds: one `meshtracer bench MODEL --threads 1 --runs 1 --json` process, then Embree on each
-ray kind; the table gives the medians and meshtracer/Embree rays per second.
+rounds: one `meshtracer bench MODEL --threads 1 --runs 1 --json` process, one more with
+`--packets` (eight consecutive rays at a time through meshtracer's packet queries), then Embree
+on each ray kind; the table gives the medians and meshtracer/Embree rays per second for both.
 
 **Mitsuba 3.** The bundled Cornell box made diffuse (every material Lambertian: metallic 0,
 `KHR_materials_specular` factor 0; the punctual lights removed, the emissive lamp panel kept
@@ -165,6 +166,7 @@ def embree_comparison(args, models, tmp):
         scenes.append(scene)
     print()
     ours = {(s.name, k): [] for s in scenes for k in KINDS}
+    packets = {(s.name, k): [] for s in scenes for k in KINDS}
     our_build = {s.name: [] for s in scenes}
     theirs = {(s.name, k): [] for s in scenes for k in KINDS}
     for round_ in range(args.rounds):
@@ -174,19 +176,25 @@ def embree_comparison(args, models, tmp):
             for row in report["rows"]:
                 ours[(scene.name, row["rays"])].append(row["mrays_per_second_per_thread"])
                 our_build[scene.name].append(row["build_ms"])
+            report = json.loads(run(bench_command(args, scene.model, "--packets")))
+            for row in report["rows"]:
+                packets[(scene.name, row["rays"])].append(row["mrays_per_second_per_thread"])
             scene.build_ms.append(scene.build())
             for kind in KINDS:
                 theirs[(scene.name, kind)].append(scene.time(kind))
     print(f"Ray queries, one thread, median of {args.rounds} interleaved rounds, "
           f"{args.side}x{args.side} primary rays and a shadow and a diffuse ray from each hit:\n")
-    print("| model | triangles | ray kind | rays | meshtracer Mrays/s | Embree Mrays/s | meshtracer / Embree | disagreements |")
-    print("|---|---:|---|---:|---:|---:|---:|---|")
+    print("meshtracer traces the rays one at a time, then eight consecutive ones at a time "
+          "(`--packets`); Embree (embreex) one at a time.\n")
+    print("| model | triangles | ray kind | rays | meshtracer Mrays/s | eight at a time | Embree Mrays/s | meshtracer / Embree | eight at a time / Embree | disagreements |")
+    print("|---|---:|---|---:|---:|---:|---:|---:|---:|---|")
     for scene in scenes:
         for kind in KINDS:
             m = statistics.median(ours[(scene.name, kind)])
+            p = statistics.median(packets[(scene.name, kind)])
             e = statistics.median(theirs[(scene.name, kind)])
             print(f"| {scene.name} | {scene.count} | {kind} | {len(scene.rays[kind][0])} | {m:.2f} | "
-                  f"{e:.2f} | **{m / e:.2f}** | {scene.checks[kind]} |")
+                  f"{p:.2f} | {e:.2f} | {m / e:.2f} | **{p / e:.2f}** | {scene.checks[kind]} |")
     print("\n| model | meshtracer BVH build ms (1 thread, medium preset) | Embree build ms (1 thread, median of the rounds) |")
     print("|---|---:|---:|")
     for scene in scenes:
