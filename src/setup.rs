@@ -19,21 +19,23 @@ use std::sync::Arc;
 /// each hit and, for the path tracer, about two rays (a bounce and a light sample) for each of
 /// the first few bounces (Russian roulette and escaping paths end most paths by then).
 ///
-/// With adaptive sampling (`noise`), `spp` is only the cap: pixels take from
-/// [`crate::render::ADAPTIVE_BATCH`] samples up, most of them stopping at the first check (a
-/// mean of 4-6 samples on the shared models at the default render's noise 1.0), so twice the
-/// batch stands for the count. Counting the cap chose the slower BVH build for the default
-/// render of MetalRoughSpheresNoTextures (1.04M triangles), which spent half its time on it.
+/// With adaptive sampling, `spp` is only the cap: pixels take from `adaptive_batch` samples up
+/// ([`RenderSettings::adaptive_batch`]: [`crate::render::ADAPTIVE_BATCH`], or
+/// [`crate::render::DENOISED_BATCH`] for a denoised film), most of them stopping at the first
+/// check (a mean of 4-6 samples on the shared models at noise 1.0 without the filter, 2 with
+/// it), so twice the batch stands for the count; `None` without adaptive sampling. Counting the
+/// cap chose the slower BVH build for the default render of MetalRoughSpheresNoTextures (1.04M
+/// triangles), which spent half its time on it.
 pub fn expected_rays(
     pixels: u64,
     spp: u32,
-    noise: Option<f32>,
+    adaptive_batch: Option<u32>,
     lights: usize,
     integrator: IntegratorKind,
     bounces: u32,
 ) -> f64 {
-    let spp = match noise {
-        Some(_) => spp.min(2 * crate::render::ADAPTIVE_BATCH),
+    let spp = match adaptive_batch {
+        Some(batch) => spp.min(2 * batch),
         None => spp,
     };
     let samples = pixels as f64 * f64::from(spp.max(1));
@@ -276,14 +278,30 @@ mod tests {
     /// 69k; a fixed `--spp` counts every sample.
     #[test]
     fn an_adaptive_render_expects_its_first_samples_not_its_cap() {
+        use crate::render::ADAPTIVE_BATCH;
         let pixels = 640 * 480;
-        let path = |noise| expected_rays(pixels, 32, noise, 0, IntegratorKind::Path, 8);
-        assert_eq!(path(Some(0.5)), path(None) / 4.0);
-        let auto = |triangles| BvhPreset::Auto.for_work(triangles, path(Some(0.5)));
+        let path = |batch| expected_rays(pixels, 32, batch, 0, IntegratorKind::Path, 8);
+        assert_eq!(path(Some(ADAPTIVE_BATCH)), path(None) / 4.0);
+        let auto = |triangles| BvhPreset::Auto.for_work(triangles, path(Some(ADAPTIVE_BATCH)));
         assert_eq!(auto(1_040_213), BvhPreset::VeryFast);
         assert_eq!(auto(69_451), BvhPreset::Medium);
         // Below the batch the cap still counts.
-        let two = expected_rays(pixels, 2, Some(0.5), 0, IntegratorKind::Path, 8);
+        let two = expected_rays(pixels, 2, Some(ADAPTIVE_BATCH), 0, IntegratorKind::Path, 8);
         assert_eq!(two, path(None) / 16.0);
+    }
+
+    /// The denoised default takes its first batch of two samples a pixel, so the default
+    /// render of a million triangles at 1024x768 (the CLI's default size) expects the quick
+    /// build; counting the undenoised batch of four, it built the medium tree, 0.65 s of a
+    /// 1.5 s run for MetalRoughSpheresNoTextures.
+    #[test]
+    fn the_denoised_default_expects_its_two_samples() {
+        use crate::render::{ADAPTIVE_BATCH, DENOISED_BATCH};
+        let pixels = 1024 * 768;
+        let rays = |batch| expected_rays(pixels, 32, Some(batch), 0, IntegratorKind::Path, 8);
+        assert_eq!(rays(DENOISED_BATCH), rays(ADAPTIVE_BATCH) / 2.0);
+        let auto = |batch| BvhPreset::Auto.for_work(1_040_213, rays(batch));
+        assert_eq!(auto(DENOISED_BATCH), BvhPreset::VeryFast);
+        assert_eq!(auto(ADAPTIVE_BATCH), BvhPreset::Medium);
     }
 }

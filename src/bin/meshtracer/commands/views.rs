@@ -480,7 +480,8 @@ fn render_all(
     let rays = meshtracer::setup::expected_rays(
         u64::from(width) * u64::from(height),
         args.spp(),
-        args.noise(),
+        // Views are not denoised (their settings' `guides` is false).
+        args.noise().map(|_| meshtracer::render::ADAPTIVE_BATCH),
         lit.lights.len(),
         args.integrator,
         args.bounces,
