@@ -1,5 +1,6 @@
-//! Criterion benchmarks: BVH build, traversal (BVH vs. linear scan, three ray coherences), the
-//! triangle tests alone, bare obvhs traversal against our query path, an end-to-end render, and
+//! Criterion benchmarks: BVH build, traversal (the BVH one and eight rays at a time vs. the
+//! linear scan, three ray coherences), the triangle tests alone, bare obvhs traversal against
+//! our query path, an end-to-end render, and
 //! the path tracer's rays per second beside the BVH's own on diffuse rays.
 //!
 //! Every benchmark builds outside the timed region, warms up (criterion's warm-up), and checks
@@ -14,7 +15,9 @@ use glam::{Vec3, Vec3A};
 use meshtracer::accel::{Accel, AccelKind, BvhPreset};
 use meshtracer::geometry::{PreparedTriangle, Ray};
 use meshtracer::sampling::Rng;
-use meshtracer::tools::bench::{generated_mesh, make_rays, scene_from_soup, trace, RayKind};
+use meshtracer::tools::bench::{
+    generated_mesh, make_rays, scene_from_soup, trace, trace_packets, RayKind,
+};
 use meshtracer::Scene;
 use std::hint::black_box;
 use std::time::Duration;
@@ -138,6 +141,13 @@ fn traverse(c: &mut Criterion) {
             group.bench_function(BenchmarkId::new(format!("bvh-{kind:?}"), &name), |b| {
                 b.iter(|| {
                     let got = pool.install(|| trace(&bvh, black_box(&rays), kind));
+                    assert_eq!(got, expected);
+                })
+            });
+            // Eight rays at a time through the packet queries: the same answers.
+            group.bench_function(BenchmarkId::new(format!("packets-{kind:?}"), &name), |b| {
+                b.iter(|| {
+                    let got = pool.install(|| trace_packets(&bvh, black_box(&rays), kind));
                     assert_eq!(got, expected);
                 })
             });
