@@ -272,3 +272,49 @@ fn bench_reports_every_ray_kind_as_json_and_exports_what_it_traces() {
     );
     assert!(!plot.exists());
 }
+
+/// `--packets` traces eight rays at a time through the packet queries, checked against the
+/// one-at-a-time answers and, within the budget, the linear scan (a mismatch fails the run);
+/// the settings say so in the JSON and under the table.
+#[test]
+fn bench_traces_packets_and_says_so() {
+    let args = |json: bool| {
+        let mut a = vec![
+            "bench",
+            "assets/cornell-box.gltf",
+            "--sizes=",
+            "--rays",
+            "primary,shadow,diffuse",
+            "--side",
+            "24",
+            "--runs",
+            "2",
+            "--threads",
+            "1",
+            "--packets",
+        ];
+        if json {
+            a.extend(["--json", "-q"]);
+        }
+        a
+    };
+    let out = run(&args(true), true);
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["settings"]["packets"], true, "{report}");
+    let rows = report["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 3);
+    for row in rows {
+        assert!(row["traced"].as_u64().unwrap() > 100, "{row}");
+        // The linear scan ran (and agreed, or the run would have failed).
+        assert!(
+            row["linear_mrays_per_second"].as_f64().unwrap() > 0.0,
+            "{row}"
+        );
+    }
+    let table = run(&args(false), true);
+    assert!(
+        String::from_utf8_lossy(&table.stdout).contains("eight at a time"),
+        "{}",
+        String::from_utf8_lossy(&table.stdout)
+    );
+}
