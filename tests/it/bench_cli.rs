@@ -1,7 +1,7 @@
 //! `meshtracer bench --plot`: the log-log plot is an SVG with both series; any other name is
 //! refused before a measurement starts, leaving no file.
 
-use crate::common::{run, s, stderr};
+use crate::common::{run, s, samples, stderr};
 
 #[test]
 fn bench_plots_an_svg_and_refuses_other_plot_names_up_front() {
@@ -317,4 +317,29 @@ fn bench_traces_packets_and_says_so() {
         "{}",
         String::from_utf8_lossy(&table.stdout)
     );
+}
+
+/// On real models the packets find what one ray at a time finds on every ray of every kind,
+/// and what the linear scan finds on a budgeted subset: a disagreement fails the run.
+#[test]
+fn packets_agree_on_the_shared_models() {
+    let Some(samples) = samples("packets_agree_on_the_shared_models") else {
+        return;
+    };
+    let models = [
+        samples.join("StanfordBunny-OBJ/stanford-bunny.obj"),
+        samples.join("DamagedHelmet/glTF/DamagedHelmet.gltf"),
+        samples.join("Lantern/glTF/Lantern.gltf"),
+    ];
+    let mut args = vec!["bench", "--sizes=", "--rays", "primary,shadow,diffuse"];
+    args.extend(["--side", "96", "--runs", "1", "--threads", "2"]);
+    args.extend(["--linear-budget", "100000000", "--packets", "--json", "-q"]);
+    args.extend(models.iter().map(|m| s(m)));
+    let out = run(&args, true);
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rows = report["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 9, "{report}");
+    for row in rows {
+        assert!(row["linear_mrays_per_second"].as_f64().is_some(), "{row}");
+    }
 }
