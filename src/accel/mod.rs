@@ -125,6 +125,21 @@ fn triangle_buffer(
     Vec::with_capacity(len)
 }
 
+/// `$self.$v3(Avx2, args)` where the CPU runs x86-64-v3 code (a `_v3` copy made with
+/// [`crate::cpu::v3!`]), else `$self.$portable(Portable, args)`: every query's choice of node
+/// test and compiled copy, in one place.
+macro_rules! by_cpu {
+    ($self:ident . $v3:ident | $portable:ident ($($arg:expr),*)) => {{
+        #[cfg(target_arch = "x86_64")]
+        if let Some(avx2) = traverse::Avx2::new() {
+            // SAFETY: `Avx2::new` checked that the CPU has every feature the `_v3` copies are
+            // compiled for.
+            return unsafe { $self.$v3(avx2, $($arg),*) };
+        }
+        $self.$portable(traverse::Portable, $($arg),*)
+    }};
+}
+
 /// Ray queries over a triangle soup.
 pub struct Accel {
     kind: AccelKind,
@@ -277,13 +292,7 @@ impl Accel {
     /// [`Accel::intersect`] where a candidate hit on a MASK or BLEND triangle counts only if
     /// `accept(triangle, barycentric)` says so (alpha testing). Opaque triangles never call it.
     pub fn intersect_filtered(&self, ray: &Ray, accept: Option<&Accept>) -> Option<Hit> {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(avx2) = traverse::Avx2::new() {
-            // SAFETY: `Avx2::new` checked that the CPU has every feature `closest_hit_v3` is
-            // compiled for.
-            return unsafe { self.closest_hit_v3(avx2, ray, accept) };
-        }
-        self.closest_hit(traverse::Portable, ray, accept)
+        by_cpu!(self.closest_hit_v3 | closest_hit(ray, accept))
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -331,13 +340,7 @@ impl Accel {
     /// [`Accel::occluded`] where a MASK or BLEND triangle blocks only if `accept` says so.
     /// `accept` may be called for several candidates, in any order, before one blocks.
     pub fn occluded_filtered(&self, ray: &Ray, accept: Option<&Accept>) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(avx2) = traverse::Avx2::new() {
-            // SAFETY: `Avx2::new` checked that the CPU has every feature `any_hit_v3` is
-            // compiled for.
-            return unsafe { self.any_hit_v3(avx2, ray, accept) };
-        }
-        self.any_hit(traverse::Portable, ray, accept)
+        by_cpu!(self.any_hit_v3 | any_hit(ray, accept))
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -380,12 +383,7 @@ impl Accel {
         rays: &[Ray],
         accept: Option<&Accept>,
     ) -> [Option<Closest>; traverse::PACKET] {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(avx2) = traverse::Avx2::new() {
-            // SAFETY: `Avx2::new` found the CPU able to run x86-64-v3 code.
-            return unsafe { self.closest_hit_packet_v3(avx2, rays, accept) };
-        }
-        self.closest_hit_packet(traverse::Portable, rays, accept)
+        by_cpu!(self.closest_hit_packet_v3 | closest_hit_packet(rays, accept))
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -432,12 +430,7 @@ impl Accel {
 
     /// [`Accel::occluded_many`] for at most [`traverse::PACKET`] rays: bit `i` for `rays[i]`.
     fn occluded_packet(&self, rays: &[Ray], accept: Option<&Accept>) -> u32 {
-        #[cfg(target_arch = "x86_64")]
-        if let Some(avx2) = traverse::Avx2::new() {
-            // SAFETY: `Avx2::new` found the CPU able to run x86-64-v3 code.
-            return unsafe { self.any_hit_packet_v3(avx2, rays, accept) };
-        }
-        self.any_hit_packet(traverse::Portable, rays, accept)
+        by_cpu!(self.any_hit_packet_v3 | any_hit_packet(rays, accept))
     }
 
     #[cfg(target_arch = "x86_64")]
