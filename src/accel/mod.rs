@@ -359,9 +359,6 @@ impl Accel {
         }
     }
 
-    /// The hit parameter of the triangle in `slot`, `f32::INFINITY` for a miss; with `cull`,
-    /// the back faces of single-sided triangles are misses. The one place both structures
-    /// test a triangle.
     /// The closest hit of each ray of `rays`, into `hits` (one answer a ray, as many as both
     /// hold): the answers of [`Accel::intersect_filtered`] ray by ray, found for eight
     /// consecutive rays at a time in one walk of the BVH (see [`Accel::occluded_many`]).
@@ -457,6 +454,9 @@ impl Accel {
         }
     }
 
+    /// The hit parameter of the triangle in `slot`, `f32::INFINITY` for a miss; with `cull`,
+    /// the back faces of single-sided triangles are misses. The one place both structures
+    /// test a triangle.
     #[inline(always)]
     fn test(&self, slot: usize, ray: &Ray, cull: bool, accept: Option<&Accept>) -> f32 {
         let t = self.triangles[slot].intersect_t(ray);
