@@ -140,6 +140,10 @@ macro_rules! by_cpu {
     }};
 }
 
+/// Rays one packet query ([`Accel::intersect_many`], [`Accel::occluded_many`]) takes into the
+/// tree together.
+pub const PACKET: usize = traverse::PACKET;
+
 /// Ray queries over a triangle soup.
 pub struct Accel {
     kind: AccelKind,

@@ -44,9 +44,15 @@ impl Integrator for Direct {
         let mut transmittance = 1.0f32;
         let mut tint = Vec3::ONE;
         let mut ray = camera.ray;
+        // The first query is the camera ray's, which may come traced.
+        let mut traced = camera.traced;
         for _ in 0..MAX_BLEND_LAYERS {
             counts.primary += 1;
-            let Some(hit) = scene.intersect_camera(&ray) else {
+            let found = match traced.take() {
+                Some(hit) => hit,
+                None => scene.intersect_camera(&ray),
+            };
+            let Some(hit) = found else {
                 break;
             };
             if first.is_none() {

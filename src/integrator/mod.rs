@@ -26,6 +26,9 @@ pub struct CameraRay {
     pub spread_base: f32,
     /// Growth of the cone width per unit distance.
     pub spread_per_distance: f32,
+    /// The first surface along `ray` ([`Prepared::intersect_camera`]) when the pixel loop has
+    /// already traced it (with its neighbours', in one packet); `None` when it has not.
+    pub traced: Option<Option<Hit>>,
 }
 
 impl CameraRay {

@@ -119,6 +119,7 @@ impl Integrator for PathTracer {
         mut guide: Option<&mut super::GuideSample>,
     ) -> (Vec3, f32) {
         let mut ray = camera.ray;
+        let mut traced = camera.traced;
         let mut throughput = Vec3::ONE;
         let mut radiance = Vec3::ZERO;
         let mut coverage = 0.0;
@@ -139,7 +140,12 @@ impl Integrator for PathTracer {
                 counts.indirect += 1;
             }
             let direction = Vec3::from(ray.direction);
-            let Some(hit) = scene.intersect_camera(&ray) else {
+            // The first query is the camera ray's, which may come traced.
+            let found = match traced.take() {
+                Some(hit) => hit,
+                None => scene.intersect_camera(&ray),
+            };
+            let Some(hit) = found else {
                 if let Some((seen, background)) = self.escaped(throughput, direction, bsdf_pdf) {
                     radiance += seen;
                     if let (Some(background), Some(g)) = (background, guide.as_deref_mut()) {

@@ -87,6 +87,19 @@ impl Prepared {
         }
     }
 
+    /// [`Prepared::intersect_camera`] of each ray of `rays`, into `hits` (as many as both
+    /// hold): the same answers, found for eight consecutive rays at a time in one walk of the
+    /// BVH ([`crate::accel::Accel::intersect_many`]). For camera rays of neighbouring pixels,
+    /// which mostly enter the same nodes.
+    pub fn intersect_camera_many(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        if self.any_alpha() {
+            let accept = |tri: u32, b: Vec3| self.accept_for_camera(tri, b);
+            self.accel.intersect_many(rays, Some(&accept), hits);
+        } else {
+            self.accel.intersect_many(rays, None, hits);
+        }
+    }
+
     /// Alpha of a MASK or BLEND surface at a candidate hit: base colour factor × texture ×
     /// vertex colour (the texture at full resolution: this runs inside traversal).
     pub fn alpha_at(&self, triangle: u32, barycentric: Vec3) -> f32 {

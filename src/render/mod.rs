@@ -11,7 +11,7 @@ pub mod film;
 
 pub use film::Image;
 
-use crate::accel::Hit;
+use crate::accel::{Hit, PACKET};
 use crate::camera::{Lens, View};
 use crate::color::luminance;
 use crate::geometry::Ray;
@@ -397,6 +397,79 @@ struct Tile {
     samples: u64,
 }
 
+/// One pixel's sums while its samples are taken ([`PixelLoop::pixel_run`]).
+struct Pixel {
+    x: u32,
+    sampler: Sampler,
+    /// Radiance (after exposure) and coverage, summed over the samples taken.
+    sum: Vec4,
+    /// Sum of the squared luminances, for the standard error.
+    luminance_squares: f64,
+    /// The first surface a camera ray met (the AOVs' at one sample a pixel).
+    first: Option<Hit>,
+    /// Samples the pixel takes: `spp`, or fewer once adaptive sampling stops it.
+    taken: u32,
+    /// Whether it has taken them all.
+    done: bool,
+    /// The denoiser's guides, summed.
+    albedo: Vec3,
+    normal: Vec3,
+    depth: f32,
+    depth_hits: u32,
+    visibility: f32,
+    emission: Vec3,
+}
+
+impl Pixel {
+    fn new(seed: u64, x: u32, y: u32, spp: u32) -> Pixel {
+        Pixel {
+            x,
+            sampler: Sampler::for_pixel(seed, x, y),
+            sum: Vec4::ZERO,
+            luminance_squares: 0.0,
+            first: None,
+            taken: spp,
+            done: false,
+            albedo: Vec3::ZERO,
+            normal: Vec3::ZERO,
+            depth: 0.0,
+            depth_hits: 0,
+            visibility: 0.0,
+            emission: Vec3::ZERO,
+        }
+    }
+
+    /// The pixel's mean, variance and guides into `tile`.
+    fn finish(&self, tile: &mut Tile) {
+        let taken = self.taken;
+        tile.samples += u64::from(taken);
+        tile.pixels.push(self.sum / taken as f32);
+        let mut variance = 0.0f32;
+        if taken > 1 && self.sum.w > 0.0 {
+            let n = f64::from(taken);
+            let mean = f64::from(luminance(self.sum.truncate())) / n;
+            let error = standard_error(self.luminance_squares, mean, taken);
+            tile.noise_sum += error;
+            tile.noise_pixels += 1;
+            variance = (error * error) as f32;
+        }
+        tile.variance.push(variance);
+        if let Some(g) = tile.guides.as_mut() {
+            let n = taken as f32;
+            g.albedo
+                .push((self.albedo / n).clamp(Vec3::ZERO, Vec3::ONE));
+            g.normal.push(self.normal / n);
+            g.visibility.push(self.visibility / n);
+            g.emission.push(self.emission / n);
+            g.depth.push(if self.depth_hits > 0 {
+                self.depth / self.depth_hits as f32
+            } else {
+                0.0
+            });
+        }
+    }
+}
+
 /// Per-render constants shared by all tiles.
 struct PixelLoop<'a, I> {
     scene: &'a Prepared,
@@ -467,7 +540,6 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
     /// The body of [`PixelLoop::tile`], compiled for each CPU level.
     #[inline(always)]
     fn tile_body(&self, x0: u32, y0: u32) -> Tile {
-        let view = &self.settings.view;
         let x1 = (x0 + TILE_SIZE).min(self.region.right());
         let y1 = (y0 + TILE_SIZE).min(self.region.bottom());
         let mut tile = Tile {
@@ -492,108 +564,127 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
             noise_pixels: 0,
             samples: 0,
         };
-        let spp = self.settings.spp.max(1);
-        let batch = self.settings.adaptive_batch();
         for y in y0..y1 {
-            for x in x0..x1 {
-                let mut sampler = Sampler::for_pixel(self.settings.seed, x, y);
-                let mut sum = Vec4::ZERO;
-                let mut luminance_squares = 0.0f64;
-                let mut first = None;
-                let mut taken = spp;
-                let (mut albedo, mut normal) = (Vec3::ZERO, Vec3::ZERO);
-                let (mut depth, mut depth_hits) = (0.0f32, 0u32);
-                let mut visibility = 0.0f32;
-                let mut emission = Vec3::ZERO;
-                for s in 0..spp {
-                    sampler.start_sample(s);
-                    // The pixel position is the sample's first two numbers: any prefix of 2^m
-                    // samples covers the pixel evenly (see crate::sampling::Sampler), which
-                    // adaptive sampling's early stops need.
-                    let (dx, dy) = if spp == 1 {
-                        (0.5, 0.5)
-                    } else {
-                        sampler.next_2d()
-                    };
-                    let camera = CameraRay {
-                        ray: view.ray(x as f32 + dx, y as f32 + dy),
-                        spread_base: self.spread.0,
-                        spread_per_distance: self.spread.1,
-                    };
-                    let mut guide = GuideSample::default();
-                    let (color, coverage) = self.integrator.radiance(
-                        self.scene,
-                        &camera,
-                        &mut sampler,
-                        &mut tile.counts,
-                        &mut first,
-                        self.collect_guides.then_some(&mut guide),
-                    );
-                    if self.collect_guides {
-                        // As the denoiser's own guide rays: albedo in [0, 1], a visible
-                        // background's radiance (after exposure, clamped) as its albedo.
-                        albedo += guide.albedo.clamp(Vec3::ZERO, Vec3::ONE)
-                            + (guide.background * self.scale).clamp(Vec3::ZERO, Vec3::ONE);
-                        normal += guide.normal;
-                        visibility += guide.visibility.unwrap_or(1.0);
-                        emission += guide.emission * self.scale;
-                        if let Some(t) = guide.depth {
-                            depth += t;
-                            depth_hits += 1;
-                        }
-                    }
-                    sum += (color * self.scale).extend(coverage);
-                    luminance_squares += f64::from(luminance(color * self.scale)).powi(2);
-                    if let Some(target) = self.settings.noise {
-                        let n = s + 1;
-                        if n < spp && n % batch == 0 {
-                            let mean = f64::from(luminance(sum.truncate())) / f64::from(n);
-                            let error = standard_error(luminance_squares, mean, n);
-                            if error <= f64::from(target) * mean.max(f64::from(NOISE_FLOOR)) {
-                                taken = n;
-                                break;
-                            }
-                        }
-                    }
-                }
-                tile.samples += u64::from(taken);
-                tile.pixels.push(sum / taken as f32);
-                let mut variance = 0.0f32;
-                if taken > 1 && sum.w > 0.0 {
-                    let n = f64::from(taken);
-                    let mean = f64::from(luminance(sum.truncate())) / n;
-                    let error = standard_error(luminance_squares, mean, taken);
-                    tile.noise_sum += error;
-                    tile.noise_pixels += 1;
-                    variance = (error * error) as f32;
-                }
-                tile.variance.push(variance);
-                if let Some(g) = tile.guides.as_mut() {
-                    let n = taken as f32;
-                    g.albedo.push((albedo / n).clamp(Vec3::ZERO, Vec3::ONE));
-                    g.normal.push(normal / n);
-                    g.visibility.push(visibility / n);
-                    g.emission.push(emission / n);
-                    g.depth.push(if depth_hits > 0 {
-                        depth / depth_hits as f32
-                    } else {
-                        0.0
-                    });
-                }
-                if self.settings.aovs {
-                    let ray = view.ray(x as f32 + 0.5, y as f32 + 0.5);
-                    // One sample a pixel went through the centre: its first surface is the
-                    // AOVs'. Otherwise they trace the centre ray themselves.
-                    let hit = if spp == 1 {
-                        first
-                    } else {
-                        self.scene.intersect_camera(&ray)
-                    };
-                    self.aov(&ray, hit, &mut tile.aovs);
-                }
+            for x in (x0..x1).step_by(PACKET) {
+                self.pixel_run(x..(x + PACKET as u32).min(x1), y, &mut tile);
             }
         }
         tile
+    }
+
+    /// The pixels `xs` (at most [`PACKET`]) of row `y`, side by side: at each sample index the
+    /// camera rays of those still sampling are traced together in one packet query (they
+    /// mostly enter the same nodes), then each goes to the integrator with its first hit.
+    /// Each pixel takes its samples and their numbers in the same order as alone, and the
+    /// packet's answers are the single-ray ones, so the image is the same.
+    #[inline(always)]
+    fn pixel_run(&self, xs: std::ops::Range<u32>, y: u32, tile: &mut Tile) {
+        let view = &self.settings.view;
+        let spp = self.settings.spp.max(1);
+        let mut pixels: [Pixel; PACKET] =
+            std::array::from_fn(|i| Pixel::new(self.settings.seed, xs.start + i as u32, y, spp));
+        let pixels = &mut pixels[..xs.len()];
+        let mut rays = [view.ray(0.5, 0.5); PACKET];
+        let mut hits = [None; PACKET];
+        let mut sampling = [0usize; PACKET];
+        for s in 0..spp {
+            let mut count = 0;
+            for (i, pixel) in pixels.iter_mut().enumerate() {
+                if pixel.done {
+                    continue;
+                }
+                pixel.sampler.start_sample(s);
+                // The pixel position is the sample's first two numbers: any prefix of 2^m
+                // samples covers the pixel evenly (see crate::sampling::Sampler), which
+                // adaptive sampling's early stops need.
+                let (dx, dy) = if spp == 1 {
+                    (0.5, 0.5)
+                } else {
+                    pixel.sampler.next_2d()
+                };
+                rays[count] = view.ray(pixel.x as f32 + dx, y as f32 + dy);
+                sampling[count] = i;
+                count += 1;
+            }
+            if count == 0 {
+                break;
+            }
+            self.scene
+                .intersect_camera_many(&rays[..count], &mut hits[..count]);
+            for ((ray, hit), &i) in rays.iter().zip(hits).zip(&sampling).take(count) {
+                let camera = CameraRay {
+                    ray: *ray,
+                    spread_base: self.spread.0,
+                    spread_per_distance: self.spread.1,
+                    traced: Some(hit),
+                };
+                self.sample(&mut pixels[i], &camera, s, tile);
+            }
+        }
+        // One sample a pixel went through the centre: its first surface is the AOVs'.
+        // Otherwise they trace the centre rays themselves, again as one packet.
+        let centre = |pixel: &Pixel| view.ray(pixel.x as f32 + 0.5, y as f32 + 0.5);
+        if self.settings.aovs && spp != 1 {
+            for (ray, pixel) in rays.iter_mut().zip(pixels.iter()) {
+                *ray = centre(pixel);
+            }
+            self.scene
+                .intersect_camera_many(&rays[..pixels.len()], &mut hits[..pixels.len()]);
+            for (pixel, hit) in pixels.iter_mut().zip(hits) {
+                pixel.first = hit;
+            }
+        }
+        for pixel in pixels.iter() {
+            pixel.finish(tile);
+            if self.settings.aovs {
+                self.aov(&centre(pixel), pixel.first, &mut tile.aovs);
+            }
+        }
+    }
+
+    /// Sample `s` of `pixel` along `camera`: its radiance into the pixel's sums, and its
+    /// guides when they are collected. Stops the pixel when adaptive sampling finds it
+    /// converged.
+    #[inline(always)]
+    fn sample(&self, pixel: &mut Pixel, camera: &CameraRay, s: u32, tile: &mut Tile) {
+        let mut guide = GuideSample::default();
+        let (color, coverage) = self.integrator.radiance(
+            self.scene,
+            camera,
+            &mut pixel.sampler,
+            &mut tile.counts,
+            &mut pixel.first,
+            self.collect_guides.then_some(&mut guide),
+        );
+        if self.collect_guides {
+            // As the denoiser's own guide rays: albedo in [0, 1], a visible background's
+            // radiance (after exposure, clamped) as its albedo.
+            pixel.albedo += guide.albedo.clamp(Vec3::ZERO, Vec3::ONE)
+                + (guide.background * self.scale).clamp(Vec3::ZERO, Vec3::ONE);
+            pixel.normal += guide.normal;
+            pixel.visibility += guide.visibility.unwrap_or(1.0);
+            pixel.emission += guide.emission * self.scale;
+            if let Some(t) = guide.depth {
+                pixel.depth += t;
+                pixel.depth_hits += 1;
+            }
+        }
+        pixel.sum += (color * self.scale).extend(coverage);
+        pixel.luminance_squares += f64::from(luminance(color * self.scale)).powi(2);
+        if let Some(target) = self.settings.noise {
+            let n = s + 1;
+            if n < pixel.taken && n.is_multiple_of(self.settings.adaptive_batch()) {
+                let mean = f64::from(luminance(pixel.sum.truncate())) / f64::from(n);
+                let error = standard_error(pixel.luminance_squares, mean, n);
+                if error <= f64::from(target) * mean.max(f64::from(NOISE_FLOOR)) {
+                    pixel.taken = n;
+                    pixel.done = true;
+                }
+            }
+        }
+        if s + 1 == pixel.taken {
+            pixel.done = true;
+        }
     }
 
     /// Depth, normal and instance id of `hit`, the first surface along pixel-centre `ray`.

@@ -441,6 +441,7 @@ fn mis_light_only_and_bsdf_only_estimators_agree() {
         ray: meshtracer::geometry::Ray::new(eye, -eye.normalize(), 0.0, f32::INFINITY),
         spread_base: 0.0,
         spread_per_distance: 0.0,
+        traced: None,
     };
     const PATHS: u32 = 40_000;
     let estimate = |estimator: Estimator| {
@@ -1260,6 +1261,7 @@ fn a_panel_beside_a_plane_lights_it_at_grazing_incidence() {
             ray: meshtracer::geometry::Ray::new(eye, Vec3::NEG_Z, 0.0, f32::INFINITY),
             spread_base: 0.0,
             spread_per_distance: 0.0,
+            traced: None,
         };
         let (mean, standard_error) = path_estimate(&tracer, &prepared, &camera, PATHS, (5, k));
         let (px, py) = (f64::from(x), 0.013);
