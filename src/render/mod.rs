@@ -1,5 +1,7 @@
-//! The render phase: the pixel loop. Camera rays per pixel (Owen-scrambled Sobol samples), each
-//! handed to an [`Integrator`]; the samples averaged into the film; AOVs from pixel-centre rays.
+//! The render phase: the pixel loop. Camera rays per pixel (Owen-scrambled Sobol samples),
+//! traced eight neighbouring pixels at a time in one packet query, each handed to an
+//! [`Integrator`] with its first hit; the samples averaged into the film; AOVs from
+//! pixel-centre rays.
 //! Surface evaluation lives in [`crate::shading::surface`], light transport in [`crate::integrator`].
 //!
 //! Work is split into square tiles rendered in parallel with rayon. Every pixel's samples come
