@@ -48,11 +48,10 @@ impl Integrator for Direct {
         let mut traced = camera.traced;
         for _ in 0..MAX_BLEND_LAYERS {
             counts.primary += 1;
-            let found = match traced.take() {
-                Some(hit) => hit,
-                None => scene.intersect_camera(&ray),
-            };
-            let Some(hit) = found else {
+            let Some(hit) = traced
+                .take()
+                .unwrap_or_else(|| scene.intersect_camera(&ray))
+            else {
                 break;
             };
             if first.is_none() {

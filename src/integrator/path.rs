@@ -119,6 +119,7 @@ impl Integrator for PathTracer {
         mut guide: Option<&mut super::GuideSample>,
     ) -> (Vec3, f32) {
         let mut ray = camera.ray;
+        // The first query is the camera ray's, which may come traced.
         let mut traced = camera.traced;
         let mut throughput = Vec3::ONE;
         let mut radiance = Vec3::ZERO;
@@ -140,12 +141,10 @@ impl Integrator for PathTracer {
                 counts.indirect += 1;
             }
             let direction = Vec3::from(ray.direction);
-            // The first query is the camera ray's, which may come traced.
-            let found = match traced.take() {
-                Some(hit) => hit,
-                None => scene.intersect_camera(&ray),
-            };
-            let Some(hit) = found else {
+            let Some(hit) = traced
+                .take()
+                .unwrap_or_else(|| scene.intersect_camera(&ray))
+            else {
                 if let Some((seen, background)) = self.escaped(throughput, direction, bsdf_pdf) {
                     radiance += seen;
                     if let (Some(background), Some(g)) = (background, guide.as_deref_mut()) {
@@ -206,16 +205,7 @@ impl Integrator for PathTracer {
             }
             let to_eye = -direction;
             let material = surface.source;
-            let mut bsdf = Bsdf::new(surface.material, surface.normal, to_eye);
-            if surface.transmission > 0.0 {
-                bsdf = bsdf.with_transmission(
-                    to_eye,
-                    surface.transmission,
-                    material.ior,
-                    surface.thin_walled,
-                    hit.front,
-                );
-            }
+            let bsdf = surface_bsdf(&surface, to_eye, hit.front);
             // The direction to continue in, drawn from the BSDF (three numbers drawn whether or
             // not it is used, so every later number keeps its dimension of the sequence) before the light samples: its
             // evaluation then overlaps their shadow rays' traversal.
@@ -264,6 +254,23 @@ impl Integrator for PathTracer {
         }
         (self.clamped(radiance, direct), coverage)
     }
+}
+
+/// The BSDF of `surface` seen from `to_eye`, with its transmission lobe where it has one
+/// (`front`: the ray arrived on the front face, so a volume's boundary is entered).
+#[inline(always)]
+fn surface_bsdf(surface: &Surface, to_eye: Vec3, front: bool) -> Bsdf {
+    let bsdf = Bsdf::new(surface.material, surface.normal, to_eye);
+    if surface.transmission > 0.0 {
+        return bsdf.with_transmission(
+            to_eye,
+            surface.transmission,
+            surface.source.ior,
+            surface.thin_walled,
+            front,
+        );
+    }
+    bsdf
 }
 
 /// A path vertex as next-event estimation sees it.
