@@ -49,6 +49,10 @@ pub struct Bsdf {
     normal: Vec3,
     alpha: f32,
     p_specular: f32,
+    /// Whether the specular lobe reflects anything: false when its Fresnel is zero at both
+    /// ends (`KHR_materials_specular` with factor 0, an OBJ's `Ks 0 0 0` or `Ni 1`), which
+    /// leaves a Lambertian surface.
+    reflects: bool,
     /// Chance of drawing the clearcoat's GGX lobe (around the coat's normal), among the
     /// non-delta lobes; 0 without a coat.
     p_coat: f32,
@@ -212,6 +216,20 @@ fn transmission_scale(material: &SurfaceMaterial, n_dot_v: f32, eta: f32, kept: 
     }
 }
 
+/// The chance of drawing the specular lobe rather than the diffuse one, from their albedos
+/// `fresnel` and `diffuse` at the view: at least 0.05, so that highlights the albedo underrates
+/// are still drawn, except for a lobe that reflects nothing, whose draws would all be wasted
+/// (the diffuse lobe covers the hemisphere alone, so the estimate stays unbiased).
+fn specular_probability(fresnel: f32, diffuse: f32, reflects: bool) -> f32 {
+    if !reflects && diffuse > 0.0 {
+        0.0
+    } else if fresnel + diffuse > 0.0 {
+        (fresnel / (fresnel + diffuse)).clamp(0.05, 1.0)
+    } else {
+        1.0
+    }
+}
+
 impl Bsdf {
     /// The BSDF of `material` around the unit shading normal `normal`, seen from `to_eye`.
     #[inline(always)]
@@ -229,11 +247,10 @@ impl Bsdf {
         if let Some(sheen) = material.sheen {
             diffuse += sheen.color.max_element() * sheen_albedo(n_dot_v, sheen.roughness);
         }
-        let p_specular = if fresnel + diffuse > 0.0 {
-            (fresnel / (fresnel + diffuse)).clamp(0.05, 1.0)
-        } else {
-            1.0
-        };
+        // Zero scaled Fresnel ends make the core BRDF's specular term zero for every pair of
+        // directions (a thin film, which reflects over them, gives no scaled ends).
+        let reflects = response.scaled_ends != Some((Vec3::ZERO, Vec3::ZERO));
+        let p_specular = specular_probability(fresnel, diffuse, reflects);
         // The coat's share: its reflectance against what the base below it still reflects.
         let p_coat = material.clearcoat.map_or(0.0, |c| {
             let coat = c.weight * Clearcoat::fresnel(c.normal.dot(to_eye));
@@ -274,6 +291,7 @@ impl Bsdf {
             normal,
             alpha,
             p_specular,
+            reflects,
             p_coat,
             transmission: None,
             core,
@@ -300,6 +318,11 @@ impl Bsdf {
         let cos = n.dot(to_light);
         if cos <= 0.0 {
             return (Vec3::ZERO, 0.0);
+        }
+        if !self.reflects {
+            // Lambertian: what the lines below give when the Fresnel ends and the specular
+            // pdf (p_specular 0) are zero, bit for bit: diffuse + 0 and 0 + the diffuse pdf.
+            return ((core.diffuse * cos).into(), core.diffuse_pdf * cos);
         }
         let k = to_light + to_eye;
         let s = k.dot(k);
@@ -382,11 +405,7 @@ impl Bsdf {
         let total = fresnel + diffuse + transmit;
         let probability = if total > 0.0 { transmit / total } else { 0.0 };
         // The other lobes share what is left in their old proportion.
-        self.p_specular = if fresnel + diffuse > 0.0 {
-            (fresnel / (fresnel + diffuse)).clamp(0.05, 1.0)
-        } else {
-            1.0
-        };
+        self.p_specular = specular_probability(fresnel, diffuse, self.reflects);
         let scale = if self.alpha > MIN_ALPHA {
             // What the base keeps: for a dielectric 1 - the albedo just computed (the same
             // evaluation `diffuse_kept` would repeat), else the dielectric part's.
@@ -731,7 +750,12 @@ mod tests {
             (0.2, 0.4, 0.05),
             (1.0, 1.0, 1.0),
         ] {
-            for specular in [None, Some((Vec3::new(0.1, 0.05, 0.02), 0.6))] {
+            // None: the material's own; weight 0: a Lambertian surface (no specular lobe).
+            for specular in [
+                None,
+                Some((Vec3::new(0.1, 0.05, 0.02), 0.6)),
+                Some((Vec3::new(0.04, 0.04, 0.04), 0.0)),
+            ] {
                 let mut m = material(base, metallic, roughness);
                 if let Some((f0, weight)) = specular {
                     m.dielectric_f0 = f0;
@@ -833,6 +857,47 @@ mod tests {
                 (a - b).abs() < 0.02 * a.max(0.1),
                 "{m:?}: albedo {a} (uniform) vs {b} (sampled)"
             );
+        }
+    }
+
+    /// A dielectric whose specular lobe reflects nothing (`KHR_materials_specular` factor 0,
+    /// an OBJ's `Ks 0 0 0`) is drawn from the cosine lobe alone: every draw weighs its base
+    /// colour (f·cos / pdf = (c/π)·cos / (cos/π)), where draws from the empty GGX lobe weighed
+    /// something else. Its shortcut evaluation agrees with the general path.
+    #[test]
+    fn a_lambertian_surface_draws_only_the_cosine_lobe() {
+        let base = Vec3::new(0.7, 0.4, 0.2);
+        for roughness in [0.0, 0.5, 1.0] {
+            let mut m = material(0.5, 0.0, roughness);
+            m.base_color = base;
+            m.specular_weight = 0.0;
+            let to_eye = Vec3::new(0.3, -0.2, 0.9).normalize();
+            let bsdf = Bsdf::new(m, Vec3::Z, to_eye);
+            assert_eq!(bsdf.p_specular, 0.0, "{m:?}");
+            let mut rng = Rng::new(5);
+            for _ in 0..10_000 {
+                let (u, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+                let Some(s) = bsdf.sample(to_eye, u, u1, u2) else {
+                    panic!("{m:?}: a cosine draw above the surface was rejected");
+                };
+                assert!(
+                    (s.weight - base).abs().max_element() < 1e-5,
+                    "{m:?}: weight {} for {}",
+                    s.weight,
+                    s.direction
+                );
+                let general = Bsdf { core: None, ..bsdf };
+                let fast = bsdf.eval_pdf(to_eye, s.direction);
+                let slow = (
+                    general.eval_cos(to_eye, s.direction),
+                    general.pdf(to_eye, s.direction),
+                );
+                assert!(
+                    (fast.0 - slow.0).abs().max_element() <= 1e-6
+                        && (fast.1 - slow.1).abs() <= 1e-6,
+                    "{m:?}: {fast:?} against {slow:?}"
+                );
+            }
         }
     }
 
