@@ -3,7 +3,7 @@
 pub mod spawn;
 pub mod triangle;
 
-pub use spawn::{SpawnPoint, SHADOW_EPSILON};
+pub use spawn::{SpawnFrame, SpawnPoint, SHADOW_EPSILON};
 pub use triangle::{PreparedTriangle, TriangleHit, EDGE_EPSILON};
 
 use glam::{Vec3, Vec3A};

@@ -79,6 +79,64 @@ pub struct SpawnPoint {
     pub normal: Vec3,
 }
 
+/// What a [`SpawnPoint`] takes from its triangle alone: the error bound and the unit normal,
+/// the same at every point of the triangle (the bound depends on the vertices, not on where
+/// between them the point lies). An emissive triangle keeps its frame, so that each point drawn
+/// on it costs the point's interpolation only.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SpawnFrame {
+    /// See [`SpawnPoint::error`].
+    pub error: Vec3,
+    /// See [`SpawnPoint::normal`].
+    pub normal: Vec3,
+}
+
+impl SpawnFrame {
+    /// The frame of triangle `vertices`; `None` for a degenerate or non-finite triangle.
+    #[inline(always)]
+    pub fn of(vertices: [Vec3; 3]) -> Option<SpawnFrame> {
+        // In SIMD lanes (Vec3A): the same operations, lane by lane, as with Vec3, so the same
+        // bits, in about half the instructions (this runs at every path vertex).
+        let [p0, p1, p2] = vertices.map(Vec3A::from);
+        let (e1, e2) = (p1 - p0, p2 - p0);
+        let n = e1.cross(e2);
+        let n_len2 = n.length_squared();
+        let n_len = n_len2.sqrt();
+        if !(n_len > 0.0 && n_len.is_finite()) {
+            return None;
+        }
+        let largest = p0.abs().max(p1.abs()).max(p2.abs());
+        // Three square roots, not five: squared lengths compared, and ‖e₁‖·‖e₂‖/‖n‖ as one
+        // root of a ratio (1/sin of the angle at p₀, so it cannot overflow).
+        let (l1, l2) = (e1.length_squared(), e2.length_squared());
+        let longest = l1.max(l2).max((p2 - p1).length_squared()).sqrt();
+        let tilt = gamma(3) * longest * ((l1 / n_len2) * l2).sqrt();
+        let error = gamma(16) * largest + Vec3A::splat(tilt);
+        Some(SpawnFrame {
+            error: error.into(),
+            normal: (n / n_len).into(),
+        })
+    }
+
+    /// The point at barycentrics `b` of `vertices` (this frame's triangle), rescaled to sum
+    /// to 1 first; `None` for non-finite input.
+    #[inline(always)]
+    pub fn at(self, vertices: [Vec3; 3], b: Vec3) -> Option<SpawnPoint> {
+        let sum = b.x + b.y + b.z;
+        if !(sum.is_finite() && sum != 0.0) {
+            return None;
+        }
+        let [p0, p1, p2] = vertices.map(Vec3A::from);
+        let b = b / sum;
+        let point = p0 * b.x + p1 * b.y + p2 * b.z;
+        point.is_finite().then_some(SpawnPoint {
+            point: point.into(),
+            error: self.error,
+            normal: self.normal,
+        })
+    }
+}
+
 impl SpawnPoint {
     /// The point at barycentrics `b` of triangle `vertices`, with its error bound. `b` need not
     /// sum to 1 exactly (the triangle test's barycentrics do not): it is rescaled first.
@@ -87,31 +145,7 @@ impl SpawnPoint {
     // through memory (callgrind: +3.5% instructions for a path-traced render).
     #[inline(always)]
     pub fn on_triangle(vertices: [Vec3; 3], b: Vec3) -> Option<SpawnPoint> {
-        // In SIMD lanes (Vec3A): the same operations, lane by lane, as with Vec3, so the same
-        // bits, in about half the instructions (this runs at every path vertex).
-        let [p0, p1, p2] = vertices.map(Vec3A::from);
-        let (e1, e2) = (p1 - p0, p2 - p0);
-        let n = e1.cross(e2);
-        let n_len2 = n.length_squared();
-        let n_len = n_len2.sqrt();
-        let sum = b.x + b.y + b.z;
-        if !(n_len > 0.0 && n_len.is_finite() && sum.is_finite() && sum != 0.0) {
-            return None;
-        }
-        let b = b / sum;
-        let point = p0 * b.x + p1 * b.y + p2 * b.z;
-        let largest = p0.abs().max(p1.abs()).max(p2.abs());
-        // Three square roots, not five: squared lengths compared, and ‖e₁‖·‖e₂‖/‖n‖ as one
-        // root of a ratio (1/sin of the angle at p₀, so it cannot overflow).
-        let (l1, l2) = (e1.length_squared(), e2.length_squared());
-        let longest = l1.max(l2).max((p2 - p1).length_squared()).sqrt();
-        let tilt = gamma(3) * longest * ((l1 / n_len2) * l2).sqrt();
-        let error = gamma(16) * largest + Vec3A::splat(tilt);
-        point.is_finite().then_some(SpawnPoint {
-            point: point.into(),
-            error: error.into(),
-            normal: (n / n_len).into(),
-        })
+        SpawnFrame::of(vertices)?.at(vertices, b)
     }
 
     /// The same point moved by `offset` (the terminator lift, say), with the error of that

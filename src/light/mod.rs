@@ -7,6 +7,7 @@
 
 pub mod environment;
 
+use crate::geometry::SpawnFrame;
 use crate::scene::{Light, LightKind};
 use glam::Vec3;
 
@@ -139,6 +140,9 @@ pub struct AreaLights {
     pdf_areas: Vec<f32>,
     /// Unit normal of each light triangle ((b - a) × (c - a), normalised).
     normals: Vec<Vec3>,
+    /// Each light triangle's error bound and normal for the points drawn on it, where shadow
+    /// rays toward it stop ([`crate::geometry::spawn`]).
+    frames: Vec<Option<SpawnFrame>>,
     /// Which light to sample.
     distribution: crate::sampling::Distribution1D,
     /// For each soup triangle, its light index or `u32::MAX` (empty when there are no lights).
@@ -156,6 +160,8 @@ pub struct AreaSample {
     pub pdf_area: f32,
     /// The triangle's unit normal (it emits from both faces).
     pub normal: Vec3,
+    /// The triangle's [`SpawnFrame`] (`None` if degenerate).
+    pub frame: Option<SpawnFrame>,
 }
 
 impl AreaLights {
@@ -183,6 +189,7 @@ impl AreaLights {
                     lights.triangles.push(tri as u32);
                     lights.pdf_areas.push(area);
                     lights.normals.push(n / (2.0 * area));
+                    lights.frames.push(SpawnFrame::of([a, b, c]));
                     weights.push(power * area);
                 }
             }
@@ -222,6 +229,7 @@ impl AreaLights {
             barycentric: crate::sampling::uniform_triangle(u1, u2),
             pdf_area,
             normal: self.normals[i],
+            frame: self.frames[i],
         })
     }
 

@@ -8,7 +8,6 @@
 //! Units (glTF 2.0 `KHR_lights_punctual`): a punctual light delivers irradiance (candela / d²
 //! for point and spot, lux for directional); emissive triangles and the environment radiance.
 
-use crate::geometry::SpawnPoint;
 use crate::light::environment::{Environment, MapPoint};
 use crate::light::PunctualLight;
 use crate::prepare::Prepared;
@@ -123,7 +122,7 @@ impl<'a> SceneLight<'a> {
                 let offset = on_light - point;
                 // Off the light by its error bound, toward the shading point (pbrt-v4's
                 // SpawnRayTo between two surfaces): the shadow ray then stops before the light.
-                let target = match SpawnPoint::on_triangle([a, b, c], barycentric) {
+                let target = match sample.frame.and_then(|f| f.at([a, b, c], barycentric)) {
                     Some(spawn) => spawn.origin(-offset),
                     None => on_light,
                 };
