@@ -259,8 +259,8 @@ impl Integrator for PathTracer {
 /// The BSDF of `surface` seen from `to_eye`, with its transmission lobe where it has one
 /// (`front`: the ray arrived on the front face, so a volume's boundary is entered).
 #[inline(always)]
-fn surface_bsdf(surface: &Surface, to_eye: Vec3, front: bool) -> Bsdf {
-    let bsdf = Bsdf::new(surface.material, surface.normal, to_eye);
+fn surface_bsdf<'a>(surface: &'a Surface, to_eye: Vec3, front: bool) -> Bsdf<'a> {
+    let bsdf = Bsdf::new(&surface.material, surface.normal, to_eye);
     if surface.transmission > 0.0 {
         return bsdf.with_transmission(
             to_eye,
@@ -277,7 +277,7 @@ fn surface_bsdf(surface: &Surface, to_eye: Vec3, front: bool) -> Bsdf {
 struct Vertex<'a> {
     scene: &'a Prepared,
     surface: &'a Surface<'a>,
-    bsdf: &'a Bsdf,
+    bsdf: &'a Bsdf<'a>,
     /// Unit vector toward where the path came from.
     to_eye: Vec3,
     /// The path's throughput up to this vertex.

@@ -44,8 +44,10 @@ pub struct BsdfSample {
 
 /// The glTF material at one surface point, ready to evaluate and sample.
 #[derive(Clone, Copy, Debug)]
-pub struct Bsdf {
-    material: SurfaceMaterial,
+pub struct Bsdf<'a> {
+    /// Borrowed from the surface: a copy (112 bytes) per path vertex cost more than the
+    /// pointer.
+    material: &'a SurfaceMaterial,
     normal: Vec3,
     alpha: f32,
     p_specular: f32,
@@ -230,15 +232,15 @@ fn specular_probability(fresnel: f32, diffuse: f32, reflects: bool) -> f32 {
     }
 }
 
-impl Bsdf {
+impl<'a> Bsdf<'a> {
     /// The BSDF of `material` around the unit shading normal `normal`, seen from `to_eye`.
     #[inline(always)]
-    pub fn new(material: SurfaceMaterial, normal: Vec3, to_eye: Vec3) -> Self {
+    pub fn new(material: &'a SurfaceMaterial, normal: Vec3, to_eye: Vec3) -> Self {
         let alpha = (material.roughness * material.roughness).max(MIN_ALPHA);
         let n_dot_v = normal.dot(to_eye).clamp(0.0, 1.0);
         // The lobes' albedos at the view: the multiply scattered specular lobe's, and the
         // diffuse base's, which keeps what the specular lobe does not reflect.
-        let response = LobeResponse::of(&material, n_dot_v);
+        let response = LobeResponse::of(material, n_dot_v);
         let c_diff = material.base_color * (1.0 - material.metallic);
         let fresnel = luminance(response.albedo);
         let kept = response.kept;
@@ -414,7 +416,7 @@ impl Bsdf {
             } else {
                 self.material.diffuse_kept(n_dot_v)
             };
-            transmission_scale(&self.material, n_dot_v, eta, kept)
+            transmission_scale(self.material, n_dot_v, eta, kept)
         } else {
             1.0
         };
@@ -458,16 +460,16 @@ impl Bsdf {
         }
         let share = self.diffuse_share();
         if share >= 1.0 {
-            return gltf_brdf(&self.material, self.normal, to_light, to_eye) * cos;
+            return gltf_brdf(self.material, self.normal, to_light, to_eye) * cos;
         }
         // The diffuse part scaled by its share: f = f_spec + share · f_diffuse, where the full
         // BRDF and its specular part (black base: c_diff = 0) are the Appendix B functions.
-        let full = gltf_brdf(&self.material, self.normal, to_light, to_eye);
+        let full = gltf_brdf(self.material, self.normal, to_light, to_eye);
         let specular_only = gltf_brdf(
             &SurfaceMaterial {
                 base_color: Vec3::ZERO,
                 metallic: 0.0,
-                ..self.material
+                ..*self.material
             },
             self.normal,
             to_light,
@@ -763,7 +765,7 @@ mod tests {
                 }
                 for _ in 0..2000 {
                     let (n, v, l) = (unit(), unit(), unit());
-                    let bsdf = Bsdf::new(m, n, v);
+                    let bsdf = Bsdf::new(&m, n, v);
                     let (f, pdf) = bsdf.eval_pdf(v, l);
                     let general = Bsdf { core: None, ..bsdf };
                     let (f_ref, pdf_ref) = (general.eval_cos(v, l), general.pdf(v, l));
@@ -827,7 +829,7 @@ mod tests {
             coated(sheened(material(0.2, 0.5, 0.9))),
         ];
         for m in materials {
-            let bsdf = Bsdf::new(m, Vec3::Z, to_eye);
+            let bsdf = Bsdf::new(&m, Vec3::Z, to_eye);
             let mut rng = Rng::new(9);
             let n = 400_000;
             let (mut pdf_integral, mut albedo_uniform, mut albedo_sampled) =
@@ -872,7 +874,7 @@ mod tests {
             m.base_color = base;
             m.specular_weight = 0.0;
             let to_eye = Vec3::new(0.3, -0.2, 0.9).normalize();
-            let bsdf = Bsdf::new(m, Vec3::Z, to_eye);
+            let bsdf = Bsdf::new(&m, Vec3::Z, to_eye);
             assert_eq!(bsdf.p_specular, 0.0, "{m:?}");
             let mut rng = Rng::new(5);
             for _ in 0..10_000 {
@@ -946,7 +948,8 @@ mod tests {
             for roughness in [0.0f32, 0.25, 0.5, 0.75, 1.0] {
                 for angle in [0.0f32, 0.5, 1.0, 1.3] {
                     let to_eye = Vec3::new(angle.sin(), 0.0, angle.cos());
-                    let bsdf = Bsdf::new(material(1.0, metallic, roughness), Vec3::Z, to_eye);
+                    let m = material(1.0, metallic, roughness);
+                    let bsdf = Bsdf::new(&m, Vec3::Z, to_eye);
                     let albedo = sampled_albedo(&bsdf, to_eye, &mut rng);
                     assert!(
                         (albedo - 1.0).abs() < 0.02,
@@ -981,7 +984,7 @@ mod tests {
                     let to_eye = Vec3::new(angle.sin(), 0.0, angle.cos());
                     let mut m = material(1.0, 0.0, roughness);
                     m.dielectric_f0 = Vec3::splat(((ior - 1.0) / (ior + 1.0)).powi(2));
-                    let bsdf = Bsdf::new(m, Vec3::Z, to_eye)
+                    let bsdf = Bsdf::new(&m, Vec3::Z, to_eye)
                         .with_transmission(to_eye, 1.0, ior, thin, entering);
                     let albedo = sampled_albedo(&bsdf, to_eye, &mut rng);
                     assert!(
@@ -1002,23 +1005,25 @@ mod tests {
     #[test]
     fn rough_transmission_spreads_about_the_smooth_direction() {
         let to_eye = Vec3::new(0.5, 0.0, 0.866).normalize();
-        let glass = |roughness: f32, thin: bool| {
-            Bsdf::new(material(1.0, 0.0, roughness), Vec3::Z, to_eye)
-                .with_transmission(to_eye, 1.0, 1.5, thin, true)
-        };
+        fn glass(m: &SurfaceMaterial, to_eye: Vec3, thin: bool) -> Bsdf<'_> {
+            Bsdf::new(m, Vec3::Z, to_eye).with_transmission(to_eye, 1.0, 1.5, thin, true)
+        }
+        let white = |roughness: f32| material(1.0, 0.0, roughness);
         for thin in [true, false] {
-            let smooth = glass(0.0, thin);
+            let (m_smooth, m_almost) = (white(0.0), white(0.04));
+            let smooth = glass(&m_smooth, to_eye, thin);
             let t = smooth.transmission.expect("a transmission lobe");
             let exact = smooth
                 .sample_transmission(to_eye, t, 0.3, 0.7)
                 .expect("smooth glass transmits");
-            let almost = glass(0.04, thin)
+            let almost = glass(&m_almost, to_eye, thin)
                 .sample_transmission(to_eye, t, 0.3, 0.7)
                 .expect("smooth enough glass transmits");
             assert_eq!(exact.direction, almost.direction);
             let mut previous_spread = 0.0;
             for roughness in [0.1f32, 0.4, 0.8] {
-                let bsdf = glass(roughness, thin);
+                let m = white(roughness);
+                let bsdf = glass(&m, to_eye, thin);
                 let t = bsdf.transmission.expect("a transmission lobe");
                 let mut rng = Rng::new(3);
                 let (mut spread, mut weight, mut n) = (0.0f64, 0.0f64, 0);
@@ -1059,8 +1064,9 @@ mod tests {
     fn thin_sheet_transmission_evaluates_as_it_samples() {
         for (cos_v, roughness) in [(0.9f32, 0.3f32), (0.6, 0.5), (0.3, 0.8)] {
             let to_eye = Vec3::new((1.0 - cos_v * cos_v).sqrt(), 0.0, cos_v);
-            let bsdf = Bsdf::new(material(0.8, 0.0, roughness), Vec3::Z, to_eye)
-                .with_transmission(to_eye, 1.0, 1.5, true, true);
+            let m = material(0.8, 0.0, roughness);
+            let bsdf =
+                Bsdf::new(&m, Vec3::Z, to_eye).with_transmission(to_eye, 1.0, 1.5, true, true);
             let t = bsdf.transmission.expect("a transmission lobe");
             // The cone about the straight-through direction that the check also integrates.
             let axis = -to_eye;
@@ -1104,10 +1110,12 @@ mod tests {
             let below = Vec3::new(0.1, 0.2, -0.97).normalize();
             assert!(bsdf.thin_transmission_cos(to_eye, below).x > 0.0);
             assert_eq!(bsdf.thin_transmission_cos(to_eye, Vec3::Z), Vec3::ZERO);
-            let volume = Bsdf::new(material(0.8, 0.0, roughness), Vec3::Z, to_eye)
-                .with_transmission(to_eye, 1.0, 1.5, false, true);
+            let m = material(0.8, 0.0, roughness);
+            let volume =
+                Bsdf::new(&m, Vec3::Z, to_eye).with_transmission(to_eye, 1.0, 1.5, false, true);
             assert_eq!(volume.thin_transmission_cos(to_eye, below), Vec3::ZERO);
-            let smooth = Bsdf::new(material(0.8, 0.0, 0.0), Vec3::Z, to_eye)
+            let m_smooth = material(0.8, 0.0, 0.0);
+            let smooth = Bsdf::new(&m_smooth, Vec3::Z, to_eye)
                 .with_transmission(to_eye, 1.0, 1.5, true, true);
             assert_eq!(smooth.thin_transmission_cos(to_eye, below), Vec3::ZERO);
         }
