@@ -109,4 +109,42 @@ pub trait Integrator: Sync {
         first: &mut Option<Hit>,
         guide: Option<&mut GuideSample>,
     ) -> (Vec3, f32);
+
+    /// [`Integrator::radiance`] of each of `lanes`: camera samples of neighbouring pixels at
+    /// one sample index (at most [`crate::accel::PACKET`]), each with its own sampler, first
+    /// hit and guide, its result into its `radiance` and `coverage`. Each lane's result is
+    /// what `radiance` gives it, bit for bit. By default they run one after the other; an
+    /// integrator overrides this to trace their rays toward the same lights together, as one
+    /// packet (see [`Direct`]).
+    #[inline(always)]
+    fn radiance_many(&self, scene: &Prepared, lanes: &mut [Lane], counts: &mut RayCounts) {
+        for lane in lanes {
+            (lane.radiance, lane.coverage) = self.radiance(
+                scene,
+                &lane.camera,
+                &mut lane.sampler,
+                counts,
+                &mut lane.first,
+                lane.guide.as_mut(),
+            );
+        }
+    }
+}
+
+/// One camera sample of [`Integrator::radiance_many`]: what [`Integrator::radiance`] takes
+/// and gives, held by value (the pixel loop copies its pixel's state in and out).
+#[derive(Clone, Debug)]
+pub struct Lane {
+    /// The camera ray.
+    pub camera: CameraRay,
+    /// The pixel's sampler, at this sample.
+    pub sampler: Sampler,
+    /// The pixel's first surface so far (see `first` of [`Integrator::radiance`]).
+    pub first: Option<Hit>,
+    /// The sample's guide when the denoiser's guides are collected.
+    pub guide: Option<GuideSample>,
+    /// The result: radiance (premultiplied) ...
+    pub radiance: Vec3,
+    /// ... and coverage.
+    pub coverage: f32,
 }

@@ -18,7 +18,7 @@ use crate::camera::{Lens, View};
 use crate::color::luminance;
 use crate::geometry::Ray;
 use crate::integrator::{
-    CameraRay, Direct, GuideSample, Integrator, IntegratorKind, PathTracer, RayCounts,
+    CameraRay, Direct, GuideSample, Integrator, IntegratorKind, Lane, PathTracer, RayCounts,
 };
 use crate::light::environment::Environment;
 use crate::light::PunctualLight;
@@ -589,6 +589,20 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
         let mut rays = [view.ray(0.5, 0.5); PACKET];
         let mut hits = [None; PACKET];
         let mut sampling = [0usize; PACKET];
+        let mut lanes: [Lane; PACKET] = std::array::from_fn(|i| Lane {
+            camera: CameraRay {
+                ray: rays[i],
+                spread_base: self.spread.0,
+                spread_per_distance: self.spread.1,
+                traced: None,
+            },
+            // Each sample takes its pixel's sampler (below).
+            sampler: crate::sampling::Sampler::for_pixel(0, 0, 0),
+            first: None,
+            guide: None,
+            radiance: Vec3::ZERO,
+            coverage: 0.0,
+        });
         for s in 0..spp {
             let mut count = 0;
             for (i, pixel) in pixels.iter_mut().enumerate() {
@@ -613,14 +627,24 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
             }
             self.scene
                 .intersect_camera_many(&rays[..count], &mut hits[..count]);
-            for ((ray, hit), &i) in rays.iter().zip(hits).zip(&sampling).take(count) {
-                let camera = CameraRay {
-                    ray: *ray,
-                    spread_base: self.spread.0,
-                    spread_per_distance: self.spread.1,
-                    traced: Some(hit),
-                };
-                self.sample(&mut pixels[i], &camera, s, tile);
+            // The samples go to the integrator together (it may trace their shadow rays as
+            // packets), each with its pixel's state, which comes back after.
+            for (((lane, ray), hit), &i) in lanes.iter_mut().zip(&rays).zip(hits).zip(&sampling) {
+                let pixel = &pixels[i];
+                lane.camera.ray = *ray;
+                lane.camera.traced = Some(hit);
+                lane.sampler.clone_from(&pixel.sampler);
+                lane.first = pixel.first;
+                lane.guide = self.collect_guides.then(GuideSample::default);
+            }
+            let lanes = &mut lanes[..count];
+            self.integrator
+                .radiance_many(self.scene, lanes, &mut tile.counts);
+            for (lane, &i) in lanes.iter().zip(&sampling) {
+                let pixel = &mut pixels[i];
+                pixel.sampler.clone_from(&lane.sampler);
+                pixel.first = lane.first;
+                self.record(pixel, lane, s);
             }
         }
         // One sample a pixel went through the centre: its first surface is the AOVs'.
@@ -644,21 +668,13 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
         }
     }
 
-    /// Sample `s` of `pixel` along `camera`: its radiance into the pixel's sums, and its
+    /// Sample `s` of `pixel`, traced in `lane`: its radiance into the pixel's sums, and its
     /// guides when they are collected. Stops the pixel when adaptive sampling finds it
     /// converged.
     #[inline(always)]
-    fn sample(&self, pixel: &mut Pixel, camera: &CameraRay, s: u32, tile: &mut Tile) {
-        let mut guide = GuideSample::default();
-        let (color, coverage) = self.integrator.radiance(
-            self.scene,
-            camera,
-            &mut pixel.sampler,
-            &mut tile.counts,
-            &mut pixel.first,
-            self.collect_guides.then_some(&mut guide),
-        );
-        if self.collect_guides {
+    fn record(&self, pixel: &mut Pixel, lane: &Lane, s: u32) {
+        let (color, coverage) = (lane.radiance, lane.coverage);
+        if let Some(guide) = &lane.guide {
             // As the denoiser's own guide rays: albedo in [0, 1], a visible background's
             // radiance (after exposure, clamped) as its albedo.
             pixel.albedo += guide.albedo.clamp(Vec3::ZERO, Vec3::ONE)
