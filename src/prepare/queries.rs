@@ -134,6 +134,31 @@ impl Prepared {
         }
     }
 
+    /// [`Prepared::shadow_transmittance`] of each ray of `rays`, into `out` (as many as both
+    /// hold): the same answers. Without alpha-tested surfaces (the answer is then blocked or
+    /// not) the rays go eight at a time through one walk of the BVH
+    /// ([`crate::accel::Accel::occluded_many`]), which pays where they enter the same nodes:
+    /// shadow rays from neighbouring pixels' surfaces toward one light.
+    pub fn shadow_transmittance_many(&self, rays: &[Ray], out: &mut [f32]) {
+        if self.any_alpha() {
+            for (ray, out) in rays.iter().zip(out.iter_mut()) {
+                *out = self.shadow_transmittance(ray);
+            }
+            return;
+        }
+        let mut blocked = [false; crate::accel::PACKET];
+        for (rays, out) in rays
+            .chunks(crate::accel::PACKET)
+            .zip(out.chunks_mut(crate::accel::PACKET))
+        {
+            let blocked = &mut blocked[..rays.len()];
+            self.accel.occluded_many(rays, None, blocked);
+            for (out, &blocked) in out.iter_mut().zip(blocked.iter()) {
+                *out = if blocked { 0.0 } else { 1.0 };
+            }
+        }
+    }
+
     /// 1 for an unblocked shadow ray, 0 for a blocked one, otherwise the product over what it
     /// passes: (1 - alpha) for each BLEND surface, and for each see-through sheet
     /// ([`Material::see_through`]) the luminance of its straight transmittance at the point

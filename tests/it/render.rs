@@ -1,7 +1,7 @@
 //! The renderer through the real binary: analytic radiance, a shadow of known shape, camera
 //! conventions, determinism, every sample model, and refusals of bad options.
 
-use crate::common::{quads_gltf, read_rgba, run, s, samples, shadow_scene, write_gltf};
+use crate::common::{quads_gltf, read_rgba, run, s, samples, shadow_scene, square, write_gltf};
 use serde_json::json;
 use std::f32::consts::PI;
 use std::path::{Path, PathBuf};
@@ -1612,5 +1612,178 @@ fn a_crop_or_an_explicit_sampling_is_not_denoised_by_default() {
         let stats: serde_json::Value =
             serde_json::from_slice(&std::fs::read(&stats).unwrap()).unwrap();
         assert_eq!(stats["denoised"], false, "{extra:?}: {stats}");
+    }
+}
+
+/// The direct integrator's samples taken eight at a time (`radiance_many`, which traces each
+/// light's shadow rays from all of them as one packet) give what each gives alone, bit for
+/// bit, with the same first hits and ray counts: on a ground with an occluder above it and an
+/// unlit patch, under a directional and a point light, seen by rays that hit it, miss it or
+/// graze its edge, with their first hit traced beforehand (as the pixel loop does) or not; and
+/// with the occluder BLEND (shadow rays then cross it attenuated, one at a time, and camera
+/// rays go on behind it) and opaque (the packet path).
+#[test]
+fn direct_lanes_together_give_each_lanes_own_radiance() {
+    use glam::Vec3;
+    use meshtracer::geometry::Ray;
+    use meshtracer::integrator::{CameraRay, Direct, Integrator, Lane, RayCounts};
+    use meshtracer::light::PunctualLight;
+    use meshtracer::prepare::{PrepareOptions, Prepared};
+    use meshtracer::sampling::Sampler;
+    let dir = tempfile::tempdir().unwrap();
+    for blend in [false, true] {
+        let occluder = if blend {
+            json!({"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.2, 0.2, 0.5]}, "alphaMode": "BLEND"})
+        } else {
+            json!({"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.2, 0.2, 1.0]}})
+        };
+        let unlit = json!({"pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.7, 0.3, 1.0]},
+            "extensions": {"KHR_materials_unlit": {}}});
+        let patch = square(0.5, 0.5).map(|[x, y, z]| [x - 2.0, y + 2.0, z]);
+        let extra = json!({
+            "materials": [white(true), occluder, unlit],
+            "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_unlit"],
+            "extensions": {"KHR_lights_punctual": {"lights": [
+                {"type": "directional", "intensity": 2.0},
+                {"type": "point", "intensity": 30.0, "color": [1.0, 0.8, 0.6]}
+            ]}},
+            "nodes": [
+                {"rotation": glam::Quat::from_rotation_arc(Vec3::NEG_Z, Vec3::new(1.0, 0.3, -1.0).normalize()).to_array(),
+                 "extensions": {"KHR_lights_punctual": {"light": 0}}},
+                {"translation": [-1.0, 1.5, 2.5], "extensions": {"KHR_lights_punctual": {"light": 1}}}
+            ]
+        });
+        let (json, bin) = quads_gltf(
+            &[(square(3.0, 0.0), 0), (square(0.5, 1.0), 1), (patch, 2)],
+            extra,
+        );
+        let model = write_gltf(dir.path(), &format!("lanes-{blend}.gltf"), json, &bin);
+        let scene = meshtracer::Scene::load(&model).unwrap();
+        let prepared = Prepared::new(scene, &PrepareOptions::default(), &mut Vec::new()).unwrap();
+        assert_eq!(prepared.any_alpha(), blend);
+        let direct = Direct {
+            lights: prepared
+                .scene
+                .lights
+                .iter()
+                .map(PunctualLight::new)
+                .collect(),
+            ambient: Vec3::splat(0.05),
+            shading: Default::default(),
+        };
+        assert_eq!(direct.lights.len(), 2);
+        // A 24 x 24 grid of rays down from z = 5 over [-3.5, 3.5]², slightly tilted: the
+        // ground's edge (x or y = ±3) falls between grid columns, some rays miss.
+        let rays: Vec<Ray> = (0..24 * 24)
+            .map(|i| {
+                let (x, y) = (
+                    (i % 24) as f32 / 23.0 * 7.0 - 3.5,
+                    (i / 24) as f32 / 23.0 * 7.0 - 3.5,
+                );
+                Ray::new(
+                    Vec3::new(x, y, 5.0),
+                    Vec3::new(0.01, -0.02, -1.0).normalize(),
+                    0.0,
+                    f32::INFINITY,
+                )
+            })
+            .collect();
+        let (mut shadows_alone, mut shadows_together) = (0, 0);
+        let (mut misses, mut unlit_hits) = (0, 0);
+        for (packet, chunk) in rays.chunks(8).enumerate() {
+            let mut hits = [None; 8];
+            prepared.intersect_camera_many(chunk, &mut hits[..chunk.len()]);
+            let lane = |(i, ray): (usize, &Ray)| Lane {
+                camera: CameraRay {
+                    ray: *ray,
+                    spread_base: 0.0,
+                    spread_per_distance: 0.0,
+                    // Every third packet comes untraced; in the others every fifth ray.
+                    traced: (packet % 3 != 0 && i % 5 != 4).then_some(hits[i]),
+                },
+                sampler: Sampler::for_pixel(1, i as u32, packet as u32),
+                first: None,
+                guide: None,
+                radiance: Vec3::NAN,
+                coverage: f32::NAN,
+            };
+            let mut lanes: Vec<Lane> = chunk.iter().enumerate().map(lane).collect();
+            let mut alone = lanes.clone();
+            let mut counts = RayCounts::default();
+            direct.radiance_many(&prepared, &mut lanes, &mut counts);
+            shadows_together += counts.shadow;
+            let mut counts_alone = RayCounts::default();
+            for l in &mut alone {
+                (l.radiance, l.coverage) = direct.radiance(
+                    &prepared,
+                    &l.camera,
+                    &mut l.sampler,
+                    &mut counts_alone,
+                    &mut l.first,
+                    None,
+                );
+            }
+            shadows_alone += counts_alone.shadow;
+            assert_eq!(counts, counts_alone, "blend {blend}, packet {packet}");
+            for (i, (a, b)) in lanes.iter().zip(&alone).enumerate() {
+                let at = format!("blend {blend}, packet {packet}, lane {i}");
+                assert_eq!(
+                    a.radiance.to_array().map(f32::to_bits),
+                    b.radiance.to_array().map(f32::to_bits),
+                    "{at}"
+                );
+                assert_eq!(a.coverage.to_bits(), b.coverage.to_bits(), "{at}");
+                assert_eq!(
+                    a.first.map(|h| (h.triangle, h.t.to_bits())),
+                    b.first.map(|h| (h.triangle, h.t.to_bits())),
+                    "{at}"
+                );
+                misses += usize::from(a.first.is_none());
+                // The patch is the third quad: soup triangles 4 and 5.
+                unlit_hits += usize::from(a.first.is_some_and(|h| h.triangle >= 4));
+            }
+        }
+        // More lanes than a packet holds: taken eight at a time.
+        let mut many: Vec<Lane> = rays[290..310]
+            .iter()
+            .map(|ray| Lane {
+                camera: CameraRay {
+                    ray: *ray,
+                    spread_base: 0.0,
+                    spread_per_distance: 0.0,
+                    traced: None,
+                },
+                sampler: Sampler::for_pixel(1, 0, 0),
+                first: None,
+                guide: None,
+                radiance: Vec3::NAN,
+                coverage: f32::NAN,
+            })
+            .collect();
+        let mut counts = RayCounts::default();
+        direct.radiance_many(&prepared, &mut many, &mut counts);
+        for (lane, ray) in many.iter().zip(&rays[290..]) {
+            let camera = CameraRay {
+                traced: None,
+                ..lane.camera
+            };
+            let alone = direct.radiance(
+                &prepared,
+                &camera,
+                &mut Sampler::for_pixel(1, 0, 0),
+                &mut counts,
+                &mut None,
+                None,
+            );
+            assert_eq!((lane.radiance, lane.coverage), alone, "{ray:?}");
+        }
+        assert!(many.iter().all(|l| l.coverage == 1.0));
+        // The scene did what it is here for: lit and shadowed points, misses, the unlit patch.
+        assert!(shadows_alone > 500, "{shadows_alone}");
+        assert!(
+            misses > 20 && unlit_hits > 5,
+            "{misses} misses, {unlit_hits} on the patch"
+        );
+        assert_eq!(shadows_alone, shadows_together);
     }
 }
