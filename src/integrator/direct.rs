@@ -48,6 +48,8 @@ impl Integrator for Direct {
     /// go as one packet ([`Prepared::shadow_transmittance_many`]), then each lane goes on
     /// alone through any BLEND layers behind. Every lane adds its lights in the same order
     /// and with the same numbers as [`Direct::radiance`], so its result is the same.
+    // Inlined into the pixel loop, hence into its copy for the CPU's vector units.
+    #[inline(always)]
     fn radiance_many(&self, scene: &Prepared, lanes: &mut [Lane], counts: &mut RayCounts) {
         if lanes.len() > PACKET {
             for lanes in lanes.chunks_mut(PACKET) {
@@ -95,16 +97,16 @@ impl Integrator for Direct {
                 }
             }
         }
-        for ((lane, lit), shaded) in lanes.iter_mut().zip(lit).zip(colors) {
+        for ((lane, lit), shaded) in lanes.iter_mut().zip(&lit).zip(colors) {
             let Lane { camera, first, .. } = lane;
             (lane.radiance, lane.coverage) = match lit {
-                Some((hit, surface)) => {
+                &Some((hit, ref surface)) => {
                     counts.primary += 1;
                     if first.is_none() {
                         *first = Some(hit);
                     }
                     let mut layers = Layers::new();
-                    if layers.add(&surface, shaded) {
+                    if layers.add(surface, shaded) {
                         let mut ray = camera.ray;
                         ray.tmin = hit.t;
                         let behind = CameraRay {
