@@ -182,6 +182,22 @@ impl SurfaceMaterial {
         (d0.lerp(m0, self.metallic), d90.lerp(m90, self.metallic))
     }
 
+    /// [`SurfaceMaterial::diffuse_kept`] and [`SurfaceMaterial::scaled_fresnel_ends`] at the
+    /// view: for a dielectric without a thin film (`metallic` 0, the common case) the two ask
+    /// the same multiple-scattering lookup, which is then made once (the same values).
+    pub fn kept_and_scaled_fresnel_ends(&self, n_dot_v: f32) -> (Vec3, (Vec3, Vec3)) {
+        if self.metallic != 0.0 || self.iridescence.is_some_and(|film| film.factor > 0.0) {
+            return (
+                self.diffuse_kept(n_dot_v),
+                self.scaled_fresnel_ends(n_dot_v),
+            );
+        }
+        let (f0, f90) = self.fresnel_ends();
+        let (scale, albedo) =
+            ggx::multiple_scattering(f0, Vec3::splat(f90), n_dot_v, self.roughness);
+        (Vec3::ONE - albedo, (f0 * scale, Vec3::splat(f90) * scale))
+    }
+
     /// What the diffuse base keeps of the light at the view (cos θ_v = `n_dot_v`): 1 - the
     /// directional albedo of the *dielectric's* specular lobe. glTF's material is
     /// mix(dielectric, metal, metallic) (Appendix B): the diffuse base belongs to the dielectric
@@ -415,18 +431,21 @@ pub fn gltf_brdf(material: &SurfaceMaterial, n: Vec3, to_light: Vec3, to_eye: Ve
     let specular = ggx_dv(material.roughness, n, to_light, to_eye, h);
     let n_dot_v = n.dot(to_eye);
     let c_diff = material.base_color * (1.0 - material.metallic);
-    // The Fresnel factor times the multiple-scattering scale.
-    let fresnel_scaled = match material.iridescence {
+    // What the diffuse base keeps, and the Fresnel factor times the multiple-scattering scale.
+    let (kept, fresnel_scaled) = match material.iridescence {
         Some(film) if film.factor > 0.0 => {
             let (scale, _) = material.specular_response(n_dot_v);
-            material.reflectance(v_dot_h, n_dot_v) * scale
+            (
+                material.diffuse_kept(n_dot_v),
+                material.reflectance(v_dot_h, n_dot_v) * scale,
+            )
         }
         _ => {
-            let (f0s, f90s) = material.scaled_fresnel_ends(n_dot_v);
-            f0s + (f90s - f0s) * (1.0 - v_dot_h).powi(5)
+            let (kept, (f0s, f90s)) = material.kept_and_scaled_fresnel_ends(n_dot_v);
+            (kept, f0s + (f90s - f0s) * (1.0 - v_dot_h).powi(5))
         }
     };
-    let mut f = material.diffuse_kept(n_dot_v) * c_diff / PI + fresnel_scaled * specular;
+    let mut f = kept * c_diff / PI + fresnel_scaled * specular;
     if let Some(sheen) = material.sheen {
         f = f * sheen_scaling(&sheen, n.dot(to_eye), n.dot(to_light))
             + sheen.color * sheen_dv(sheen.roughness, n, to_light, to_eye, h);
@@ -721,6 +740,37 @@ mod tests {
         });
         let head_on = albedo(&coated_black, 0.0).x;
         assert!((0.03..0.05).contains(&head_on), "coat head-on {head_on}");
+    }
+
+    /// The shared lookup gives [`SurfaceMaterial::diffuse_kept`] and
+    /// [`SurfaceMaterial::scaled_fresnel_ends`] bit for bit: dielectrics (where it takes the
+    /// shortcut, with or without a specular weight), metals, half-metals and a thin film.
+    #[test]
+    fn the_shared_view_lookup_gives_both_answers() {
+        let mut cases = Vec::new();
+        for (base, metallic, roughness) in [(0.8, 0.0, 0.5), (0.3, -0.0, 0.05), (0.5, 1.0, 0.3)] {
+            cases.push(material(base, metallic, roughness));
+        }
+        cases.push(material(0.2, 0.5, 1.0));
+        let mut weighted = material(0.6, 0.0, 0.4);
+        weighted.specular_weight = 0.3;
+        cases.push(weighted);
+        let mut filmed = material(0.6, 0.0, 0.4);
+        filmed.iridescence = Some(Iridescence {
+            factor: 1.0,
+            ior: 1.3,
+            thickness: 400.0,
+        });
+        cases.push(filmed);
+        let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+        for m in &cases {
+            for n_dot_v in [1.0f32, 0.6, 0.1, 0.0] {
+                let (kept, (f0s, f90s)) = m.kept_and_scaled_fresnel_ends(n_dot_v);
+                let (e0, e90) = m.scaled_fresnel_ends(n_dot_v);
+                assert_eq!(bits(kept), bits(m.diffuse_kept(n_dot_v)), "{m:?} at {n_dot_v}");
+                assert_eq!((bits(f0s), bits(f90s)), (bits(e0), bits(e90)), "{m:?}");
+            }
+        }
     }
 
     /// KHR_materials_iridescence: without thickness the film is gone (exactly the base's own
