@@ -767,7 +767,11 @@ mod tests {
             for n_dot_v in [1.0f32, 0.6, 0.1, 0.0] {
                 let (kept, (f0s, f90s)) = m.kept_and_scaled_fresnel_ends(n_dot_v);
                 let (e0, e90) = m.scaled_fresnel_ends(n_dot_v);
-                assert_eq!(bits(kept), bits(m.diffuse_kept(n_dot_v)), "{m:?} at {n_dot_v}");
+                assert_eq!(
+                    bits(kept),
+                    bits(m.diffuse_kept(n_dot_v)),
+                    "{m:?} at {n_dot_v}"
+                );
                 assert_eq!((bits(f0s), bits(f90s)), (bits(e0), bits(e90)), "{m:?}");
             }
         }
