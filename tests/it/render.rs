@@ -972,6 +972,11 @@ fn the_summary_reports_what_the_render_did() {
     assert!(seconds.iter().sum::<f64>() <= load["seconds"].as_f64().unwrap());
     assert!(json["total_seconds"].as_f64().unwrap() > 0.0);
     assert_eq!(json["triangles"], 2244);
+    // The rays by kind add up to the total, and the default (the path tracer) traces each kind.
+    let kinds =
+        ["primary", "shadow", "indirect"].map(|k| json["rays_by_kind"][k].as_u64().unwrap());
+    assert_eq!(kinds.iter().sum::<u64>(), json["rays"].as_u64().unwrap());
+    assert!(kinds.iter().all(|&n| n > 0), "{kinds:?}");
 }
 
 /// `--view-out` then `--view` renders the same image, byte for byte, for a file camera with

@@ -668,6 +668,11 @@ fn write_stats(
         "samples": stats.samples,
         "noise": stats.noise,
         "rays": stats.rays(),
+        "rays_by_kind": {
+            "primary": stats.primary_rays,
+            "shadow": stats.shadow_rays,
+            "indirect": stats.indirect_rays,
+        },
         "mrays_per_second": stats.mrays_per_second(),
         "denoised": done.rendered.denoised.is_some(),
         "denoiser": done.rendered.denoised.as_ref().map(|d| d.report.denoiser.id()),
