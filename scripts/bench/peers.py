@@ -40,7 +40,14 @@ mean luminance of each image. Then the same at equal time: Mitsuba renders a con
 reference (`llvm_ad_rgb`, --reference-spp, every CPU), each variant renders again per round
 with the spp that fits meshtracer's median render time at its own measured speed, and the
 second table gives each side's RMSE against the reference (meshtracer's from its images of the
-rounds; lower is better).
+rounds; lower is better). Last, where a sample's time goes: the box's primary, shadow and
+diffuse rays (`bench --export-rays`) traced alone by meshtracer (`bench`, one at a time) and by
+Mitsuba's `llvm_ad_rgb` (`ray_intersect_preliminary` and `ray_test` on the whole wavefront,
+which Mitsuba hands to Embree's packet queries, `rtcIntersect16`/`rtcOccluded16` where the CPU
+has AVX-512 and the 8-wide ones with AVX2), interleaved;
+times meshtracer's rays per sample (`--stats`: camera, shadow and bounce rays), that gives the
+traversal's share of a sample, for Mitsuba on the assumption that its path tracer traces as
+many rays a sample (the same algorithm: a light sample and a BSDF sample at each vertex).
 
 Everything runs pinned to one CPU (os.sched_setaffinity): Embree's build (TBB), Mitsuba's
 threads and meshtracer's all get one core; the timings of a shared machine are as noisy as its
@@ -352,6 +359,7 @@ def mitsuba_comparison(args, tmp):
         report = json.loads(stats.read_text())
         seconds = next(p["seconds"] for p in report["phases"] if p["phase"] == "render")
         ours.append(report["samples"] / seconds)
+        rays_per_sample = {k: n / report["samples"] for k, n in report["rays_by_kind"].items()}
         our_seconds.append(seconds)
         # Reading an EXR deadlocks with one Dr.Jit thread (Mitsuba 3.9): two while it reads.
         dr.set_thread_count(2)
@@ -385,6 +393,67 @@ def mitsuba_comparison(args, tmp):
 
         equal_time_rmse(mi, dr, args, scenes, multijitter_scene, our_images, our_seconds,
                         their_seconds)
+    if "llvm_ad_rgb" in scenes:
+        time_budget(mi, dr, args, tmp, gltf_path, scenes["llvm_ad_rgb"], rays_per_sample,
+                    {"meshtracer": m, "llvm_ad_rgb": statistics.median(theirs["llvm_ad_rgb"])})
+
+
+def time_budget(mi, dr, args, tmp, gltf_path, scene, rays_per_sample, samples_per_second):
+    """Where a path-traced sample's time goes: the box's exported rays traced alone by each side
+    (interleaved rounds, medians), times meshtracer's rays per sample, against the time a sample
+    takes. Mitsuba is assumed to trace as many rays a sample."""
+    folder = tmp / "cornell-rays"
+    run(bench_command(args, gltf_path, "--export-rays", folder))
+    mi.set_variant("llvm_ad_rgb")
+    dr.set_thread_count(1)
+    wavefronts = {}
+    for kind in KINDS:
+        rays = np.load(folder / f"{kind}.npy").astype(np.float32)
+        o = rays[:, 0:3] + rays[:, 3:6] * rays[:, 6:7]
+        d, maxt = rays[:, 3:6], rays[:, 7] - rays[:, 6]
+        ray = mi.Ray3f(mi.Point3f(o[:, 0], o[:, 1], o[:, 2]),
+                       mi.Vector3f(d[:, 0], d[:, 1], d[:, 2]))
+        ray.maxt = mi.Float(maxt)
+        dr.eval(ray)
+        wavefronts[kind] = (ray, len(rays))
+
+    def mitsuba_rate(kind):
+        ray, n = wavefronts[kind]
+        start = time.perf_counter()
+        if kind == "shadow":
+            dr.eval(scene.ray_test(ray))
+        else:
+            dr.eval(scene.ray_intersect_preliminary(ray).t)
+        return n / (time.perf_counter() - start) / 1e6
+
+    for kind in KINDS:  # warm-up: kernel compilation
+        mitsuba_rate(kind)
+    ours = {k: [] for k in KINDS}
+    theirs = {k: [] for k in KINDS}
+    for _ in range(args.rounds):
+        for row in json.loads(run(bench_command(args, gltf_path)))["rows"]:
+            ours[row["rays"]].append(row["mrays_per_second_per_thread"])
+        for kind in KINDS:
+            theirs[kind].append(mitsuba_rate(kind))
+    rates = {"meshtracer": {k: statistics.median(v) for k, v in ours.items()},
+             "llvm_ad_rgb": {k: statistics.median(v) for k, v in theirs.items()}}
+    # The path tracer's rays by kind against the bench's: camera rays are primary rays, bounces
+    # diffuse ones.
+    per_sample = {"primary": rays_per_sample["primary"], "shadow": rays_per_sample["shadow"],
+                  "diffuse": rays_per_sample["indirect"]}
+    print("Where a sample's time goes, the same Cornell box, one thread: the box's rays traced "
+          f"alone (median of {args.rounds} interleaved rounds, Mrays/s; meshtracer one at a time, "
+          "Mitsuba its wavefront through Embree's packet queries), and with meshtracer's "
+          f"rays per sample ({per_sample['primary']:.2f} camera, {per_sample['shadow']:.2f} "
+          f"shadow, {per_sample['diffuse']:.2f} bounce) the traversal's share of a sample:\n")
+    print("| renderer | primary | shadow | diffuse | µs a sample | traversal µs (est.) | the rest µs |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
+    for name, rate in rates.items():
+        total = 1e6 / samples_per_second[name]
+        traversal = sum(per_sample[k] / rate[k] for k in KINDS)
+        print(f"| {name} | {rate['primary']:.2f} | {rate['shadow']:.2f} | {rate['diffuse']:.2f} "
+              f"| {total:.3f} | {traversal:.3f} | {total - traversal:.3f} |")
+    print()
 
 
 def equal_time_rmse(mi, dr, args, scenes, multijitter_scene, our_images, our_seconds,
