@@ -135,26 +135,35 @@ impl Prepared {
     }
 
     /// [`Prepared::shadow_transmittance`] of each ray of `rays`, into `out` (as many as both
-    /// hold): the same answers. Without alpha-tested surfaces (the answer is then blocked or
-    /// not) the rays go eight at a time through one walk of the BVH
+    /// hold): the same answers. The rays go eight at a time through one walk of the BVH
     /// ([`crate::accel::Accel::occluded_many`]), which pays where they enter the same nodes:
     /// shadow rays from neighbouring pixels' surfaces toward one light.
+    ///
+    /// With alpha-tested surfaces in the scene the packet looks for opaque blockers alone (an
+    /// alpha-tested triangle never blocks there): a ray that meets one gets 0, as the exact
+    /// query gives it whatever it crossed before. If no ray of the packet met an alpha-tested
+    /// triangle, the others are clear (1); otherwise they take the exact query one by one.
     pub fn shadow_transmittance_many(&self, rays: &[Ray], out: &mut [f32]) {
-        if self.any_alpha() {
-            for (ray, out) in rays.iter().zip(out.iter_mut()) {
-                *out = self.shadow_transmittance(ray);
-            }
-            return;
-        }
+        let crossed = Cell::new(false);
+        let opaque_only = |_: u32, _: Vec3| {
+            crossed.set(true);
+            false
+        };
+        let accept: Option<&crate::accel::Accept> = self.any_alpha().then_some(&opaque_only);
         let mut blocked = [false; crate::accel::PACKET];
         for (rays, out) in rays
             .chunks(crate::accel::PACKET)
             .zip(out.chunks_mut(crate::accel::PACKET))
         {
             let blocked = &mut blocked[..rays.len()];
-            self.accel.occluded_many(rays, None, blocked);
-            for (out, &blocked) in out.iter_mut().zip(blocked.iter()) {
-                *out = if blocked { 0.0 } else { 1.0 };
+            crossed.set(false);
+            self.accel.occluded_many(rays, accept, blocked);
+            for ((ray, out), &blocked) in rays.iter().zip(out.iter_mut()).zip(blocked.iter()) {
+                *out = match (blocked, crossed.get()) {
+                    (true, _) => 0.0,
+                    (false, false) => 1.0,
+                    (false, true) => self.shadow_transmittance(ray),
+                };
             }
         }
     }
