@@ -629,7 +629,13 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                 .intersect_camera_many(&rays[..count], &mut hits[..count]);
             // The samples go to the integrator together (it may trace their shadow rays as
             // packets), each with its pixel's state, which comes back after.
-            for (((lane, ray), hit), &i) in lanes.iter_mut().zip(&rays).zip(hits).zip(&sampling) {
+            let active = lanes
+                .iter_mut()
+                .zip(&rays)
+                .zip(hits)
+                .zip(&sampling)
+                .take(count);
+            for (((lane, ray), hit), &i) in active {
                 let pixel = &pixels[i];
                 lane.camera.ray = *ray;
                 lane.camera.traced = Some(hit);
