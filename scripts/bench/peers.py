@@ -43,8 +43,8 @@ second table gives each side's RMSE against the reference (meshtracer's from its
 rounds; lower is better). Last, where a sample's time goes: the box's primary, shadow and
 diffuse rays (`bench --export-rays`) traced alone by meshtracer (`bench`, one at a time) and by
 Mitsuba's `llvm_ad_rgb` (`ray_intersect_preliminary` and `ray_test` on the whole wavefront,
-which Mitsuba hands to Embree's packet queries, `rtcIntersect16`/`rtcOccluded16` where the CPU
-has AVX-512 and the 8-wide ones with AVX2), interleaved;
+which Mitsuba 3 hands to Embree's 16-ray packet queries, `rtcIntersect16`/`rtcOccluded16`),
+interleaved;
 times meshtracer's rays per sample (`--stats`: camera, shadow and bounce rays), that gives the
 traversal's share of a sample, for Mitsuba on the assumption that its path tracer traces as
 many rays a sample (the same algorithm: a light sample and a BSDF sample at each vertex).
