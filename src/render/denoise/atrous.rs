@@ -211,37 +211,38 @@ pub fn filter(image: &mut Image, guides: &Guides) {
     if width == 0 || height == 0 {
         return;
     }
-    // What albedo divides each channel by.
-    let divisor: Vec<Vec3> = guides
-        .albedo
-        .iter()
-        .map(|a| a.max(Vec3::splat(MIN_ALBEDO)))
-        .collect();
-    let pixels = geometry(image, guides);
+    // What albedo divides each channel by (computed again where it multiplies back rather than
+    // kept through the passes: at 4K each float a pixel is 33 MB).
+    let divisor = |i: usize| guides.albedo[i].max(Vec3::splat(MIN_ALBEDO));
     // What the camera saw emitted: set apart, added back unfiltered.
     let emission = |i: usize| guides.emission.get(i).copied().map_or(Vec3::ZERO, sanitize);
     let illumination: Vec<Vec3> = image
         .pixels
         .iter()
-        .zip(&divisor)
         .enumerate()
-        .map(|(i, (p, d))| (sanitize(p.truncate()) - emission(i)).max(Vec3::ZERO) / *d)
+        .map(|(i, p)| (sanitize(p.truncate()) - emission(i)).max(Vec3::ZERO) / divisor(i))
         .collect();
     // Luminance variance of the illumination: the film's, scaled as the division scales it.
     let mut variance: Vec<f32> = image
         .variance
         .iter()
-        .zip(&divisor)
-        .map(|(v, d)| if v.is_finite() { *v } else { 0.0 } / luminance(*d).powi(2))
+        .enumerate()
+        .map(|(i, v)| if v.is_finite() { *v } else { 0.0 } / luminance(divisor(i)).powi(2))
         .collect();
+    // The guides go into the planes the passes read straight from each pixel's geometry, and
+    // the illumination and variance are dropped once in theirs: the filter's peak memory is
+    // the planes'.
+    let pixel = geometry(image, guides);
     // One sample a pixel (or nothing noisy): no pixel knows its noise, so its neighbours tell.
     if variance.iter().all(|v| *v == 0.0) {
+        let pixels: Vec<Pixel> = (0..width * height).into_par_iter().map(&pixel).collect();
         variance = spatial_variance(&illumination, &pixels, width, height);
     }
-    let planes = super::lanes::GuidePlanes::new(&pixels, width, height);
+    let planes = super::lanes::GuidePlanes::new(width, height, pixel);
     let sigma = luminance_sigma(image.samples);
     // Two sets of planes, read and written in turn: the passes allocate nothing.
     let mut lit = super::lanes::Lit::new(width, height, &illumination, &variance);
+    drop((illumination, variance));
     let mut next = super::lanes::Lit::zeros(width, height);
     let mut scales = vec![0.0f32; width * height];
     for pass in 0..ITERATIONS {
@@ -250,9 +251,10 @@ pub fn filter(image: &mut Image, guides: &Guides) {
         super::lanes::pass(&planes, step, &lit, &scales, &mut next);
         std::mem::swap(&mut lit, &mut next);
     }
+    drop((next, scales));
     for (i, pixel) in image.pixels.iter_mut().enumerate() {
-        if pixels[i].surface {
-            let rgb = (lit.illumination(width, i) * divisor[i]).max(Vec3::ZERO) + emission(i);
+        if planes.is_surface(i) {
+            let rgb = (lit.illumination(width, i) * divisor(i)).max(Vec3::ZERO) + emission(i);
             *pixel = rgb.extend(pixel.w);
         }
     }
@@ -263,52 +265,49 @@ fn sanitize(v: Vec3) -> Vec3 {
     Vec3::select(v.is_finite_mask(), v, Vec3::ZERO)
 }
 
-/// Unit normals, depths and depth gradients of every pixel.
-fn geometry(image: &Image, guides: &Guides) -> Vec<Pixel> {
+/// The unit normal, depth and depth gradients of pixel `i` (row-major).
+fn geometry<'a>(image: &'a Image, guides: &'a Guides) -> impl Fn(usize) -> Pixel + Sync + 'a {
     let (width, height) = (image.width as usize, image.height as usize);
-    let surface = |i: usize| {
+    let surface = move |i: usize| {
         image.pixels[i].w > 0.0 && guides.normal[i] != Vec3::ZERO && guides.depth[i] > 0.0
     };
     // The smaller one-sided depth difference at `i` to its neighbours `before` and `after`
     // (infinite when neither is on a surface).
-    let one_sided = |i: usize, before: Option<usize>, after: Option<usize>| {
+    let one_sided = move |i: usize, before: Option<usize>, after: Option<usize>| {
         let side = |j: Option<usize>| match j {
             Some(j) if surface(j) => (guides.depth[j] - guides.depth[i]).abs(),
             _ => f32::INFINITY,
         };
         side(before).min(side(after))
     };
-    (0..width * height)
-        .into_par_iter()
-        .map(|i| {
-            let (x, y) = (i % width, i / width);
-            if !surface(i) {
-                return Pixel {
-                    surface: false,
-                    normal: Vec3::ZERO,
-                    depth: 0.0,
-                    albedo: Vec3::ZERO,
-                    gradient: (0.0, 0.0),
-                    visibility: 1.0,
-                };
-            }
-            let gx = one_sided(i, (x > 0).then(|| i - 1), (x + 1 < width).then_some(i + 1));
-            let gy = one_sided(
-                i,
-                (y > 0).then(|| i - width),
-                (y + 1 < height).then_some(i + width),
-            );
-            let finite = |g: f32| if g.is_finite() { g } else { 0.0 };
-            Pixel {
-                surface: true,
-                normal: guides.normal[i].normalize_or_zero(),
-                depth: guides.depth[i],
-                albedo: guides.albedo[i],
-                gradient: (finite(gx), finite(gy)),
-                visibility: guides.visibility.get(i).copied().unwrap_or(1.0),
-            }
-        })
-        .collect()
+    move |i| {
+        let (x, y) = (i % width, i / width);
+        if !surface(i) {
+            return Pixel {
+                surface: false,
+                normal: Vec3::ZERO,
+                depth: 0.0,
+                albedo: Vec3::ZERO,
+                gradient: (0.0, 0.0),
+                visibility: 1.0,
+            };
+        }
+        let gx = one_sided(i, (x > 0).then(|| i - 1), (x + 1 < width).then_some(i + 1));
+        let gy = one_sided(
+            i,
+            (y > 0).then(|| i - width),
+            (y + 1 < height).then_some(i + width),
+        );
+        let finite = |g: f32| if g.is_finite() { g } else { 0.0 };
+        Pixel {
+            surface: true,
+            normal: guides.normal[i].normalize_or_zero(),
+            depth: guides.depth[i],
+            albedo: guides.albedo[i],
+            gradient: (finite(gx), finite(gy)),
+            visibility: guides.visibility.get(i).copied().unwrap_or(1.0),
+        }
+    }
 }
 
 /// The variance of the illumination's luminance over each surface pixel's neighbours within

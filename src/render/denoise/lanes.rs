@@ -85,31 +85,70 @@ pub(super) struct GuidePlanes {
 }
 
 impl GuidePlanes {
-    pub(super) fn new(pixels: &[Pixel], width: usize, height: usize) -> GuidePlanes {
-        let plane =
-            |f: &(dyn Fn(&Pixel) -> f32 + Sync)| Plane::new(width, height, |i| f(&pixels[i]));
+    /// The planes of the `width` x `height` pixels that `pixel` gives (row-major index), each
+    /// pixel computed once, rows in parallel.
+    pub(super) fn new(
+        width: usize,
+        height: usize,
+        pixel: impl Fn(usize) -> Pixel + Sync,
+    ) -> GuidePlanes {
+        let stride = width + PAD_LEFT + PAD_RIGHT;
+        let mut planes: [Vec<f32>; 11] = std::array::from_fn(|_| vec![0.0f32; stride * height]);
+        let [surface, nx, ny, nz, depth, ax, ay, az, gx, gy, visibility] = &mut planes;
+        // Each plane's rows (the padding stays zero).
+        fn rows(plane: &mut [f32], stride: usize) -> rayon::slice::ChunksMut<'_, f32> {
+            plane.par_chunks_mut(stride)
+        }
+        (
+            (
+                rows(surface, stride),
+                rows(nx, stride),
+                rows(ny, stride),
+                rows(nz, stride),
+            ),
+            (
+                rows(depth, stride),
+                rows(ax, stride),
+                rows(ay, stride),
+                rows(az, stride),
+            ),
+            (rows(gx, stride), rows(gy, stride), rows(visibility, stride)),
+        )
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(y, ((s, nx, ny, nz), (d, ax, ay, az), (gx, gy, v)))| {
+                for x in 0..width {
+                    let p = pixel(y * width + x);
+                    let at = PAD_LEFT + x;
+                    s[at] = if p.surface { 1.0 } else { 0.0 };
+                    (nx[at], ny[at], nz[at]) = (p.normal.x, p.normal.y, p.normal.z);
+                    d[at] = p.depth;
+                    (ax[at], ay[at], az[at]) = (p.albedo.x, p.albedo.y, p.albedo.z);
+                    (gx[at], gy[at]) = p.gradient;
+                    v[at] = p.visibility;
+                }
+            });
+        let [surface, nx, ny, nz, depth, ax, ay, az, gx, gy, visibility] =
+            planes.map(|values| Plane { values });
         GuidePlanes {
             width,
             height,
-            surface: plane(&|p| if p.surface { 1.0 } else { 0.0 }),
-            normal: [
-                plane(&|p| p.normal.x),
-                plane(&|p| p.normal.y),
-                plane(&|p| p.normal.z),
-            ],
-            depth: plane(&|p| p.depth),
-            albedo: [
-                plane(&|p| p.albedo.x),
-                plane(&|p| p.albedo.y),
-                plane(&|p| p.albedo.z),
-            ],
-            gradient: [plane(&|p| p.gradient.0), plane(&|p| p.gradient.1)],
-            visibility: plane(&|p| p.visibility),
+            surface,
+            normal: [nx, ny, nz],
+            depth,
+            albedo: [ax, ay, az],
+            gradient: [gx, gy],
+            visibility,
         }
     }
 
     fn stride(&self) -> usize {
         self.width + PAD_LEFT + PAD_RIGHT
+    }
+
+    /// Whether pixel `i` (row-major) is on a surface: what the filter changes.
+    pub(super) fn is_surface(&self, i: usize) -> bool {
+        self.surface.values[Lit::at(self.width, i)] != 0.0
     }
 }
 
@@ -527,7 +566,7 @@ mod tests {
             .iter()
             .map(|v| luminance_scale(v * 0.9, LUMINANCE_SIGMA))
             .collect();
-        let planes = GuidePlanes::new(&pixels, width, height);
+        let planes = GuidePlanes::new(width, height, |i| pixels[i]);
         let lit = Lit::new(width, height, &illumination, &variance);
         let mut next = Lit::zeros(width, height);
         let mut filtered = 0;
