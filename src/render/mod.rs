@@ -254,6 +254,49 @@ pub fn render_region(
     let start = Instant::now();
     debug_assert!(region.fits(settings.view.width, settings.view.height));
     let (width, height) = (region.width, region.height);
+    let mut image = Image::new(width, height);
+    // Adaptive sampling stops no pixel before its first batch.
+    image.samples = match settings.noise {
+        Some(_) => settings.spp.clamp(1, settings.adaptive_batch()),
+        None => settings.spp.max(1),
+    };
+    let pixel_count = width as usize * height as usize;
+    let guides =
+        (settings.guides && settings.integrator == IntegratorKind::Path).then(|| denoise::Guides {
+            width,
+            height,
+            albedo: vec![Vec3::ZERO; pixel_count],
+            normal: vec![Vec3::ZERO; pixel_count],
+            depth: vec![0.0; pixel_count],
+            visibility: vec![1.0; pixel_count],
+            emission: vec![Vec3::ZERO; pixel_count],
+            samples_per_pixel: image.samples,
+        });
+    let aovs = settings.aovs.then(|| Aovs {
+        depth: vec![0.0; pixel_count],
+        normal: vec![Vec3::ZERO; pixel_count],
+        instance: vec![0; pixel_count],
+    });
+    // Each tile goes into the film as it is finished, so that the tiles' buffers are never all
+    // held at once beside the film's (at 4K they were 530 MB more at the render's end).
+    let film = std::sync::Mutex::new(Film {
+        region,
+        image,
+        guides,
+        aovs,
+    });
+    let deliver = |tile: Tile| {
+        // Poisoned only if placing a tile panicked (tiles lie inside the region, so none
+        // does); rayon then hands that panic to the caller, and this film is never used.
+        let mut film = film.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        film.place(&tile);
+        TileSums {
+            counts: tile.counts,
+            noise_sum: tile.noise_sum,
+            noise_pixels: tile.noise_pixels,
+            samples: tile.samples,
+        }
+    };
     let lights = || settings.lights.iter().map(PunctualLight::new).collect();
     // The pixel loop is generic over the integrator (a closed set, matched once here), so
     // that its tile body, with the integrator's vertex work inlined, is compiled for each CPU
@@ -265,7 +308,7 @@ pub fn render_region(
                 ambient: settings.ambient,
                 shading: settings.shading,
             };
-            render_tiles(scene, &direct, settings, region, cancel, progress)
+            render_tiles(scene, &direct, settings, region, cancel, progress, &deliver)
         }
         IntegratorKind::Path => {
             let path = PathTracer {
@@ -276,32 +319,18 @@ pub fn render_region(
                 estimator: crate::integrator::Estimator::Mis,
                 clamp_indirect: settings.clamp_indirect,
             };
-            render_tiles(scene, &path, settings, region, cancel, progress)
+            render_tiles(scene, &path, settings, region, cancel, progress, &deliver)
         }
     };
-    let mut image = Image::new(width, height);
-    // Adaptive sampling stops no pixel before its first batch.
-    image.samples = match settings.noise {
-        Some(_) => settings.spp.clamp(1, settings.adaptive_batch()),
-        None => settings.spp.max(1),
-    };
-    let pixel_count = width as usize * height as usize;
-    let mut guides =
-        (settings.guides && settings.integrator == IntegratorKind::Path).then(|| denoise::Guides {
-            width,
-            height,
-            albedo: vec![Vec3::ZERO; pixel_count],
-            normal: vec![Vec3::ZERO; pixel_count],
-            depth: vec![0.0; pixel_count],
-            visibility: vec![1.0; pixel_count],
-            emission: vec![Vec3::ZERO; pixel_count],
-            samples_per_pixel: image.samples,
-        });
-    let mut aovs = settings.aovs.then(|| Aovs {
-        depth: vec![0.0; pixel_count],
-        normal: vec![Vec3::ZERO; pixel_count],
-        instance: vec![0; pixel_count],
-    });
+    let Film {
+        mut image,
+        guides,
+        aovs,
+        ..
+    } = film
+        .into_inner()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    // The sums in tile order, whichever finished first: the same statistics every run.
     let mut stats = RenderStats::default();
     let (mut noise_sum, mut noise_pixels) = (0.0f64, 0u64);
     for tile in results {
@@ -312,28 +341,6 @@ pub fn render_region(
         noise_sum += tile.noise_sum;
         noise_pixels += tile.noise_pixels;
         stats.samples += tile.samples;
-        for (row, chunk) in tile.pixels.chunks(tile.width as usize).enumerate() {
-            let y = tile.y - region.y + row as u32;
-            let begin = (y * width + tile.x - region.x) as usize;
-            image.pixels[begin..begin + chunk.len()].copy_from_slice(chunk);
-            let at = row * tile.width as usize;
-            image.variance[begin..begin + chunk.len()]
-                .copy_from_slice(&tile.variance[at..at + chunk.len()]);
-            if let (Some(g), Some(t)) = (guides.as_mut(), tile.guides.as_ref()) {
-                let n = chunk.len();
-                g.albedo[begin..begin + n].copy_from_slice(&t.albedo[at..at + n]);
-                g.normal[begin..begin + n].copy_from_slice(&t.normal[at..at + n]);
-                g.depth[begin..begin + n].copy_from_slice(&t.depth[at..at + n]);
-                g.visibility[begin..begin + n].copy_from_slice(&t.visibility[at..at + n]);
-                g.emission[begin..begin + n].copy_from_slice(&t.emission[at..at + n]);
-            }
-            if let Some(a) = aovs.as_mut() {
-                let n = chunk.len();
-                a.depth[begin..begin + n].copy_from_slice(&tile.aovs.depth[at..at + n]);
-                a.normal[begin..begin + n].copy_from_slice(&tile.aovs.normal[at..at + n]);
-                a.instance[begin..begin + n].copy_from_slice(&tile.aovs.instance[at..at + n]);
-            }
-        }
     }
     image.guides = guides;
     stats.time = start.elapsed();
@@ -341,7 +348,51 @@ pub fn render_region(
     Ok((image, stats, aovs))
 }
 
-/// Renders every tile of `region` with `integrator`, in parallel; `None` for tiles skipped
+/// The image, guides and AOVs of a render's region while its tiles come in.
+struct Film {
+    region: Region,
+    image: Image,
+    guides: Option<denoise::Guides>,
+    aovs: Option<Aovs>,
+}
+
+impl Film {
+    /// Copies `tile`'s pixels, variances, guides and AOVs to their places.
+    fn place(&mut self, tile: &Tile) {
+        let width = self.region.width;
+        for (row, chunk) in tile.pixels.chunks(tile.width as usize).enumerate() {
+            let y = tile.y - self.region.y + row as u32;
+            let begin = (y * width + tile.x - self.region.x) as usize;
+            let n = chunk.len();
+            self.image.pixels[begin..begin + n].copy_from_slice(chunk);
+            let at = row * tile.width as usize;
+            self.image.variance[begin..begin + n].copy_from_slice(&tile.variance[at..at + n]);
+            if let (Some(g), Some(t)) = (self.guides.as_mut(), tile.guides.as_ref()) {
+                g.albedo[begin..begin + n].copy_from_slice(&t.albedo[at..at + n]);
+                g.normal[begin..begin + n].copy_from_slice(&t.normal[at..at + n]);
+                g.depth[begin..begin + n].copy_from_slice(&t.depth[at..at + n]);
+                g.visibility[begin..begin + n].copy_from_slice(&t.visibility[at..at + n]);
+                g.emission[begin..begin + n].copy_from_slice(&t.emission[at..at + n]);
+            }
+            if let Some(a) = self.aovs.as_mut() {
+                a.depth[begin..begin + n].copy_from_slice(&tile.aovs.depth[at..at + n]);
+                a.normal[begin..begin + n].copy_from_slice(&tile.aovs.normal[at..at + n]);
+                a.instance[begin..begin + n].copy_from_slice(&tile.aovs.instance[at..at + n]);
+            }
+        }
+    }
+}
+
+/// What a finished tile adds to the render's statistics.
+struct TileSums {
+    counts: RayCounts,
+    noise_sum: f64,
+    noise_pixels: u64,
+    samples: u64,
+}
+
+/// Renders every tile of `region` with `integrator`, in parallel, handing each to `deliver`
+/// as it is finished: what it returns for each tile, in tile order; `None` for tiles skipped
 /// after `cancel` was set.
 fn render_tiles<I: Integrator>(
     scene: &Prepared,
@@ -350,7 +401,8 @@ fn render_tiles<I: Integrator>(
     region: Region,
     cancel: &AtomicBool,
     progress: &(dyn Fn(u64, u64) + Sync),
-) -> Vec<Option<Tile>> {
+    deliver: &(dyn Fn(Tile) -> TileSums + Sync),
+) -> Vec<Option<TileSums>> {
     let tiles_x = region.width.div_ceil(TILE_SIZE);
     let tiles_y = region.height.div_ceil(TILE_SIZE);
     let total = u64::from(tiles_x) * u64::from(tiles_y);
@@ -366,8 +418,9 @@ fn render_tiles<I: Integrator>(
                 return None;
             }
             let tile = tracer.tile(region.x + tx * TILE_SIZE, region.y + ty * TILE_SIZE);
+            let sums = deliver(tile);
             progress(done.fetch_add(1, Ordering::Relaxed) + 1, total);
-            Some(tile)
+            Some(sums)
         })
         .collect()
 }
