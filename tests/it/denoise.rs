@@ -346,6 +346,36 @@ mod guides {
         (prepared, settings)
     }
 
+    /// A render cancelled before it starts, or after its first tile (each finished tile goes
+    /// into the film at once), ends with `Cancelled`, not with a part of an image.
+    #[test]
+    fn a_cancelled_render_returns_cancelled() {
+        use meshtracer::render::{render, Cancelled};
+        use std::sync::atomic::{AtomicBool, Ordering};
+        let (prepared, mut settings) = cornell(1);
+        settings.view.width = 160;
+        settings.view.height = 120;
+        let at_once = AtomicBool::new(true);
+        assert!(matches!(
+            render(&prepared, &settings, &at_once, &|_, _| {}),
+            Err(Cancelled)
+        ));
+        let later = AtomicBool::new(false);
+        let finished = std::sync::atomic::AtomicU64::new(0);
+        let stop_after_first = |done: u64, total: u64| {
+            assert!(done <= total);
+            finished.fetch_add(1, Ordering::Relaxed);
+            later.store(true, Ordering::Relaxed);
+        };
+        assert!(matches!(
+            render(&prepared, &settings, &later, &stop_after_first),
+            Err(Cancelled)
+        ));
+        // 20 tiles of 32 x 32; each thread stops before its next one.
+        let finished = finished.load(Ordering::Relaxed);
+        assert!((1..20).contains(&finished), "{finished} tiles finished");
+    }
+
     /// Adaptive sampling takes 4 to `spp` samples a pixel: the guides follow the 4 (2 x 2).
     #[test]
     fn adaptive_guides_follow_the_fewest_samples() {
