@@ -332,7 +332,7 @@ fn denoise(
             Region::full(settings.view.width, settings.view.height),
         ),
     };
-    meshtracer::render::denoise::denoise(image, &guides)
+    meshtracer::render::denoise::denoise(image, guides)
         .map_err(|e| Failed::Denoise(e.to_string()))?;
     Ok(start.elapsed().as_secs_f64())
 }

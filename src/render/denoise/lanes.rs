@@ -41,20 +41,6 @@ struct Plane {
 }
 
 impl Plane {
-    fn new(width: usize, height: usize, value: impl Fn(usize) -> f32 + Sync) -> Plane {
-        let stride = width + PAD_LEFT + PAD_RIGHT;
-        let mut values = vec![0.0f32; stride * height];
-        values
-            .par_chunks_mut(stride)
-            .enumerate()
-            .for_each(|(y, row)| {
-                for (x, v) in row[PAD_LEFT..PAD_LEFT + width].iter_mut().enumerate() {
-                    *v = value(y * width + x);
-                }
-            });
-        Plane { values }
-    }
-
     /// The `LANES` values from padded column `column` of the row starting at `row`.
     #[inline(always)]
     fn lanes(&self, row: usize, column: usize) -> Lanes {
@@ -69,6 +55,11 @@ impl Plane {
             None => [0.0; LANES],
         }
     }
+}
+
+/// A plane's rows, `stride` values each, to fill in parallel (the padding stays zero).
+fn rows(plane: &mut [f32], stride: usize) -> rayon::slice::ChunksMut<'_, f32> {
+    plane.par_chunks_mut(stride)
 }
 
 /// The guides as planes: what a pass reads of each tap besides its illumination.
@@ -95,10 +86,6 @@ impl GuidePlanes {
         let stride = width + PAD_LEFT + PAD_RIGHT;
         let mut planes: [Vec<f32>; 11] = std::array::from_fn(|_| vec![0.0f32; stride * height]);
         let [surface, nx, ny, nz, depth, ax, ay, az, gx, gy, visibility] = &mut planes;
-        // Each plane's rows (the padding stays zero).
-        fn rows(plane: &mut [f32], stride: usize) -> rayon::slice::ChunksMut<'_, f32> {
-            plane.par_chunks_mut(stride)
-        }
         (
             (
                 rows(surface, stride),
@@ -150,6 +137,13 @@ impl GuidePlanes {
     pub(super) fn is_surface(&self, i: usize) -> bool {
         self.surface.values[Lit::at(self.width, i)] != 0.0
     }
+
+    /// The albedo guide of pixel `i` (row-major): the [`Pixel::albedo`] it was given.
+    pub(super) fn albedo(&self, i: usize) -> Vec3 {
+        let at = Lit::at(self.width, i);
+        let [x, y, z] = &self.albedo;
+        Vec3::new(x.values[at], y.values[at], z.values[at])
+    }
 }
 
 /// The illumination, its luminance and its variance as planes: what a pass reads of the
@@ -163,16 +157,40 @@ pub(super) struct Lit {
 }
 
 impl Lit {
-    /// The planes of `illumination` (and its luminance) and `variance`, `width` x `height`.
-    pub(super) fn new(width: usize, height: usize, illumination: &[Vec3], variance: &[f32]) -> Lit {
+    /// The planes of the illumination (and its luminance) and variance that `pixel` gives
+    /// each of the `width` x `height` pixels (row-major index), each pixel computed once,
+    /// rows in parallel: no slice of either needs to exist beside the planes.
+    pub(super) fn new(
+        width: usize,
+        height: usize,
+        pixel: impl Fn(usize) -> (Vec3, f32) + Sync,
+    ) -> Lit {
+        let stride = width + PAD_LEFT + PAD_RIGHT;
+        let mut planes: [Vec<f32>; 5] = std::array::from_fn(|_| vec![0.0f32; stride * height]);
+        let [x, y, z, lum, var] = &mut planes;
+        (
+            rows(x, stride),
+            rows(y, stride),
+            rows(z, stride),
+            rows(lum, stride),
+            rows(var, stride),
+        )
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(row, (x, y, z, lum, var))| {
+                for column in 0..width {
+                    let (c, v) = pixel(row * width + column);
+                    let at = PAD_LEFT + column;
+                    (x[at], y[at], z[at]) = (c.x, c.y, c.z);
+                    lum[at] = luminance(c);
+                    var[at] = v;
+                }
+            });
+        let [x, y, z, luminance, variance] = planes.map(|values| Plane { values });
         Lit {
-            illumination: [
-                Plane::new(width, height, |i| illumination[i].x),
-                Plane::new(width, height, |i| illumination[i].y),
-                Plane::new(width, height, |i| illumination[i].z),
-            ],
-            luminance: Plane::new(width, height, |i| luminance(illumination[i])),
-            variance: Plane::new(width, height, |i| variance[i]),
+            illumination: [x, y, z],
+            luminance,
+            variance,
         }
     }
 
@@ -567,7 +585,7 @@ mod tests {
             .map(|v| luminance_scale(v * 0.9, LUMINANCE_SIGMA))
             .collect();
         let planes = GuidePlanes::new(width, height, |i| pixels[i]);
-        let lit = Lit::new(width, height, &illumination, &variance);
+        let lit = Lit::new(width, height, |i| (illumination[i], variance[i]));
         let mut next = Lit::zeros(width, height);
         let mut filtered = 0;
         for pass_index in 0..ITERATIONS {

@@ -314,8 +314,9 @@ pub enum DenoiseError {
 /// Alpha is kept; pixels nothing covers stay black (premultiplied); outputs are never
 /// negative.
 ///
-/// On error `image` is unchanged.
-pub fn denoise(image: &mut Image, guides: &Guides) -> Result<Denoised, DenoiseError> {
+/// The guides are taken: the built-in filter drops each once it has copied it (see
+/// [`atrous::filter`]). On error `image` is unchanged.
+pub fn denoise(image: &mut Image, guides: Guides) -> Result<Denoised, DenoiseError> {
     let pixels = image.pixels.len();
     if (guides.width, guides.height) != (image.width, image.height)
         || guides.albedo.len() != pixels
@@ -338,17 +339,19 @@ pub fn denoise(image: &mut Image, guides: &Guides) -> Result<Denoised, DenoiseEr
         });
     }
     #[cfg(feature = "denoise")]
-    let denoised = open_image_denoise::filter(image, guides)?;
+    let denoised = open_image_denoise::filter(image, &guides)?;
     #[cfg(not(feature = "denoise"))]
     let denoised = {
         let start = std::time::Instant::now();
+        let (visibility_guide, emission_apart) =
+            (!guides.visibility.is_empty(), !guides.emission.is_empty());
         atrous::filter(image, guides);
         Denoised {
             denoiser: Denoiser::Atrous,
             version: env!("CARGO_PKG_VERSION").to_string(),
             time: start.elapsed(),
-            visibility_guide: !guides.visibility.is_empty(),
-            emission_apart: !guides.emission.is_empty(),
+            visibility_guide,
+            emission_apart,
         }
     };
     Ok(denoised)
@@ -376,7 +379,7 @@ mod tests {
     fn mismatched_guides_are_refused() {
         let mut image = Image::new(4, 4);
         assert!(matches!(
-            denoise(&mut image, &blank(2, 2)),
+            denoise(&mut image, blank(2, 2)),
             Err(DenoiseError::GuideSize { .. })
         ));
     }
@@ -386,7 +389,7 @@ mod tests {
         let mut image = Image::new(2, 2);
         image.variance.clear();
         assert!(matches!(
-            denoise(&mut image, &blank(2, 2)),
+            denoise(&mut image, blank(2, 2)),
             Err(DenoiseError::VarianceSize {
                 pixels: 4,
                 variances: 0
@@ -399,7 +402,7 @@ mod tests {
     #[test]
     fn every_build_denoises_and_says_with_what() {
         let mut image = Image::new(3, 2);
-        let denoised = denoise(&mut image, &blank(3, 2)).expect("denoises");
+        let denoised = denoise(&mut image, blank(3, 2)).expect("denoises");
         assert_eq!(denoised.denoiser, Denoiser::of_this_build());
         assert_eq!(
             denoised.denoiser == Denoiser::Oidn,

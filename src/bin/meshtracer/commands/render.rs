@@ -514,14 +514,15 @@ fn denoise_image(
     };
     phases.mark("denoise guides", guide_start);
     let denoise_start = Instant::now();
-    let report = meshtracer::render::denoise::denoise(image, &guides)?;
+    let guide_samples = guides.samples_per_pixel;
+    let report = meshtracer::render::denoise::denoise(image, guides)?;
     phases.mark("denoise", denoise_start);
     if cancel.load(Ordering::SeqCst) {
         return Err(meshtracer::render::Cancelled.into());
     }
     Ok(Denoising {
         report,
-        guide_samples: guides.samples_per_pixel,
+        guide_samples,
         time: guide_start.elapsed(),
     })
 }
