@@ -243,13 +243,13 @@ pub fn filter(image: &mut Image, guides: Guides) {
             albedo: &albedo,
             visibility: &visibility,
         };
-        let pixels = width * height;
+        let count = width * height;
         // One sample a pixel (or nothing noisy): no pixel knows its noise, so its neighbours
         // tell.
-        if (0..pixels).all(|i| variance(i) == 0.0) {
+        if (0..count).all(|i| variance(i) == 0.0) {
             let pixel = geometry.of(image);
-            let pixels: Vec<Pixel> = (0..pixels).into_par_iter().map(&pixel).collect();
-            let illumination: Vec<Vec3> = (0..width * height).map(illumination).collect();
+            let pixels: Vec<Pixel> = (0..count).into_par_iter().map(&pixel).collect();
+            let illumination: Vec<Vec3> = (0..count).map(illumination).collect();
             let variance = spatial_variance(&illumination, &pixels, width, height);
             (
                 super::lanes::GuidePlanes::new(width, height, |i| pixels[i]),
