@@ -330,6 +330,8 @@ fn decode(source: &ImageSource) -> Result<image::RgbaImage, String> {
         Ok(into_rgba8(r.decode().map_err(|e| e.to_string())?))
     };
     let reader = match source.encoded() {
+        // Handed over as pixels: a copy, which the texture set then owns.
+        Encoded::Pixels(pixels) => return Ok(pixels.clone()),
         Encoded::Bytes(bytes) => return from_bytes(bytes),
         // An image of a GLB that the load left on disk: read now, on the decoding thread.
         Encoded::InFile(part) => return from_bytes(&part.read(u64::MAX)?),
@@ -395,6 +397,7 @@ fn into_rgba8(image: image::DynamicImage) -> image::RgbaImage {
 /// other images together). Results are returned by image index, whatever the order of work.
 fn decode_used(scene: &Scene, used: &[bool]) -> Vec<Option<Result<image::RgbaImage, String>>> {
     let encoded_size = |source: &ImageSource| match source.encoded() {
+        Encoded::Pixels(pixels) => pixels.as_raw().len() as u64,
         Encoded::Bytes(bytes) => bytes.len() as u64,
         Encoded::InFile(part) => part.range.end - part.range.start,
         Encoded::File(path) => std::fs::metadata(path).map_or(0, |m| m.len()),

@@ -8,10 +8,12 @@
 //! warning, arrays are refused whole: a caller that computed a NaN wants to hear about it.
 
 use super::builder::{place_vertices, SoupBuilder, VerticesIn};
+use super::image_source::ImageSource;
 use super::material::{AlphaMode, Material};
 use super::model::Scene;
 use super::options::Format;
 use super::soup::{Bounds, Instance, TriangleSoup};
+use super::texture::{Sampler, Texture};
 use crate::defaults::MAX_TRIANGLES;
 use glam::{Mat4, Vec2, Vec3, Vec4};
 use std::path::PathBuf;
@@ -98,6 +100,34 @@ impl Scene {
         };
         check_arrays(mesh).map_err(|(part, problem)| fail(part, problem))?;
         check_material(&material).map_err(|problem| fail("material", problem))?;
+        if let Some(r) = material
+            .texture_refs()
+            .find(|r| r.texture >= self.textures.len())
+        {
+            return Err(fail(
+                "material",
+                format!(
+                    "texture {} does not exist (the scene has {}: add_texture returns their indices)",
+                    r.texture,
+                    self.textures.len()
+                ),
+            ));
+        }
+        if let Some(r) = material.texture_refs().find(|r| r.tex_coord != 0) {
+            return Err(fail(
+                "material",
+                format!(
+                    "texture {} reads texture coordinate set {}: a mesh from arrays has set 0 only",
+                    r.texture, r.tex_coord
+                ),
+            ));
+        }
+        if mesh.uv0.is_none() && material.texture_refs().next().is_some() {
+            return Err(fail(
+                "uvs",
+                "missing: the material has textures, which are placed by the uvs".into(),
+            ));
+        }
         if !pose.is_finite() {
             return Err(fail("pose", "not finite (NaN or infinite)".into()));
         }
@@ -175,6 +205,58 @@ impl Scene {
         self.primitive_count += 1;
         self.file_triangles += mesh.indices.len();
         Ok(instance)
+    }
+
+    /// Adds a texture of `width` x `height` pixels given as `rgba` (four bytes a pixel, rows
+    /// from the top: texture coordinate (0, 0) is the first row's first pixel, as in glTF),
+    /// sampled as `sampler` says. Returns its index, which a material's texture slots take
+    /// ([`crate::scene::TextureRef::texture`]); several materials may share it. Colour slots
+    /// (base colour, emissive) read its values as sRGB, the others as linear data, as glTF's
+    /// do. Refuses an image without pixels, or bytes that are not four a pixel.
+    pub fn add_texture(
+        &mut self,
+        width: u32,
+        height: u32,
+        rgba: Vec<u8>,
+        sampler: Sampler,
+        name: Option<String>,
+    ) -> Result<usize, ArraysError> {
+        let index = self.textures.len();
+        let fail = |problem: String| ArraysError {
+            what: match &name {
+                Some(n) => format!("texture {index} '{n}'"),
+                None => format!("texture {index}"),
+            },
+            problem,
+        };
+        if width == 0 || height == 0 {
+            return Err(fail(format!(
+                "{width}x{height} pixels: an image needs at least one"
+            )));
+        }
+        let len = rgba.len();
+        let Some(pixels) = image::RgbaImage::from_raw(width, height, rgba)
+            .filter(|_| len as u64 == 4 * u64::from(width) * u64::from(height))
+        else {
+            return Err(fail(format!(
+                "{len} bytes for {width}x{height} pixels: need 4 a pixel (RGBA)"
+            )));
+        };
+        self.images.push(ImageSource {
+            origin: format!("pixels ({width}x{height})"),
+            mime_type: None,
+            path: None,
+            bytes: None,
+            in_file: None,
+            pixels: Some(std::sync::Arc::new(pixels)),
+        });
+        self.textures.push(Texture {
+            name,
+            image: self.images.len() - 1,
+            fallback_image: None,
+            sampler,
+        });
+        Ok(index)
     }
 }
 
@@ -428,5 +510,132 @@ mod tests {
             scene.warnings,
             ["mesh 0: dropped 1 degenerate (zero-area) triangles"]
         );
+    }
+
+    /// A 2x1 image: red on the left, blue on the right.
+    const RED_BLUE: [u8; 8] = [255, 0, 0, 255, 0, 0, 255, 255];
+
+    const QUAD_UVS: [Vec2; 4] = [
+        Vec2::new(0.0, 1.0),
+        Vec2::new(1.0, 1.0),
+        Vec2::new(1.0, 0.0),
+        Vec2::new(0.0, 0.0),
+    ];
+
+    #[test]
+    fn a_texture_of_pixels_is_drawn_by_the_materials_that_name_it() {
+        let mut scene = Scene::empty("<arrays>");
+        let t = scene
+            .add_texture(
+                2,
+                1,
+                RED_BLUE.to_vec(),
+                Sampler::default(),
+                Some("rb".into()),
+            )
+            .expect("a 2x1 image");
+        assert_eq!(t, 0);
+        let textured = Material {
+            base_color_texture: Some(crate::scene::TextureRef {
+                texture: t,
+                tex_coord: 0,
+                transform: None,
+            }),
+            ..Material::default()
+        };
+        let mesh = MeshArrays {
+            uv0: Some(&QUAD_UVS),
+            ..quad()
+        };
+        scene
+            .add_mesh(&mesh, textured.clone(), Mat4::IDENTITY, None)
+            .expect("uvs and an existing texture");
+        // A second mesh shares the texture.
+        scene
+            .add_mesh(&mesh, textured, Mat4::IDENTITY, None)
+            .expect("textures can be shared");
+        assert_eq!((scene.images.len(), scene.textures.len()), (1, 1));
+        assert!(scene.check_references().is_ok());
+        // The prepare phase takes the pixels as they are: the texture's left half is red.
+        let mut warnings = Vec::new();
+        let set =
+            crate::prepare::textures::TextureSet::load(&scene, usize::MAX, true, &mut warnings)
+                .expect("pixels need no decoding");
+        assert!(warnings.is_empty(), "{warnings:?}");
+        let r = scene.materials[0].base_color_texture.expect("set above");
+        let (image, sampler) = set.lookup(&scene, &r).expect("the image is loaded");
+        assert_eq!(image.size(), (2, 1));
+        let nearest = Sampler {
+            mag_filter: super::super::texture::Filter::Nearest,
+            ..*sampler
+        };
+        let left = image.sample(Vec2::new(0.25, 0.5), 0.0, &nearest, false);
+        let right = image.sample(Vec2::new(0.75, 0.5), 0.0, &nearest, false);
+        assert_eq!((left.x, left.z), (1.0, 0.0));
+        assert_eq!((right.x, right.z), (0.0, 1.0));
+    }
+
+    #[test]
+    fn textures_are_refused_without_pixels_uvs_or_an_index_that_exists() {
+        let mut scene = Scene::empty("<arrays>");
+        let mut refused = |width, height, rgba: &[u8]| {
+            scene
+                .add_texture(
+                    width,
+                    height,
+                    rgba.to_vec(),
+                    Sampler::default(),
+                    Some("t".into()),
+                )
+                .unwrap_err()
+                .to_string()
+        };
+        assert_eq!(
+            refused(0, 3, &[]),
+            "texture 0 't': 0x3 pixels: an image needs at least one"
+        );
+        assert_eq!(
+            refused(2, 1, &RED_BLUE[..6]),
+            "texture 0 't': 6 bytes for 2x1 pixels: need 4 a pixel (RGBA)"
+        );
+        assert_eq!(
+            refused(1, 1, &RED_BLUE),
+            "texture 0 't': 8 bytes for 1x1 pixels: need 4 a pixel (RGBA)"
+        );
+        assert!(scene.textures.is_empty() && scene.images.is_empty());
+        let at = |texture, tex_coord| Material {
+            emissive_texture: Some(crate::scene::TextureRef {
+                texture,
+                tex_coord,
+                transform: None,
+            }),
+            ..Material::default()
+        };
+        let with_uvs = MeshArrays {
+            uv0: Some(&QUAD_UVS),
+            ..quad()
+        };
+        let message = |scene: &mut Scene, mesh: &MeshArrays, material| {
+            scene
+                .add_mesh(mesh, material, Mat4::IDENTITY, None)
+                .unwrap_err()
+                .to_string()
+        };
+        assert_eq!(
+            message(&mut scene, &with_uvs, at(0, 0)),
+            "mesh 0: material: texture 0 does not exist (the scene has 0: add_texture returns their indices)"
+        );
+        let t = scene
+            .add_texture(2, 1, RED_BLUE.to_vec(), Sampler::default(), None)
+            .expect("2x1");
+        assert_eq!(
+            message(&mut scene, &with_uvs, at(t, 1)),
+            "mesh 0: material: texture 0 reads texture coordinate set 1: a mesh from arrays has set 0 only"
+        );
+        assert_eq!(
+            message(&mut scene, &quad(), at(t, 0)),
+            "mesh 0: uvs: missing: the material has textures, which are placed by the uvs"
+        );
+        assert!(scene.soup.is_empty() && scene.materials.is_empty());
     }
 }

@@ -57,6 +57,7 @@ pub(crate) fn check_image_header(source: &ImageSource, max_pixels: u64) -> Resul
         })
     };
     let dims = match source.encoded() {
+        Encoded::Pixels(pixels) => Ok(pixels.dimensions()),
         Encoded::Bytes(bytes) => dims_in(bytes)?,
         Encoded::InFile(part) => {
             // The header from a prefix where that tells the size (KTX2, most JPEGs), else

@@ -1,5 +1,7 @@
 //! Where an image's encoded bytes are: a file, a range of the model's file, or memory shared
-//! with it.
+//! with it; or, for an image handed over as pixels ([`Scene::add_texture`]), the pixels.
+//!
+//! [`Scene::add_texture`]: super::model::Scene::add_texture
 
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -24,6 +26,12 @@ pub struct ImageSource {
     /// [`Scene::load_with`]: super::model::Scene::load_with
     #[serde(skip)]
     pub in_file: Option<FileRange>,
+    /// For an image given as pixels rather than a file ([`Scene::add_texture`]): them, RGBA8,
+    /// rows from the top.
+    ///
+    /// [`Scene::add_texture`]: super::model::Scene::add_texture
+    #[serde(skip)]
+    pub pixels: Option<std::sync::Arc<image::RgbaImage>>,
 }
 
 /// A byte range of a file.
@@ -60,6 +68,8 @@ impl FileRange {
 
 /// Where an image's encoded bytes are, as [`ImageSource::encoded`] tells.
 pub enum Encoded<'a> {
+    /// Not encoded: the pixels themselves.
+    Pixels(&'a image::RgbaImage),
     /// In memory.
     Bytes(&'a [u8]),
     /// A whole image file.
@@ -73,6 +83,9 @@ pub enum Encoded<'a> {
 impl ImageSource {
     /// Where the encoded bytes are.
     pub fn encoded(&self) -> Encoded<'_> {
+        if let Some(pixels) = &self.pixels {
+            return Encoded::Pixels(pixels);
+        }
         match (&self.bytes, &self.in_file, &self.path) {
             (Some(bytes), _, _) => Encoded::Bytes(bytes),
             (None, Some(range), _) => Encoded::InFile(range),

@@ -30,7 +30,7 @@ pub(crate) fn is_ktx2_source(source: &super::image_source::ImageSource) -> bool 
                     .is_some_and(|e| e.eq_ignore_ascii_case("ktx2"))
         }
         super::image_source::Encoded::InFile(_) => ktx2_mime,
-        super::image_source::Encoded::Missing => false,
+        super::image_source::Encoded::Missing | super::image_source::Encoded::Pixels(_) => false,
     }
 }
 

@@ -244,6 +244,7 @@ fn map_materials(
                         path: Some(resolved),
                         bytes: None,
                         in_file: None,
+                        pixels: None,
                     };
                     let checked = match &source.path {
                         Some(path) if !path.is_file() => {

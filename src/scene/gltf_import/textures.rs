@@ -141,6 +141,7 @@ pub(super) fn images(
                     path: None,
                     bytes: None,
                     in_file: deferred(&view),
+                    pixels: None,
                 }
             }
             gltf::image::Source::View { view, mime_type } => {
@@ -159,6 +160,7 @@ pub(super) fn images(
                     // A GLB's own chunk is borrowed from the file: shared, not copied.
                     bytes: Some(SharedBytes::within(file, bytes)),
                     in_file: None,
+                    pixels: None,
                 }
             }
             gltf::image::Source::Uri { uri, mime_type } if uri.starts_with("data:") => {
@@ -170,6 +172,7 @@ pub(super) fn images(
                     path: None,
                     bytes: Some(SharedBytes::whole(bytes)),
                     in_file: None,
+                    pixels: None,
                 }
             }
             gltf::image::Source::Uri { uri, mime_type } => ImageSource {
@@ -178,6 +181,7 @@ pub(super) fn images(
                 path: Some(access.resolve(&what, uri)?),
                 bytes: None,
                 in_file: None,
+                pixels: None,
             },
         };
         let checked = match &source.path {
