@@ -39,8 +39,8 @@ clamp_indirect=None, denoise=None) -> dict``
     and an exception it raises, or Ctrl-C, cancels the render and propagates. Any other keyword
     raises Error.
 
-``Scene.from_arrays(positions, indices, ...)``, ``Scene.add_mesh``, ``Scene.add_camera``,
-``Scene.add_light``, ``Scene.render_views(spec, width, height, ...)``
+``Scene.from_arrays(positions, indices, ...)``, ``Scene.add_mesh``, ``Scene.add_texture``,
+``Scene.add_camera``, ``Scene.add_light``, ``Scene.render_views(spec, width, height, ...)``
     Scenes built from NumPy arrays and many views after one preparation: see each method's
     docstring and docs/python.md. ``meshtracer.pyrender`` renders a ``pyrender.Scene``.
 
@@ -108,6 +108,72 @@ def _pose(pose):
     return [float(v) for v in array.ravel()]
 
 
+_TEXTURE_SLOTS = ("base_color_texture", "metallic_roughness_texture", "normal_texture",
+                  "occlusion_texture", "emissive_texture")
+
+
+def _rgba8(image):
+    """``image`` (H x W or H x W x C with C 1 to 4: grey, grey and alpha, RGB, RGBA; uint8
+    0-255 or floats 0-1; or a PIL image) as a C-contiguous uint8 H x W x 4 array."""
+    if not isinstance(image, _np.ndarray) and hasattr(image, "convert"):  # a PIL image
+        image = image.convert("RGBA")
+    try:
+        a = _np.asarray(image)
+    except (TypeError, ValueError) as e:
+        raise Error(f"texture: not an image array ({e})") from None
+    if a.ndim == 2:
+        a = a[:, :, None]
+    if a.ndim != 3 or not 1 <= a.shape[2] <= 4:
+        raise Error(f"texture: shape {a.shape}, expected (H, W) or (H, W, C) with C from 1 to 4")
+    if a.dtype.kind == "f":
+        if a.size and not (_np.all(_np.isfinite(a)) and a.min() >= 0.0 and a.max() <= 1.0):
+            raise Error("texture: float values must be finite and from 0 to 1 "
+                        "(or give uint8 values from 0 to 255)")
+        a = _np.rint(a * 255.0).astype(_np.uint8)
+    elif a.dtype.kind in "iu":
+        if a.size and (a.min() < 0 or a.max() > 255):
+            raise Error("texture: integer values must be from 0 to 255")
+        a = a.astype(_np.uint8)
+    elif a.dtype.kind == "b":
+        a = a.astype(_np.uint8) * 255
+    else:
+        raise Error(f"texture: dtype {a.dtype}, expected uint8 or floats")
+    opaque = _np.full(a.shape[:2] + (1,), 255, _np.uint8)
+    if a.shape[2] == 1:
+        a = _np.concatenate([a, a, a, opaque], axis=2)
+    elif a.shape[2] == 2:
+        a = _np.concatenate([a[..., :1], a[..., :1], a[..., :1], a[..., 1:]], axis=2)
+    elif a.shape[2] == 3:
+        a = _np.concatenate([a, opaque], axis=2)
+    return _np.ascontiguousarray(a)
+
+
+def _pair(name, value):
+    """A setting for both axes (a string) or for each (a pair of strings)."""
+    if isinstance(value, str):
+        return value, value
+    try:
+        first, second = value
+    except (TypeError, ValueError):
+        raise Error(f"{name}: a string or a pair of strings, not {value!r}") from None
+    return str(first), str(second)
+
+
+def _add_texture(self, image, *, wrap="repeat", filter="linear", name=None):
+    """Adds a texture image; returns its index for a material's texture slots (several
+    materials may share it).
+
+    image: H x W or H x W x C (C 1 to 4: grey, grey and alpha, RGB, RGBA), uint8 0-255 or
+    floats 0-1, or a PIL image: the values an image file would hold, so colour textures are
+    sRGB-encoded and data textures (metallic-roughness, normal, occlusion) linear, as glTF's.
+    Row 0 is the top of the image, where uv (0, 0) is (glTF's convention). wrap: "repeat",
+    "clamp_to_edge" or "mirrored_repeat", or a pair (u, v); filter: "linear" or "nearest", or
+    a pair (magnification, minification)."""
+    wrap_s, wrap_t = _pair("wrap", wrap)
+    mag, min_ = _pair("filter", filter)
+    return self._add_texture(_rgba8(image), wrap_s, wrap_t, mag, min_, name)
+
+
 def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, material=None,
               pose=None, name=None):
     """Adds a mesh given as arrays; returns its instance index (segmentation id - 1).
@@ -117,9 +183,13 @@ def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, mat
     (linear, multiplying the base colour); pose: 4x4 world-from-local matrix (default
     identity); material: a dict of glTF metallic-roughness factors (``base_color`` RGB or
     RGBA, ``metallic``, ``roughness``, ``emissive``, ``emissive_strength``, ``alpha_mode``,
-    ``alpha_cutoff``, ``double_sided``, ``unlit``, ``name``), every key optional with glTF's
-    default (white, metallic 1, roughness 1). Raises Error, naming the mesh and the array,
-    for a wrong shape, a NaN, an index out of range or a factor out of its range.
+    ``alpha_cutoff``, ``double_sided``, ``unlit``, ``normal_scale``, ``occlusion_strength``,
+    ``name``), every key optional with glTF's default (white, metallic 1, roughness 1), and
+    textures (``base_color_texture``, ``metallic_roughness_texture``, ``normal_texture``,
+    ``occlusion_texture``, ``emissive_texture``): each an index from ``add_texture`` or an
+    image as it takes (added with its defaults); textures need ``uvs``. Raises Error, naming
+    the mesh and the array, for a wrong shape, a NaN, an index out of range or a factor out
+    of its range.
     """
     if colors is not None:
         c = _np.asarray(colors, dtype=_np.float32)
@@ -127,6 +197,14 @@ def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, mat
             colors = _np.concatenate([c, _np.ones((len(c), 1), _np.float32)], axis=1)
     if material is not None and not isinstance(material, dict):
         raise Error(f"material: a dict of factors, not {type(material).__name__}")
+    if material is not None and any(k in material for k in _TEXTURE_SLOTS):
+        material = dict(material)
+        for key in _TEXTURE_SLOTS:
+            value = material.get(key)
+            if value is not None and not isinstance(value, (int, _np.integer)):
+                material[key] = _add_texture(self, value)
+            elif value is None:
+                material.pop(key, None)
     return self._add_mesh(
         _rows("positions", positions, 3), _triangles(indices),
         None if normals is None else _rows("normals", normals, 3),
@@ -188,6 +266,7 @@ def _render_views(self, spec, width, height, **options):
 
 
 Scene.add_mesh = _add_mesh
+Scene.add_texture = _add_texture
 Scene.from_arrays = staticmethod(_from_arrays)
 Scene.add_camera = _add_camera
 Scene.add_light = _add_light

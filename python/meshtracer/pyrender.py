@@ -5,10 +5,10 @@
     color, depth = renderer.render(scene)        # scene: a pyrender.Scene
 
 The scene is read through pyrender's own objects (nodes and their world poses, meshes and
-primitives with their materials, the main camera, the lights, ``ambient_light`` and
-``bg_color``) and handed to ``meshtracer.Scene.add_mesh`` / ``add_camera`` / ``add_light``;
-the picture comes from the meshtracer library (shadows, reflections, the glTF BRDF), not from
-OpenGL. pyrender itself is imported only to tell its objects apart, when ``render`` is called:
+primitives with their materials and textures, the main camera, the lights, ``ambient_light``
+and ``bg_color``) and handed to ``meshtracer.Scene.add_mesh`` / ``add_texture`` /
+``add_camera`` / ``add_light``; the picture comes from the meshtracer library (shadows,
+reflections, the glTF BRDF), not from OpenGL. pyrender itself is imported only to tell its objects apart, when ``render`` is called:
 this module imports without it. docs/python.md lists every flag and what is done with it.
 """
 
@@ -53,6 +53,41 @@ _REFUSED = {
 
 _TRIANGLES = 4  # GLTF.TRIANGLES, the only primitive mode with faces.
 
+# OpenGL's sampler constants, as pyrender's Sampler holds them, by meshtracer's names.
+_WRAPS = {10497: "repeat", 33071: "clamp_to_edge", 33648: "mirrored_repeat"}
+_NEAREST = {9728, 9984}  # GL_NEAREST, GL_NEAREST_MIPMAP_NEAREST; the other filters are linear
+
+# pyrender's texture slots (its material attributes) by meshtracer's material keys.
+_TEXTURES = {
+    "base_color_texture": "baseColorTexture",
+    "metallic_roughness_texture": "metallicRoughnessTexture",
+    "normal_texture": "normalTexture",
+    "occlusion_texture": "occlusionTexture",
+    "emissive_texture": "emissiveTexture",
+}
+
+
+def _texture(target, texture, cache):
+    """The index in ``target`` of a pyrender ``Texture``, added the first time it is seen
+    (``cache``: id of the texture -> index). pyrender keeps of each slot's image only the
+    channels its shader reads (``source_channels``): metallic-roughness "GB" (roughness in
+    G, metalness in B, as glTF) goes back into those channels of an RGBA image."""
+    key = id(texture)
+    if key in cache:
+        return cache[key]
+    source = np.asarray(texture.source)
+    if texture.source_channels == "GB":
+        if source.ndim == 2:
+            source = source[:, :, None]
+        g, b = source[..., :1], source[..., -1:]
+        source = np.concatenate([np.full_like(g, 255), g, b], axis=2)
+    sampler = texture.sampler
+    wrap = tuple(_WRAPS.get(w, "repeat") for w in (sampler.wrapS, sampler.wrapT))
+    filters = tuple("nearest" if f in _NEAREST else "linear"
+                    for f in (sampler.magFilter, sampler.minFilter))
+    cache[key] = target.add_texture(source, wrap=wrap, filter=filters, name=texture.name)
+    return cache[key]
+
 
 def _material(material, flags):
     """The factors of a pyrender material as ``meshtracer.Scene.add_mesh`` takes them."""
@@ -81,9 +116,10 @@ def _material(material, flags):
     return out
 
 
-def _add_primitive(target, primitive, world, flags, name):
+def _add_primitive(target, primitive, world, flags, name, textures):
     """Adds one pyrender primitive (and each of its instance poses) to ``target``; returns the
-    instance indices it got."""
+    instance indices it got. ``textures`` maps the pyrender textures already added to their
+    indices."""
     mode = _TRIANGLES if primitive.mode is None else int(primitive.mode)
     if mode != _TRIANGLES:
         return []  # points and lines have no surface to hit
@@ -96,6 +132,14 @@ def _add_primitive(target, primitive, world, flags, name):
     smooth = getattr(primitive.material, "smooth", True)
     normals = primitive.normals if smooth else None
     uvs = primitive.texcoord_0
+    if uvs is not None:
+        # pyrender's textures are OpenGL's: uv (0, 0) at the image's bottom-left (it flips the
+        # rows when it uploads them); glTF's and meshtracer's at the top-left.
+        uvs = np.asarray(uvs, np.float32)[:, :2] * [1.0, -1.0] + [0.0, 1.0]
+        for key, slot in _TEXTURES.items():
+            texture = getattr(primitive.material, slot, None)
+            if texture is not None and getattr(texture, "source", None) is not None:
+                material[key] = _texture(target, texture, textures)
     colors = primitive.color_0
     if colors is not None:
         colors = np.asarray(colors)
@@ -181,13 +225,14 @@ class OffscreenRenderer:
             return self._built, self._instances
         built = None
         instances = {}
+        textures = {}
         for node in nodes:
             world = scene.get_pose(node)
             for primitive in node.mesh.primitives:
                 name = node.name or node.mesh.name
                 if built is None:
                     built = Scene.empty("<pyrender scene>")
-                for index in _add_primitive(built, primitive, world, flags, name):
+                for index in _add_primitive(built, primitive, world, flags, name, textures):
                     instances[index] = node
         if built is None:
             raise Error("the pyrender scene has no mesh with triangles: nothing to draw")

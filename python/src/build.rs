@@ -5,7 +5,7 @@
 
 use crate::Error;
 use glam::{Mat4, Vec3, Vec4};
-use meshtracer::scene::{AlphaMode, LightKind, Material};
+use meshtracer::scene::{AlphaMode, Filter, LightKind, Material, Sampler, TextureRef, Wrap};
 use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -52,15 +52,18 @@ pub fn pose(rows: Option<[f32; 16]>) -> Mat4 {
 }
 
 /// The material of a mesh: the glTF metallic-roughness factors in `dict` (every key
-/// optional, the glTF default where missing: white, metallic 1, roughness 1), refusing keys it
-/// does not know. The library checks the ranges.
+/// optional, the glTF default where missing: white, metallic 1, roughness 1) and its textures
+/// (indices from `add_texture`: the Python side adds the images given as arrays first),
+/// refusing keys it does not know. The library checks the ranges and the indices.
 pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
     let mut m = Material::default();
     let Some(dict) = dict else {
         return Ok(m);
     };
     const KEYS: &str = "base_color, metallic, roughness, emissive, emissive_strength, \
-        alpha_mode, alpha_cutoff, double_sided, unlit, name";
+        alpha_mode, alpha_cutoff, double_sided, unlit, name, base_color_texture, \
+        metallic_roughness_texture, normal_texture, normal_scale, occlusion_texture, \
+        occlusion_strength, emissive_texture";
     for (key, value) in dict.iter() {
         let key: String = key.extract()?;
         let bad = |e: PyErr| Error::new_err(format!("material: {key}: {e}"));
@@ -86,6 +89,26 @@ pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
             "double_sided" => m.double_sided = value.extract().map_err(bad)?,
             "unlit" => m.unlit = value.extract().map_err(bad)?,
             "name" => m.name = value.extract().map_err(bad)?,
+            "normal_scale" => m.normal_scale = value.extract().map_err(bad)?,
+            "occlusion_strength" => m.occlusion_strength = value.extract().map_err(bad)?,
+            "base_color_texture"
+            | "metallic_roughness_texture"
+            | "normal_texture"
+            | "occlusion_texture"
+            | "emissive_texture" => {
+                let texture = Some(TextureRef {
+                    texture: value.extract().map_err(bad)?,
+                    tex_coord: 0,
+                    transform: None,
+                });
+                match key.as_str() {
+                    "base_color_texture" => m.base_color_texture = texture,
+                    "metallic_roughness_texture" => m.metallic_roughness_texture = texture,
+                    "normal_texture" => m.normal_texture = texture,
+                    "occlusion_texture" => m.occlusion_texture = texture,
+                    _ => m.emissive_texture = texture,
+                }
+            }
             "alpha_mode" => {
                 let mode: String = value.extract().map_err(bad)?;
                 m.alpha_mode = match mode.to_ascii_uppercase().as_str() {
@@ -107,6 +130,32 @@ pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
         }
     }
     Ok(m)
+}
+
+/// A texture's sampler from glTF's names for its wrap modes (`repeat`, `clamp_to_edge`,
+/// `mirrored_repeat`) and filters (`linear`, `nearest`).
+pub fn sampler(wrap_s: &str, wrap_t: &str, mag: &str, min: &str) -> PyResult<Sampler> {
+    let wrap = |name: &str, value: &str| match value {
+        "repeat" => Ok(Wrap::Repeat),
+        "clamp_to_edge" => Ok(Wrap::ClampToEdge),
+        "mirrored_repeat" => Ok(Wrap::MirroredRepeat),
+        other => Err(Error::new_err(format!(
+            "{name} '{other}': use repeat, clamp_to_edge or mirrored_repeat"
+        ))),
+    };
+    let filter = |name: &str, value: &str| match value {
+        "linear" => Ok(Filter::Linear),
+        "nearest" => Ok(Filter::Nearest),
+        other => Err(Error::new_err(format!(
+            "{name} '{other}': use linear or nearest"
+        ))),
+    };
+    Ok(Sampler {
+        mag_filter: filter("mag_filter", mag)?,
+        min_filter: filter("min_filter", min)?,
+        wrap_s: wrap("wrap_s", wrap_s)?,
+        wrap_t: wrap("wrap_t", wrap_t)?,
+    })
 }
 
 /// A light kind from its name and cone angles (radians), as `KHR_lights_punctual` has them.

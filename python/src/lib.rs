@@ -27,7 +27,7 @@ use meshtracer::render::{render, Region, RenderSettings};
 use meshtracer::scene::{Camera, Light, LoadOptions, MeshArrays, PoseOptions, Projection};
 use meshtracer::setup::{self, LightingOptions};
 use meshtracer::shading::ShadingModel;
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -492,6 +492,40 @@ impl PyScene {
         let material = build::material(material.as_ref())?;
         let pose = build::pose(pose);
         self.with_scene_mut(|scene| scene.add_mesh(&mesh, material, pose, name))?
+            .map_err(|e| Error::new_err(format!("{}: {e}", self.path.display())))
+    }
+
+    /// Adds a texture from a C-contiguous uint8 H x W x 4 array (RGBA, rows from the top) that
+    /// the Python side converted; see `meshtracer.Scene.add_texture` in `__init__.py`.
+    #[pyo3(signature = (pixels, wrap_s, wrap_t, mag_filter, min_filter, name=None))]
+    fn _add_texture(
+        &self,
+        pixels: PyReadonlyArray3<'_, u8>,
+        wrap_s: &str,
+        wrap_t: &str,
+        mag_filter: &str,
+        min_filter: &str,
+        name: Option<String>,
+    ) -> PyResult<usize> {
+        let shape = pixels.shape();
+        let (height, width) = (shape[0], shape[1]);
+        if shape[2] != 4 {
+            return Err(Error::new_err(format!(
+                "texture: shape {shape:?}, expected (H, W, 4)"
+            )));
+        }
+        let fits = |n: usize| u32::try_from(n).ok();
+        let (Some(width), Some(height)) = (fits(width), fits(height)) else {
+            return Err(Error::new_err(format!(
+                "texture: {width}x{height} pixels is too large"
+            )));
+        };
+        let rgba = pixels
+            .as_slice()
+            .map_err(|_| Error::new_err("texture: not a contiguous array"))?
+            .to_vec();
+        let sampler = build::sampler(wrap_s, wrap_t, mag_filter, min_filter)?;
+        self.with_scene_mut(|scene| scene.add_texture(width, height, rgba, sampler, name))?
             .map_err(|e| Error::new_err(format!("{}: {e}", self.path.display())))
     }
 

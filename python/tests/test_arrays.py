@@ -135,6 +135,121 @@ def test_bad_arrays_and_parts_raise_errors_naming_them(call, message):
 
 # Many views ---------------------------------------------------------------------------------
 
+# uv (0, 0) at the image's top-left (glTF's convention): the quad's top-left corner.
+QUAD_UVS = np.array([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]])
+# Rows from the top: red, green / blue, white; each quadrant 2x2 texels, so that bilinear
+# filtering near a quadrant's centre blends only texels of its colour.
+CHECKER = np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [255, 255, 255]]], np.uint8)
+CHECKER = CHECKER.repeat(2, axis=0).repeat(2, axis=1)
+UNLIT = {"unlit": True}
+
+
+def textured_quad(material):
+    """The unit quad with `material` and uvs ((0, 0) at its top-left corner), seen head-on by
+    an orthographic camera whose view it fills exactly."""
+    scene = meshtracer.Scene.empty("<textured>")
+    scene.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS, material=material)
+    scene.add_camera(translation(0, 0, 1), xmag=0.5, ymag=0.5)
+    return scene
+
+
+def quadrant_centres(image):
+    """The pixels at the centres of the four quadrants: top-left, top-right, bottom-left,
+    bottom-right."""
+    h, w = image.shape[:2]
+    return [image[h // 4, w // 4], image[h // 4, 3 * w // 4],
+            image[3 * h // 4, w // 4], image[3 * h // 4, 3 * w // 4]]
+
+
+@pytest.mark.parametrize("how", ["array", "index", "float", "pil"])
+def test_a_texture_lands_where_its_uvs_put_it(how):
+    if how == "index":
+        scene = meshtracer.Scene.empty("<textured>")
+        texture = scene.add_texture(CHECKER, filter="nearest")
+        # Two meshes share it: the second, behind the first, is hidden.
+        for z in (0.0, -0.5):
+            scene.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS, pose=translation(0, 0, z),
+                           material={**UNLIT, "base_color_texture": texture})
+        scene.add_camera(translation(0, 0, 1), xmag=0.5, ymag=0.5)
+    else:
+        image = {"array": CHECKER, "float": CHECKER / 255.0}.get(how)
+        if how == "pil":
+            Image = pytest.importorskip("PIL.Image")
+            image = Image.fromarray(CHECKER)
+        scene = textured_quad({**UNLIT, "base_color_texture": image})
+    out = scene.render(32, 32, spp=1, integrator="direct", seed=0, tonemap="standard",
+                       srgb8=True)
+    # 8-bit sRGB in, linear 0 or 1 out: each quadrant is its texel exactly.
+    expected = [[255, 0, 0, 255], [0, 255, 0, 255], [0, 0, 255, 255], [255, 255, 255, 255]]
+    assert [q.tolist() for q in quadrant_centres(out["srgb8"])] == expected
+    np.testing.assert_array_equal(quadrant_centres(out["color"]),
+                                  np.array(expected, np.float32) / 255.0)
+
+
+def test_grey_textures_are_srgb_for_colour_and_linear_for_data():
+    grey = np.full((1, 1), 128, np.uint8)
+    colour = textured_quad({**UNLIT, "base_color_texture": grey})
+    out = colour.render(8, 8, spp=1, integrator="direct", tonemap="standard")
+    # glTF: a base colour texture holds sRGB-encoded values; 128/255 is 0.2158605 linear.
+    srgb = 128 / 255
+    linear = ((srgb + 0.055) / 1.055) ** 2.4
+    np.testing.assert_allclose(out["color"][4, 4, :3], linear, rtol=1e-5)
+    # Grey and alpha: the alpha channel is the texture's second.
+    blend = textured_quad({**UNLIT, "alpha_mode": "BLEND",
+                           "base_color_texture": np.dstack([grey, np.zeros_like(grey)])})
+    out = blend.render(8, 8, spp=4, integrator="direct", tonemap="standard", aovs=("mask",))
+    assert out["mask"].max() == 0.0, "alpha 0 everywhere: nothing is seen"
+
+
+def test_a_normal_map_turns_the_surface_toward_its_light():
+    """A constant tangent-space normal map on a quad facing +Z whose uvs run with x and -y:
+    tangents (generated, MikkTSpace) point along +x, so a map of (±0.71, 0, 0.71) turns the
+    normal toward or away from a directional light shining from 45 degrees on the +x side."""
+    c = np.cos(np.pi / 4)
+    light = np.array([[c, 0, c, 0], [0, 1, 0, 0], [-c, 0, c, 0], [0, 0, 0, 1.0]])  # from +x+z
+
+    def lit(normal_map):
+        material = {**MATTE}
+        if normal_map is not None:
+            material["normal_texture"] = np.full((2, 2, 3), normal_map, np.uint8)
+        scene = textured_quad(material)
+        scene.add_light("directional", light, intensity=3.0)
+        out = scene.render(8, 8, spp=1, integrator="direct", tonemap="standard",
+                           ambient=[0.0, 0.0, 0.0])
+        return float(out["color"][4, 4, 0])
+
+    flat, up = lit(None), lit([128, 128, 255])
+    toward, away = lit([218, 128, 218]), lit([38, 128, 218])
+    assert up == pytest.approx(flat, rel=0.02), "an untilted map changes nothing"
+    # Lambert: cos 45° flat, cos 0° turned toward the light, 90° turned away.
+    assert toward == pytest.approx(flat / c, rel=0.05)
+    assert away < 0.02 * flat
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda s: s.add_texture(np.zeros((2, 2, 5), np.uint8)),
+     "texture: shape (2, 2, 5), expected (H, W) or (H, W, C) with C from 1 to 4"),
+    (lambda s: s.add_texture(np.full((2, 2), 1.5)),
+     "texture: float values must be finite and from 0 to 1"),
+    (lambda s: s.add_texture(np.full((2, 2), 300)),
+     "texture: integer values must be from 0 to 255"),
+    (lambda s: s.add_texture(np.zeros((0, 4), np.uint8)),
+     "<t>: texture 0: 4x0 pixels: an image needs at least one"),
+    (lambda s: s.add_texture(CHECKER, wrap="tile"),
+     "wrap_s 'tile': use repeat, clamp_to_edge or mirrored_repeat"),
+    (lambda s: s.add_texture(CHECKER, filter=("linear", "cubic")),
+     "min_filter 'cubic': use linear or nearest"),
+    (lambda s: s.add_mesh(QUAD, QUAD_TRIANGLES, material={"emissive_texture": CHECKER}),
+     "<t>: mesh 0: uvs: missing: the material has textures, which are placed by the uvs"),
+    (lambda s: s.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS, material={"normal_texture": 4}),
+     "<t>: mesh 0: material: texture 4 does not exist (the scene has 0"),
+])
+def test_bad_textures_raise_errors_naming_them(call, message):
+    with pytest.raises(meshtracer.Error) as e:
+        call(meshtracer.Scene.empty("<t>"))
+    assert message in str(e.value)
+
+
 def test_render_views_equals_one_render_per_view():
     """Views rendered together (one preparation) are the views rendered one by one."""
     scene = meshtracer.load(CORNELL)

@@ -49,6 +49,19 @@ def orthographic_z(returned, znear, zfar):
     return out
 
 
+def render_both(scene, width, height, flags):
+    """`scene` rendered by pyrender and by the front (4 spp) with `flags` (the same names in
+    both): ((colour, depth) of pyrender, (colour, depth) of the front)."""
+    reference = pyrender.OffscreenRenderer(width, height)
+    try:
+        theirs = reference.render(scene, flags=getattr(pyrender.RenderFlags, flags))
+    finally:
+        reference.delete()
+    ours = front.OffscreenRenderer(width, height, spp=4).render(
+        scene, flags=getattr(front.RenderFlags, flags))
+    return theirs, ours
+
+
 def build_scene(camera):
     scene = pyrender.Scene(bg_color=[0.0, 0.0, 0.0, 0.0], ambient_light=[0.1, 0.1, 0.1])
     sphere = trimesh.creation.icosphere(subdivisions=3, radius=0.5)
@@ -74,13 +87,7 @@ def build_scene(camera):
 ], ids=["perspective", "perspective-zfar", "intrinsics", "orthographic"])
 def test_depth_and_coverage_match_pyrender(camera):
     scene = build_scene(camera)
-    reference = pyrender.OffscreenRenderer(WIDTH, HEIGHT)
-    try:
-        ref_color, ref_depth = reference.render(scene, flags=pyrender.RenderFlags.RGBA)
-    finally:
-        reference.delete()
-    color, depth = front.OffscreenRenderer(WIDTH, HEIGHT, spp=4).render(
-        scene, flags=front.RenderFlags.RGBA)
+    (ref_color, ref_depth), (color, depth) = render_both(scene, WIDTH, HEIGHT, "RGBA")
     if isinstance(camera, pyrender.OrthographicCamera):
         ref_depth = orthographic_z(ref_depth, camera.znear, camera.zfar)
 
@@ -119,3 +126,41 @@ def test_depth_only_and_flags():
                              seg_node_map={nodes[0]: (255, 0, 0), nodes[1]: (0, 0, 255)})
     colours = {tuple(c) for c in seg.reshape(-1, 3)}
     assert colours == {(0, 0, 0), (255, 0, 0), (0, 0, 255)}
+
+
+def test_textures_land_where_pyrender_puts_them():
+    """A trimesh quad with a texture (trimesh's and pyrender's uvs have v up, glTF's down),
+    shown flat by both renderers: each quadrant is its texel's colour in both, and the front
+    uses the texture's own sampler (nearest here: the texel edges stay sharp)."""
+    from PIL import Image
+
+    # Rows from the top: red, green / blue, white, each quadrant 2x2 texels.
+    checker = np.array([[[255, 0, 0], [0, 255, 0]], [[0, 0, 255], [255, 255, 255]]], np.uint8)
+    checker = checker.repeat(2, axis=0).repeat(2, axis=1)
+    vertices = [[-0.5, -0.5, 0.0], [0.5, -0.5, 0.0], [0.5, 0.5, 0.0], [-0.5, 0.5, 0.0]]
+    uv = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
+    visual = trimesh.visual.TextureVisuals(uv=uv, image=Image.fromarray(checker))
+    quad = trimesh.Trimesh(vertices, [[0, 1, 2], [0, 2, 3]], visual=visual, process=False)
+    mesh = pyrender.Mesh.from_trimesh(quad)
+    material = mesh.primitives[0].material
+    texture = material.baseColorTexture
+    assert texture is not None, "pyrender took the trimesh texture"
+    # trimesh's material has a grey diffuse factor (0.4), which the renderers would carry
+    # through different transfer functions (pyrender's flat shader writes linear values).
+    material.baseColorFactor = [1.0, 1.0, 1.0, 1.0]
+    texture.sampler = pyrender.Sampler(magFilter=9728, minFilter=9728)  # GL_NEAREST
+    scene = pyrender.Scene(bg_color=[0.0, 0.0, 0.0, 0.0])
+    scene.add(mesh)
+    scene.add(pyrender.OrthographicCamera(xmag=0.5, ymag=0.5), pose=look_at([0, 0, 1], [0, 0, 0]))
+    size = 64
+    (ref_color, _), (color, _) = render_both(scene, size, size, "FLAT")
+    quadrants = [(size // 4, size // 4), (size // 4, 3 * size // 4),
+                 (3 * size // 4, size // 4), (3 * size // 4, 3 * size // 4)]
+    expected = [[255, 0, 0], [0, 255, 0], [0, 0, 255], [255, 255, 255]]
+    assert [ref_color[p].tolist() for p in quadrants] == expected, "pyrender's own picture"
+    assert [color[p].tolist() for p in quadrants] == expected
+    # Nearest filtering: the pixels either side of the quad's middle are already the next
+    # quadrant's colour.
+    middle = size // 2
+    assert color[size // 4, middle - 1].tolist() == [255, 0, 0]
+    assert color[size // 4, middle].tolist() == [0, 255, 0]
