@@ -79,8 +79,9 @@ pub struct LightingOptions {
     pub integrator: IntegratorKind,
     /// Neither the rig nor the studio environment (`--no-default-lights`).
     pub no_default_lights: bool,
-    /// A panorama to light with (`--env`), already rotated and scaled.
-    pub environment: Option<Environment>,
+    /// A panorama to light with (`--env`), already rotated and scaled (shared: the views of
+    /// one render all take it).
+    pub environment: Option<Arc<Environment>>,
     /// `--env-rotation` in degrees, applied to the built-in studio environment.
     pub studio_rotation_degrees: f32,
     /// `--env-intensity`, applied to the built-in studio environment.
@@ -158,18 +159,21 @@ pub fn lighting(
         None => (Vec::new(), Vec3::ZERO, None),
     };
     let recorded_environment = recorded_environment.filter(|_| path_tracing);
-    let environment = match options.environment.or(recorded_environment) {
+    let environment = match options.environment {
         Some(env) => Some(env),
-        None if studio => Some(
-            Environment::studio()
-                .with_transform(options.studio_rotation_degrees, options.studio_intensity),
-        ),
-        None => None,
+        None => match recorded_environment {
+            Some(env) => Some(Arc::new(env)),
+            None if studio => Some(Arc::new(
+                Environment::studio()
+                    .with_transform(options.studio_rotation_degrees, options.studio_intensity),
+            )),
+            None => None,
+        },
     };
     Lighting {
         lights,
         ambient,
-        environment: environment.map(Arc::new),
+        environment,
         default_rig,
     }
 }

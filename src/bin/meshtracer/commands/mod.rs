@@ -170,7 +170,7 @@ pub(crate) fn lighting_options(
     LightingOptions {
         integrator: args.integrator,
         no_default_lights: args.no_default_lights,
-        environment: env_file,
+        environment: env_file.map(Arc::new),
         studio_rotation_degrees: args.env_rotation,
         studio_intensity: args.env_intensity,
     }
