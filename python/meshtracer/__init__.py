@@ -33,9 +33,12 @@ clamp_indirect=None, denoise=None) -> dict``
     filter; ``denoise=False`` or ``True`` is the CLI's ``--no-denoise`` or ``--denoise``. The
     GIL is released while the scene is prepared (first render) and rendered.
 
-``Scene.render(..., ambient=None, default_lights=True, progress=None)``
+``Scene.render(..., ambient=None, default_lights=True, env=None, env_rotation=0.0,
+env_intensity=1.0, env_visible=False, progress=None)``
     ``ambient`` and ``default_lights=False`` are the CLI's ``--ambient`` and
-    ``--no-default-lights``; ``progress(done, total)`` is called on this thread as tiles finish,
+    ``--no-default-lights``; ``env`` (the path of an .exr or .hdr panorama), ``env_rotation``
+    (degrees), ``env_intensity`` and ``env_visible`` the path tracer's ``--env`` options (read
+    once and kept while the file and transform stay the same); ``progress(done, total)`` is called on this thread as tiles finish,
     and an exception it raises, or Ctrl-C, cancels the render and propagates. Any other keyword
     raises Error.
 

@@ -21,6 +21,7 @@ use meshtracer::integrator::IntegratorKind;
 use meshtracer::jobs::views::{
     parse_views, plan_cameras, read_views_file, PlanOptions, ViewSpec, ViewsError,
 };
+use meshtracer::light::environment::Environment;
 use meshtracer::output::dataset::{camera_to_world, Intrinsics};
 use meshtracer::prepare::{PrepareOptions, Prepared};
 use meshtracer::render::{render, Region, RenderSettings};
@@ -66,6 +67,18 @@ struct PyScene {
     /// index: such a camera is kept in the scene as a perspective one and given its
     /// intrinsics when a view is made of it.
     intrinsics: Mutex<HashMap<usize, [f32; 4]>>,
+    /// The last `env` panorama rendered with, turned and scaled, and what it was made from.
+    environment: Mutex<Option<(EnvironmentKey, Arc<Environment>)>>,
+}
+
+/// What an `env` panorama was made from: the file (as it was on disk) and the transform.
+#[derive(Clone, Debug, PartialEq)]
+struct EnvironmentKey {
+    path: PathBuf,
+    modified: Option<std::time::SystemTime>,
+    len: u64,
+    rotation_degrees: f32,
+    intensity: f32,
 }
 
 /// A scene before and after its first render.
@@ -170,7 +183,41 @@ impl PyScene {
             state: Mutex::new(State::Loaded(Box::new(scene))),
             prepare_warnings: Mutex::new(Vec::new()),
             intrinsics: Mutex::new(HashMap::new()),
+            environment: Mutex::new(None),
         }
+    }
+
+    /// The `env` panorama of `o`, turned by `env_rotation` and scaled by `env_intensity` as the
+    /// CLI's `--env` is; `None` without one. Loaded once and kept while the file (its length
+    /// and modification time) and the transform stay the same: rendering many frames lit by
+    /// one large EXR reads it once.
+    fn environment(&self, o: &RenderOptions) -> PyResult<Option<Arc<Environment>>> {
+        let Some(path) = &o.env else {
+            return Ok(None);
+        };
+        let meta = std::fs::metadata(path).ok();
+        let key = EnvironmentKey {
+            path: path.clone(),
+            modified: meta.as_ref().and_then(|m| m.modified().ok()),
+            len: meta.map_or(0, |m| m.len()),
+            rotation_degrees: o.env_rotation,
+            intensity: o.env_intensity,
+        };
+        let mut kept = self
+            .environment
+            .lock()
+            .map_err(|_| Error::new_err("the scene was poisoned by a panic in an earlier call"))?;
+        if let Some((k, env)) = &*kept {
+            if *k == key {
+                return Ok(Some(Arc::clone(env)));
+            }
+        }
+        let env = Environment::load(path)
+            .map_err(|e| Error::new_err(e.to_string()))?
+            .with_transform(o.env_rotation, o.env_intensity);
+        let env = Arc::new(env);
+        *kept = Some((key, Arc::clone(&env)));
+        Ok(Some(env))
     }
 
     /// The view of camera `camera` (default the first; else the automatic camera framing the
@@ -215,6 +262,9 @@ impl PyScene {
     fn settings(&self, view: View, rig_view: &View, o: &RenderOptions) -> PyResult<RenderSettings> {
         let mut lighting_options = LightingOptions::new(o.integrator);
         lighting_options.no_default_lights = !o.default_lights;
+        lighting_options.environment = self.environment(o)?;
+        lighting_options.studio_rotation_degrees = o.env_rotation;
+        lighting_options.studio_intensity = o.env_intensity;
         let lit = self
             .with_scene(|scene| setup::lighting(&scene.lights, None, rig_view, lighting_options))?;
         let denoised = o.denoises();
@@ -231,7 +281,7 @@ impl PyScene {
             integrator: o.integrator,
             bounces: o.bounces,
             environment: lit.environment,
-            environment_visible: false,
+            environment_visible: o.env_visible,
             noise,
             clamp_indirect: o.clamp_indirect,
             // The path tracer averages the denoiser's guides from its own samples.
@@ -353,6 +403,11 @@ struct RenderOptions {
     clamp_indirect: Option<f32>,
     ambient: Option<Vec3>,
     default_lights: bool,
+    /// `--env`, `--env-rotation` (degrees), `--env-intensity`, `--env-visible`.
+    env: Option<PathBuf>,
+    env_rotation: f32,
+    env_intensity: f32,
+    env_visible: bool,
     /// Denoise each view with the built-in filter; `None` until [`RenderOptions::for_views`]
     /// decides as the CLI does ([`setup::denoises_by_default`]).
     denoise: Option<bool>,
@@ -793,6 +848,10 @@ impl RenderOptions {
             clamp_indirect: None,
             ambient: None,
             default_lights: true,
+            env: None,
+            env_rotation: 0.0,
+            env_intensity: 1.0,
+            env_visible: false,
             denoise: None,
         };
         for (key, value) in kwargs.into_iter().flat_map(|d| d.iter()) {
@@ -833,12 +892,16 @@ impl RenderOptions {
                         .map(Vec3::from)
                 }
                 "default_lights" => o.default_lights = value.extract().map_err(bad)?,
+                "env" => o.env = value.extract().map_err(bad)?,
+                "env_rotation" => o.env_rotation = value.extract().map_err(bad)?,
+                "env_intensity" => o.env_intensity = value.extract().map_err(bad)?,
+                "env_visible" => o.env_visible = value.extract().map_err(bad)?,
                 "denoise" => o.denoise = value.extract().map_err(bad)?,
                 _ => {
                     return Err(Error::new_err(format!(
                         "unknown render option '{key}': use spp, integrator, seed, bounces, \
                          exposure, aovs, srgb8, tonemap, noise, clamp_indirect, ambient, \
-                         default_lights, denoise"
+                         default_lights, env, env_rotation, env_intensity, env_visible, denoise"
                     )))
                 }
             }
@@ -847,6 +910,22 @@ impl RenderOptions {
             if value.is_some_and(|v| !(v.is_finite() && v > 0.0)) {
                 return Err(Error::new_err(format!("{name} must be a number above 0")));
             }
+        }
+        // The CLI's checks and messages, with the options' Python names.
+        if o.integrator != IntegratorKind::Path && (o.env.is_some() || o.env_visible) {
+            return Err(Error::new_err(
+                "env and env_visible light the path tracer: use integrator='path'",
+            ));
+        }
+        if !(o.env_intensity >= 0.0 && o.env_intensity.is_finite()) {
+            return Err(Error::new_err(
+                "env_intensity must be a finite number, 0 or more",
+            ));
+        }
+        if !o.env_rotation.is_finite() {
+            return Err(Error::new_err(
+                "env_rotation must be a finite number of degrees",
+            ));
         }
         if o.spp == Some(0) {
             return Err(Error::new_err("spp 0: must be at least 1"));

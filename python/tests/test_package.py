@@ -123,6 +123,50 @@ def test_path_tracer_colour_equals_the_clis_png(cli, tmp_path):
     np.testing.assert_array_equal(arrays["srgb8"], files["png"])
 
 
+def write_hdr(path, pixels):
+    """A Radiance .hdr of float32 H x W x 3 `pixels`, flat RGBE scanlines (W < 8: never
+    run-length encoded)."""
+    h, w = pixels.shape[:2]
+    peak = pixels.max(axis=2)
+    mantissa, exponent = np.frexp(peak)
+    scale = np.where(peak > 1e-32, mantissa * 256.0 / np.maximum(peak, 1e-32), 0.0)
+    rgbe = np.zeros((h, w, 4), np.uint8)
+    rgbe[..., :3] = np.clip(pixels * scale[..., None], 0, 255).astype(np.uint8)
+    rgbe[..., 3] = np.where(peak > 1e-32, exponent + 128, 0)
+    header = f"#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {h} +X {w}\n".encode()
+    path.write_bytes(header + rgbe.tobytes())
+
+
+def test_env_options_equal_the_clis(cli, tmp_path):
+    # A 4 x 2 panorama: a warm bright upper half, a blue dim lower one, one hot spot.
+    sky = np.array([[[4.0, 3.0, 2.0]] * 4, [[0.1, 0.2, 0.5]] * 4], np.float32)
+    sky[0, 1] = [40.0, 40.0, 40.0]
+    hdr = tmp_path / "sky.hdr"
+    write_hdr(hdr, sky)
+    png = tmp_path / "cli.png"
+    model = ASSETS / "shapes.obj"
+    cli("render", model, "-o", png, "--width", 48, "--height", 36, "--quiet", "--spp", 2,
+        "--integrator", "path", "--env", hdr, "--env-rotation", 90, "--env-intensity", 0.5,
+        "--env-visible")
+    scene = meshtracer.load(model)
+    options = dict(spp=2, integrator="path", srgb8=True, env_rotation=90, env_intensity=0.5,
+                   env_visible=True)
+    arrays = scene.render(48, 36, env=hdr, **options)
+    np.testing.assert_array_equal(arrays["srgb8"], read_png_rgba(png))
+    assert (arrays["color"][..., 3] == 1.0).all(), "the visible panorama covers the background"
+    # Read once: a second render with the same file and transform uses what was read.
+    again = scene.render(48, 36, env=str(hdr), **options)
+    np.testing.assert_array_equal(again["srgb8"], arrays["srgb8"])
+    turned = scene.render(48, 36, env=hdr, **{**options, "env_rotation": 180})
+    assert not np.array_equal(turned["srgb8"], arrays["srgb8"])
+    with pytest.raises(meshtracer.Error, match="env and env_visible light the path tracer"):
+        scene.render(8, 8, env=hdr, integrator="direct")
+    with pytest.raises(meshtracer.Error, match="env_intensity must be a finite number"):
+        scene.render(8, 8, env=hdr, env_intensity=-1.0)
+    with pytest.raises(meshtracer.Error, match="missing.hdr"):
+        scene.render(8, 8, env=tmp_path / "missing.hdr")
+
+
 def test_default_render_is_the_clis_denoised_default(cli, tmp_path):
     # No spp, noise or denoise: the CLI's default render, adaptive and denoised, byte for byte.
     arrays, files = render_both(cli, tmp_path, CORNELL, 64, 48)
