@@ -169,7 +169,15 @@ def _camera_options(camera, width, height):
     elif isinstance(camera, pyrender.OrthographicCamera):
         options.update(xmag=float(camera.xmag), ymag=float(camera.ymag))
     elif isinstance(camera, pyrender.PerspectiveCamera):
-        options.update(yfov=float(camera.yfov))
+        aspect = getattr(camera, "aspectRatio", None)
+        if aspect is not None and not np.isclose(float(aspect), width / height):
+            # pyrender takes the x scale from aspectRatio whatever the viewport, so the picture
+            # stretches: the rays of those pinhole intrinsics.
+            t = np.tan(float(camera.yfov) / 2.0)
+            options.update(fx=width / (2.0 * float(aspect) * t), fy=height / (2.0 * t),
+                           cx=width / 2.0, cy=height / 2.0)
+        else:
+            options.update(yfov=float(camera.yfov))
     else:
         raise Error(f"camera of type {type(camera).__name__}: use PerspectiveCamera, "
                     "IntrinsicsCamera or OrthographicCamera")

@@ -82,9 +82,10 @@ def build_scene(camera):
 @pytest.mark.parametrize("camera", [
     pyrender.PerspectiveCamera(yfov=np.pi / 3.0),
     pyrender.PerspectiveCamera(yfov=np.pi / 4.0, znear=0.1, zfar=20.0),
+    pyrender.PerspectiveCamera(yfov=np.pi / 3.0, aspectRatio=1.0),
     pyrender.IntrinsicsCamera(fx=300.0, fy=300.0, cx=150.0, cy=130.0),
     pyrender.OrthographicCamera(xmag=1.2 * WIDTH / HEIGHT, ymag=1.2),
-], ids=["perspective", "perspective-zfar", "intrinsics", "orthographic"])
+], ids=["perspective", "perspective-zfar", "perspective-stretched", "intrinsics", "orthographic"])
 def test_depth_and_coverage_match_pyrender(camera):
     scene = build_scene(camera)
     (ref_color, ref_depth), (color, depth) = render_both(scene, WIDTH, HEIGHT, "RGBA")
