@@ -101,5 +101,12 @@ pub const MAX_TRIANGLES: u64 = 50_000_000;
 /// declares before anything of that size is allocated.
 pub const VERTICES_PER_TRIANGLE: u64 = 3;
 
+/// Largest image a render makes unless told otherwise (`--max-pixels`, Python's
+/// `max_pixels`): 8192x8192. Past it the film alone would take gigabytes.
+pub const MAX_RENDER_PIXELS: u64 = 8192 * 8192;
+
+/// Most samples a pixel a render takes unless told otherwise (`--max-spp`, Python's `max_spp`).
+pub const MAX_SPP: u32 = 4096;
+
 /// Largest decoded image, in pixels: 64 megapixels, e.g. 8192x8192.
 pub const MAX_IMAGE_PIXELS: u64 = 64 << 20;

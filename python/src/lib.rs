@@ -16,13 +16,14 @@ use glam::{Vec2, Vec3, Vec4};
 use meshtracer::accel::{AccelKind, BvhPreset};
 use meshtracer::camera::{auto_camera, View};
 use meshtracer::color::ViewTransform;
-use meshtracer::defaults::{DEFAULT_BOUNCES, MAX_TEXTURE_MIB};
+use meshtracer::defaults::{DEFAULT_BOUNCES, MAX_RENDER_PIXELS, MAX_SPP, MAX_TEXTURE_MIB};
 use meshtracer::integrator::IntegratorKind;
 use meshtracer::jobs::views::{
     parse_views, plan_cameras, read_views_file, PlanOptions, ViewSpec, ViewsError,
 };
 use meshtracer::light::environment::Environment;
 use meshtracer::output::dataset::{camera_to_world, Intrinsics};
+use meshtracer::output::view_file::MAX_VIEW_BOUNCES;
 use meshtracer::prepare::{PrepareOptions, Prepared};
 use meshtracer::render::{render, Region, RenderSettings};
 use meshtracer::scene::{Camera, Light, LoadOptions, MeshArrays, PoseOptions, Projection};
@@ -408,6 +409,9 @@ struct RenderOptions {
     env_rotation: f32,
     env_intensity: f32,
     env_visible: bool,
+    /// `--max-pixels`, `--max-spp`: the largest image and sample count accepted.
+    max_pixels: u64,
+    max_spp: u32,
     /// Denoise each view with the built-in filter; `None` until [`RenderOptions::for_views`]
     /// decides as the CLI does ([`setup::denoises_by_default`]).
     denoise: Option<bool>,
@@ -434,10 +438,17 @@ impl RenderOptions {
 }
 
 /// Refuses a size the CLI refuses.
-fn check_size(width: u32, height: u32) -> PyResult<()> {
+fn check_size(width: u32, height: u32, max_pixels: u64) -> PyResult<()> {
     if width == 0 || height == 0 {
         return Err(Error::new_err(format!(
             "image size {width}x{height}: width and height must be at least 1"
+        )));
+    }
+    let pixels = u64::from(width) * u64::from(height);
+    if pixels > max_pixels {
+        return Err(Error::new_err(format!(
+            "image size {width}x{height} is {pixels} pixels, over the limit of {max_pixels} \
+             (raise it with max_pixels)"
         )));
     }
     Ok(())
@@ -739,7 +750,7 @@ impl PyScene {
         options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let o = RenderOptions::from_kwargs(options)?.resolved(true);
-        check_size(width, height)?;
+        check_size(width, height, o.max_pixels)?;
         let view = self.view(camera, width, height)?;
         let settings = self.settings(view.clone(), &view, &o)?;
         let mut out = self.render_settings(py, &[settings], &o, progress.as_ref())?;
@@ -768,7 +779,7 @@ impl PyScene {
         options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let o = RenderOptions::from_kwargs(options)?.resolved(false);
-        check_size(width, height)?;
+        check_size(width, height, o.max_pixels)?;
         let views_error = |e: ViewsError| Error::new_err(e.to_string());
         let (parsed, explicit) = match views_json {
             Some(text) => (
@@ -852,6 +863,8 @@ impl RenderOptions {
             env_rotation: 0.0,
             env_intensity: 1.0,
             env_visible: false,
+            max_pixels: MAX_RENDER_PIXELS,
+            max_spp: MAX_SPP,
             denoise: None,
         };
         for (key, value) in kwargs.into_iter().flat_map(|d| d.iter()) {
@@ -896,12 +909,15 @@ impl RenderOptions {
                 "env_rotation" => o.env_rotation = value.extract().map_err(bad)?,
                 "env_intensity" => o.env_intensity = value.extract().map_err(bad)?,
                 "env_visible" => o.env_visible = value.extract().map_err(bad)?,
+                "max_pixels" => o.max_pixels = value.extract().map_err(bad)?,
+                "max_spp" => o.max_spp = value.extract().map_err(bad)?,
                 "denoise" => o.denoise = value.extract().map_err(bad)?,
                 _ => {
                     return Err(Error::new_err(format!(
                         "unknown render option '{key}': use spp, integrator, seed, bounces, \
                          exposure, aovs, srgb8, tonemap, noise, clamp_indirect, ambient, \
-                         default_lights, env, env_rotation, env_intensity, env_visible, denoise"
+                         default_lights, env, env_rotation, env_intensity, env_visible, max_pixels, \
+                         max_spp, denoise"
                     )))
                 }
             }
@@ -927,8 +943,17 @@ impl RenderOptions {
                 "env_rotation must be a finite number of degrees",
             ));
         }
-        if o.spp == Some(0) {
-            return Err(Error::new_err("spp 0: must be at least 1"));
+        if let Some(spp) = o.spp.filter(|&n| n == 0 || n > o.max_spp) {
+            return Err(Error::new_err(format!(
+                "spp {spp}: must be between 1 and {} (raise the limit with max_spp)",
+                o.max_spp
+            )));
+        }
+        if o.bounces > MAX_VIEW_BOUNCES {
+            return Err(Error::new_err(format!(
+                "bounces {}: at most {MAX_VIEW_BOUNCES}",
+                o.bounces
+            )));
         }
         if !o.exposure.is_finite() {
             return Err(Error::new_err("exposure must be a finite number"));

@@ -454,10 +454,10 @@ pub struct RenderArgs {
     #[arg(long, value_name = "FILE")]
     pub view: Option<PathBuf>,
     /// Refuse images with more pixels than this.
-    #[arg(long, default_value_t = 8192 * 8192, value_name = "N")]
+    #[arg(long, default_value_t = meshtracer::defaults::MAX_RENDER_PIXELS, value_name = "N")]
     pub max_pixels: u64,
     /// Refuse more samples per pixel than this.
-    #[arg(long, default_value_t = 4096, value_name = "N")]
+    #[arg(long, default_value_t = meshtracer::defaults::MAX_SPP, value_name = "N")]
     pub max_spp: u32,
     /// Refuse to overwrite an existing output file.
     #[arg(long)]
