@@ -108,6 +108,28 @@ impl View {
         }
     }
 
+    /// This view with `camera`'s own horizontal extent where it has one: a perspective
+    /// camera's `aspectRatio` and an orthographic camera's `xmag`, kept whatever the image's
+    /// aspect, as glTF's projection matrices write them (§3.10.3) and pyrender renders them.
+    /// The picture stretches where they differ from the image's aspect ([`View::from_camera`]
+    /// keeps it instead, as glTF viewers do). `camera` is the one this view was made from.
+    pub fn stretched_to(mut self, camera: &Camera) -> View {
+        match (&mut self.lens, camera.projection) {
+            (
+                Lens::Perspective { width, height, .. },
+                Projection::Perspective {
+                    aspect_ratio: Some(aspect),
+                    ..
+                },
+            ) => *width = aspect * *height,
+            (Lens::Orthographic { width, .. }, Projection::Orthographic { xmag, .. }) => {
+                *width = 2.0 * xmag
+            }
+            _ => {}
+        }
+        self
+    }
+
     /// This view with the pinhole intrinsics of a calibrated camera (OpenCV's and pyrender's
     /// `IntrinsicsCamera`), in pixels of this view's image: focal lengths `fx`, `fy` and the
     /// principal point (`cx`, `cy`) measured from the image's top-left corner, y down. A point
@@ -437,6 +459,44 @@ mod tests {
         let r = view.ray(0.0, 0.0);
         assert_eq!(Vec3::from(r.direction), Vec3::NEG_Z);
         assert!((Vec3::from(r.origin) - Vec3::new(-2.0, 1.0, 5.0)).length() < 1e-6);
+    }
+
+    /// Stretched, the camera's own horizontal extent is kept whatever the image's aspect:
+    /// an orthographic camera's xmag, a perspective camera's aspectRatio; a camera without
+    /// one keeps the image's.
+    #[test]
+    fn stretched_views_keep_the_cameras_horizontal_extent() {
+        let ortho = camera(Projection::Orthographic {
+            xmag: 1.0,
+            ymag: 1.0,
+            znear: 0.0,
+            zfar: 100.0,
+        });
+        // 200x100 pixels: the image's aspect would make the view 4 m wide; xmag says 2.
+        let view = View::from_camera(&ortho, 200, 100).stretched_to(&ortho);
+        let left = Vec3::from(view.ray(0.0, 50.0).origin);
+        assert!((left - Vec3::new(-1.0, 0.0, 5.0)).length() < 1e-6, "{left}");
+        let perspective = |aspect_ratio| {
+            camera(Projection::Perspective {
+                yfov: std::f32::consts::FRAC_PI_2,
+                aspect_ratio,
+                znear: 0.1,
+                zfar: None,
+            })
+        };
+        let wide = perspective(Some(3.0));
+        // yfov 90°, aspectRatio 3: the right edge at x = 3 on the unit plane, not 2.
+        let right = Vec3::from(
+            View::from_camera(&wide, 200, 100)
+                .stretched_to(&wide)
+                .ray(200.0, 50.0)
+                .direction,
+        );
+        assert!((right - Vec3::new(3.0, 0.0, -1.0).normalize()).length() < 1e-6);
+        let free = perspective(None);
+        let plain = View::from_camera(&free, 200, 100);
+        let edge = |v: &View| Vec3::from(v.ray(200.0, 50.0).direction);
+        assert_eq!(edge(&plain.clone().stretched_to(&free)), edge(&plain));
     }
 
     /// The automatic camera looks at the centre of the box.
