@@ -237,7 +237,9 @@ def _add_camera(self, pose, **projection):
     optional ``aspect_ratio``; ``xmag`` and ``ymag`` (orthographic half extents, metres);
     ``fx``, ``fy``, ``cx``, ``cy`` (pinhole intrinsics in pixels of the rendered image,
     principal point from the top-left corner, y down). ``znear`` (default 0.05) and
-    ``zfar`` (default none) clip along the view axis."""
+    ``zfar`` (default none) clip along the view axis. The image's aspect sets the horizontal
+    extent, as glTF viewers do; ``stretch=True`` keeps ``aspect_ratio`` or ``xmag`` instead,
+    stretching the picture as glTF's projection matrices and pyrender do."""
     return _scene_add_camera(self, _pose(pose), **projection)
 
 

@@ -167,17 +167,14 @@ def _camera_options(camera, width, height):
         options.update(fx=float(camera.fx), fy=float(camera.fy), cx=float(camera.cx),
                        cy=float(camera.cy))
     elif isinstance(camera, pyrender.OrthographicCamera):
+        # pyrender 0.1.45 replaces xmag by ymag times the viewport's aspect, as meshtracer does.
         options.update(xmag=float(camera.xmag), ymag=float(camera.ymag))
     elif isinstance(camera, pyrender.PerspectiveCamera):
-        aspect = getattr(camera, "aspectRatio", None)
-        if aspect is not None and not np.isclose(float(aspect), width / height):
-            # pyrender takes the x scale from aspectRatio whatever the viewport, so the picture
-            # stretches: the rays of those pinhole intrinsics.
-            t = np.tan(float(camera.yfov) / 2.0)
-            options.update(fx=width / (2.0 * float(aspect) * t), fy=height / (2.0 * t),
-                           cx=width / 2.0, cy=height / 2.0)
-        else:
-            options.update(yfov=float(camera.yfov))
+        # pyrender takes the x scale from aspectRatio whatever the viewport, so the picture
+        # stretches where it disagrees with it: stretch=True.
+        options.update(yfov=float(camera.yfov), stretch=True)
+        if getattr(camera, "aspectRatio", None) is not None:
+            options["aspect_ratio"] = float(camera.aspectRatio)
     else:
         raise Error(f"camera of type {type(camera).__name__}: use PerspectiveCamera, "
                     "IntrinsicsCamera or OrthographicCamera")

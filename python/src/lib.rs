@@ -64,12 +64,22 @@ struct PyScene {
     state: Mutex<State>,
     /// The warnings of the texture decoding (first render), after the load's.
     prepare_warnings: Mutex<Vec<String>>,
-    /// Pinhole intrinsics (fx, fy, cx, cy in pixels) of the cameras added with them, by camera
-    /// index: such a camera is kept in the scene as a perspective one and given its
-    /// intrinsics when a view is made of it.
-    intrinsics: Mutex<HashMap<usize, [f32; 4]>>,
+    /// How views of the cameras added from Python are made, where not as a file's camera's
+    /// (`View::from_camera`), by camera index.
+    lenses: Mutex<HashMap<usize, CameraLens>>,
     /// The last `env` panorama rendered with, turned and scaled, and what it was made from.
     environment: Mutex<Option<(EnvironmentKey, Arc<Environment>)>>,
+}
+
+/// How the views of a camera added from Python are made.
+#[derive(Clone, Copy, Debug)]
+enum CameraLens {
+    /// Pinhole intrinsics (fx, fy, cx, cy in pixels): kept in the scene as a perspective
+    /// camera, given its intrinsics when a view is made of it.
+    Intrinsics([f32; 4]),
+    /// `stretch=True`: its aspectRatio or xmag kept whatever the image's aspect
+    /// (`View::stretched_to`).
+    Stretched,
 }
 
 /// What an `env` panorama was made from: the file (as it was on disk) and the transform.
@@ -183,7 +193,7 @@ impl PyScene {
             strict,
             state: Mutex::new(State::Loaded(Box::new(scene))),
             prepare_warnings: Mutex::new(Vec::new()),
-            intrinsics: Mutex::new(HashMap::new()),
+            lenses: Mutex::new(HashMap::new()),
             environment: Mutex::new(None),
         }
     }
@@ -222,7 +232,7 @@ impl PyScene {
     }
 
     /// The view of camera `camera` (default the first; else the automatic camera framing the
-    /// bounds) for a `width` x `height` image, with its intrinsics if it was added with them.
+    /// bounds) for a `width` x `height` image, with its intrinsics or stretch if it was added with them.
     fn view(&self, camera: Option<usize>, width: u32, height: u32) -> PyResult<View> {
         let chosen = self.with_scene(|scene| -> PyResult<Camera> {
             let file_camera = match camera {
@@ -246,14 +256,15 @@ impl PyScene {
         })??;
         let view = View::from_camera(&chosen, width, height);
         let index = camera.unwrap_or(0);
-        let intrinsics = self
-            .intrinsics
+        let lens = self
+            .lenses
             .lock()
             .map_err(|_| Error::new_err("the scene was poisoned by a panic in an earlier call"))?
             .get(&index)
             .copied();
-        Ok(match intrinsics {
-            Some([fx, fy, cx, cy]) => view.with_intrinsics(fx, fy, cx, cy),
+        Ok(match lens {
+            Some(CameraLens::Intrinsics([fx, fy, cx, cy])) => view.with_intrinsics(fx, fy, cx, cy),
+            Some(CameraLens::Stretched) => view.stretched_to(&chosen),
             None => view,
         })
     }
@@ -597,7 +608,7 @@ impl PyScene {
 
     /// Adds a camera; see `meshtracer.Scene.add_camera` in `__init__.py`.
     #[pyo3(signature = (pose, *, yfov=None, aspect_ratio=None, xmag=None, ymag=None, fx=None,
-        fy=None, cx=None, cy=None, znear=0.05, zfar=None, name=None))]
+        fy=None, cx=None, cy=None, znear=0.05, zfar=None, stretch=false, name=None))]
     #[allow(clippy::too_many_arguments)]
     fn add_camera(
         &self,
@@ -612,6 +623,7 @@ impl PyScene {
         cy: Option<f32>,
         znear: f32,
         zfar: Option<f32>,
+        stretch: bool,
         name: Option<String>,
     ) -> PyResult<usize> {
         let positive = |what: &str, v: f32| {
@@ -631,7 +643,7 @@ impl PyScene {
                 )));
             }
         }
-        let mut intrinsics = None;
+        let mut lens = stretch.then_some(CameraLens::Stretched);
         let projection = match (yfov, xmag.zip(ymag), fx.zip(fy).zip(cx.zip(cy))) {
             (Some(yfov), None, None) if yfov < std::f32::consts::PI => Projection::Perspective {
                 yfov: positive("yfov", yfov)?,
@@ -652,7 +664,13 @@ impl PyScene {
                 if !(cx.is_finite() && cy.is_finite()) {
                     return Err(Error::new_err("camera cx, cy: must be finite numbers"));
                 }
-                intrinsics = Some([fx, fy, cx, cy]);
+                if stretch {
+                    return Err(Error::new_err(
+                        "camera stretch: intrinsics say the picture exactly; stretch is for \
+                         yfov with aspect_ratio, or xmag and ymag",
+                    ));
+                }
+                lens = Some(CameraLens::Intrinsics([fx, fy, cx, cy]));
                 // Kept as the perspective camera an image of 2·cy rows would have (what
                 // info() shows); every view of it is made from the intrinsics.
                 Projection::Perspective {
@@ -675,9 +693,9 @@ impl PyScene {
             scene.cameras.push(camera);
             scene.cameras.len() - 1
         })?;
-        if let Some(k) = intrinsics {
-            if let Ok(mut map) = self.intrinsics.lock() {
-                map.insert(index, k);
+        if let Some(lens) = lens {
+            if let Ok(mut map) = self.lenses.lock() {
+                map.insert(index, lens);
             }
         }
         Ok(index)
@@ -726,7 +744,7 @@ impl PyScene {
     /// Removes every camera (the file's too); the scene stays prepared.
     fn clear_cameras(&self) -> PyResult<()> {
         self.with_views_mut(|scene| scene.cameras.clear())?;
-        if let Ok(mut map) = self.intrinsics.lock() {
+        if let Ok(mut map) = self.lenses.lock() {
             map.clear();
         }
         Ok(())

@@ -70,6 +70,30 @@ def test_a_unit_quad_fills_its_analytic_pixels(projection, rect):
     assert (lit > 0.1).all(), "lit head-on by its directional light"
 
 
+@pytest.mark.parametrize("projection", [
+    # 4 m x 2 m at any distance, on a square image: the picture is squeezed sideways.
+    {"xmag": 2.0, "ymag": 1.0},
+    # tan(yfov/2) = 1/2 and aspect ratio 2: 2 m x 1 m at 1 m, 4 m x 2 m at the quad's 2 m.
+    {"yfov": 2 * math.atan(0.5), "aspect_ratio": 2.0},
+])
+def test_a_stretched_camera_keeps_its_own_horizontal_extent(projection):
+    scene = quad_scene()
+    scene.add_camera(translation(0, 0, 2), **projection)
+    scene.add_camera(translation(0, 0, 2), stretch=True, **projection)
+    plain = scene.render(64, 64, camera=0, aovs=("mask",), **SETTINGS)["mask"] == 1.0
+    stretched = scene.render(64, 64, camera=1, aovs=("mask",), **SETTINGS)["mask"] == 1.0
+    # By default the image's aspect sets the width: 2 m x 2 m (perspective: 1 m x 1 m at 1 m),
+    # the unit quad the middle 32 x 32 pixels.
+    assert covered(plain) == ((16, 48, 16, 48), 32 * 32)
+    # Stretched: the quad's 1 m is a quarter of the width, half of the height.
+    assert covered(stretched) == ((16, 48, 24, 40), 16 * 32)
+
+
+def test_stretch_is_refused_with_intrinsics():
+    with pytest.raises(meshtracer.Error, match="camera stretch: intrinsics say the picture"):
+        quad_scene().add_camera(np.eye(4), fx=10.0, fy=10.0, cx=1.0, cy=1.0, stretch=True)
+
+
 def test_meshes_added_later_get_their_own_pose_material_and_id():
     scene = quad_scene()
     red = {"base_color": [1, 0, 0, 1], "metallic": 0.0, "roughness": 1.0}

@@ -85,7 +85,9 @@ def build_scene(camera):
     pyrender.PerspectiveCamera(yfov=np.pi / 3.0, aspectRatio=1.0),
     pyrender.IntrinsicsCamera(fx=300.0, fy=300.0, cx=150.0, cy=130.0),
     pyrender.OrthographicCamera(xmag=1.2 * WIDTH / HEIGHT, ymag=1.2),
-], ids=["perspective", "perspective-zfar", "perspective-stretched", "intrinsics", "orthographic"])
+    pyrender.OrthographicCamera(xmag=1.2, ymag=1.2),  # pyrender sets xmag from the viewport
+], ids=["perspective", "perspective-zfar", "perspective-stretched", "intrinsics", "orthographic",
+        "orthographic-square-xmag"])
 def test_depth_and_coverage_match_pyrender(camera):
     scene = build_scene(camera)
     (ref_color, ref_depth), (color, depth) = render_both(scene, WIDTH, HEIGHT, "RGBA")
