@@ -205,7 +205,10 @@ def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, mat
         for key in _TEXTURE_SLOTS:
             value = material.get(key)
             if value is not None and not isinstance(value, (int, _np.integer)):
-                material[key] = _add_texture(self, value)
+                try:
+                    material[key] = _add_texture(self, value)
+                except Error as e:
+                    raise Error(f"material: {key}: {e}") from None
             elif value is None:
                 material.pop(key, None)
     return self._add_mesh(

@@ -267,6 +267,12 @@ def test_a_normal_map_turns_the_surface_toward_its_light():
      "<t>: mesh 0: uvs: missing: the material has textures, which are placed by the uvs"),
     (lambda s: s.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS, material={"normal_texture": 4}),
      "<t>: mesh 0: material: texture 4 does not exist (the scene has 0"),
+    (lambda s: s.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS, material={"normal_texture": "x"}),
+     "material: normal_texture: texture: shape (), expected (H, W)"),
+    (lambda s: s.add_mesh(QUAD, QUAD_TRIANGLES, material={"normal_scale": float("nan")}),
+     "<t>: mesh 0: material: normal_scale NaN: must be a finite number"),
+    (lambda s: s.add_mesh(QUAD, QUAD_TRIANGLES, material={"occlusion_strength": 5}),
+     "<t>: mesh 0: material: occlusion_strength 5: must be from 0 to 1"),
 ])
 def test_bad_textures_raise_errors_naming_them(call, message):
     with pytest.raises(meshtracer.Error) as e:

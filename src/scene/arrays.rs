@@ -327,7 +327,8 @@ fn check_arrays(mesh: &MeshArrays) -> Result<(), (&'static str, String)> {
 }
 
 /// What is wrong with a material given as factors, if anything: the glTF ranges
-/// (§5.19, §5.22: colour, metallic, roughness and alpha cutoff in [0, 1], emissive at least 0).
+/// (§5.19, §5.22: colour, metallic, roughness and alpha cutoff in [0, 1], emissive at least 0;
+/// the occlusion texture's strength in [0, 1]; a finite normal scale).
 pub fn check_material(material: &Material) -> Result<(), String> {
     let unit = |name: &str, v: f32| {
         if (0.0..=1.0).contains(&v) {
@@ -351,6 +352,13 @@ pub fn check_material(material: &Material) -> Result<(), String> {
             ));
         }
     }
+    if !material.normal_scale.is_finite() {
+        return Err(format!(
+            "normal_scale {}: must be a finite number",
+            material.normal_scale
+        ));
+    }
+    unit("occlusion_strength", material.occlusion_strength)?;
     if !(material.emissive_strength.is_finite() && material.emissive_strength >= 0.0) {
         return Err(format!(
             "emissive_strength {}: must be a finite number of at least 0",
