@@ -255,7 +255,12 @@ impl PyScene {
             })
         })??;
         let view = View::from_camera(&chosen, width, height);
-        let index = camera.unwrap_or(0);
+        self.with_lens(camera.unwrap_or(0), &chosen, view)
+    }
+
+    /// `view`, made by `View::from_camera` of `camera` (the scene's camera `index`), with the
+    /// intrinsics or stretch that camera was added with, if any.
+    fn with_lens(&self, index: usize, camera: &Camera, view: View) -> PyResult<View> {
         let lens = self
             .lenses
             .lock()
@@ -264,7 +269,7 @@ impl PyScene {
             .copied();
         Ok(match lens {
             Some(CameraLens::Intrinsics([fx, fy, cx, cy])) => view.with_intrinsics(fx, fy, cx, cy),
-            Some(CameraLens::Stretched) => view.stretched_to(&chosen),
+            Some(CameraLens::Stretched) => view.stretched_to(camera),
             None => view,
         })
     }
@@ -830,9 +835,20 @@ impl PyScene {
         // As `render --views`: the lights stay put from view to view, the default rig placed
         // for the automatic camera.
         let front = View::from_camera(&front, width, height);
+        // The file's cameras (`cameras`: camera i is the scene's camera i) keep the
+        // intrinsics or stretch they were added with, as `render(camera=i)` does.
+        let scene_cameras = matches!(parsed, ViewSpec::Cameras);
         let views: Vec<RenderSettings> = cameras
             .iter()
-            .map(|c| self.settings(View::from_camera(c, width, height), &front, &o))
+            .enumerate()
+            .map(|(i, c)| {
+                let view = View::from_camera(c, width, height);
+                let view = match scene_cameras {
+                    true => self.with_lens(i, c, view)?,
+                    false => view,
+                };
+                self.settings(view, &front, &o)
+            })
             .collect::<PyResult<_>>()?;
         let out = self.render_settings(py, &views, &o, progress.as_ref())?;
         for (dict, settings) in out.iter().zip(&views) {

@@ -89,6 +89,19 @@ def test_a_stretched_camera_keeps_its_own_horizontal_extent(projection):
     assert covered(stretched) == ((16, 48, 24, 40), 16 * 32)
 
 
+def test_render_views_of_the_cameras_keeps_their_intrinsics_and_stretch():
+    scene = quad_scene()
+    scene.add_camera(translation(0, 0, 2), fx=64.0, fy=64.0, cx=24.0, cy=40.0)
+    scene.add_camera(translation(0, 0, 2), xmag=2.0, ymag=1.0, stretch=True)
+    scene.add_camera(translation(0, 0, 2), yfov=2 * math.atan(0.5))
+    views = scene.render_views("cameras", 64, 64, aovs=("mask",), **SETTINGS)
+    for i, view in enumerate(views):
+        alone = scene.render(64, 64, camera=i, aovs=("mask",), **SETTINGS)
+        np.testing.assert_array_equal(view["mask"], alone["mask"])
+    assert covered(views[0]["mask"] == 1.0) == ((24, 56, 8, 40), 32 * 32)
+    assert covered(views[1]["mask"] == 1.0) == ((16, 48, 24, 40), 16 * 32)
+
+
 def test_stretch_is_refused_with_intrinsics():
     with pytest.raises(meshtracer.Error, match="camera stretch: intrinsics say the picture"):
         quad_scene().add_camera(np.eye(4), fx=10.0, fy=10.0, cx=1.0, cy=1.0, stretch=True)
