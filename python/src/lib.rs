@@ -277,6 +277,16 @@ impl PyScene {
     /// The settings of one view: `view` lit as [`setup::lighting`] decides, the rig (when the
     /// scene has no lights) placed for `rig_view`.
     fn settings(&self, view: View, rig_view: &View, o: &RenderOptions) -> PyResult<RenderSettings> {
+        let denoised = o.denoises();
+        let (spp, noise) = setup::sampling(o.integrator, o.spp, o.noise, false, denoised);
+        // As the CLI: the count checked is the one the render takes, the adaptive default's
+        // most included.
+        if spp == 0 || spp > o.max_spp {
+            return Err(Error::new_err(format!(
+                "spp {spp}: must be between 1 and {} (raise the limit with max_spp)",
+                o.max_spp
+            )));
+        }
         let mut lighting_options = LightingOptions::new(o.integrator);
         lighting_options.no_default_lights = !o.default_lights;
         lighting_options.environment = self.environment(o)?;
@@ -284,8 +294,6 @@ impl PyScene {
         lighting_options.studio_intensity = o.env_intensity;
         let lit = self
             .with_scene(|scene| setup::lighting(&scene.lights, None, rig_view, lighting_options))?;
-        let denoised = o.denoises();
-        let (spp, noise) = setup::sampling(o.integrator, o.spp, o.noise, false, denoised);
         Ok(RenderSettings {
             view,
             spp,
@@ -976,12 +984,6 @@ impl RenderOptions {
             return Err(Error::new_err(
                 "env_rotation must be a finite number of degrees",
             ));
-        }
-        if let Some(spp) = o.spp.filter(|&n| n == 0 || n > o.max_spp) {
-            return Err(Error::new_err(format!(
-                "spp {spp}: must be between 1 and {} (raise the limit with max_spp)",
-                o.max_spp
-            )));
         }
         if o.bounces > MAX_VIEW_BOUNCES {
             return Err(Error::new_err(format!(

@@ -83,6 +83,9 @@ def test_bad_render_arguments_raise_errors():
     (lambda s: s.render(8, 8, spp=5000),
      "spp 5000: must be between 1 and 4096 (raise the limit with max_spp)"),
     (lambda s: s.render(8, 8, spp=3, max_spp=2), "spp 3: must be between 1 and 2"),
+    # The default render samples adaptively up to 32 a pixel: that is the count checked.
+    (lambda s: s.render(8, 8, max_spp=8), "spp 32: must be between 1 and 8"),
+    (lambda s: s.render(8, 8, spp=0), "spp 0: must be between 1 and 4096"),
     (lambda s: s.render(8, 8, bounces=1000000), "bounces 1000000: at most"),
 ])
 def test_absurd_sizes_and_counts_are_refused_before_anything_is_allocated(call, message):
