@@ -599,20 +599,20 @@ impl<'a> Bsdf<'a> {
     /// out of a volume (total internal reflection turns it into a mirror reflection), about
     /// the surface normal when smooth and about a drawn microfacet normal when rough.
     ///
-    /// Leaving a smooth volume, `u_inside` (uniform in [0, 1)) sends a share of the draws back
-    /// in as internal reflections. Schlick's Fresnel is written for light arriving from the
-    /// less dense side; Fresnel's equations give the same reflectance for the angles on either
-    /// side of the surface (θᵢ inside, θₜ outside, related by Snell's law), so from inside the
+    /// Leaving a volume, `u_inside` (uniform in [0, 1)) sends a share of the draws back in as
+    /// internal reflections. Schlick's Fresnel is written for light arriving from the less
+    /// dense side; Fresnel's equations give the same reflectance for the angles on either side
+    /// of the surface (θᵢ inside, θₜ outside, related by Snell's law), so from inside the
     /// reflectance at θᵢ is Schlick's at cos θₜ, which rises to 1 at the critical angle as
     /// total internal reflection requires (the usual dense-side form of the approximation,
     /// e.g. Lagarde's "Memo on Fresnel equations", 2013). The reflection lobe reflects
     /// F(cos θᵢ) (Schlick at the inside angle: 0.040 at cos θᵢ = 0.8 in glass of index 1.5,
     /// where F(cos θₜ) is 0.095 and the exact value 0.114); this lobe turns the difference
-    /// back, the share (F(cos θₜ) - F(cos θᵢ)) / (1 - F(cos θᵢ)) of its draws, without
-    /// changing their weight (tinted by the base colour as the lobe's other draws are, and as
-    /// total internal reflection's are), so the two lobes together reflect F(cos θₜ) and
-    /// transmit the rest. (Rough volumes keep Schlick at the microfacet's inside angle: their draws' mean
-    /// weight is baked into [`ggx::refraction_albedo`]'s table as refraction alone.)
+    /// back, the share (F(cos θₜ) - F(cos θᵢ)) / (1 - F(cos θᵢ)) of its draws (at the drawn
+    /// microfacet, for rough glass), without changing their Fresnel factor (tinted by the base
+    /// colour as the lobe's other draws are, and as total internal reflection's are), so the
+    /// two lobes together reflect F(cos θₜ) and transmit the rest. Rough glass's draws' mean
+    /// weight, which [`ggx::refraction_albedo`] tabulates, includes these reflections.
     fn sample_transmission(
         &self,
         to_eye: Vec3,
@@ -633,22 +633,24 @@ impl<'a> Bsdf<'a> {
         let cos_i = m.dot(to_eye).clamp(0.0, 1.0);
         let fresnel = luminance(self.material.reflectance(cos_i, n.dot(to_eye)));
         let sin2_t = t.eta * t.eta * (1.0 - cos_i * cos_i);
-        let direction = if t.eta == 1.0 {
+        let mirrored = 2.0 * cos_i * m - to_eye;
+        // The direction, and whether it reflects back off the facet (inside a volume).
+        let (direction, reflected) = if t.eta == 1.0 {
             if rough {
                 // Thin-walled: the reflection about the facet, mirrored through the sheet.
-                let r = 2.0 * cos_i * m - to_eye;
-                r - 2.0 * r.dot(n) * n
+                (mirrored - 2.0 * mirrored.dot(n) * n, false)
             } else {
-                -to_eye
+                (-to_eye, false)
             }
         } else if sin2_t >= 1.0 {
-            2.0 * cos_i * m - to_eye
+            (mirrored, true)
         } else {
             let cos_t = (1.0 - sin2_t).sqrt();
-            if !rough && t.eta > 1.0 && u_inside < self.internal_share(fresnel, cos_t, n, to_eye) {
-                2.0 * cos_i * m - to_eye
+            if t.eta > 1.0 && u_inside < self.internal_share(fresnel, cos_t, n, to_eye) {
+                (mirrored, true)
             } else {
-                (-to_eye * t.eta + m * (t.eta * cos_i - cos_t)).normalize_or_zero()
+                let refracted = -to_eye * t.eta + m * (t.eta * cos_i - cos_t);
+                (refracted.normalize_or_zero(), false)
             }
         };
         if direction == Vec3::ZERO || t.probability <= 0.0 {
@@ -656,10 +658,9 @@ impl<'a> Bsdf<'a> {
         }
         let mut weight = self.material.base_color * (t.factor * (1.0 - fresnel) / t.probability);
         if shadowing {
-            // Through the surface (or, after total internal reflection, back out of it): on
-            // the wrong side the draw is lost. G2/G1 = (1 + Λ(v)) / (1 + Λ(v) + Λ(l)).
+            // Through the surface (or, reflected back inside, back out of it): on the wrong
+            // side the draw is lost. G2/G1 = (1 + Λ(v)) / (1 + Λ(v) + Λ(l)).
             let through = direction.dot(n) < 0.0;
-            let reflected = t.eta != 1.0 && sin2_t >= 1.0;
             if through == reflected {
                 return None;
             }
@@ -677,7 +678,7 @@ impl<'a> Bsdf<'a> {
         })
     }
 
-    /// The share of a smooth volume's transmitted draws that reflect back inside (see
+    /// The share of a volume's transmitted draws that reflect back inside (see
     /// [`Bsdf::sample_transmission`]): `fresnel`, the reflectance at the inside angle, against
     /// Schlick's at the outside one (cosine `cos_t`).
     #[inline]

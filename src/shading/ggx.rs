@@ -254,7 +254,8 @@ static REFRACTION: [[f32; 2]; 2 * REFRACTION_IORS * REFRACTION_TABLE * REFRACTIO
 /// entering a denser volume, above 1 leaving it), split as [`directional_albedo`] splits the
 /// reflection's: with Schlick's Fresnel F = F0 + (F90 - F0)(1 - v·m)⁵ the draws of
 /// `Bsdf::sample_transmission` (refraction about a visible normal m, a mirror reflection past
-/// the critical angle, weight (1 - F)·G2/G1) average `a·(1 - F0) - (F90 - F0)·b`. What is
+/// the critical angle, weight (1 - F)·G2/G1; leaving, some draws reflect back inside as
+/// Fresnel at the outside angle asks) average `a·(1 - F0) - (F90 - F0)·b`. What is
 /// missing from 1 - the reflection's share is what microfacets scatter more than once.
 ///
 /// Trilinear in a table (baked into the source, src/shading/ggx_refraction.in; a test
@@ -311,8 +312,9 @@ fn refraction_entry(e: usize) -> (f32, f32, f32) {
 }
 
 /// [`refraction_albedo`]'s (a, b) at one point, by `strata` × `strata` stratified draws of
-/// the visible normals, each refracted (or reflected past the critical angle) as
-/// `Bsdf::sample_transmission` does in the local frame (z = normal).
+/// the visible normals, each refracted (or reflected: past the critical angle, and leaving a
+/// volume in the share that Fresnel at the outside angle adds) as `Bsdf::sample_transmission`
+/// does in the local frame (z = normal).
 #[cfg(test)]
 fn integrate_refraction(cos_v: f32, roughness: f32, eta: f32, strata: usize) -> [f32; 2] {
     let alpha = (roughness * roughness).max(crate::shading::MIN_GGX_ALPHA);
@@ -325,21 +327,41 @@ fn integrate_refraction(cos_v: f32, roughness: f32, eta: f32, strata: usize) -> 
         let m = sample_visible_normal(v, alpha, u1, u2);
         let cos_i = m.dot(v).clamp(0.0, 1.0);
         let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
-        let reflected = sin2_t >= 1.0;
-        let l = if reflected {
-            2.0 * cos_i * m - v
-        } else {
-            let cos_t = (1.0 - sin2_t).sqrt();
-            (-v * eta + m * (eta * cos_i - cos_t)).normalize_or_zero()
+        let c_i5 = f64::from((1.0 - cos_i).powi(5));
+        let mirrored = 2.0 * cos_i * m - v;
+        // G2/G1 of a draw leaving along `l`, 0 when it leaves on the wrong side: through the
+        // surface when reflected, back out of it when refracted.
+        let kept = |l: Vec3, reflected: bool| {
+            if (l.z < 0.0) == reflected || l == Vec3::ZERO {
+                0.0
+            } else {
+                f64::from((1.0 + lambda_v) / (1.0 + lambda_v + smith_lambda(l.z.abs(), alpha)))
+            }
         };
-        // Lost when it leaves on the wrong side: through the surface when reflected, back
-        // out of it when refracted.
-        if (l.z < 0.0) == reflected || l == Vec3::ZERO {
+        if sin2_t >= 1.0 {
+            // Total internal reflection: weight (1 - F(cos θᵢ))·G2/G1.
+            let g = kept(mirrored, true);
+            a += g;
+            b += g * c_i5;
             continue;
         }
-        let weight = (1.0 + lambda_v) / (1.0 + lambda_v + smith_lambda(l.z.abs(), alpha));
-        a += f64::from(weight);
-        b += f64::from(weight * (1.0 - cos_i).powi(5));
+        let cos_t = (1.0 - sin2_t).sqrt();
+        let g_refracted = kept(
+            (-v * eta + m * (eta * cos_i - cos_t)).normalize_or_zero(),
+            false,
+        );
+        if eta > 1.0 {
+            // Leaving: the share (F(cos θₜ) - F(cos θᵢ)) / (1 - F(cos θᵢ)) of the draws reflects
+            // back inside, so the mean weight is (1 - F(cos θₜ))·G_refracted + (F(cos θₜ) -
+            // F(cos θᵢ))·G_reflected, which with Schlick's F is (1 - F0)·a - (F90 - F0)·b for
+            // these a and b.
+            let c_t5 = f64::from((1.0 - cos_t).powi(5));
+            a += g_refracted;
+            b += c_t5 * g_refracted - (c_t5 - c_i5) * kept(mirrored, true);
+        } else {
+            a += g_refracted;
+            b += c_i5 * g_refracted;
+        }
     }
     let count = (strata * strata) as f64;
     [(a / count) as f32, (b / count) as f32]
