@@ -609,9 +609,9 @@ impl<'a> Bsdf<'a> {
     /// F(cos θᵢ) (Schlick at the inside angle: 0.040 at cos θᵢ = 0.8 in glass of index 1.5,
     /// where F(cos θₜ) is 0.095 and the exact value 0.114); this lobe turns the difference
     /// back, the share (F(cos θₜ) - F(cos θᵢ)) / (1 - F(cos θᵢ)) of its draws (at the drawn
-    /// microfacet, for rough glass), without changing their Fresnel factor (tinted by the base
-    /// colour as the lobe's other draws are, and as total internal reflection's are), so the
-    /// two lobes together reflect F(cos θₜ) and transmit the rest. Rough glass's draws' mean
+    /// microfacet, for rough glass), without changing their Fresnel factor, so the two lobes
+    /// together reflect F(cos θₜ) and transmit the rest. These reflections, like those past
+    /// the critical angle, are not tinted by the base colour. Rough glass's draws' mean
     /// weight, which [`ggx::refraction_albedo`] tabulates, includes these reflections.
     fn sample_transmission(
         &self,
@@ -656,7 +656,14 @@ impl<'a> Bsdf<'a> {
         if direction == Vec3::ZERO || t.probability <= 0.0 {
             return None;
         }
-        let mut weight = self.material.base_color * (t.factor * (1.0 - fresnel) / t.probability);
+        // The base colour tints what goes through (glTF's BTDF), not what reflects back inside:
+        // that is Fresnel reflection, the specular BRDF's share, which glTF leaves untinted.
+        let tint = if reflected {
+            Vec3::ONE
+        } else {
+            self.material.base_color
+        };
+        let mut weight = tint * (t.factor * (1.0 - fresnel) / t.probability);
         if shadowing {
             // Through the surface (or, reflected back inside, back out of it): on the wrong
             // side the draw is lost. G2/G1 = (1 + Λ(v)) / (1 + Λ(v) + Λ(l)).
@@ -1081,6 +1088,52 @@ mod tests {
                     "entering {entering}, cos {cos_v}: {what} {got}, expected {want}"
                 );
             }
+        }
+    }
+
+    /// Light reflected back inside coloured glass is not tinted: glTF's base colour tints the
+    /// transmission (its BTDF), and a reflection is the specular BRDF's share. Leaving at cos
+    /// 0.5 (past the critical angle of index 1.5), every draw of the smooth lobe reflects and
+    /// most of the rough one's do, with the same weight in every channel; the rough lobe's
+    /// draws that get through (microfacets tilted toward the view) are tinted, and so is the
+    /// light entering.
+    #[test]
+    fn light_reflected_inside_coloured_glass_is_not_tinted() {
+        let mut m = material(1.0, 0.0, 0.0);
+        m.base_color = Vec3::new(0.9, 0.2, 0.1);
+        for roughness in [0.0f32, 0.3] {
+            m.roughness = roughness;
+            let to_eye = Vec3::new(0.866, 0.0, 0.5);
+            let leaving =
+                Bsdf::new(&m, Vec3::Z, to_eye).with_transmission(to_eye, 1.0, 1.5, false, false);
+            let t = leaving.transmission.expect("a transmission lobe");
+            let mut rng = Rng::new(23);
+            let mut drawn = 0;
+            for _ in 0..1000 {
+                let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+                if let Some(s) = leaving.sample_transmission(to_eye, t, u) {
+                    if s.direction.z > 0.0 {
+                        assert!(
+                            s.weight.x == s.weight.y && s.weight.y == s.weight.z,
+                            "{s:?}"
+                        );
+                        drawn += 1;
+                    } else {
+                        assert!(roughness > 0.0 && s.weight.x > 4.0 * s.weight.y, "{s:?}");
+                    }
+                }
+            }
+            assert!(drawn > 500, "{roughness}: {drawn} reflected draws");
+            let entering =
+                Bsdf::new(&m, Vec3::Z, to_eye).with_transmission(to_eye, 1.0, 1.5, false, true);
+            let t = entering.transmission.expect("a transmission lobe");
+            let s = entering
+                .sample_transmission(to_eye, t, [0.3, 0.7, 0.5])
+                .expect("glass refracts");
+            assert!(
+                s.direction.z < 0.0 && s.weight.x > 4.0 * s.weight.y,
+                "{s:?}"
+            );
         }
     }
 
