@@ -19,7 +19,7 @@
 //! the estimator stays unbiased and MIS stays consistent, and a tiny sun still converges.
 
 use crate::color::luminance;
-use crate::sampling::Distribution1D;
+use crate::sampling::{sin_cos_turns, Distribution1D};
 use glam::Vec3;
 use std::f32::consts::{PI, TAU};
 use std::path::{Path, PathBuf};
@@ -368,8 +368,8 @@ impl Environment {
         let u = (i as f32 + within_column) / self.width as f32;
         let v = (j as f32 + within_row) / self.height as f32;
         // direction_of(u, v), keeping sin θ for the pdf.
-        let (sin_theta, cos_theta) = (v * PI).sin_cos();
-        let (sin_phi, cos_phi) = ((u - 0.5) * TAU).sin_cos();
+        let (sin_theta, cos_theta) = sin_cos_turns(0.5 * v);
+        let (sin_phi, cos_phi) = sin_cos_turns(u - 0.5);
         let local = Vec3::new(sin_theta * cos_phi, cos_theta, sin_theta * sin_phi);
         if sin_theta <= 0.0 {
             return None;
@@ -472,13 +472,10 @@ fn elevation_v(y: f32) -> f32 {
 
 /// The unit direction at map coordinates (u, v), in the panorama's frame.
 fn direction_of(u: f32, v: f32) -> Vec3 {
-    let phi = (u - 0.5) * TAU;
-    let theta = v * PI;
-    Vec3::new(
-        theta.sin() * phi.cos(),
-        theta.cos(),
-        theta.sin() * phi.sin(),
-    )
+    // φ = (u - 0.5)·2π, θ = v·π.
+    let (sin_theta, cos_theta) = sin_cos_turns(0.5 * v);
+    let (sin_phi, cos_phi) = sin_cos_turns(u - 0.5);
+    Vec3::new(sin_theta * cos_phi, cos_theta, sin_theta * sin_phi)
 }
 
 /// EXR compressions that the `exr` crate (behind `image`) cannot decode are refused by name,

@@ -48,10 +48,10 @@ pub(crate) fn sample_visible_normal(v: Vec3, alpha: f32, u1: f32, u2: f32) -> Ve
     };
     let t2 = vh.cross(t1);
     let r = u1.sqrt();
-    let phi = std::f32::consts::TAU * u2;
-    let p1 = r * phi.cos();
+    let (sin, cos) = crate::sampling::sin_cos_turns(u2);
+    let p1 = r * cos;
     let s = 0.5 * (1.0 + vh.z);
-    let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * phi.sin();
+    let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * sin;
     let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
     Vec3::new(alpha * nh.x, alpha * nh.y, nh.z.max(0.0)).normalize_or_zero()
 }
