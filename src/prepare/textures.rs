@@ -21,7 +21,64 @@ use std::sync::{Arc, OnceLock};
 struct Level {
     width: u32,
     height: u32,
-    texels: Vec<[u8; 4]>,
+    texels: Texels,
+}
+
+/// A level's texels: its own, or, for level 0 of an image that the scene holds as pixels
+/// ([`Scene::add_texture`], which the Python package's textures go through), the scene's
+/// buffer, shared: such an image was held twice, once in the scene and once here.
+#[derive(Clone, Debug)]
+enum Texels {
+    Owned(Vec<[u8; 4]>),
+    Shared(Arc<image::RgbaImage>),
+}
+
+impl std::ops::Deref for Texels {
+    type Target = [[u8; 4]];
+
+    #[inline(always)]
+    fn deref(&self) -> &[[u8; 4]] {
+        match self {
+            Texels::Owned(texels) => texels,
+            // Whole texels: `Decoded::into_texels` shares only buffers of exactly 4·w·h bytes.
+            Texels::Shared(image) => image.as_raw().as_chunks::<4>().0,
+        }
+    }
+}
+
+/// An image decoded to RGBA8: decoded here, or the scene's own pixels.
+enum Decoded {
+    Owned(image::RgbaImage),
+    Shared(Arc<image::RgbaImage>),
+}
+
+impl Decoded {
+    fn image(&self) -> &image::RgbaImage {
+        match self {
+            Decoded::Owned(image) => image,
+            Decoded::Shared(image) => image,
+        }
+    }
+
+    fn dimensions(&self) -> (u32, u32) {
+        self.image().dimensions()
+    }
+
+    /// The texels of level 0: the decoded buffer reused, or the scene's shared (a copy only
+    /// for a shared buffer longer than its pixels, which `Scene::add_texture` refuses).
+    fn into_texels(self) -> Texels {
+        match self {
+            Decoded::Owned(image) => Texels::Owned(texels_of(image)),
+            Decoded::Shared(image) => {
+                let (w, h) = image.dimensions();
+                if image.as_raw().len() as u64 == 4 * u64::from(w) * u64::from(h) {
+                    Texels::Shared(image)
+                } else {
+                    Texels::Owned(texels_of((*image).clone()))
+                }
+            }
+        }
+    }
 }
 
 /// A decoded image with its mip chain; level 0 is full size.
@@ -63,6 +120,11 @@ fn srgb_table() -> &'static [f32; 256] {
 impl MipImage {
     /// Builds the mip chain of an RGBA8 image.
     pub fn new(width: u32, height: u32, texels: Vec<[u8; 4]>) -> MipImage {
+        MipImage::over(width, height, Texels::Owned(texels))
+    }
+
+    /// Builds the mip chain over level 0's `texels`.
+    fn over(width: u32, height: u32, texels: Texels) -> MipImage {
         let mut levels = vec![Level {
             width,
             height,
@@ -96,7 +158,7 @@ impl MipImage {
                 levels.push(Level {
                     width: w,
                     height: h,
-                    texels,
+                    texels: Texels::Owned(texels),
                 });
                 continue;
             }
@@ -117,7 +179,7 @@ impl MipImage {
             levels.push(Level {
                 width: w,
                 height: h,
-                texels,
+                texels: Texels::Owned(texels),
             });
         }
         MipImage { levels }
@@ -138,6 +200,15 @@ impl MipImage {
     /// Size of level 0.
     pub fn size(&self) -> (u32, u32) {
         (self.levels[0].width, self.levels[0].height)
+    }
+
+    /// Whether level 0 is `pixels`' own buffer (shared, not copied).
+    #[cfg(test)]
+    pub(crate) fn level_zero_is(&self, pixels: &image::RgbaImage) -> bool {
+        std::ptr::eq(
+            self.levels[0].texels.as_ptr().cast(),
+            pixels.as_raw().as_ptr(),
+        )
     }
 
     #[cfg(test)]
@@ -316,7 +387,16 @@ fn wrap(i: i64, size: u32, mode: Wrap) -> u32 {
 const MAX_DECODE_BYTES: u64 = 2 << 30;
 
 /// Decodes one image source to RGBA8.
-fn decode(source: &ImageSource) -> Result<image::RgbaImage, String> {
+fn decode(source: &ImageSource) -> Result<Decoded, String> {
+    if let Encoded::Pixels(pixels) = source.encoded() {
+        // Handed over as pixels: shared with the scene, not copied.
+        return Ok(Decoded::Shared(Arc::clone(pixels)));
+    }
+    decode_encoded(source).map(Decoded::Owned)
+}
+
+/// [`decode`] of an encoded source.
+fn decode_encoded(source: &ImageSource) -> Result<image::RgbaImage, String> {
     let mut limits = image::Limits::default();
     limits.max_alloc = Some(MAX_DECODE_BYTES);
     let from_bytes = |bytes: &[u8]| -> Result<image::RgbaImage, String> {
@@ -330,8 +410,8 @@ fn decode(source: &ImageSource) -> Result<image::RgbaImage, String> {
         Ok(into_rgba8(r.decode().map_err(|e| e.to_string())?))
     };
     let reader = match source.encoded() {
-        // Handed over as pixels: a copy, which the texture set then owns.
-        Encoded::Pixels(pixels) => return Ok(pixels.clone()),
+        // `decode` shares these instead; a copy if reached.
+        Encoded::Pixels(pixels) => return Ok((**pixels).clone()),
         Encoded::Bytes(bytes) => return from_bytes(bytes),
         // An image of a GLB that the load left on disk: read now, on the decoding thread.
         Encoded::InFile(part) => return from_bytes(&part.read(u64::MAX)?),
@@ -395,7 +475,7 @@ fn into_rgba8(image: image::DynamicImage) -> image::RgbaImage {
 /// it finishes one: the longest decode starts at once instead of queueing behind others
 /// (DamagedHelmet's progressive 1.3 MB metal-roughness JPEG takes as long as three of its
 /// other images together). Results are returned by image index, whatever the order of work.
-fn decode_used(scene: &Scene, used: &[bool]) -> Vec<Option<Result<image::RgbaImage, String>>> {
+fn decode_used(scene: &Scene, used: &[bool]) -> Vec<Option<Result<Decoded, String>>> {
     let encoded_size = |source: &ImageSource| match source.encoded() {
         Encoded::Pixels(pixels) => pixels.as_raw().len() as u64,
         Encoded::Bytes(bytes) => bytes.len() as u64,
@@ -408,7 +488,7 @@ fn decode_used(scene: &Scene, used: &[bool]) -> Vec<Option<Result<image::RgbaIma
         .map(|i| (encoded_size(&scene.images[i]), i))
         .collect();
     order.sort_by_key(|&(size, i)| (std::cmp::Reverse(size), i));
-    let results: Vec<OnceLock<Result<image::RgbaImage, String>>> =
+    let results: Vec<OnceLock<Result<Decoded, String>>> =
         (0..scene.images.len()).map(|_| OnceLock::new()).collect();
     let next = std::sync::atomic::AtomicUsize::new(0);
     (0..rayon::current_num_threads().min(order.len()).max(1))
@@ -565,7 +645,13 @@ impl TextureSet {
             while (w as usize * h as usize * 4 * 4 / 3) > remaining && (w > 1 || h > 1) {
                 w = (w / 2).max(1);
                 h = (h / 2).max(1);
-                img = image::imageops::resize(&img, w, h, image::imageops::FilterType::Triangle);
+                let halved = image::imageops::resize(
+                    img.image(),
+                    w,
+                    h,
+                    image::imageops::FilterType::Triangle,
+                );
+                img = Decoded::Owned(halved);
                 halvings += 1;
             }
             if halvings > 0 {
@@ -583,7 +669,7 @@ impl TextureSet {
             .into_par_iter()
             .map(|(index, img)| {
                 let (w, h) = img.dimensions();
-                (index, MipImage::new(w, h, texels_of(img)))
+                (index, MipImage::over(w, h, img.into_texels()))
             })
             .collect();
         for (index, mip) in built {

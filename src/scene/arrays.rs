@@ -581,6 +581,9 @@ mod tests {
         let right = image.sample(Vec2::new(0.75, 0.5), 0.0, &nearest, false);
         assert_eq!((left.x, left.z), (1.0, 0.0));
         assert_eq!((right.x, right.z), (0.0, 1.0));
+        // Held once: the full-size level is the scene's own buffer, not a copy of it.
+        let pixels = scene.images[0].pixels.as_deref().expect("added as pixels");
+        assert!(image.level_zero_is(pixels));
     }
 
     #[test]

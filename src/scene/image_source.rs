@@ -68,8 +68,8 @@ impl FileRange {
 
 /// Where an image's encoded bytes are, as [`ImageSource::encoded`] tells.
 pub enum Encoded<'a> {
-    /// Not encoded: the pixels themselves.
-    Pixels(&'a image::RgbaImage),
+    /// Not encoded: the pixels themselves (shared: decoding hands over the same buffer).
+    Pixels(&'a std::sync::Arc<image::RgbaImage>),
     /// In memory.
     Bytes(&'a [u8]),
     /// A whole image file.
