@@ -187,12 +187,16 @@ def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, mat
     identity); material: a dict of glTF metallic-roughness factors (``base_color`` RGB or
     RGBA, ``metallic``, ``roughness``, ``emissive``, ``emissive_strength``, ``alpha_mode``,
     ``alpha_cutoff``, ``double_sided``, ``unlit``, ``normal_scale``, ``occlusion_strength``,
-    ``name``), every key optional with glTF's default (white, metallic 1, roughness 1), and
-    textures (``base_color_texture``, ``metallic_roughness_texture``, ``normal_texture``,
-    ``occlusion_texture``, ``emissive_texture``): each an index from ``add_texture`` or an
-    image as it takes (added with its defaults); textures need ``uvs``. Raises Error, naming
-    the mesh and the array, for a wrong shape, a NaN, an index out of range or a factor out
-    of its range.
+    ``name``), every key optional with glTF's default (white, metallic 1, roughness 1), the
+    factors of the material extensions (``transmission``, ``ior``, ``thickness`` (0: a thin
+    wall, above: a volume), ``attenuation_color``, ``attenuation_distance``, ``specular``,
+    ``specular_color``, ``sheen_color``, ``sheen_roughness``, ``clearcoat``,
+    ``clearcoat_roughness``, ``iridescence``, ``iridescence_ior``, ``iridescence_thickness``
+    (min, max nm)), and textures (``base_color_texture``, ``metallic_roughness_texture``,
+    ``normal_texture``, ``occlusion_texture``, ``emissive_texture``): each an index from
+    ``add_texture`` or an image as it takes (added with its defaults); textures need ``uvs``.
+    Raises Error, naming the mesh and the array, for a wrong shape, a NaN, an index out of
+    range or a factor out of its range.
     """
     if colors is not None:
         c = _np.asarray(colors, dtype=_np.float32)

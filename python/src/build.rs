@@ -5,7 +5,10 @@
 
 use crate::Error;
 use glam::{Mat4, Vec3, Vec4};
-use meshtracer::scene::{AlphaMode, Filter, LightKind, Material, Sampler, TextureRef, Wrap};
+use meshtracer::scene::{
+    AlphaMode, ClearcoatLayer, Filter, IridescenceLayer, LightKind, Material, Sampler, SheenLayer,
+    SpecularLayer, TextureRef, Wrap,
+};
 use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -63,7 +66,10 @@ pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
     const KEYS: &str = "base_color, metallic, roughness, emissive, emissive_strength, \
         alpha_mode, alpha_cutoff, double_sided, unlit, name, base_color_texture, \
         metallic_roughness_texture, normal_texture, normal_scale, occlusion_texture, \
-        occlusion_strength, emissive_texture";
+        occlusion_strength, emissive_texture, transmission, ior, thickness, \
+        attenuation_color, attenuation_distance, specular, specular_color, sheen_color, \
+        sheen_roughness, clearcoat, clearcoat_roughness, iridescence, iridescence_ior, \
+        iridescence_thickness";
     for (key, value) in dict.iter() {
         let key: String = key.extract()?;
         let bad = |e: PyErr| Error::new_err(format!("material: {key}: {e}"));
@@ -91,6 +97,17 @@ pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
             "name" => m.name = value.extract().map_err(bad)?,
             "normal_scale" => m.normal_scale = value.extract().map_err(bad)?,
             "occlusion_strength" => m.occlusion_strength = value.extract().map_err(bad)?,
+            "thickness" => {
+                // KHR_materials_volume: 0 is a thin wall, more a volume whose depth the
+                // geometry gives.
+                let thickness: f32 = value.extract().map_err(bad)?;
+                if !(thickness.is_finite() && thickness >= 0.0) {
+                    return Err(Error::new_err(format!(
+                        "material: thickness {thickness}: must be a finite number of at least 0"
+                    )));
+                }
+                m.thin_walled = thickness == 0.0;
+            }
             "base_color_texture"
             | "metallic_roughness_texture"
             | "normal_texture"
@@ -123,13 +140,85 @@ pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
                 };
             }
             _ => {
-                return Err(Error::new_err(format!(
-                    "material: unknown key '{key}': use {KEYS}"
-                )))
+                if !extension(&mut m, &key, &value).map_err(bad)? {
+                    return Err(Error::new_err(format!(
+                        "material: unknown key '{key}': use {KEYS}"
+                    )));
+                }
             }
         }
     }
     Ok(m)
+}
+
+/// The factors of glTF's material extensions (but `thickness`, which [`material`] reads),
+/// keyed by their property names in snake case without "Factor" (`transmissionFactor` is
+/// `transmission`). A layer one of its keys names starts from its extension's defaults.
+/// Returns whether `key` is one of them.
+fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<bool> {
+    // KHR_materials_specular: specularFactor 1, specularColorFactor white.
+    fn specular(m: &mut Material) -> &mut SpecularLayer {
+        m.specular_layer.get_or_insert(SpecularLayer {
+            factor: 1.0,
+            texture: None,
+            color: Vec3::ONE,
+            color_texture: None,
+        })
+    }
+    // KHR_materials_sheen: black (no sheen), roughness 0.
+    fn sheen(m: &mut Material) -> &mut SheenLayer {
+        m.sheen.get_or_insert(SheenLayer {
+            color: Vec3::ZERO,
+            color_texture: None,
+            roughness: 0.0,
+            roughness_texture: None,
+        })
+    }
+    // KHR_materials_clearcoat: no coat, roughness 0.
+    fn clearcoat(m: &mut Material) -> &mut ClearcoatLayer {
+        m.clearcoat.get_or_insert(ClearcoatLayer {
+            factor: 0.0,
+            texture: None,
+            roughness: 0.0,
+            roughness_texture: None,
+            normal_texture: None,
+            normal_scale: 1.0,
+        })
+    }
+    // KHR_materials_iridescence: no film, ior 1.3, thickness 100-400 nm.
+    fn iridescence(m: &mut Material) -> &mut IridescenceLayer {
+        m.iridescence.get_or_insert(IridescenceLayer {
+            factor: 0.0,
+            texture: None,
+            ior: 1.3,
+            thickness_min: 100.0,
+            thickness_max: 400.0,
+            thickness_texture: None,
+        })
+    }
+    let number = || value.extract::<f32>();
+    let triple = || value.extract::<[f32; 3]>().map(Vec3::from);
+    match key {
+        "transmission" => m.transmission = number()?,
+        "ior" => m.ior = number()?,
+        "attenuation_color" => m.attenuation_color = triple()?,
+        "attenuation_distance" => m.attenuation_distance = number()?,
+        "specular" => specular(m).factor = number()?,
+        "specular_color" => specular(m).color = triple()?,
+        "sheen_color" => sheen(m).color = triple()?,
+        "sheen_roughness" => sheen(m).roughness = number()?,
+        "clearcoat" => clearcoat(m).factor = number()?,
+        "clearcoat_roughness" => clearcoat(m).roughness = number()?,
+        "iridescence" => iridescence(m).factor = number()?,
+        "iridescence_ior" => iridescence(m).ior = number()?,
+        "iridescence_thickness" => {
+            let [low, high] = value.extract::<[f32; 2]>()?;
+            let film = iridescence(m);
+            (film.thickness_min, film.thickness_max) = (low, high);
+        }
+        _ => return Ok(false),
+    }
+    Ok(true)
 }
 
 /// A texture's sampler from glTF's names for its wrap modes (`repeat`, `clamp_to_edge`,

@@ -152,6 +152,15 @@ def test_the_scene_says_what_it_holds():
      "<arrays>: mesh 0: material: roughness 2: must be from 0 to 1"),
     (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, material={"shiny": 1}),
      "material: unknown key 'shiny'"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, material={"transmission": 1.5}),
+     "<arrays>: mesh 0: material: transmission 1.5: must be from 0 to 1"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, material={"ior": 0.5}),
+     "material: ior 0.5: must be a finite number of at least 1"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, material={"thickness": -1}),
+     "material: thickness -1: must be a finite number of at least 0"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES,
+                                          material={"sheen_color": [2, 0, 0]}),
+     "material: sheen_color[0] 2: must be from 0 to 1"),
     (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, pose=np.zeros((4, 4))),
      "<arrays>: mesh 0: pose: singular (determinant 0): it flattens the mesh"),
     (lambda: meshtracer.Scene.from_arrays(QUAD, [[0, 0, 1]]),
@@ -221,6 +230,62 @@ def test_a_texture_lands_where_its_uvs_put_it(how):
     assert [q.tolist() for q in quadrant_centres(out["srgb8"])] == expected
     np.testing.assert_array_equal(quadrant_centres(out["color"]),
                                   np.array(expected, np.float32) / 255.0)
+
+
+# A black emitter's face: radiance (1, 1, 1) from both sides, nothing reflected.
+WHITE_LIGHT = {"base_color": [0, 0, 0], "metallic": 0.0, "emissive": [1, 1, 1],
+               "double_sided": True}
+
+
+def seen_head_on(material, behind=None):
+    """The mean linear colour of a 1 m quad of `material` seen head-on (orthographic, the
+    middle 0.5 m), path traced with no light but a 4 m white emitter 1 m behind the camera,
+    facing the quad (so the quad's reflectance at normal incidence is what comes back), and
+    `behind`, a material for a second 4 m quad 1 m behind the first."""
+    scene = meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, material=material)
+    scene.add_mesh(QUAD * 4, QUAD_TRIANGLES, pose=translation(0, 0, 3), material=WHITE_LIGHT)
+    if behind is not None:
+        scene.add_mesh(QUAD * 4, QUAD_TRIANGLES, pose=translation(0, 0, -1), material=behind)
+    scene.add_camera(translation(0, 0, 2), xmag=0.25, ymag=0.25)
+    out = scene.render(8, 8, spp=16, integrator="path", seed=0, tonemap="standard",
+                       default_lights=False, ambient=[0.0, 0.0, 0.0])
+    return out["color"][..., :3].mean(axis=(0, 1))
+
+
+@pytest.mark.parametrize("extensions, reflectance", [
+    # A smooth black dielectric reflects Fresnel's F0 = ((ior - 1) / (ior + 1))^2 at normal
+    # incidence: 0.04 at glTF's default ior 1.5, 1/9 at 2 (KHR_materials_ior).
+    ({}, [0.04] * 3),
+    ({"ior": 2.0}, [1 / 9] * 3),
+    # KHR_materials_specular: its factor scales the dielectric's reflection (0: none), its
+    # colour tints F0.
+    ({"specular": 0.0}, [0.0] * 3),
+    ({"specular_color": [1.0, 0.0, 0.5]}, [0.04, 0.0, 0.02]),
+    # KHR_materials_clearcoat: a smooth coat (its ior fixed at 1.5) over a base that reflects
+    # nothing.
+    ({"specular": 0.0, "clearcoat": 1.0}, [0.04] * 3),
+])
+def test_extension_factors_set_the_reflectance_at_normal_incidence(extensions, reflectance):
+    black = {"base_color": [0, 0, 0], "metallic": 0.0, "roughness": 0.0, **extensions}
+    # Within 3% of F0 (a mirror sampled per pixel: no noise to speak of), 1e-4 absolute for 0.
+    np.testing.assert_allclose(seen_head_on(black), reflectance, rtol=0.03, atol=1e-4)
+
+
+@pytest.mark.parametrize("transmission", [1.0, 0.5, 0.0])
+def test_a_clear_sheet_shows_what_is_behind_it_by_its_transmission(transmission):
+    """KHR_materials_transmission on a thin wall (thickness 0, the default): a smooth white
+    sheet in front of a red emitter lets through transmission x (1 - F0) of its light
+    straight, and hides it without. The white emitter behind the camera lights the sheet's
+    front (its diffuse part, 1 - transmission, and its reflection) in every channel alike, so
+    what the red emitter adds is red minus green."""
+    sheet = {"base_color": [1, 1, 1], "metallic": 0.0, "roughness": 0.0,
+             "transmission": transmission, "double_sided": True}
+    red = {"base_color": [0, 0, 0], "metallic": 0.0, "emissive": [1, 0, 0],
+           "double_sided": True}
+    seen = seen_head_on(sheet, behind=red)
+    assert seen[1] == seen[2]
+    # Measured 0.960, 0.483 and 0.001 of the red emitter's 1 for 0.96, 0.48 and 0.
+    assert seen[0] - seen[1] == pytest.approx(0.96 * transmission, abs=0.015)
 
 
 def test_grey_textures_are_srgb_for_colour_and_linear_for_data():

@@ -328,7 +328,8 @@ fn check_arrays(mesh: &MeshArrays) -> Result<(), (&'static str, String)> {
 
 /// What is wrong with a material given as factors, if anything: the glTF ranges
 /// (§5.19, §5.22: colour, metallic, roughness and alpha cutoff in [0, 1], emissive at least 0;
-/// the occlusion texture's strength in [0, 1]; a finite normal scale).
+/// the occlusion texture's strength in [0, 1]; a finite normal scale), and those of the
+/// material extensions ([`check_extensions`]).
 pub fn check_material(material: &Material) -> Result<(), String> {
     let unit = |name: &str, v: f32| {
         if (0.0..=1.0).contains(&v) {
@@ -364,6 +365,61 @@ pub fn check_material(material: &Material) -> Result<(), String> {
             "emissive_strength {}: must be a finite number of at least 0",
             material.emissive_strength
         ));
+    }
+    check_extensions(material)
+}
+
+/// The ranges of the material extensions' factors, as their specifications define them:
+/// `KHR_materials_transmission`, `_specular`, `_sheen`, `_clearcoat` and `_iridescence` factors
+/// and `_volume`'s attenuation colour in [0, 1]; `_ior` (and the film's) at least 1; an
+/// attenuation distance above 0 (infinite: none); a specular colour and film thicknesses (nm)
+/// finite and at least 0. Names are the Python package's keys.
+fn check_extensions(material: &Material) -> Result<(), String> {
+    let unit = |name: &str, v: f32| {
+        if (0.0..=1.0).contains(&v) {
+            Ok(())
+        } else {
+            Err(format!("{name} {v}: must be from 0 to 1"))
+        }
+    };
+    let at_least = |name: &str, v: f32, low: f32| {
+        if v.is_finite() && v >= low {
+            Ok(())
+        } else {
+            Err(format!(
+                "{name} {v}: must be a finite number of at least {low}"
+            ))
+        }
+    };
+    let each = |name: &str, c: Vec3, check: &dyn Fn(&str, f32) -> Result<(), String>| {
+        (0..3).try_for_each(|i| check(&format!("{name}[{i}]"), c[i]))
+    };
+    unit("transmission", material.transmission)?;
+    at_least("ior", material.ior, 1.0)?;
+    each("attenuation_color", material.attenuation_color, &unit)?;
+    let distance = material.attenuation_distance;
+    if distance.is_nan() || distance <= 0.0 {
+        return Err(format!(
+            "attenuation_distance {distance}: must be above 0 (infinite for no attenuation)"
+        ));
+    }
+    if let Some(layer) = &material.specular_layer {
+        unit("specular", layer.factor)?;
+        each("specular_color", layer.color, &|n, v| at_least(n, v, 0.0))?;
+    }
+    if let Some(layer) = &material.sheen {
+        each("sheen_color", layer.color, &unit)?;
+        unit("sheen_roughness", layer.roughness)?;
+    }
+    if let Some(layer) = &material.clearcoat {
+        unit("clearcoat", layer.factor)?;
+        unit("clearcoat_roughness", layer.roughness)?;
+    }
+    if let Some(film) = &material.iridescence {
+        unit("iridescence", film.factor)?;
+        at_least("iridescence_ior", film.ior, 1.0)?;
+        at_least("iridescence_thickness[0]", film.thickness_min, 0.0)?;
+        at_least("iridescence_thickness[1]", film.thickness_max, 0.0)?;
     }
     Ok(())
 }
@@ -584,6 +640,77 @@ mod tests {
         // Held once: the full-size level is the scene's own buffer, not a copy of it.
         let pixels = scene.images[0].pixels.as_deref().expect("added as pixels");
         assert!(image.level_zero_is(pixels));
+    }
+
+    /// The extensions' factors are held to their specifications' ranges, each refusal naming
+    /// the factor (as the Python package's key) and its value; glTF's defaults pass.
+    #[test]
+    fn extension_factors_outside_their_ranges_are_refused_by_name() {
+        use crate::scene::material::{ClearcoatLayer, IridescenceLayer, SheenLayer};
+        let base = Material::default();
+        assert_eq!(check_material(&base), Ok(()));
+        let refused = |change: &dyn Fn(&mut Material)| {
+            let mut m = base.clone();
+            change(&mut m);
+            check_material(&m).unwrap_err()
+        };
+        assert_eq!(
+            refused(&|m| m.transmission = 1.5),
+            "transmission 1.5: must be from 0 to 1"
+        );
+        assert_eq!(
+            refused(&|m| m.ior = 0.5),
+            "ior 0.5: must be a finite number of at least 1"
+        );
+        assert_eq!(
+            refused(&|m| m.attenuation_color = Vec3::new(1.0, -0.5, 1.0)),
+            "attenuation_color[1] -0.5: must be from 0 to 1"
+        );
+        assert_eq!(
+            refused(&|m| m.attenuation_distance = 0.0),
+            "attenuation_distance 0: must be above 0 (infinite for no attenuation)"
+        );
+        assert_eq!(
+            refused(&|m| {
+                m.sheen = Some(SheenLayer {
+                    color: Vec3::new(2.0, 0.0, 0.0),
+                    color_texture: None,
+                    roughness: 0.5,
+                    roughness_texture: None,
+                })
+            }),
+            "sheen_color[0] 2: must be from 0 to 1"
+        );
+        let coat = |roughness| ClearcoatLayer {
+            factor: 1.0,
+            texture: None,
+            roughness,
+            roughness_texture: None,
+            normal_texture: None,
+            normal_scale: 1.0,
+        };
+        assert_eq!(
+            refused(&|m| m.clearcoat = Some(coat(f32::NAN))),
+            "clearcoat_roughness NaN: must be from 0 to 1"
+        );
+        assert_eq!(
+            refused(&|m| {
+                m.iridescence = Some(IridescenceLayer {
+                    factor: 1.0,
+                    texture: None,
+                    ior: 1.3,
+                    thickness_min: 100.0,
+                    thickness_max: f32::INFINITY,
+                    thickness_texture: None,
+                })
+            }),
+            "iridescence_thickness[1] inf: must be a finite number of at least 0"
+        );
+        let mut glass = base.clone();
+        (glass.transmission, glass.ior, glass.thin_walled) = (1.0, 1.0, false);
+        glass.attenuation_distance = 0.3;
+        glass.clearcoat = Some(coat(0.0));
+        assert_eq!(check_material(&glass), Ok(()));
     }
 
     #[test]
