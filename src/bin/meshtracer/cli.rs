@@ -167,8 +167,9 @@ pub struct InfoArgs {
 pub struct RenderArgs {
     /// The model: .gltf, .glb or .obj.
     pub model: PathBuf,
-    /// Output image: .png (8-bit sRGB with alpha), .exr or .hdr (linear float); with --views
-    /// or --turntable, the folder the views are written to.
+    /// Output image: .png (8-bit sRGB with alpha), .jpg (8-bit sRGB over --background or
+    /// black), .exr or .hdr (linear float); with --views or --turntable, the folder the views
+    /// are written to.
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
     /// Image width in pixels [default: 1024].

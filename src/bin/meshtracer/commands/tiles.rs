@@ -18,11 +18,12 @@ fn tiled(args: &RenderArgs) -> bool {
 }
 
 /// Refusals a tiled render makes before any work: tiles are merged exactly only from formats
-/// that keep the pixels as written (PNG, EXR, `.npy`), not from RGBE `.hdr`.
+/// that keep the pixels as written (PNG, EXR, `.npy`), not from RGBE `.hdr` or lossy JPEG.
 pub(super) fn check_render(args: &RenderArgs) -> Result<()> {
-    if tiled(args) && extension(&args.output) == "hdr" {
+    let ext = extension(&args.output);
+    if tiled(args) && ["hdr", "jpg", "jpeg"].contains(&ext.as_str()) {
         bail!(
-            "{}: a tile's image must be .png or .exr (an .hdr tile cannot be merged exactly)",
+            "{}: a tile's image must be .png or .exr (an .{ext} tile cannot be merged exactly)",
             args.output.display()
         );
     }
