@@ -329,7 +329,8 @@ fn check_arrays(mesh: &MeshArrays) -> Result<(), (&'static str, String)> {
 /// What is wrong with a material given as factors, if anything: the glTF ranges
 /// (§5.19, §5.22: colour, metallic, roughness and alpha cutoff in [0, 1], emissive at least 0;
 /// the occlusion texture's strength in [0, 1]; a finite normal scale), and those of the
-/// material extensions ([`check_extensions`]).
+/// material extensions (`check_extensions`: transmission, ior, volume, specular, sheen,
+/// clearcoat, iridescence).
 pub fn check_material(material: &Material) -> Result<(), String> {
     let unit = |name: &str, v: f32| {
         if (0.0..=1.0).contains(&v) {
