@@ -81,6 +81,22 @@ fn images_of_different_sizes_are_an_error_not_a_resample() {
     assert!(crate::common::stderr(&missing).contains("nope.png"));
 }
 
+/// The heatmap and the strip are PNGs: another extension is refused before any work (it was
+/// written as a PNG under that name).
+#[test]
+fn compare_images_must_be_named_png() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.png");
+    write(&a, &image::RgbaImage::new(8, 8));
+    for option in ["--diff-out", "--side-by-side"] {
+        let out = dir.path().join("x.jpg");
+        let result = run(&["compare", s(&a), s(&a), option, s(&out)], false);
+        let err = crate::common::stderr(&result);
+        assert!(err.contains("must end in .png"), "{option}: {err}");
+        assert!(!out.exists());
+    }
+}
+
 #[test]
 fn a_render_compared_with_itself_across_accelerators_is_perfect() {
     let dir = tempfile::tempdir().unwrap();

@@ -612,6 +612,18 @@ fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
             bail!("--fail-below {metric}: use --fail-above for flip, rmse and max_abs");
         }
     }
+    // Both are written as PNG: another name would hold a PNG under a wrong extension.
+    for (option, path) in [
+        ("--diff-out", &args.diff_out),
+        ("--side-by-side", &args.side_by_side),
+    ] {
+        if let Some(path) = path.as_ref().filter(|p| !views::has_extension(p, "png")) {
+            bail!(
+                "{option} {}: the file name must end in .png",
+                path.display()
+            );
+        }
+    }
     let background = args.background.map(|c| {
         // Accept 0-1 or 0-255 components.
         let scale = if c.max_element() <= 1.0 { 255.0 } else { 1.0 };
