@@ -112,7 +112,13 @@ def _pose(pose):
 
 
 _TEXTURE_SLOTS = ("base_color_texture", "metallic_roughness_texture", "normal_texture",
-                  "occlusion_texture", "emissive_texture")
+                  "occlusion_texture", "emissive_texture",
+                  # The material extensions' (glTF's names in snake case).
+                  "transmission_texture", "thickness_texture", "specular_texture",
+                  "specular_color_texture", "sheen_color_texture", "sheen_roughness_texture",
+                  "clearcoat_texture", "clearcoat_roughness_texture",
+                  "clearcoat_normal_texture", "iridescence_texture",
+                  "iridescence_thickness_texture")
 
 
 def _rgba8(image):
@@ -193,8 +199,10 @@ def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, mat
     ``specular_color``, ``sheen_color``, ``sheen_roughness``, ``clearcoat``,
     ``clearcoat_roughness``, ``iridescence``, ``iridescence_ior``, ``iridescence_thickness``
     (min, max nm)), and textures (``base_color_texture``, ``metallic_roughness_texture``,
-    ``normal_texture``, ``occlusion_texture``, ``emissive_texture``): each an index from
-    ``add_texture`` or an image as it takes (added with its defaults); textures need ``uvs``.
+    ``normal_texture``, ``occlusion_texture``, ``emissive_texture``, and the extensions':
+    ``transmission_texture``, ``clearcoat_texture`` and the others named as glTF names them,
+    in snake case): each an index from ``add_texture`` or an image as it takes (added with
+    its defaults); textures need ``uvs``.
     Raises Error, naming the mesh and the array, for a wrong shape, a NaN, an index out of
     range or a factor out of its range.
     """

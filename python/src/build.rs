@@ -69,7 +69,10 @@ pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
         occlusion_strength, emissive_texture, transmission, ior, thickness, \
         attenuation_color, attenuation_distance, specular, specular_color, sheen_color, \
         sheen_roughness, clearcoat, clearcoat_roughness, iridescence, iridescence_ior, \
-        iridescence_thickness";
+        iridescence_thickness, transmission_texture, thickness_texture, specular_texture, \
+        specular_color_texture, sheen_color_texture, sheen_roughness_texture, \
+        clearcoat_texture, clearcoat_roughness_texture, clearcoat_normal_texture, \
+        iridescence_texture, iridescence_thickness_texture";
     for (key, value) in dict.iter() {
         let key: String = key.extract()?;
         let bad = |e: PyErr| Error::new_err(format!("material: {key}: {e}"));
@@ -151,10 +154,11 @@ pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
     Ok(m)
 }
 
-/// The factors of glTF's material extensions (but `thickness`, which [`material`] reads),
-/// keyed by their property names in snake case without "Factor" (`transmissionFactor` is
-/// `transmission`). A layer one of its keys names starts from its extension's defaults.
-/// Returns whether `key` is one of them.
+/// The factors and textures of glTF's material extensions (but `thickness`, which
+/// [`material`] reads), keyed by their property names in snake case without "Factor"
+/// (`transmissionFactor` is `transmission`, `clearcoatTexture` `clearcoat_texture`). A layer
+/// one of its keys names starts from its extension's defaults. Returns whether `key` is one
+/// of them.
 fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<bool> {
     // KHR_materials_specular: specularFactor 1, specularColorFactor white.
     fn specular(m: &mut Material) -> &mut SpecularLayer {
@@ -198,6 +202,15 @@ fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<
     }
     let number = || value.extract::<f32>();
     let triple = || value.extract::<[f32; 3]>().map(Vec3::from);
+    let texture = || {
+        value.extract::<usize>().map(|texture| {
+            Some(TextureRef {
+                texture,
+                tex_coord: 0,
+                transform: None,
+            })
+        })
+    };
     match key {
         "transmission" => m.transmission = number()?,
         "ior" => m.ior = number()?,
@@ -211,6 +224,18 @@ fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<
         "clearcoat_roughness" => clearcoat(m).roughness = number()?,
         "iridescence" => iridescence(m).factor = number()?,
         "iridescence_ior" => iridescence(m).ior = number()?,
+        // Their textures: indices from `add_texture`, read with texture coordinates 0.
+        "transmission_texture" => m.transmission_texture = texture()?,
+        "thickness_texture" => m.thickness_texture = texture()?,
+        "specular_texture" => specular(m).texture = texture()?,
+        "specular_color_texture" => specular(m).color_texture = texture()?,
+        "sheen_color_texture" => sheen(m).color_texture = texture()?,
+        "sheen_roughness_texture" => sheen(m).roughness_texture = texture()?,
+        "clearcoat_texture" => clearcoat(m).texture = texture()?,
+        "clearcoat_roughness_texture" => clearcoat(m).roughness_texture = texture()?,
+        "clearcoat_normal_texture" => clearcoat(m).normal_texture = texture()?,
+        "iridescence_texture" => iridescence(m).texture = texture()?,
+        "iridescence_thickness_texture" => iridescence(m).thickness_texture = texture()?,
         "iridescence_thickness" => {
             let [low, high] = value.extract::<[f32; 2]>()?;
             let film = iridescence(m);

@@ -242,7 +242,7 @@ def seen_head_on(material, behind=None):
     middle 0.5 m), path traced with no light but a 4 m white emitter 1 m behind the camera,
     facing the quad (so the quad's reflectance at normal incidence is what comes back), and
     `behind`, a material for a second 4 m quad 1 m behind the first."""
-    scene = meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, material=material)
+    scene = meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS, material=material)
     scene.add_mesh(QUAD * 4, QUAD_TRIANGLES, pose=translation(0, 0, 3), material=WHITE_LIGHT)
     if behind is not None:
         scene.add_mesh(QUAD * 4, QUAD_TRIANGLES, pose=translation(0, 0, -1), material=behind)
@@ -269,6 +269,15 @@ def test_extension_factors_set_the_reflectance_at_normal_incidence(extensions, r
     black = {"base_color": [0, 0, 0], "metallic": 0.0, "roughness": 0.0, **extensions}
     # Within 3% of F0 (a mirror sampled per pixel: no noise to speak of), 1e-4 absolute for 0.
     np.testing.assert_allclose(seen_head_on(black), reflectance, rtol=0.03, atol=1e-4)
+
+
+@pytest.mark.parametrize("texel, reflectance", [(0, 0.0), (255, 0.04)])
+def test_an_extension_texture_scales_its_factor(texel, reflectance):
+    """KHR_materials_clearcoat: the coat's weight is its factor times the texture's red
+    channel, here 0 or 1 all over."""
+    black = {"base_color": [0, 0, 0], "metallic": 0.0, "roughness": 0.0, "specular": 0.0,
+             "clearcoat": 1.0, "clearcoat_texture": np.full((2, 2), texel, np.uint8)}
+    np.testing.assert_allclose(seen_head_on(black), [reflectance] * 3, rtol=0.03, atol=1e-4)
 
 
 @pytest.mark.parametrize("transmission", [1.0, 0.5, 0.0])
