@@ -202,7 +202,8 @@ def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, mat
     ``normal_texture``, ``occlusion_texture``, ``emissive_texture``, and the extensions':
     ``transmission_texture``, ``clearcoat_texture`` and the others named as glTF names them,
     in snake case): each an index from ``add_texture`` or an image as it takes (added with
-    its defaults); textures need ``uvs``.
+    its defaults), or a dict of one (``texture``) with a KHR_texture_transform (``offset``,
+    ``scale``: (u, v); ``rotation``: radians, counter-clockwise); textures need ``uvs``.
     Raises Error, naming the mesh and the array, for a wrong shape, a NaN, an index out of
     range or a factor out of its range.
     """
@@ -216,13 +217,19 @@ def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, mat
         material = dict(material)
         for key in _TEXTURE_SLOTS:
             value = material.get(key)
-            if value is not None and not isinstance(value, (int, _np.integer)):
-                try:
-                    material[key] = _add_texture(self, value)
-                except Error as e:
-                    raise Error(f"material: {key}: {e}") from None
-            elif value is None:
+            if value is None:
                 material.pop(key, None)
+                continue
+            try:
+                if isinstance(value, dict):
+                    # An image inside a transform's dict is added the same way.
+                    image = value.get("texture")
+                    if image is not None and not isinstance(image, (int, _np.integer)):
+                        material[key] = {**value, "texture": _add_texture(self, image)}
+                elif not isinstance(value, (int, _np.integer)):
+                    material[key] = _add_texture(self, value)
+            except Error as e:
+                raise Error(f"material: {key}: {e}") from None
     return self._add_mesh(
         _rows("positions", positions, 3), _triangles(indices),
         None if normals is None else _rows("normals", normals, 3),

@@ -7,7 +7,7 @@ use crate::Error;
 use glam::{Mat4, Vec3, Vec4};
 use meshtracer::scene::{
     AlphaMode, ClearcoatLayer, Filter, IridescenceLayer, LightKind, Material, Sampler, SheenLayer,
-    SpecularLayer, TextureRef, Wrap,
+    SpecularLayer, TextureRef, TextureTransform, Wrap,
 };
 use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -75,7 +75,15 @@ pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
         iridescence_texture, iridescence_thickness_texture";
     for (key, value) in dict.iter() {
         let key: String = key.extract()?;
-        let bad = |e: PyErr| Error::new_err(format!("material: {key}: {e}"));
+        // Our own errors by their message alone; others (a TypeError) with their type.
+        let bad = |e: PyErr| {
+            let message = if e.is_instance_of::<Error>(dict.py()) {
+                e.value(dict.py()).to_string()
+            } else {
+                e.to_string()
+            };
+            Error::new_err(format!("material: {key}: {message}"))
+        };
         match key.as_str() {
             "base_color" => {
                 let c: Vec<f32> = value.extract().map_err(bad)?;
@@ -116,11 +124,7 @@ pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
             | "normal_texture"
             | "occlusion_texture"
             | "emissive_texture" => {
-                let texture = Some(TextureRef {
-                    texture: value.extract().map_err(bad)?,
-                    tex_coord: 0,
-                    transform: None,
-                });
+                let texture = Some(texture_ref(&value).map_err(bad)?);
                 match key.as_str() {
                     "base_color_texture" => m.base_color_texture = texture,
                     "metallic_roughness_texture" => m.metallic_roughness_texture = texture,
@@ -202,15 +206,7 @@ fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<
     }
     let number = || value.extract::<f32>();
     let triple = || value.extract::<[f32; 3]>().map(Vec3::from);
-    let texture = || {
-        value.extract::<usize>().map(|texture| {
-            Some(TextureRef {
-                texture,
-                tex_coord: 0,
-                transform: None,
-            })
-        })
-    };
+    let texture = || texture_ref(value).map(Some);
     match key {
         "transmission" => m.transmission = number()?,
         "ior" => m.ior = number()?,
@@ -244,6 +240,46 @@ fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<
         _ => return Ok(false),
     }
     Ok(true)
+}
+
+/// A texture slot's value: an index from `add_texture`, or a dict of that index (`texture`)
+/// with a `KHR_texture_transform` (`offset` and `scale` as (u, v), `rotation` in radians,
+/// counter-clockwise; the extension's defaults where missing). Read with texture
+/// coordinates 0, the one set a mesh from arrays has.
+fn texture_ref(value: &Bound<'_, PyAny>) -> PyResult<TextureRef> {
+    let Ok(dict) = value.cast::<PyDict>() else {
+        return Ok(TextureRef {
+            texture: value.extract()?,
+            tex_coord: 0,
+            transform: None,
+        });
+    };
+    let mut texture = None;
+    let mut transform = TextureTransform {
+        offset: [0.0, 0.0],
+        rotation: 0.0,
+        scale: [1.0, 1.0],
+    };
+    for (key, v) in dict.iter() {
+        let key: String = key.extract()?;
+        match key.as_str() {
+            "texture" => texture = Some(v.extract()?),
+            "offset" => transform.offset = v.extract()?,
+            "scale" => transform.scale = v.extract()?,
+            "rotation" => transform.rotation = v.extract()?,
+            _ => {
+                return Err(Error::new_err(format!(
+                    "unknown key '{key}': use texture, offset, scale, rotation"
+                )))
+            }
+        }
+    }
+    Ok(TextureRef {
+        texture: texture
+            .ok_or_else(|| Error::new_err("a dict needs 'texture' (an index from add_texture)"))?,
+        tex_coord: 0,
+        transform: Some(transform),
+    })
 }
 
 /// A texture's sampler from glTF's names for its wrap modes (`repeat`, `clamp_to_edge`,

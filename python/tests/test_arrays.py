@@ -297,6 +297,27 @@ def test_a_clear_sheet_shows_what_is_behind_it_by_its_transmission(transmission)
     assert seen[0] - seen[1] == pytest.approx(0.96 * transmission, abs=0.015)
 
 
+@pytest.mark.parametrize("transform, top_row", [
+    # KHR_texture_transform, uv' = offset + rotation(scale * uv), the sampler repeating: the
+    # checker (red, green / blue, white) twice across the quad, or shifted by half its width.
+    ({"scale": (2, 2)}, ["red", "green", "red", "green"]),
+    ({"offset": (0.5, 0.0)}, ["green", "green", "red", "red"]),
+    ({}, ["red", "red", "green", "green"]),
+])
+def test_a_texture_transform_moves_the_texture(transform, top_row):
+    colours = {"red": [255, 0, 0, 255], "green": [0, 255, 0, 255]}
+    scene = meshtracer.Scene.empty("<transformed>")
+    # Nearest texels: the columns below fall near texel edges once scaled.
+    texture = scene.add_texture(CHECKER, filter="nearest")
+    scene.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS,
+                   material={**UNLIT, "base_color_texture": {"texture": texture, **transform}})
+    scene.add_camera(translation(0, 0, 1), xmag=0.5, ymag=0.5)
+    out = scene.render(32, 32, spp=1, integrator="direct", seed=0, tonemap="standard",
+                       srgb8=True)
+    # Pixel columns 4, 12, 20, 28 of row 4: u = 0.14, 0.39, 0.64, 0.89 and v = 0.14.
+    assert [out["srgb8"][4, x].tolist() for x in (4, 12, 20, 28)] == [colours[c] for c in top_row]
+
+
 def test_grey_textures_are_srgb_for_colour_and_linear_for_data():
     grey = np.full((1, 1), 128, np.uint8)
     colour = textured_quad({**UNLIT, "base_color_texture": grey})
@@ -360,6 +381,17 @@ def test_a_normal_map_turns_the_surface_toward_its_light():
      "<t>: mesh 0: material: normal_scale NaN: must be a finite number"),
     (lambda s: s.add_mesh(QUAD, QUAD_TRIANGLES, material={"occlusion_strength": 5}),
      "<t>: mesh 0: material: occlusion_strength 5: must be from 0 to 1"),
+    (lambda s: s.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS,
+                          material={"base_color_texture": {"texture": CHECKER, "tilt": 1}}),
+     "material: base_color_texture: unknown key 'tilt': use texture, offset, scale, rotation"),
+    (lambda s: s.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS,
+                          material={"base_color_texture": {"scale": (2, 2)}}),
+     "material: base_color_texture: a dict needs 'texture'"),
+    (lambda s: s.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS,
+                          material={"base_color_texture": {"texture": CHECKER,
+                                                           "rotation": float("inf")}}),
+     "<t>: mesh 0: material: texture 0: transform offset [0.0, 0.0], rotation inf, "
+     "scale [1.0, 1.0]: must be finite numbers"),
 ])
 def test_bad_textures_raise_errors_naming_them(call, message):
     with pytest.raises(meshtracer.Error) as e:

@@ -328,9 +328,9 @@ fn check_arrays(mesh: &MeshArrays) -> Result<(), (&'static str, String)> {
 
 /// What is wrong with a material given as factors, if anything: the glTF ranges
 /// (§5.19, §5.22: colour, metallic, roughness and alpha cutoff in [0, 1], emissive at least 0;
-/// the occlusion texture's strength in [0, 1]; a finite normal scale), and those of the
-/// material extensions (`check_extensions`: transmission, ior, volume, specular, sheen,
-/// clearcoat, iridescence).
+/// the occlusion texture's strength in [0, 1]; a finite normal scale; finite texture
+/// transforms), and those of the material extensions (`check_extensions`: transmission, ior,
+/// volume, specular, sheen, clearcoat, iridescence).
 pub fn check_material(material: &Material) -> Result<(), String> {
     let unit = |name: &str, v: f32| {
         if (0.0..=1.0).contains(&v) {
@@ -366,6 +366,17 @@ pub fn check_material(material: &Material) -> Result<(), String> {
             "emissive_strength {}: must be a finite number of at least 0",
             material.emissive_strength
         ));
+    }
+    for r in material.texture_refs() {
+        if let Some(t) = r.transform {
+            let numbers = [t.offset[0], t.offset[1], t.rotation, t.scale[0], t.scale[1]];
+            if !numbers.iter().all(|v| v.is_finite()) {
+                return Err(format!(
+                    "texture {}: transform offset {:?}, rotation {}, scale {:?}: must be finite numbers",
+                    r.texture, t.offset, t.rotation, t.scale
+                ));
+            }
+        }
     }
     check_extensions(material)
 }
