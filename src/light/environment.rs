@@ -173,8 +173,14 @@ impl Environment {
         limits.max_image_height = Some(8192);
         limits.max_alloc = Some(MAX_ENVIRONMENT_TEXELS * 16);
         reader.limits(limits);
-        let image = reader
-            .decode()
+        // A panic in the decoder (another crate reading the user's file) is a bug to report,
+        // and an error naming the file here, not the end of the process.
+        let image = crate::scene::catch_quietly(|| reader.decode())
+            .map_err(|panic| {
+                fail(format!(
+                    "the decoder failed (an internal error; please report this file): {panic}"
+                ))
+            })?
             .map_err(|e| fail(format!("cannot decode the panorama: {e}")))?
             .into_rgb32f();
         let (width, height) = (image.width() as usize, image.height() as usize);

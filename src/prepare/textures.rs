@@ -387,12 +387,27 @@ fn wrap(i: i64, size: u32, mode: Wrap) -> u32 {
 const MAX_DECODE_BYTES: u64 = 2 << 30;
 
 /// Decodes one image source to RGBA8.
+///
+/// The decoders (PNG, JPEG, WebP, Basis Universal) are other crates reading bytes from a
+/// downloaded file. A panic in one of them is a bug to report, not a reason to end the render:
+/// it becomes this image's error, which leaves the image out with a warning (an error under
+/// `--strict`) like any image that cannot be decoded. Fuzz builds let it through, so the fuzz
+/// targets still find it.
 fn decode(source: &ImageSource) -> Result<Decoded, String> {
     if let Encoded::Pixels(pixels) = source.encoded() {
         // Handed over as pixels: shared with the scene, not copied.
         return Ok(Decoded::Shared(Arc::clone(pixels)));
     }
-    decode_encoded(source).map(Decoded::Owned)
+    #[cfg(fuzzing)]
+    return decode_encoded(source).map(Decoded::Owned);
+    #[cfg(not(fuzzing))]
+    crate::scene::catch_quietly(|| decode_encoded(source))
+        .unwrap_or_else(|panic| {
+            Err(format!(
+                "the decoder failed (an internal error; please report this image): {panic}"
+            ))
+        })
+        .map(Decoded::Owned)
 }
 
 /// [`decode`] of an encoded source.

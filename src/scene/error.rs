@@ -319,9 +319,55 @@ pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> &str {
         .unwrap_or("unknown panic")
 }
 
+thread_local! {
+    /// Whether a panic on this thread is being caught by [`catch_quietly`], which reports it
+    /// itself.
+    static CATCHING: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// Runs `f` on this thread and returns what it returns, or the message of a panic inside it.
+/// The panic hook stays silent for that panic (the caller makes it one error or warning among
+/// its own); panics elsewhere, and on other threads, still reach the hook there was. For
+/// third-party code reading hostile bytes (the image decoders), where a panic is a bug to
+/// report but must not end the process.
+///
+/// The first call wraps the process's panic hook in one that asks this thread's flag first;
+/// a hook set later replaces the wrapper, and then such panics are caught but not silenced.
+pub fn catch_quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
+    static WRAPPED: std::sync::Once = std::sync::Once::new();
+    WRAPPED.call_once(|| {
+        let previous = std::panic::take_hook();
+        std::panic::set_hook(Box::new(move |info| {
+            if !CATCHING.with(std::cell::Cell::get) {
+                previous(info);
+            }
+        }));
+    });
+    let outer = CATCHING.with(|c| c.replace(true));
+    let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(f));
+    CATCHING.with(|c| c.set(outer));
+    result.map_err(|panic| panic_message(panic.as_ref()).to_string())
+}
+
 #[cfg(test)]
 mod panic_tests {
-    use super::panic_message;
+    use super::{catch_quietly, panic_message};
+
+    #[test]
+    fn a_panic_caught_quietly_is_its_message() {
+        assert_eq!(catch_quietly(|| 7), Ok(7));
+        assert_eq!(
+            catch_quietly(|| -> u8 { panic!("decoder {}", 3) }),
+            Err("decoder 3".to_string())
+        );
+        // Nested: the inner catch restores the outer one's flag.
+        let nested = catch_quietly(|| {
+            let inner = catch_quietly(|| -> u8 { panic!("inner") });
+            assert_eq!(inner, Err("inner".to_string()));
+            panic!("outer")
+        });
+        assert_eq!(nested, Err::<(), _>("outer".to_string()));
+    }
 
     #[test]
     fn a_panics_message_is_read_from_either_payload() {
