@@ -74,10 +74,13 @@ pub(super) fn material(m: &gltf::Material) -> Material {
     let occlusion = m.occlusion_texture();
     Material {
         name: m.name().map(str::to_string),
-        base_color: Vec4::from(pbr.base_color_factor()),
+        // glTF 2.0 §5.22: every factor of the core material is in [0, 1] (a base colour above 1
+        // would reflect more light than arrives); out of range is invalid, clamped here and
+        // reported by `out_of_range`.
+        base_color: Vec4::from(pbr.base_color_factor()).clamp(Vec4::ZERO, Vec4::ONE),
         base_color_texture: texture_ref(pbr.base_color_texture()),
-        metallic: pbr.metallic_factor(),
-        roughness: pbr.roughness_factor(),
+        metallic: pbr.metallic_factor().clamp(0.0, 1.0),
+        roughness: pbr.roughness_factor().clamp(0.0, 1.0),
         metallic_roughness_texture: texture_ref(pbr.metallic_roughness_texture()),
         normal_texture: normal.as_ref().map(|n| {
             extension_texture_ref(
@@ -94,8 +97,10 @@ pub(super) fn material(m: &gltf::Material) -> Material {
                 o.extension_value("KHR_texture_transform"),
             )
         }),
-        occlusion_strength: occlusion.as_ref().map_or(1.0, |o| o.strength()),
-        emissive: Vec3::from(m.emissive_factor()),
+        occlusion_strength: occlusion
+            .as_ref()
+            .map_or(1.0, |o| o.strength().clamp(0.0, 1.0)),
+        emissive: Vec3::from(m.emissive_factor()).clamp(Vec3::ZERO, Vec3::ONE),
         emissive_strength: m
             .emissive_strength()
             .map_or(1.0, |e| finite_or(e, 1.0).max(0.0)),
@@ -177,6 +182,28 @@ pub(super) fn material(m: &gltf::Material) -> Material {
 /// the material.
 pub(super) fn out_of_range(m: &gltf::Material) -> Vec<String> {
     let mut problems = Vec::new();
+    let pbr = m.pbr_metallic_roughness();
+    let unit = |v: &[f32]| v.iter().all(|x| (0.0..=1.0).contains(x));
+    // (property, its values) of the core material's factors, each defined on [0, 1].
+    let core: [(&str, &[f32]); 5] = [
+        ("baseColorFactor", &pbr.base_color_factor()),
+        ("metallicFactor", &[pbr.metallic_factor()]),
+        ("roughnessFactor", &[pbr.roughness_factor()]),
+        ("emissiveFactor", &m.emissive_factor()),
+        (
+            "occlusionTexture strength",
+            &[m.occlusion_texture().map_or(1.0, |o| o.strength())],
+        ),
+    ];
+    for (property, values) in core {
+        if !unit(values) {
+            let shown = match values {
+                [one] => one.to_string(),
+                many => format!("{many:?}"),
+            };
+            problems.push(format!("{property} {shown} is outside [0, 1]; clamped"));
+        }
+    }
     if let Some(ior) = m.ior().filter(|i| !(i.is_finite() && *i >= 1.0)) {
         problems.push(format!(
             "KHR_materials_ior ior {ior} is not at least 1; the default 1.5 is used"

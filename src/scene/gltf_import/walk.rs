@@ -444,10 +444,15 @@ impl<'a> Importer<'a> {
     }
 
     /// The file's materials (and the default material, if a primitive has none), with a
-    /// warning for each value corrected ([`out_of_range`]).
+    /// warning for each value corrected ([`out_of_range`]); the lights' corrections are
+    /// reported here too ([`light_out_of_range`]), once for each light however many nodes
+    /// place it.
     pub(super) fn materials(&mut self) -> Vec<Material> {
         for m in self.document.materials() {
             self.warnings.extend(out_of_range(&m));
+        }
+        for light in self.document.lights().into_iter().flatten() {
+            self.warnings.extend(light_out_of_range(&light));
         }
         let mut out: Vec<Material> = self.document.materials().map(|m| material(&m)).collect();
         if self.uses_default_material {
@@ -479,6 +484,46 @@ fn place_camera(camera: &gltf::Camera, world: Mat4, node_name: Option<String>) -
     )
 }
 
+/// KHR_lights_punctual's ranges: `color` in [0, 1] per channel (a negative one would take light
+/// away), `outerConeAngle` in (0, π/2], `innerConeAngle` in [0, outerConeAngle).
+const OUTER_CONE_MAX: f32 = std::f32::consts::FRAC_PI_2;
+
+/// A spot light's cones brought into the extension's ranges: the outer one into (0, π/2],
+/// the inner one into [0, outer), so that the cone's falloff has a width.
+fn spot_cones(inner: f32, outer: f32) -> (f32, f32) {
+    let outer = outer.clamp(1e-4, OUTER_CONE_MAX);
+    if (0.0..outer).contains(&inner) {
+        return (inner, outer);
+    }
+    (inner.clamp(0.0, outer * (1.0 - 1e-3)), outer)
+}
+
+/// What [`place_light`] corrects in a light whose values are outside the ranges
+/// KHR_lights_punctual defines (an invalid file), one warning each, naming the light.
+pub(super) fn light_out_of_range(light: &gltf::khr_lights_punctual::Light) -> Vec<String> {
+    let mut problems = Vec::new();
+    let color = light.color();
+    if !color.iter().all(|c| (0.0..=1.0).contains(c)) {
+        problems.push(format!("color {color:?} is outside [0, 1]; clamped"));
+    }
+    if let gltf::khr_lights_punctual::Kind::Spot {
+        inner_cone_angle: inner,
+        outer_cone_angle: outer,
+    } = light.kind()
+    {
+        if spot_cones(inner, outer) != (inner, outer) {
+            problems.push(format!(
+                "spot cones {inner}..{outer} rad are not 0 <= inner < outer <= π/2; corrected"
+            ));
+        }
+    }
+    let name = light.name().map_or(String::new(), |n| format!(" ('{n}')"));
+    problems
+        .into_iter()
+        .map(|p| format!("KHR_lights_punctual light {}{name}: {p}", light.index()))
+        .collect()
+}
+
 fn place_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Option<Light> {
     use gltf::khr_lights_punctual::Kind;
     let kind = match light.kind() {
@@ -487,14 +532,18 @@ fn place_light(light: &gltf::khr_lights_punctual::Light, world: Mat4) -> Option<
         Kind::Spot {
             inner_cone_angle,
             outer_cone_angle,
-        } => LightKind::Spot {
-            inner_cone_angle,
-            outer_cone_angle,
-        },
+        } => {
+            let (inner_cone_angle, outer_cone_angle) =
+                spot_cones(inner_cone_angle, outer_cone_angle);
+            LightKind::Spot {
+                inner_cone_angle,
+                outer_cone_angle,
+            }
+        }
     };
     Light::from_pose(
         kind,
-        Vec3::from(light.color()),
+        Vec3::from(light.color()).clamp(Vec3::ZERO, Vec3::ONE),
         light.intensity(),
         light.range(),
         world,
