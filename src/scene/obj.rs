@@ -101,7 +101,8 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     if uses_default {
         materials.push(obj_default_material());
     }
-    let mut warnings = image_warnings;
+    let mut warnings: Vec<String> = mtl_materials.iter().flat_map(mtl_out_of_range).collect();
+    warnings.extend(image_warnings);
     warnings.extend(builder.dropped_warning());
     if lone_material_fallback {
         warnings.push(format!(
@@ -626,7 +627,11 @@ fn mtl_material(m: &tobj::Material) -> Material {
         })
         .unwrap_or(1.0)
         .clamp(0.0, 1.0);
-    let kd = m.diffuse.unwrap_or([0.8, 0.8, 0.8]);
+    // A diffuse colour reflects at most what arrives: Kd in [0, 1] (`mtl_out_of_range` warns).
+    let kd =
+        m.diffuse
+            .unwrap_or([0.8, 0.8, 0.8])
+            .map(|c| if c.is_nan() { 0.8 } else { c.clamp(0.0, 1.0) });
     let roughness = m
         .shininess
         .filter(|ns| ns.is_finite() && *ns >= 0.0)
@@ -678,7 +683,11 @@ fn mtl_material(m: &tobj::Material) -> Material {
         base_color: Vec4::new(tint[0], tint[1], tint[2], alpha),
         metallic: 0.0,
         roughness: if no_highlights { 1.0 } else { roughness },
-        emissive: m.emissive.map_or(Vec3::ZERO, Vec3::from),
+        // Ke has no upper bound (an area light's is often above 1), but a negative or
+        // non-finite one is no emission.
+        emissive: m
+            .emissive
+            .map_or(Vec3::ZERO, |ke| Vec3::from(ke.map(usable_emission))),
         alpha_mode: if alpha < 1.0 {
             AlphaMode::Blend
         } else {
@@ -700,6 +709,41 @@ fn mtl_material(m: &tobj::Material) -> Material {
         },
         ..Material::default()
     }
+}
+
+/// A channel of `Ke` as emitted: itself when finite and not negative, else 0.
+fn usable_emission(c: f32) -> f32 {
+    if c.is_finite() && c >= 0.0 {
+        c
+    } else {
+        0.0
+    }
+}
+
+/// What [`mtl_material`] corrects in `m` (values no MTL writer means: a `Kd` outside [0, 1],
+/// which would reflect more light than arrives, or a negative or non-finite `Ke`), one warning
+/// each, naming the material.
+fn mtl_out_of_range(m: &tobj::Material) -> Vec<String> {
+    let mut problems = Vec::new();
+    if let Some(kd) = m
+        .diffuse
+        .filter(|kd| !kd.iter().all(|c| (0.0..=1.0).contains(c)))
+    {
+        problems.push(format!("Kd {kd:?} is outside [0, 1]; clamped"));
+    }
+    if let Some(ke) = m
+        .emissive
+        .filter(|ke| ke.iter().any(|&c| usable_emission(c) != c))
+    {
+        problems.push(format!(
+            "Ke {ke:?} has a negative or non-finite channel; it emits nothing there"
+        ));
+    }
+    let name = m.name.trim();
+    problems
+        .into_iter()
+        .map(|p| format!("MTL material '{name}': {p}"))
+        .collect()
 }
 
 /// The ior and `KHR_materials_specular` layer of a non-glass MTL material of index `index`
@@ -899,6 +943,36 @@ mod tests {
         };
         let mat = mtl_material(&m);
         assert_eq!((mat.roughness, mat.specular), (1.0, Some(Vec3::ZERO)));
+    }
+
+    /// A `Kd` outside [0, 1] is clamped (NaN: the default 0.8), a negative or non-finite
+    /// `Ke` channel emits nothing while a bright one (an area light's 17) is kept; each
+    /// correction is one warning naming the material, and a valid material has none.
+    #[test]
+    fn kd_and_ke_out_of_range_are_corrected_with_warnings() {
+        let m = tobj::Material {
+            name: "lamp ".into(),
+            diffuse: Some([50.0, -1.0, f32::NAN]),
+            emissive: Some([-1.0, f32::INFINITY, 17.0]),
+            ..Default::default()
+        };
+        let mat = mtl_material(&m);
+        assert_eq!(mat.base_color, Vec4::new(1.0, 0.0, 0.8, 1.0));
+        assert_eq!(mat.emissive, Vec3::new(0.0, 0.0, 17.0));
+        assert_eq!(
+            mtl_out_of_range(&m),
+            [
+                "MTL material 'lamp': Kd [50.0, -1.0, NaN] is outside [0, 1]; clamped",
+                "MTL material 'lamp': Ke [-1.0, inf, 17.0] has a negative or non-finite channel; it emits nothing there",
+            ]
+        );
+        let valid = tobj::Material {
+            diffuse: Some([0.0, 0.5, 1.0]),
+            emissive: Some([17.0, 12.0, 4.0]),
+            ..Default::default()
+        };
+        assert!(mtl_out_of_range(&valid).is_empty());
+        assert_eq!(mtl_material(&valid).emissive, Vec3::new(17.0, 12.0, 4.0));
     }
 
     #[test]
