@@ -183,8 +183,13 @@ impl TileFile {
         }
         if !file.region.fits(file.image.width, file.image.height) {
             return Err(bad(format!(
-                "region {:?} does not fit the {}x{} image",
-                file.region, file.image.width, file.image.height
+                "region {}x{} at ({}, {}) does not fit the {}x{} image",
+                file.region.width,
+                file.region.height,
+                file.region.x,
+                file.region.y,
+                file.image.width,
+                file.image.height
             )));
         }
         if !file.outputs.contains_key("image") {

@@ -314,7 +314,7 @@ impl ViewFile {
         if view.image.width == 0 || view.image.height == 0 {
             return Err(err("image width and height must be at least 1".into()));
         }
-        view.camera()?;
+        view.camera.to_camera().map_err(err)?;
         for l in &view.lights {
             to_light(l).map_err(err)?;
         }
@@ -474,10 +474,20 @@ fn to_light(l: &ViewLight) -> Result<Light, String> {
     let kind = match l.kind.as_str() {
         "point" => LightKind::Point,
         "directional" => LightKind::Directional,
-        "spot" => LightKind::Spot {
-            inner_cone_angle: l.inner_cone_angle.unwrap_or(0.0),
-            outer_cone_angle: l.outer_cone_angle.unwrap_or(std::f32::consts::FRAC_PI_4),
-        },
+        "spot" => {
+            let inner = l.inner_cone_angle.unwrap_or(0.0);
+            let outer = l.outer_cone_angle.unwrap_or(std::f32::consts::FRAC_PI_4);
+            // KHR_lights_punctual's ranges, as the importer holds a file's lights to them.
+            if !(0.0 <= inner && inner < outer && outer <= std::f32::consts::FRAC_PI_2) {
+                return Err(format!(
+                    "spot light cones {inner}..{outer} rad: need 0 <= inner < outer <= π/2"
+                ));
+            }
+            LightKind::Spot {
+                inner_cone_angle: inner,
+                outer_cone_angle: outer,
+            }
+        }
         other => return Err(format!("unknown light type '{other}'")),
     };
     let stored = Vec3::from(l.direction);
@@ -488,7 +498,8 @@ fn to_light(l: &ViewLight) -> Result<Light, String> {
     let valid = l.intensity.is_finite()
         && l.intensity >= 0.0
         && Vec3::from(l.position).is_finite()
-        && Vec3::from(l.color).is_finite();
+        && Vec3::from(l.color).is_finite()
+        && Vec3::from(l.color).min_element() >= 0.0;
     if !valid {
         return Err("a light has a non-finite or negative value".into());
     }
@@ -569,6 +580,59 @@ mod tests {
         let mut edited = ViewFile::new(&cameras[0], 64, 48, &[], Vec3::ZERO, true);
         edited.camera.look_at = (cameras[0].position + Vec3::X).to_array();
         assert_eq!(edited.camera().unwrap().forward, Vec3::X);
+    }
+
+    /// A view file someone edited is held to what a render needs: each refusal names the
+    /// file (the camera's too), a light with a negative colour (it would take light away)
+    /// and spot cones outside 0 <= inner < outer <= π/2 included.
+    #[test]
+    fn edited_views_are_refused_naming_the_file_and_the_fault() {
+        let bounds = Bounds {
+            min: Vec3::splat(-1.0),
+            max: Vec3::splat(1.0),
+        };
+        let camera = crate::camera::auto_camera(&bounds, &[], 4.0 / 3.0);
+        let spot = Light {
+            name: None,
+            kind: LightKind::Spot {
+                inner_cone_angle: 0.2,
+                outer_cone_angle: 0.4,
+            },
+            color: Vec3::ONE,
+            intensity: 2.0,
+            range: None,
+            position: Vec3::ZERO,
+            direction: Vec3::NEG_Z,
+        };
+        let view = ViewFile::new(&camera, 64, 48, &[spot], Vec3::ZERO, true);
+        let path = Path::new("edited.json");
+        assert!(ViewFile::from_json(&view.to_json(), path).is_ok());
+        let refusal = |edit: &dyn Fn(&mut ViewFile)| {
+            let mut edited = view.clone();
+            edit(&mut edited);
+            ViewFile::from_json(&edited.to_json(), path)
+                .expect_err("an edited view")
+                .to_string()
+        };
+        assert_eq!(
+            refusal(&|v| v.camera.yfov = Some(0.0)),
+            "edited.json: perspective camera needs yfov in (0, π)"
+        );
+        assert_eq!(
+            refusal(&|v| v.lights[0].color = [-1.0, 0.5, 0.5]),
+            "edited.json: a light has a non-finite or negative value"
+        );
+        for (inner, outer) in [(0.5, 0.4), (-0.1, 0.4), (0.2, 1.6)] {
+            assert_eq!(
+                refusal(&|v| {
+                    v.lights[0].inner_cone_angle = Some(inner);
+                    v.lights[0].outer_cone_angle = Some(outer);
+                }),
+                format!(
+                    "edited.json: spot light cones {inner}..{outer} rad: need 0 <= inner < outer <= π/2"
+                )
+            );
+        }
     }
 
     /// A denoised view's record survives writing and reading; a view file without one (every
