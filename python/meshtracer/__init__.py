@@ -184,11 +184,12 @@ def _add_texture(self, image, *, wrap="repeat", filter="linear", name=None):
 
 
 def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, material=None,
-              pose=None, name=None):
+              pose=None, name=None, uvs1=None):
     """Adds a mesh given as arrays; returns its instance index (segmentation id - 1).
 
     positions: N x 3 (metres), indices: M x 3 (counter-clockwise from the front), normals:
-    N x 3, uvs: N x 2 ((0, 0) at the texture's top-left, as glTF), colors: N x 3 or N x 4
+    N x 3, uvs: N x 2 ((0, 0) at the texture's top-left, as glTF), uvs1: N x 2, a second set
+    (glTF's TEXCOORD_1) for textures that name it, colors: N x 3 or N x 4
     (linear, multiplying the base colour); pose: 4x4 world-from-local matrix (default
     identity); material: a dict of glTF metallic-roughness factors (``base_color`` RGB or
     RGBA, ``metallic``, ``roughness``, ``emissive``, ``emissive_strength``, ``alpha_mode``,
@@ -202,8 +203,9 @@ def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, mat
     ``normal_texture``, ``occlusion_texture``, ``emissive_texture``, and the extensions':
     ``transmission_texture``, ``clearcoat_texture`` and the others named as glTF names them,
     in snake case): each an index from ``add_texture`` or an image as it takes (added with
-    its defaults), or a dict of one (``texture``) with a KHR_texture_transform (``offset``,
-    ``scale``: (u, v); ``rotation``: radians, counter-clockwise); textures need ``uvs``.
+    its defaults), or a dict of one (``texture``) with the uv set it reads (``tex_coord``: 0,
+    the default, or 1 for ``uvs1``) and a KHR_texture_transform (``offset``, ``scale``:
+    (u, v); ``rotation``: radians, counter-clockwise); textures need the uvs they read.
     Raises Error, naming the mesh and the array, for a wrong shape, a NaN, an index out of
     range or a factor out of its range.
     """
@@ -235,15 +237,16 @@ def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, mat
         None if normals is None else _rows("normals", normals, 3),
         None if uvs is None else _rows("uvs", uvs, 2),
         None if colors is None else _rows("colors", colors, 4),
-        material, _pose(pose), name)
+        material, _pose(pose), name,
+        None if uvs1 is None else _rows("uvs1", uvs1, 2))
 
 
 def _from_arrays(positions, indices, normals=None, uvs=None, colors=None, material=None,
-                 pose=None, name="<arrays>"):
+                 pose=None, name="<arrays>", uvs1=None):
     """A scene of one mesh given as arrays (see ``Scene.add_mesh``); add more meshes,
     cameras and lights to it, then render it as a loaded scene."""
     scene = Scene.empty(str(name))
-    scene.add_mesh(positions, indices, normals, uvs, colors, material, pose)
+    scene.add_mesh(positions, indices, normals, uvs, colors, material, pose, uvs1=uvs1)
     return scene
 
 

@@ -243,9 +243,9 @@ fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<
 }
 
 /// A texture slot's value: an index from `add_texture`, or a dict of that index (`texture`)
-/// with a `KHR_texture_transform` (`offset` and `scale` as (u, v), `rotation` in radians,
-/// counter-clockwise; the extension's defaults where missing). Read with texture
-/// coordinates 0, the one set a mesh from arrays has.
+/// with the texture coordinate set it reads (`tex_coord`: 0, the default, or 1, the mesh's
+/// `uvs1`) and a `KHR_texture_transform` (`offset` and `scale` as (u, v), `rotation` in
+/// radians, counter-clockwise; the extension's defaults where missing).
 fn texture_ref(value: &Bound<'_, PyAny>) -> PyResult<TextureRef> {
     let Ok(dict) = value.cast::<PyDict>() else {
         return Ok(TextureRef {
@@ -255,7 +255,9 @@ fn texture_ref(value: &Bound<'_, PyAny>) -> PyResult<TextureRef> {
         });
     };
     let mut texture = None;
-    let mut transform = TextureTransform {
+    let mut tex_coord = 0;
+    let mut transform: Option<TextureTransform> = None;
+    let identity = TextureTransform {
         offset: [0.0, 0.0],
         rotation: 0.0,
         scale: [1.0, 1.0],
@@ -264,12 +266,13 @@ fn texture_ref(value: &Bound<'_, PyAny>) -> PyResult<TextureRef> {
         let key: String = key.extract()?;
         match key.as_str() {
             "texture" => texture = Some(v.extract()?),
-            "offset" => transform.offset = v.extract()?,
-            "scale" => transform.scale = v.extract()?,
-            "rotation" => transform.rotation = v.extract()?,
+            "tex_coord" => tex_coord = v.extract()?,
+            "offset" => transform.get_or_insert(identity).offset = v.extract()?,
+            "scale" => transform.get_or_insert(identity).scale = v.extract()?,
+            "rotation" => transform.get_or_insert(identity).rotation = v.extract()?,
             _ => {
                 return Err(Error::new_err(format!(
-                    "unknown key '{key}': use texture, offset, scale, rotation"
+                    "unknown key '{key}': use texture, tex_coord, offset, scale, rotation"
                 )))
             }
         }
@@ -277,8 +280,8 @@ fn texture_ref(value: &Bound<'_, PyAny>) -> PyResult<TextureRef> {
     Ok(TextureRef {
         texture: texture
             .ok_or_else(|| Error::new_err("a dict needs 'texture' (an index from add_texture)"))?,
-        tex_coord: 0,
-        transform: Some(transform),
+        tex_coord,
+        transform,
     })
 }
 

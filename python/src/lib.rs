@@ -550,7 +550,7 @@ impl PyScene {
 
     /// Adds a mesh from float32/uint32 arrays the Python side converted and shaped; see
     /// `meshtracer.Scene.add_mesh` in `__init__.py`.
-    #[pyo3(signature = (positions, indices, normals=None, uvs=None, colors=None, material=None, pose=None, name=None))]
+    #[pyo3(signature = (positions, indices, normals=None, uvs=None, colors=None, material=None, pose=None, name=None, uvs1=None))]
     #[allow(clippy::too_many_arguments)]
     fn _add_mesh(
         &self,
@@ -562,6 +562,7 @@ impl PyScene {
         material: Option<Bound<'_, PyDict>>,
         pose: Option<[f32; 16]>,
         name: Option<String>,
+        uvs1: Option<PyReadonlyArray2<'_, f32>>,
     ) -> PyResult<usize> {
         let mesh = MeshArrays {
             positions: build::rows::<Vec3, 3>("positions", &positions)?,
@@ -573,6 +574,10 @@ impl PyScene {
             uv0: uvs
                 .as_ref()
                 .map(|a| build::rows::<Vec2, 2>("uvs", a))
+                .transpose()?,
+            uv1: uvs1
+                .as_ref()
+                .map(|a| build::rows::<Vec2, 2>("uvs1", a))
                 .transpose()?,
             colors: colors
                 .as_ref()

@@ -318,6 +318,37 @@ def test_a_texture_transform_moves_the_texture(transform, top_row):
     assert [out["srgb8"][4, x].tolist() for x in (4, 12, 20, 28)] == [colours[c] for c in top_row]
 
 
+@pytest.mark.parametrize("tex_coord, top_row", [
+    # The checker read through uvs (as it is) or through uvs1 (u mirrored): red, green on
+    # its top row, or green, red.
+    (0, ["red", "red", "green", "green"]),
+    (1, ["green", "green", "red", "red"]),
+])
+def test_a_texture_reads_the_uv_set_it_names(tex_coord, top_row):
+    colours = {"red": [255, 0, 0, 255], "green": [0, 255, 0, 255]}
+    scene = meshtracer.Scene.empty("<two sets>")
+    texture = scene.add_texture(CHECKER, filter="nearest")
+    mirrored = np.array(QUAD_UVS, np.float32) * [-1, 1] + [1, 0]
+    scene.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS, uvs1=mirrored,
+                   material={**UNLIT, "base_color_texture": {"texture": texture,
+                                                             "tex_coord": tex_coord}})
+    scene.add_camera(translation(0, 0, 1), xmag=0.5, ymag=0.5)
+    out = scene.render(32, 32, spp=1, integrator="direct", seed=0, tonemap="standard",
+                       srgb8=True)
+    assert [out["srgb8"][4, x].tolist() for x in (4, 12, 20, 28)] == [colours[c] for c in top_row]
+
+
+def test_a_texture_on_the_second_uv_set_needs_it():
+    scene = meshtracer.Scene.empty("<one set>")
+    texture = scene.add_texture(CHECKER)
+    with pytest.raises(meshtracer.Error, match="uvs1: missing"):
+        scene.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS,
+                       material={"base_color_texture": {"texture": texture, "tex_coord": 1}})
+    with pytest.raises(meshtracer.Error, match="reads texture coordinate set 2"):
+        scene.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS, uvs1=QUAD_UVS,
+                       material={"base_color_texture": {"texture": texture, "tex_coord": 2}})
+
+
 def test_grey_textures_are_srgb_for_colour_and_linear_for_data():
     grey = np.full((1, 1), 128, np.uint8)
     colour = textured_quad({**UNLIT, "base_color_texture": grey})
@@ -383,7 +414,7 @@ def test_a_normal_map_turns_the_surface_toward_its_light():
      "<t>: mesh 0: material: occlusion_strength 5: must be from 0 to 1"),
     (lambda s: s.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS,
                           material={"base_color_texture": {"texture": CHECKER, "tilt": 1}}),
-     "material: base_color_texture: unknown key 'tilt': use texture, offset, scale, rotation"),
+     "material: base_color_texture: unknown key 'tilt': use texture, tex_coord, offset, scale, rotation"),
     (lambda s: s.add_mesh(QUAD, QUAD_TRIANGLES, uvs=QUAD_UVS,
                           material={"base_color_texture": {"scale": (2, 2)}}),
      "material: base_color_texture: a dict needs 'texture'"),

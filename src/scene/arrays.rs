@@ -30,6 +30,9 @@ pub struct MeshArrays<'a> {
     pub normals: Option<&'a [Vec3]>,
     /// Texture coordinates (set 0), (0, 0) at the image's top-left as in glTF.
     pub uv0: Option<&'a [Vec2]>,
+    /// A second set of texture coordinates (glTF `TEXCOORD_1`: an occlusion or light map's
+    /// own unwrap), for the textures whose [`TextureRef::tex_coord`] is 1.
+    pub uv1: Option<&'a [Vec2]>,
     /// Linear RGBA vertex colours, multiplying the base colour (glTF `COLOR_0`).
     pub colors: Option<&'a [Vec4]>,
 }
@@ -113,19 +116,26 @@ impl Scene {
                 ),
             ));
         }
-        if let Some(r) = material.texture_refs().find(|r| r.tex_coord != 0) {
+        if let Some(r) = material.texture_refs().find(|r| r.tex_coord > 1) {
             return Err(fail(
                 "material",
                 format!(
-                    "texture {} reads texture coordinate set {}: a mesh from arrays has set 0 only",
+                    "texture {} reads texture coordinate set {}: a mesh from arrays has sets 0 and 1",
                     r.texture, r.tex_coord
                 ),
             ));
         }
-        if mesh.uv0.is_none() && material.texture_refs().next().is_some() {
+        let reads = |set: u32| material.texture_refs().any(|r| r.tex_coord == set);
+        if mesh.uv0.is_none() && reads(0) {
             return Err(fail(
                 "uvs",
                 "missing: the material has textures, which are placed by the uvs".into(),
+            ));
+        }
+        if mesh.uv1.is_none() && reads(1) {
+            return Err(fail(
+                "uvs1",
+                "missing: the material has a texture that reads coordinate set 1".into(),
             ));
         }
         if !pose.is_finite() {
@@ -155,6 +165,7 @@ impl Scene {
             positions: &positions,
             normals: normals.as_deref(),
             uv0: mesh.uv0,
+            uv1: mesh.uv1,
             colors: mesh.colors,
             ..Default::default()
         };
@@ -275,6 +286,7 @@ fn check_arrays(mesh: &MeshArrays) -> Result<(), (&'static str, String)> {
     let lengths = [
         ("normals", mesh.normals.map(<[Vec3]>::len)),
         ("uvs", mesh.uv0.map(<[Vec2]>::len)),
+        ("uvs1", mesh.uv1.map(<[Vec2]>::len)),
         ("colors", mesh.colors.map(<[Vec4]>::len)),
     ];
     for (part, len) in lengths {
@@ -291,7 +303,7 @@ fn check_arrays(mesh: &MeshArrays) -> Result<(), (&'static str, String)> {
             .position(|v| !v.is_finite())
             .map(|i| i / width)
     }
-    let rows: [(&str, Option<&[f32]>, usize); 4] = [
+    let rows: [(&str, Option<&[f32]>, usize); 5] = [
         ("positions", Some(bytemuck::cast_slice(mesh.positions)), 3),
         (
             "normals",
@@ -299,6 +311,7 @@ fn check_arrays(mesh: &MeshArrays) -> Result<(), (&'static str, String)> {
             3,
         ),
         ("uvs", mesh.uv0.map(bytemuck::cast_slice::<Vec2, f32>), 2),
+        ("uvs1", mesh.uv1.map(bytemuck::cast_slice::<Vec2, f32>), 2),
         (
             "colors",
             mesh.colors.map(bytemuck::cast_slice::<Vec4, f32>),
@@ -654,6 +667,43 @@ mod tests {
         assert!(image.level_zero_is(pixels));
     }
 
+    /// A second uv set is kept beside the first, corner for corner, for the textures that read
+    /// set 1; a later mesh without it gets zeros there (none of its textures reads them).
+    #[test]
+    fn a_second_uv_set_is_kept_for_the_textures_that_read_it() {
+        let mut scene = Scene::empty("<arrays>");
+        let t = scene
+            .add_texture(2, 1, RED_BLUE.to_vec(), Sampler::default(), None)
+            .expect("2x1");
+        let flipped = QUAD_UVS.map(|uv| Vec2::new(1.0 - uv.x, uv.y));
+        let mesh = MeshArrays {
+            uv0: Some(&QUAD_UVS),
+            uv1: Some(&flipped),
+            ..quad()
+        };
+        let occlusion_on_set_1 = Material {
+            occlusion_texture: Some(crate::scene::TextureRef {
+                texture: t,
+                tex_coord: 1,
+                transform: None,
+            }),
+            ..Material::default()
+        };
+        scene
+            .add_mesh(&mesh, occlusion_on_set_1, Mat4::IDENTITY, None)
+            .expect("set 1 is given");
+        assert_eq!(scene.soup.len(), 2);
+        for tri in 0..2 {
+            let zero = scene.soup.corner_uvs(0, tri).expect("set 0");
+            let one = scene.soup.corner_uvs(1, tri).expect("set 1");
+            assert_eq!(one, zero.map(|uv| Vec2::new(1.0 - uv.x, uv.y)));
+        }
+        scene
+            .add_mesh(&quad(), Material::default(), Mat4::IDENTITY, None)
+            .expect("no uvs, no textures");
+        assert_eq!(scene.soup.corner_uvs(1, 2), Some([Vec2::ZERO; 3]));
+    }
+
     /// The extensions' factors are held to their specifications' ranges, each refusal naming
     /// the factor (as the Python package's key) and its value; glTF's defaults pass.
     #[test]
@@ -779,8 +829,20 @@ mod tests {
             .add_texture(2, 1, RED_BLUE.to_vec(), Sampler::default(), None)
             .expect("2x1");
         assert_eq!(
+            message(&mut scene, &with_uvs, at(t, 2)),
+            "mesh 0: material: texture 0 reads texture coordinate set 2: a mesh from arrays has sets 0 and 1"
+        );
+        assert_eq!(
             message(&mut scene, &with_uvs, at(t, 1)),
-            "mesh 0: material: texture 0 reads texture coordinate set 1: a mesh from arrays has set 0 only"
+            "mesh 0: uvs1: missing: the material has a texture that reads coordinate set 1"
+        );
+        let short = MeshArrays {
+            uv1: Some(&QUAD_UVS[..3]),
+            ..with_uvs
+        };
+        assert_eq!(
+            message(&mut scene, &short, at(t, 1)),
+            "mesh 0: uvs1: 3 rows, but there are 4 positions (one row a vertex)"
         );
         assert_eq!(
             message(&mut scene, &quad(), at(t, 0)),
