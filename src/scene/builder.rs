@@ -20,6 +20,8 @@ enum Outcome {
     NonFinite,
     /// Zero area: dropped.
     Degenerate,
+    /// An area single precision cannot hold: dropped.
+    OutOfScale,
     /// Kept on the primitive's shared vertices.
     Shared,
     /// Kept on three vertices of its own with its flat normal (a shared normal is unusable).
@@ -30,6 +32,10 @@ enum Outcome {
 enum Refusal {
     NonFinite,
     Degenerate,
+    /// Not degenerate, but its squared normal (edges shorter than about 3e-10 or longer than
+    /// about 4e9 units) is outside f32's normal range, where the intersection precompute's
+    /// 1/|n|² is not finite.
+    OutOfScale,
 }
 
 /// A triangle's unnormalised geometric normal `(b - a) × (c - a)` and its squared length, or
@@ -42,9 +48,17 @@ fn classify(positions: &[Vec3; 3]) -> Result<(Vec3, f32), Refusal> {
     let cross = (b - a).cross(c - a);
     let area2 = cross.length_squared();
     // Below f32::MIN_POSITIVE the squared normal is denormal and 1/|n|² overflows in the
-    // intersection precompute; such a triangle has no visible area anyway.
+    // intersection precompute; above f32::MAX it is infinite. Either is a zero-area triangle,
+    // or one whose size single precision cannot handle: the same area in f64 tells which, so
+    // that a model drawn in units far too small or large is not reported as degenerate.
     if !(area2 >= f32::MIN_POSITIVE && area2.is_finite()) {
-        return Err(Refusal::Degenerate);
+        let [a, b, c] = positions.map(|p| p.as_dvec3());
+        let area2_f64 = (b - a).cross(c - a).length_squared();
+        return Err(if area2_f64 > 0.0 {
+            Refusal::OutOfScale
+        } else {
+            Refusal::Degenerate
+        });
     }
     Ok((cross, area2))
 }
@@ -125,6 +139,8 @@ pub struct SoupBuilder {
     max_triangles: u64,
     /// Triangles dropped for zero area.
     pub degenerate: usize,
+    /// Triangles dropped for a size f32 cannot handle ([`Refusal::OutOfScale`]).
+    pub out_of_scale: usize,
     /// Triangles dropped for NaN or infinite coordinates.
     pub non_finite: usize,
 }
@@ -137,6 +153,7 @@ impl SoupBuilder {
             bounds: Bounds::EMPTY,
             max_triangles,
             degenerate: 0,
+            out_of_scale: 0,
             non_finite: 0,
         }
     }
@@ -244,6 +261,7 @@ impl SoupBuilder {
                     outcomes.push(match classify(&positions) {
                         Err(Refusal::NonFinite) => Outcome::NonFinite,
                         Err(Refusal::Degenerate) => Outcome::Degenerate,
+                        Err(Refusal::OutOfScale) => Outcome::OutOfScale,
                         Ok(_) => {
                             for p in positions {
                                 bounds.grow(p);
@@ -271,6 +289,7 @@ impl SoupBuilder {
                 match outcome {
                     Outcome::NonFinite => self.non_finite += 1,
                     Outcome::Degenerate => self.degenerate += 1,
+                    Outcome::OutOfScale => self.out_of_scale += 1,
                     Outcome::Shared => {
                         self.soup.indices.push(c.map(|i| (base + i) as u32));
                         self.soup.material.push(material);
@@ -299,6 +318,10 @@ impl SoupBuilder {
             }
             Err(Refusal::Degenerate) => {
                 self.degenerate += 1;
+                None
+            }
+            Err(Refusal::OutOfScale) => {
+                self.out_of_scale += 1;
                 None
             }
             Ok((cross, area2)) => {
@@ -368,19 +391,34 @@ impl SoupBuilder {
 
     /// Triangles offered to [`SoupBuilder::push`], kept or dropped.
     pub fn offered(&self) -> usize {
-        self.soup.len() + self.degenerate + self.non_finite
+        self.soup.len() + self.degenerate + self.out_of_scale + self.non_finite
     }
 
     /// A warning line for what was dropped, if anything was.
     pub fn dropped_warning(&self) -> Option<String> {
-        match (self.degenerate, self.non_finite) {
-            (0, 0) => None,
-            (d, 0) => Some(format!("dropped {d} degenerate (zero-area) triangles")),
-            (0, n) => Some(format!("dropped {n} triangles with NaN or infinite coordinates")),
-            (d, n) => Some(format!(
-                "dropped {d} degenerate (zero-area) triangles and {n} with NaN or infinite coordinates"
-            )),
+        let mut parts = Vec::new();
+        if self.degenerate > 0 {
+            parts.push(format!(
+                "{} degenerate (zero-area) triangles",
+                self.degenerate
+            ));
         }
+        if self.out_of_scale > 0 {
+            parts.push(format!(
+                "{} triangles too small or too large for single precision (edges under about \
+                 1e-9 or over about 1e9 units; scale the model)",
+                self.out_of_scale
+            ));
+        }
+        if self.non_finite > 0 {
+            let n = self.non_finite;
+            parts.push(if parts.is_empty() {
+                format!("{n} triangles with NaN or infinite coordinates")
+            } else {
+                format!("{n} with NaN or infinite coordinates")
+            });
+        }
+        (!parts.is_empty()).then(|| format!("dropped {}", parts.join(" and ")))
     }
 
     /// The soup and its bounds.
@@ -459,6 +497,20 @@ mod tests {
             0,
         );
         assert_eq!((b.len(), b.degenerate, b.non_finite), (1, 1, 2));
+        // Not degenerate, but too small or too large for the intersection precompute in f32:
+        // counted apart, with a warning that says so.
+        b.push(&tri(Vec3::ZERO, Vec3::X * 1e-10, Vec3::Y * 1e-10), 0, 0);
+        b.push(&tri(Vec3::ZERO, Vec3::X * 1e10, Vec3::Y * 1e10), 0, 0);
+        b.push(&tri(Vec3::ZERO, Vec3::X * 1e-8, Vec3::Y * 1e-8), 0, 0);
+        assert_eq!((b.len(), b.degenerate, b.out_of_scale), (2, 1, 2));
+        assert_eq!(
+            b.dropped_warning().as_deref(),
+            Some(
+                "dropped 1 degenerate (zero-area) triangles and 2 triangles too small or too \
+                 large for single precision (edges under about 1e-9 or over about 1e9 units; \
+                 scale the model) and 2 with NaN or infinite coordinates"
+            )
+        );
         let (soup, bounds) = b.finish();
         assert_eq!(
             soup.corner_normals(0),
