@@ -1231,6 +1231,54 @@ fn an_undecodable_png_falls_back_when_textures_decode() {
     assert!(!output.exists());
 }
 
+/// A KTX2 texture whose level claims 30 GB uncompressed (found by fuzzing: the transcoder
+/// allocated it whole, and the process aborted on the failed allocation) is left out when
+/// textures decode, with a warning that gives the claim; `--strict` refuses it.
+#[test]
+fn a_ktx2_level_claiming_30_gb_falls_back_when_textures_decode() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut json, bin) = base();
+    with_image(&mut json, "huge.ktx2");
+    write_case(dir.path(), &gltf_case("huge ktx2", json, bin, |_| true));
+    let mut ktx2 = vec![
+        0xAB, b'K', b'T', b'X', b' ', b'2', b'0', 0xBB, b'\r', b'\n', 0x1A, b'\n',
+    ];
+    // vkFormat, typeSize, 256x256, depth, layers, faces, levels, Zstandard supercompression.
+    for word in [0u32, 1, 256, 256, 0, 0, 1, 1, 2] {
+        ktx2.extend(word.to_le_bytes());
+    }
+    ktx2.extend([0u8; 32]);
+    for field in [104u64, 16, 0x7_0001_0000] {
+        ktx2.extend(field.to_le_bytes());
+    }
+    ktx2.extend([0u8; 16]);
+    std::fs::write(dir.path().join("huge.ktx2"), ktx2).unwrap();
+    let model = dir.path().join("model.gltf");
+    let output = dir.path().join("out.png");
+    let args = [
+        "render",
+        crate::common::s(&model),
+        "-o",
+        crate::common::s(&output),
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ];
+    let out = crate::common::run(&args, true);
+    let err = crate::common::stderr(&out);
+    assert!(
+        err.contains("image 0 (huge.ktx2)") && err.contains("claims 30064836608 bytes"),
+        "{err}"
+    );
+    std::fs::remove_file(&output).unwrap();
+    let mut strict_args = args.to_vec();
+    strict_args.push("--strict");
+    let out = crate::common::run(&strict_args, false);
+    assert!(crate::common::stderr(&out).contains("huge.ktx2"));
+    assert!(!output.exists());
+}
+
 /// A square PNG of hashed noise (it does not compress), each texel `texel(hash)`.
 fn noise_png(side: u32, texel: fn(u32) -> [u8; 4]) -> Vec<u8> {
     let mut png = Vec::new();
