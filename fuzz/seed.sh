@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 samples="${MESHTRACER_SAMPLES:-../shared/assets}"
-mkdir -p fuzz/corpus/gltf_json fuzz/corpus/glb fuzz/corpus/obj
+mkdir -p fuzz/corpus/gltf_json fuzz/corpus/glb fuzz/corpus/obj fuzz/corpus/image
 if [ -d "$samples" ]; then
   find "$samples" -name '*.gltf' -size -200k -exec cp {} fuzz/corpus/gltf_json/ \;
   find "$samples" -name '*.glb' -size -200k -exec cp {} fuzz/corpus/glb/ \;
@@ -35,7 +35,35 @@ PY
     esac
   done
   find "$samples" -name '*.obj' -size -200k -exec cp {} fuzz/corpus/obj/ \;
+  # The image target's seeds: the samples' texture files (the screenshots are PNG and JPEG
+  # too), KTX2 with both Basis Universal payloads among them.
+  find "$samples" \( -iname '*.png' -o -iname '*.jpg' -o -iname '*.jpeg' -o -iname '*.webp' \
+    -o -iname '*.ktx2' \) -size -300k | while read -r f; do
+    cp "$f" "fuzz/corpus/image/$(basename "$(dirname "$f")")-$(basename "$f")"
+  done
 fi
+# Small images of every kind the image crate decodes here, if Pillow is at hand: WebP lossy,
+# lossless and with alpha, progressive JPEG, PNG with a palette and 16 bits.
+python3 - fuzz/corpus/image <<'PY' || echo "no Pillow: the image target is seeded from the samples only"
+import io, os, sys
+from PIL import Image
+out = sys.argv[1]
+img = Image.new("RGBA", (13, 7))
+img.putdata([(x * 19 % 256, y * 37 % 256, (x * y) % 256, 255 - x) for y in range(7) for x in range(13)])
+forms = {
+    "lossy.webp": lambda f: img.save(f, "WEBP", quality=50),
+    "lossless.webp": lambda f: img.save(f, "WEBP", lossless=True),
+    "opaque.webp": lambda f: img.convert("RGB").save(f, "WEBP"),
+    "progressive.jpg": lambda f: img.convert("RGB").save(f, "JPEG", progressive=True),
+    "grey.jpg": lambda f: img.convert("L").save(f, "JPEG"),
+    "palette.png": lambda f: img.convert("P").save(f, "PNG"),
+    "grey16.png": lambda f: img.convert("I;16").save(f, "PNG"),
+    "interlaced.png": lambda f: img.save(f, "PNG", interlace=1),
+}
+for name, save in forms.items():
+    with open(os.path.join(out, name), "wb") as f:
+        save(f)
+PY
 cp assets/*.gltf fuzz/corpus/gltf_json/
 cp assets/*.obj fuzz/corpus/obj/
 broken=$(mktemp -d)
@@ -61,4 +89,4 @@ for f in sorted(glob.glob(os.path.join(sys.argv[1], "*.gltf"))):
         m["normalTexture"] = {"index": 0}
     json.dump(doc, open(f[:-5] + "-normalmapped.gltf", "w"))
 PY
-for t in gltf_json glb obj; do echo "$t: $(ls fuzz/corpus/$t | wc -l) seeds"; done
+for t in gltf_json glb obj image; do echo "$t: $(ls fuzz/corpus/$t | wc -l) seeds"; done
