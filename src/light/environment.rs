@@ -157,40 +157,32 @@ impl Environment {
             path: path.to_path_buf(),
             problem,
         };
-        let is_exr = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-        if is_exr {
-            check_exr_compression(path).map_err(fail)?;
-        }
-        let mut reader = image::ImageReader::open(path)
-            .map_err(|e| fail(e.to_string()))?
-            .with_guessed_format()
-            .map_err(|e| fail(e.to_string()))?;
-        let mut limits = image::Limits::default();
-        limits.max_image_width = Some(16384);
-        limits.max_image_height = Some(8192);
-        limits.max_alloc = Some(MAX_ENVIRONMENT_TEXELS * 16);
-        reader.limits(limits);
-        // A panic in the decoder (another crate reading the user's file) is a bug to report,
+        let mut magic = [0u8; 4];
+        let is_exr = std::fs::File::open(path)
+            .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
+            .is_ok()
+            && magic == EXR_MAGIC;
+        // A panic in a decoder (another crate reading the user's file) is a bug to report,
         // and an error naming the file here, not the end of the process.
-        let image = crate::scene::catch_quietly(|| reader.decode())
-            .map_err(|panic| {
-                fail(format!(
-                    "the decoder failed (an internal error; please report this file): {panic}"
-                ))
-            })?
-            .map_err(|e| fail(format!("cannot decode the panorama: {e}")))?
-            .into_rgb32f();
-        let (width, height) = (image.width() as usize, image.height() as usize);
+        let decoded = crate::scene::catch_quietly(|| {
+            if is_exr {
+                read_exr(path)
+            } else {
+                read_with_image(path)
+            }
+        })
+        .map_err(|panic| {
+            fail(format!(
+                "the decoder failed (an internal error; please report this file): {panic}"
+            ))
+        })?;
+        let (width, height, image) = decoded.map_err(fail)?;
         if width < 2 || height < 1 {
             return Err(fail(format!("a {width}x{height} image is not a panorama")));
         }
         let texels: Vec<Vec3> = image
-            .pixels()
-            .map(|p| {
-                let c = Vec3::from(p.0);
+            .into_iter()
+            .map(|c| {
                 // Negative or non-finite texels would poison the sampling tables.
                 if c.is_finite() {
                     c.max(Vec3::ZERO)
@@ -484,10 +476,81 @@ fn direction_of(u: f32, v: f32) -> Vec3 {
     Vec3::new(sin_theta * cos_phi, cos_theta, sin_theta * sin_phi)
 }
 
-/// EXR compressions that the `exr` crate (behind `image`) cannot decode are refused by name,
-/// with what to do, before decoding starts: OpenEXR 3.4's HTJ2K. DWAA and DWAB (Blender's
-/// default, and how Blender ships its own studio panoramas) it decodes: Blender's six decode to
-/// the same values as their ZIP conversions (a test checks it).
+/// The first bytes of every OpenEXR file.
+const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+
+/// Largest panorama side accepted, in texels (width; the height is at most half of it).
+const MAX_PANORAMA_WIDTH: usize = 16384;
+
+/// A panorama's size and linear RGB texels (rows from the top), read by the `image` crate
+/// (Radiance `.hdr`, and any other format it knows), within the panorama size limits.
+fn read_with_image(path: &Path) -> Result<(usize, usize, Vec<Vec3>), String> {
+    let mut reader = image::ImageReader::open(path)
+        .map_err(|e| e.to_string())?
+        .with_guessed_format()
+        .map_err(|e| e.to_string())?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_PANORAMA_WIDTH as u32);
+    limits.max_image_height = Some(MAX_PANORAMA_WIDTH as u32 / 2);
+    limits.max_alloc = Some(MAX_ENVIRONMENT_TEXELS * 16);
+    reader.limits(limits);
+    let image = reader
+        .decode()
+        .map_err(|e| format!("cannot decode the panorama: {e}"))?
+        .into_rgb32f();
+    let (width, height) = (image.width() as usize, image.height() as usize);
+    Ok((
+        width,
+        height,
+        image.pixels().map(|p| Vec3::from(p.0)).collect(),
+    ))
+}
+
+/// An OpenEXR panorama's size and R, G, B texels over its display window (black where the
+/// data window does not cover it), as the `image` crate reads it, but decoded on this thread:
+/// the `exr` crate's parallel reader decodes blocks on a pool of its own, where a panic on a
+/// hostile file ends the process (found by fuzzing: an overflow in its B44 decoder), out of
+/// reach of [`crate::scene::catch_quietly`]. Compressions it cannot decode are refused by
+/// name first ([`check_exr_compression`]), and sizes over the panorama limits before any
+/// pixel is read.
+fn read_exr(path: &Path) -> Result<(usize, usize, Vec<Vec3>), String> {
+    use exr::prelude::{read, ReadChannels, ReadLayers};
+    check_exr_compression(path)?;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgb_channels(
+            |size, _| (size.width(), vec![Vec3::ZERO; size.area()]),
+            |(width, texels), at, (r, g, b): (f32, f32, f32)| {
+                texels[at.y() * *width + at.x()] = Vec3::new(r, g, b);
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .non_parallel()
+        .from_file(path)
+        .map_err(|e| format!("cannot decode the panorama: {e}"))?;
+    let display = image.attributes.display_window;
+    let (width, height) = (display.size.width(), display.size.height());
+    let layer = &image.layer_data;
+    let (data_width, data) = &layer.channel_data.pixels;
+    let offset = layer.attributes.layer_position - display.position;
+    let mut texels = vec![Vec3::ZERO; width * height];
+    for (i, &texel) in data.iter().enumerate() {
+        let (x, y) = (i % data_width, i / data_width);
+        let (x, y) = (x as i64 + offset.x() as i64, y as i64 + offset.y() as i64);
+        if (0..width as i64).contains(&x) && (0..height as i64).contains(&y) {
+            texels[y as usize * width + x as usize] = texel;
+        }
+    }
+    Ok((width, height, texels))
+}
+
+/// What an OpenEXR panorama's header must allow before its pixels are read: a compression
+/// the `exr` crate decodes (it cannot decode OpenEXR 3.4's HTJ2K, refused by name with what to
+/// do; DWAA and DWAB, Blender's default and how Blender ships its own studio panoramas, it
+/// decodes to the values of their ZIP conversions, as a test checks), and display and data
+/// windows within the panorama size limits.
 fn check_exr_compression(path: &Path) -> Result<(), String> {
     let meta = exr::meta::MetaData::read_from_file(path, false)
         .map_err(|e| format!("not a readable OpenEXR file: {e}"))?;
@@ -499,6 +562,21 @@ fn check_exr_compression(path: &Path) -> Result<(), String> {
                  uses; convert the panorama to ZIP, PIZ or DWAB compression (e.g. `oiiotool \
                  IN.exr --compression zip -o OUT.exr`) or to .hdr"
             ));
+        }
+        for (what, size) in [
+            (
+                "display window",
+                header.shared_attributes.display_window.size,
+            ),
+            ("data window", header.layer_size),
+        ] {
+            let (w, h) = (size.width(), size.height());
+            if w > MAX_PANORAMA_WIDTH || h > MAX_PANORAMA_WIDTH / 2 {
+                return Err(format!(
+                    "its {what} is {w}x{h} texels: a panorama may be at most {MAX_PANORAMA_WIDTH}x{}",
+                    MAX_PANORAMA_WIDTH / 2
+                ));
+            }
         }
     }
     Ok(())
@@ -686,7 +764,8 @@ mod tests {
     /// Blender's studio panoramas as it ships them (DWAB-compressed EXR) decode to the values
     /// of their lossless ZIP conversions, texel for texel (the `exr` crate's DWA decoder gives
     /// a few texels of -0.003 to 0 where OpenEXR's gave 0; the loader takes negatives as 0),
-    /// and the Radiance .hdr conversions decode at the same size.
+    /// the single-threaded EXR reader gives what the image crate's gives, and the Radiance
+    /// .hdr conversions decode at the same size.
     #[test]
     fn dwab_panoramas_decode_as_their_zip_conversions() {
         let Some(dir) = std::env::var_os("MESHTRACER_ENVIRONMENTS").map(PathBuf::from) else {
@@ -697,6 +776,12 @@ mod tests {
             let load = |file: String| {
                 Environment::load(&dir.join(&file)).unwrap_or_else(|e| panic!("{file}: {e}"))
             };
+            // The single-threaded reader gives what the image crate's reader gave.
+            for file in [format!("{name}.exr"), format!("{name}.zip.exr")] {
+                let ours = read_exr(&dir.join(&file)).expect("decodes");
+                let image_crate = read_with_image(&dir.join(&file)).expect("decodes");
+                assert!(ours == image_crate, "{file}: the two readers differ");
+            }
             let dwab = load(format!("{name}.exr"));
             let zip = load(format!("{name}.zip.exr"));
             assert_eq!(dwab.size(), (1024, 512));
