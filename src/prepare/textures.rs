@@ -421,6 +421,7 @@ fn decode_encoded(source: &ImageSource) -> Result<image::RgbaImage, String> {
         let mut r = image::ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
             .map_err(|e| e.to_string())?;
+        texture_format(r.format())?;
         r.limits(limits.clone());
         Ok(into_rgba8(r.decode().map_err(|e| e.to_string())?))
     };
@@ -439,12 +440,34 @@ fn decode_encoded(source: &ImageSource) -> Result<image::RgbaImage, String> {
                 .map_err(|e| e.to_string())?
                 .with_guessed_format()
                 .map_err(|e| e.to_string())?;
+            texture_format(r.format())?;
             r.limits(limits);
             r.decode()
         }
         Encoded::Missing => return Err("no image data".into()),
     };
     Ok(into_rgba8(reader.map_err(|e| e.to_string())?))
+}
+
+/// Whether an image of `format` (as its bytes show) may be decoded as a texture: glTF's
+/// PNG and JPEG (§3.8.4), WebP (`EXT_texture_webp`; KTX2 is read apart) and GIF, which OBJ
+/// files name. The build's other decoders (Radiance, OpenEXR) are for panoramas and outputs:
+/// OpenEXR's decodes blocks on a thread pool of its own, where a panic on a hostile file would
+/// end the process instead of becoming this image's error.
+fn texture_format(format: Option<image::ImageFormat>) -> Result<(), String> {
+    use image::ImageFormat as F;
+    match format {
+        Some(F::Png | F::Jpeg | F::WebP | F::Gif) => Ok(()),
+        Some(other) => Err(format!(
+            "{} images are not textures (use PNG, JPEG, WebP or KTX2)",
+            other
+                .extensions_str()
+                .first()
+                .map_or("these", |e| e)
+                .to_uppercase()
+        )),
+        None => Err("not an image format meshtracer reads (use PNG, JPEG, WebP or KTX2)".into()),
+    }
 }
 
 /// A decoded image as RGBA8: kept as it is when it already is; JPEG's RGB8 gets alpha 255
@@ -752,6 +775,55 @@ mod tests {
             });
             assert_eq!(average_of_four(t), expected, "{t:?}");
         }
+    }
+
+    /// Textures decode from PNG, JPEG, WebP and GIF bytes; OpenEXR and Radiance bytes (which the
+    /// build decodes for panoramas) are refused by name, and unknown bytes too.
+    #[test]
+    fn textures_are_png_jpeg_webp_or_gif() {
+        let encoded = |format: image::ImageFormat| {
+            let mut bytes = Vec::new();
+            let pixels = image::Rgb32FImage::from_pixel(2, 2, image::Rgb([0.5, 0.25, 1.0]));
+            let image = match format {
+                image::ImageFormat::OpenExr | image::ImageFormat::Hdr => {
+                    image::DynamicImage::ImageRgb32F(pixels)
+                }
+                _ => image::DynamicImage::ImageRgb32F(pixels).into_rgb8().into(),
+            };
+            image
+                .write_to(&mut std::io::Cursor::new(&mut bytes), format)
+                .expect("encodes");
+            ImageSource {
+                origin: "test".into(),
+                mime_type: None,
+                path: None,
+                bytes: Some(crate::scene::SharedBytes::whole(bytes)),
+                in_file: None,
+                pixels: None,
+            }
+        };
+        for format in [image::ImageFormat::Png, image::ImageFormat::Jpeg] {
+            let decoded = decode(&encoded(format)).expect("a texture format");
+            assert_eq!(decoded.dimensions(), (2, 2));
+        }
+        for (format, name) in [
+            (image::ImageFormat::OpenExr, "EXR"),
+            (image::ImageFormat::Hdr, "HDR"),
+        ] {
+            let refused = decode(&encoded(format))
+                .err()
+                .expect("not a texture format");
+            assert_eq!(
+                refused,
+                format!("{name} images are not textures (use PNG, JPEG, WebP or KTX2)")
+            );
+        }
+        let mut unknown = encoded(image::ImageFormat::Png);
+        unknown.bytes = Some(crate::scene::SharedBytes::whole(vec![7; 64]));
+        assert!(decode(&unknown)
+            .err()
+            .expect("no format")
+            .starts_with("not an image format"));
     }
 
     /// RGB8 images become RGBA8 with alpha 255, exactly as the image crate converts them, for
