@@ -516,6 +516,7 @@ fn read_with_image(path: &Path) -> Result<(usize, usize, Vec<Vec3>), String> {
 fn read_exr(path: &Path) -> Result<(usize, usize, Vec<Vec3>), String> {
     use exr::prelude::{read, ReadChannels, ReadLayers};
     check_exr_compression(path)?;
+    check_dwa_blocks(path)?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -575,6 +576,64 @@ fn check_exr_compression(path: &Path) -> Result<(), String> {
                 return Err(format!(
                     "its {what} is {w}x{h} texels: a panorama may be at most {MAX_PANORAMA_WIDTH}x{}",
                     MAX_PANORAMA_WIDTH / 2
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The `exr` crate's DWA decoder sizes each section of a block by the counters at the block's
+/// start (eleven little-endian u64: version, the sections' sizes, the coefficient counts, the
+/// AC coder) and allocates that much before inflating: a hostile file claimed 52 PB, and the
+/// process aborted on the failed allocation (found by fuzzing). Each DWA block's counters are
+/// checked against its pixels first: 16 times the block's uncompressed size, plus 64 KiB,
+/// bounds what its sections can hold even with the DCT's padding to 8x8 (a file of real DWA
+/// blocks is far inside it). A block stored raw (exactly its uncompressed size: compression
+/// did not help) has no counters.
+fn check_dwa_blocks(path: &Path) -> Result<(), String> {
+    use exr::block::chunk::CompressedBlock;
+    use exr::compression::Compression;
+    let unreadable = |e: exr::error::Error| format!("not a readable OpenEXR file: {e}");
+    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
+    let reader = exr::block::read(std::io::BufReader::new(file), false).map_err(unreadable)?;
+    let dwa = |h: &exr::meta::header::Header| {
+        matches!(h.compression, Compression::DWAA(_) | Compression::DWAB(_))
+    };
+    if !reader.headers().iter().any(dwa) {
+        return Ok(());
+    }
+    let headers = reader.headers().to_vec();
+    for chunk in reader.all_chunks(false).map_err(unreadable)? {
+        let chunk = chunk.map_err(unreadable)?;
+        let Some(header) = headers.get(chunk.layer_index).filter(|h| dwa(h)) else {
+            continue;
+        };
+        let pixels = header
+            .get_block_data_indices(&chunk.compressed_block)
+            .and_then(|indices| header.get_absolute_block_pixel_coordinates(indices))
+            .map_err(unreadable)?;
+        let raw = (header.channels.bytes_per_pixel * pixels.size.area()) as u64;
+        let bytes = match &chunk.compressed_block {
+            CompressedBlock::ScanLine(b) => &b.compressed_pixels_le,
+            CompressedBlock::Tile(t) => &t.compressed_pixels_le,
+            _ => continue,
+        };
+        if bytes.len() as u64 == raw {
+            continue;
+        }
+        let bound = raw.saturating_mul(16).saturating_add(1 << 16);
+        // Counters 1 to 9: the sections' sizes and the coefficient counts.
+        for counter in bytes.chunks_exact(8).take(10).skip(1) {
+            let mut le = [0u8; 8];
+            le.copy_from_slice(counter);
+            let claimed = u64::from_le_bytes(le);
+            if claimed > bound {
+                return Err(format!(
+                    "a DWA block of {}x{} texels claims a section of {claimed}, more than \
+                     such a block can hold ({bound})",
+                    pixels.size.width(),
+                    pixels.size.height()
                 ));
             }
         }
@@ -758,6 +817,64 @@ mod tests {
         assert!(
             (exact - importance).abs() < 0.01 * exact,
             "quadrature {exact} vs importance sampling {importance}"
+        );
+    }
+
+    /// A DWAB panorama (written by the exr crate) loads; the same file with one block's DC
+    /// count raised to 2^54 (what a fuzzed file claimed, and exr allocated) is refused naming
+    /// the claim, before any section is inflated.
+    #[test]
+    fn a_dwa_block_claiming_more_than_its_pixels_is_refused() {
+        use exr::prelude::*;
+        let dir = tempfile::tempdir().expect("a temporary folder");
+        let path = dir.path().join("smooth.exr");
+        let channels = SpecificChannels::rgb(|at: Vec2<usize>| {
+            let (x, y) = (at.x() as f32, at.y() as f32);
+            (
+                f16::from_f32((x / 7.0).sin() + 1.2),
+                f16::from_f32((y / 5.0).cos() + 1.1),
+                f16::from_f32((x + y) / 40.0),
+            )
+        });
+        let encoding = Encoding {
+            compression: Compression::DWAB(None),
+            blocks: Blocks::ScanLines,
+            line_order: LineOrder::Increasing,
+        };
+        Image::from_encoded_channels((64, 32), encoding, channels)
+            .write()
+            .to_file(&path)
+            .expect("writes");
+        assert_eq!(Environment::load(&path).expect("loads").size(), (64, 32));
+        // The first block's counters: find them in the file, then raise the DC count (the
+        // tenth u64).
+        let chunk = exr::block::read(
+            std::io::BufReader::new(std::fs::File::open(&path).unwrap()),
+            false,
+        )
+        .unwrap()
+        .all_chunks(false)
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap();
+        let exr::block::chunk::CompressedBlock::ScanLine(block) = chunk.compressed_block else {
+            panic!("scan lines were written");
+        };
+        let mut bytes = std::fs::read(&path).unwrap();
+        let at = bytes
+            .windows(88)
+            .position(|w| w == &block.compressed_pixels_le[..88])
+            .expect("the block is in the file");
+        bytes[at + 72..at + 80].copy_from_slice(&(1u64 << 54).to_le_bytes());
+        std::fs::write(&path, bytes).unwrap();
+        let Err(refused) = Environment::load(&path) else {
+            panic!("a block claiming 2^54 coefficients loaded");
+        };
+        let refused = refused.to_string();
+        assert!(
+            refused.contains("claims a section of 18014398509481984"),
+            "{refused}"
         );
     }
 
