@@ -31,7 +31,7 @@ pub struct MeshArrays<'a> {
     /// Texture coordinates (set 0), (0, 0) at the image's top-left as in glTF.
     pub uv0: Option<&'a [Vec2]>,
     /// A second set of texture coordinates (glTF `TEXCOORD_1`: an occlusion or light map's
-    /// own unwrap), for the textures whose [`TextureRef::tex_coord`] is 1.
+    /// own unwrap), for the textures whose [`crate::scene::TextureRef::tex_coord`] is 1.
     pub uv1: Option<&'a [Vec2]>,
     /// Linear RGBA vertex colours, multiplying the base colour (glTF `COLOR_0`).
     pub colors: Option<&'a [Vec4]>,

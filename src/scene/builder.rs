@@ -139,7 +139,8 @@ pub struct SoupBuilder {
     max_triangles: u64,
     /// Triangles dropped for zero area.
     pub degenerate: usize,
-    /// Triangles dropped for a size f32 cannot handle ([`Refusal::OutOfScale`]).
+    /// Triangles dropped for a size f32 cannot handle: not degenerate, but with edges under
+    /// about 3e-10 or over about 4e9 units.
     pub out_of_scale: usize,
     /// Triangles dropped for NaN or infinite coordinates.
     pub non_finite: usize,
