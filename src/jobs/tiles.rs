@@ -368,7 +368,19 @@ impl Raster {
                 } else {
                     image::ImageFormat::OpenExr
                 };
-                image::load_from_memory_with_format(&bytes, format)
+                // A panic in a decoder (another crate reading the file) is this file's error;
+                // OpenEXR is decoded on this thread for that (scene::decode_exr).
+                let decoded = crate::scene::catch_quietly(|| match format {
+                    image::ImageFormat::OpenExr => {
+                        crate::scene::decode_exr(std::io::Cursor::new(&bytes))
+                    }
+                    _ => image::load_from_memory_with_format(&bytes, format)
+                        .map_err(|e| e.to_string()),
+                });
+                decoded
+                    .map_err(|panic| {
+                        bad(format!("the decoder failed (an internal error): {panic}"))
+                    })?
                     .map(Raster::Image)
                     .map_err(|e| bad(format!("cannot decode: {e}")))
             }

@@ -482,6 +482,16 @@ const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 /// Largest panorama side accepted, in texels (width; the height is at most half of it).
 const MAX_PANORAMA_WIDTH: usize = 16384;
 
+/// An RGB float image's size and texels, rows from the top.
+fn sized_texels(image: &image::Rgb32FImage) -> (usize, usize, Vec<Vec3>) {
+    let (width, height) = (image.width() as usize, image.height() as usize);
+    (
+        width,
+        height,
+        image.pixels().map(|p| Vec3::from(p.0)).collect(),
+    )
+}
+
 /// A panorama's size and linear RGB texels (rows from the top), read by the `image` crate
 /// (Radiance `.hdr`, and any other format it knows), within the panorama size limits.
 fn read_with_image(path: &Path) -> Result<(usize, usize, Vec<Vec3>), String> {
@@ -498,53 +508,21 @@ fn read_with_image(path: &Path) -> Result<(usize, usize, Vec<Vec3>), String> {
         .decode()
         .map_err(|e| format!("cannot decode the panorama: {e}"))?
         .into_rgb32f();
-    let (width, height) = (image.width() as usize, image.height() as usize);
-    Ok((
-        width,
-        height,
-        image.pixels().map(|p| Vec3::from(p.0)).collect(),
-    ))
+    Ok(sized_texels(&image))
 }
 
-/// An OpenEXR panorama's size and R, G, B texels over its display window (black where the
-/// data window does not cover it), as the `image` crate reads it, but decoded on this thread:
-/// the `exr` crate's parallel reader decodes blocks on a pool of its own, where a panic on a
-/// hostile file ends the process (found by fuzzing: an overflow in its B44 decoder), out of
-/// reach of [`crate::scene::catch_quietly`]. Compressions it cannot decode are refused by
-/// name first ([`check_exr_compression`]), and sizes over the panorama limits before any
-/// pixel is read.
+/// An OpenEXR panorama's size and R, G, B texels over its display window (black where the data
+/// window does not cover it), decoded on this thread ([`crate::scene::decode_exr`]: a panic
+/// in the `exr` crate then reaches [`crate::scene::catch_quietly`]). Compressions it cannot
+/// decode are refused by name first ([`check_exr_compression`]), and sizes over the panorama
+/// limits before any pixel is read.
 fn read_exr(path: &Path) -> Result<(usize, usize, Vec<Vec3>), String> {
-    use exr::prelude::{read, ReadChannels, ReadLayers};
     check_exr_compression(path)?;
-    check_dwa_blocks(path)?;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .rgb_channels(
-            |size, _| (size.width(), vec![Vec3::ZERO; size.area()]),
-            |(width, texels), at, (r, g, b): (f32, f32, f32)| {
-                texels[at.y() * *width + at.x()] = Vec3::new(r, g, b);
-            },
-        )
-        .first_valid_layer()
-        .all_attributes()
-        .non_parallel()
-        .from_file(path)
-        .map_err(|e| format!("cannot decode the panorama: {e}"))?;
-    let display = image.attributes.display_window;
-    let (width, height) = (display.size.width(), display.size.height());
-    let layer = &image.layer_data;
-    let (data_width, data) = &layer.channel_data.pixels;
-    let offset = layer.attributes.layer_position - display.position;
-    let mut texels = vec![Vec3::ZERO; width * height];
-    for (i, &texel) in data.iter().enumerate() {
-        let (x, y) = (i % data_width, i / data_width);
-        let (x, y) = (x as i64 + offset.x() as i64, y as i64 + offset.y() as i64);
-        if (0..width as i64).contains(&x) && (0..height as i64).contains(&y) {
-            texels[y as usize * width + x as usize] = texel;
-        }
-    }
-    Ok((width, height, texels))
+    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
+    let image = crate::scene::decode_exr(file)
+        .map_err(|e| format!("cannot decode the panorama: {e}"))?
+        .into_rgb32f();
+    Ok(sized_texels(&image))
 }
 
 /// What an OpenEXR panorama's header must allow before its pixels are read: a compression
@@ -576,64 +554,6 @@ fn check_exr_compression(path: &Path) -> Result<(), String> {
                 return Err(format!(
                     "its {what} is {w}x{h} texels: a panorama may be at most {MAX_PANORAMA_WIDTH}x{}",
                     MAX_PANORAMA_WIDTH / 2
-                ));
-            }
-        }
-    }
-    Ok(())
-}
-
-/// The `exr` crate's DWA decoder sizes each section of a block by the counters at the block's
-/// start (eleven little-endian u64: version, the sections' sizes, the coefficient counts, the
-/// AC coder) and allocates that much before inflating: a hostile file claimed 52 PB, and the
-/// process aborted on the failed allocation (found by fuzzing). Each DWA block's counters are
-/// checked against its pixels first: 16 times the block's uncompressed size, plus 64 KiB,
-/// bounds what its sections can hold even with the DCT's padding to 8x8 (a file of real DWA
-/// blocks is far inside it). A block stored raw (exactly its uncompressed size: compression
-/// did not help) has no counters.
-fn check_dwa_blocks(path: &Path) -> Result<(), String> {
-    use exr::block::chunk::CompressedBlock;
-    use exr::compression::Compression;
-    let unreadable = |e: exr::error::Error| format!("not a readable OpenEXR file: {e}");
-    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
-    let reader = exr::block::read(std::io::BufReader::new(file), false).map_err(unreadable)?;
-    let dwa = |h: &exr::meta::header::Header| {
-        matches!(h.compression, Compression::DWAA(_) | Compression::DWAB(_))
-    };
-    if !reader.headers().iter().any(dwa) {
-        return Ok(());
-    }
-    let headers = reader.headers().to_vec();
-    for chunk in reader.all_chunks(false).map_err(unreadable)? {
-        let chunk = chunk.map_err(unreadable)?;
-        let Some(header) = headers.get(chunk.layer_index).filter(|h| dwa(h)) else {
-            continue;
-        };
-        let pixels = header
-            .get_block_data_indices(&chunk.compressed_block)
-            .and_then(|indices| header.get_absolute_block_pixel_coordinates(indices))
-            .map_err(unreadable)?;
-        let raw = (header.channels.bytes_per_pixel * pixels.size.area()) as u64;
-        let bytes = match &chunk.compressed_block {
-            CompressedBlock::ScanLine(b) => &b.compressed_pixels_le,
-            CompressedBlock::Tile(t) => &t.compressed_pixels_le,
-            _ => continue,
-        };
-        if bytes.len() as u64 == raw {
-            continue;
-        }
-        let bound = raw.saturating_mul(16).saturating_add(1 << 16);
-        // Counters 1 to 9: the sections' sizes and the coefficient counts.
-        for counter in bytes.chunks_exact(8).take(10).skip(1) {
-            let mut le = [0u8; 8];
-            le.copy_from_slice(counter);
-            let claimed = u64::from_le_bytes(le);
-            if claimed > bound {
-                return Err(format!(
-                    "a DWA block of {}x{} texels claims a section of {claimed}, more than \
-                     such a block can hold ({bound})",
-                    pixels.size.width(),
-                    pixels.size.height()
                 ));
             }
         }

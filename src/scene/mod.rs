@@ -6,6 +6,7 @@
 mod arrays;
 mod builder;
 mod error;
+mod exr_blocks;
 pub mod extensions;
 pub mod gltf_import;
 mod image_header;
@@ -28,6 +29,7 @@ mod viewpoint;
 pub use arrays::{check_material, ArraysError, MeshArrays};
 pub use builder::{SoupBuilder, TriangleIn, VerticesIn};
 pub use error::{catch_quietly, panic_message, LoadError, LoadErrorKind};
+pub use exr_blocks::decode_exr;
 pub use image_source::{Encoded, FileRange, ImageSource, SharedBytes};
 pub use material::{
     AlphaMode, ClearcoatLayer, IridescenceLayer, Material, SheenLayer, SpecularLayer, TextureRef,

@@ -77,7 +77,19 @@ pub fn read(path: &Path, view: ViewTransform) -> Result<RgbaImage, CompareError>
         reader.format(),
         Some(image::ImageFormat::OpenExr | image::ImageFormat::Hdr)
     );
-    let img = reader.decode().map_err(|e| err(e.to_string()))?;
+    // A panic in a decoder (another crate reading the file) is this file's error; OpenEXR is
+    // decoded on this thread for that (scene::decode_exr).
+    let decoded = crate::scene::catch_quietly(|| {
+        if reader.format() == Some(image::ImageFormat::OpenExr) {
+            let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
+            crate::scene::decode_exr(std::io::BufReader::new(file))
+        } else {
+            reader.decode().map_err(|e| e.to_string())
+        }
+    });
+    let img = decoded
+        .map_err(|panic| err(format!("the decoder failed (an internal error): {panic}")))?
+        .map_err(err)?;
     if float {
         let linear = img.to_rgba32f();
         let (w, h) = linear.dimensions();

@@ -1,0 +1,124 @@
+//! OpenEXR input (panoramas for `--env`, the images `compare` and `merge` read) decoded on the
+//! calling thread, after its DWA blocks' claims are checked against their pixels.
+
+/// Checks an OpenEXR file's DWA blocks before anything decodes it. The `exr` crate's DWA
+/// decoder (behind the image crate's too) sizes each section of a block by the counters at the block's
+/// start (eleven little-endian u64: version, the sections' sizes, the coefficient counts, the
+/// AC coder) and allocates that much before inflating: a hostile file claimed 52 PB, and the
+/// process aborted on the failed allocation (found by fuzzing). Each DWA block's counters are
+/// checked against its pixels first: 16 times the block's uncompressed size, plus 64 KiB,
+/// bounds what its sections can hold even with the DCT's padding to 8x8 (a file of real DWA
+/// blocks is far inside it). A block stored raw (exactly its uncompressed size: compression
+/// did not help) has no counters.
+fn check_exr_blocks(read: impl std::io::Read + std::io::Seek) -> Result<(), String> {
+    use exr::block::chunk::CompressedBlock;
+    use exr::compression::Compression;
+    let unreadable = |e: exr::error::Error| format!("not a readable OpenEXR file: {e}");
+    let reader = exr::block::read(read, false).map_err(unreadable)?;
+    let dwa = |h: &exr::meta::header::Header| {
+        matches!(h.compression, Compression::DWAA(_) | Compression::DWAB(_))
+    };
+    if !reader.headers().iter().any(dwa) {
+        return Ok(());
+    }
+    let headers = reader.headers().to_vec();
+    for chunk in reader.all_chunks(false).map_err(unreadable)? {
+        let chunk = chunk.map_err(unreadable)?;
+        let Some(header) = headers.get(chunk.layer_index).filter(|h| dwa(h)) else {
+            continue;
+        };
+        let pixels = header
+            .get_block_data_indices(&chunk.compressed_block)
+            .and_then(|indices| header.get_absolute_block_pixel_coordinates(indices))
+            .map_err(unreadable)?;
+        let raw = (header.channels.bytes_per_pixel * pixels.size.area()) as u64;
+        let bytes = match &chunk.compressed_block {
+            CompressedBlock::ScanLine(b) => &b.compressed_pixels_le,
+            CompressedBlock::Tile(t) => &t.compressed_pixels_le,
+            _ => continue,
+        };
+        if bytes.len() as u64 == raw {
+            continue;
+        }
+        let bound = raw.saturating_mul(16).saturating_add(1 << 16);
+        // Counters 1 to 9: the sections' sizes and the coefficient counts.
+        for counter in bytes.chunks_exact(8).take(10).skip(1) {
+            let mut le = [0u8; 8];
+            le.copy_from_slice(counter);
+            let claimed = u64::from_le_bytes(le);
+            if claimed > bound {
+                return Err(format!(
+                    "a DWA block of {}x{} texels claims a section of {claimed}, more than \
+                     such a block can hold ({bound})",
+                    pixels.size.width(),
+                    pixels.size.height()
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Decodes an OpenEXR file's first layer with R, G and B (and A, when it has one) as the
+/// image crate does (`Rgba32F` with alpha, else `Rgb32F`, over the display window, black where
+/// the data window does not reach), after checking its DWA blocks' counters, and on the
+/// calling thread.
+/// The image crate's reader hands the blocks to the `exr` crate's parallel decompressor, whose
+/// thread pool aborts the process when a decoder panics on a hostile file (found by fuzzing:
+/// an overflow in its B44 decoder); here such a panic reaches the caller, where
+/// [`super::catch_quietly`] makes it an error.
+pub fn decode_exr(
+    mut read: impl std::io::Read + std::io::Seek,
+) -> Result<image::DynamicImage, String> {
+    use exr::prelude::{read as read_exr, ReadChannels, ReadLayers};
+    check_exr_blocks(&mut read)?;
+    read.seek(std::io::SeekFrom::Start(0))
+        .map_err(|e| e.to_string())?;
+    let image = read_exr()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |size, channels: &exr::image::RgbaChannels| {
+                (
+                    size.width(),
+                    channels.3.is_some(),
+                    vec![0.0f32; size.area() * 4],
+                )
+            },
+            |(width, _, texels), at, (r, g, b, a): (f32, f32, f32, f32)| {
+                let i = (at.y() * *width + at.x()) * 4;
+                texels[i..i + 4].copy_from_slice(&[r, g, b, a]);
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .non_parallel()
+        .from_buffered(std::io::BufReader::new(read))
+        .map_err(|e| format!("cannot decode the OpenEXR image: {e}"))?;
+    let display = image.attributes.display_window;
+    let (width, height) = (display.size.width(), display.size.height());
+    let layer = &image.layer_data;
+    let (data_width, alpha, data) = &layer.channel_data.pixels;
+    let offset = layer.attributes.layer_position - display.position;
+    let channels = if *alpha { 4 } else { 3 };
+    let mut out = vec![0.0f32; width * height * channels];
+    for (i, texel) in data.chunks_exact(4).enumerate() {
+        let x = (i % data_width) as i64 + i64::from(offset.x());
+        let y = (i / data_width) as i64 + i64::from(offset.y());
+        if (0..width as i64).contains(&x) && (0..height as i64).contains(&y) {
+            let at = (y as usize * width + x as usize) * channels;
+            out[at..at + channels].copy_from_slice(&texel[..channels]);
+        }
+    }
+    let (w, h) = (width as u32, height as u32);
+    let too_large = || "the OpenEXR image is too large".to_string();
+    Ok(if *alpha {
+        image::DynamicImage::ImageRgba32F(
+            image::Rgba32FImage::from_raw(w, h, out).ok_or_else(too_large)?,
+        )
+    } else {
+        image::DynamicImage::ImageRgb32F(
+            image::Rgb32FImage::from_raw(w, h, out).ok_or_else(too_large)?,
+        )
+    })
+}
