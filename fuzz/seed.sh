@@ -4,7 +4,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 samples="${MESHTRACER_SAMPLES:-../shared/assets}"
-mkdir -p fuzz/corpus/gltf_json fuzz/corpus/glb fuzz/corpus/obj fuzz/corpus/image
+mkdir -p fuzz/corpus/gltf_json fuzz/corpus/glb fuzz/corpus/obj fuzz/corpus/image fuzz/corpus/panorama
 if [ -d "$samples" ]; then
   find "$samples" -name '*.gltf' -size -200k -exec cp {} fuzz/corpus/gltf_json/ \;
   find "$samples" -name '*.glb' -size -200k -exec cp {} fuzz/corpus/glb/ \;
@@ -89,4 +89,31 @@ for f in sorted(glob.glob(os.path.join(sys.argv[1], "*.gltf"))):
         m["normalTexture"] = {"index": 0}
     json.dump(doc, open(f[:-5] + "-normalmapped.gltf", "w"))
 PY
-for t in gltf_json glb obj image; do echo "$t: $(ls fuzz/corpus/$t | wc -l) seeds"; done
+# The panorama target's seeds: small .hdr and .exr files written by meshtracer itself (its
+# encoders: RGBE run-length scanlines, OpenEXR with alpha), and the shared panoramas' headers
+# (the first 32 KB of each: a truncated file is a seed too, and a small one).
+envs="${MESHTRACER_ENVIRONMENTS:-../shared/environments}"
+cargo run -q --release -- render assets/cornell-box.gltf -o fuzz/corpus/panorama/box.hdr \
+  --width 24 --height 12 --spp 1 --no-denoise -q
+cargo run -q --release -- render assets/cornell-box.gltf -o fuzz/corpus/panorama/box.exr \
+  --width 24 --height 12 --spp 1 --no-denoise -q
+if [ -d "$envs" ]; then
+  for f in "$envs"/*.hdr "$envs"/*.exr; do
+    head -c 32768 "$f" > "fuzz/corpus/panorama/$(basename "$f").head"
+  done
+fi
+# Small EXR panoramas in every compression OpenEXR writes (DWAA/DWAB, Blender's default,
+# among them), if its Python bindings (PyPI `OpenEXR`) are at hand.
+python3 - fuzz/corpus/panorama <<'PY' || echo "no OpenEXR module: the panorama target has no DWA, PIZ or B44 seeds"
+import os, sys
+import numpy as np
+import OpenEXR
+y, x = np.mgrid[0:32, 0:64]
+rgb = np.stack([np.sin(x / 7.0) + 1.2, np.cos(y / 5.0) + 1.1, (x + y) / 40.0], axis=-1)
+for name in ["DWAA", "DWAB", "PIZ", "B44", "B44A", "PXR24", "RLE", "ZIPS", "ZIP"]:
+    header = {"compression": getattr(OpenEXR, name + "_COMPRESSION"),
+              "type": OpenEXR.scanlineimage}
+    OpenEXR.File(header, {"RGB": rgb.astype(np.float16)}).write(
+        os.path.join(sys.argv[1], name.lower() + ".exr"))
+PY
+for t in gltf_json glb obj image panorama; do echo "$t: $(ls fuzz/corpus/$t | wc -l) seeds"; done
