@@ -371,9 +371,10 @@ impl Raster {
                 // A panic in a decoder (another crate reading the file) is this file's error;
                 // OpenEXR is decoded on this thread for that (scene::decode_exr).
                 let decoded = crate::scene::catch_quietly(|| match format {
-                    image::ImageFormat::OpenExr => {
-                        crate::scene::decode_exr(std::io::Cursor::new(&bytes))
-                    }
+                    image::ImageFormat::OpenExr => crate::scene::decode_exr(
+                        std::io::Cursor::new(&bytes),
+                        crate::scene::MAX_EXR_TEXELS,
+                    ),
                     _ => image::load_from_memory_with_format(&bytes, format)
                         .map_err(|e| e.to_string()),
                 });

@@ -519,7 +519,7 @@ fn read_with_image(path: &Path) -> Result<(usize, usize, Vec<Vec3>), String> {
 fn read_exr(path: &Path) -> Result<(usize, usize, Vec<Vec3>), String> {
     check_exr_compression(path)?;
     let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
-    let image = crate::scene::decode_exr(file)
+    let image = crate::scene::decode_exr(file, MAX_ENVIRONMENT_TEXELS as usize)
         .map_err(|e| format!("cannot decode the panorama: {e}"))?
         .into_rgb32f();
     Ok(sized_texels(&image))

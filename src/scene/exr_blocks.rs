@@ -10,11 +10,34 @@
 /// bounds what its sections can hold even with the DCT's padding to 8x8 (a file of real DWA
 /// blocks is far inside it). A block stored raw (exactly its uncompressed size: compression
 /// did not help) has no counters.
-fn check_exr_blocks(read: impl std::io::Read + std::io::Seek) -> Result<(), String> {
+///
+/// It also holds every layer's display and data windows to `max_texels`, before anything is
+/// allocated for them (the image crate's reader held them to its 512 MiB allocation limit).
+fn check_exr_blocks(
+    read: impl std::io::Read + std::io::Seek,
+    max_texels: usize,
+) -> Result<(), String> {
     use exr::block::chunk::CompressedBlock;
     use exr::compression::Compression;
     let unreadable = |e: exr::error::Error| format!("not a readable OpenEXR file: {e}");
     let reader = exr::block::read(read, false).map_err(unreadable)?;
+    for header in reader.headers() {
+        for (what, size) in [
+            (
+                "display window",
+                header.shared_attributes.display_window.size,
+            ),
+            ("data window", header.layer_size),
+        ] {
+            if size.width().saturating_mul(size.height()) > max_texels {
+                return Err(format!(
+                    "its {what} is {}x{} texels, more than the {max_texels} this reads",
+                    size.width(),
+                    size.height()
+                ));
+            }
+        }
+    }
     let dwa = |h: &exr::meta::header::Header| {
         matches!(h.compression, Compression::DWAA(_) | Compression::DWAB(_))
     };
@@ -31,7 +54,8 @@ fn check_exr_blocks(read: impl std::io::Read + std::io::Seek) -> Result<(), Stri
             .get_block_data_indices(&chunk.compressed_block)
             .and_then(|indices| header.get_absolute_block_pixel_coordinates(indices))
             .map_err(unreadable)?;
-        let raw = (header.channels.bytes_per_pixel * pixels.size.area()) as u64;
+        let raw =
+            (header.channels.bytes_per_pixel as u64).saturating_mul(pixels.size.area() as u64);
         let bytes = match &chunk.compressed_block {
             CompressedBlock::ScanLine(b) => &b.compressed_pixels_le,
             CompressedBlock::Tile(t) => &t.compressed_pixels_le,
@@ -59,7 +83,12 @@ fn check_exr_blocks(read: impl std::io::Read + std::io::Seek) -> Result<(), Stri
     Ok(())
 }
 
-/// Decodes an OpenEXR file's first layer with R, G and B (and A, when it has one) as the
+/// The most texels [`decode_exr`] reads for `compare` and `merge`: the image crate's default
+/// allocation limit (512 MiB) in RGBA f32, which held them before.
+pub const MAX_EXR_TEXELS: usize = 512 << 20 >> 4;
+
+/// Decodes an OpenEXR file's first layer with R, G and B (and A, when it has one), at most
+/// `max_texels` in either window, as the
 /// image crate does (`Rgba32F` with alpha, else `Rgb32F`, over the display window, black where
 /// the data window does not reach), after checking its DWA blocks' counters, and on the
 /// calling thread.
@@ -69,9 +98,10 @@ fn check_exr_blocks(read: impl std::io::Read + std::io::Seek) -> Result<(), Stri
 /// [`super::catch_quietly`] makes it an error.
 pub fn decode_exr(
     mut read: impl std::io::Read + std::io::Seek,
+    max_texels: usize,
 ) -> Result<image::DynamicImage, String> {
     use exr::prelude::{read as read_exr, ReadChannels, ReadLayers};
-    check_exr_blocks(&mut read)?;
+    check_exr_blocks(&mut read, max_texels)?;
     read.seek(std::io::SeekFrom::Start(0))
         .map_err(|e| e.to_string())?;
     let image = read_exr()
@@ -121,4 +151,34 @@ pub fn decode_exr(
             image::Rgb32FImage::from_raw(w, h, out).ok_or_else(too_large)?,
         )
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// An RGBA EXR written by the exr crate decodes to what the image crate's reader gives,
+    /// texel for texel, within the texel limit; over it, it is refused naming the window.
+    #[test]
+    fn decodes_as_the_image_crate_within_the_texel_limit() {
+        use exr::prelude::*;
+        let channels = SpecificChannels::rgba(|at: Vec2<usize>| {
+            let (x, y) = (at.x() as f32, at.y() as f32);
+            (x / 64.0, y / 32.0, (x + y).sin(), 0.5)
+        });
+        let mut bytes = Vec::new();
+        Image::from_channels((64, 32), channels)
+            .write()
+            .to_buffered(std::io::Cursor::new(&mut bytes))
+            .expect("writes");
+        let ours = decode_exr(std::io::Cursor::new(&bytes), 64 * 32).expect("decodes");
+        let theirs = image::load_from_memory_with_format(&bytes, image::ImageFormat::OpenExr)
+            .expect("the image crate decodes it");
+        assert!(ours == theirs, "the two readers differ");
+        let refused = decode_exr(std::io::Cursor::new(&bytes), 64 * 32 - 1).unwrap_err();
+        assert_eq!(
+            refused,
+            "its display window is 64x32 texels, more than the 2047 this reads"
+        );
+    }
 }

@@ -29,7 +29,7 @@ mod viewpoint;
 pub use arrays::{check_material, ArraysError, MeshArrays};
 pub use builder::{SoupBuilder, TriangleIn, VerticesIn};
 pub use error::{catch_quietly, panic_message, LoadError, LoadErrorKind};
-pub use exr_blocks::decode_exr;
+pub use exr_blocks::{decode_exr, MAX_EXR_TEXELS};
 pub use image_source::{Encoded, FileRange, ImageSource, SharedBytes};
 pub use material::{
     AlphaMode, ClearcoatLayer, IridescenceLayer, Material, SheenLayer, SpecularLayer, TextureRef,

@@ -82,7 +82,7 @@ pub fn read(path: &Path, view: ViewTransform) -> Result<RgbaImage, CompareError>
     let decoded = crate::scene::catch_quietly(|| {
         if reader.format() == Some(image::ImageFormat::OpenExr) {
             let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
-            crate::scene::decode_exr(std::io::BufReader::new(file))
+            crate::scene::decode_exr(std::io::BufReader::new(file), crate::scene::MAX_EXR_TEXELS)
         } else {
             reader.decode().map_err(|e| e.to_string())
         }
