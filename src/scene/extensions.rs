@@ -169,9 +169,9 @@ pub const EXTENSIONS: &[KnownExtension] = &[
     ),
     ext(
         "KHR_materials_pbrSpecularGlossiness",
-        Ignored,
+        Supported,
         false,
-        "drawn with the core metallic-roughness material",
+        "diffuse, specular (F0) and glossiness with their textures, by the extension's equations",
     ),
     ext(
         "KHR_xmp_json_ld",

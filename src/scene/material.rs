@@ -113,6 +113,26 @@ pub struct Material {
     pub clearcoat: Option<ClearcoatLayer>,
     /// `KHR_materials_iridescence` (absent or factor 0: none).
     pub iridescence: Option<IridescenceLayer>,
+    /// `KHR_materials_pbrSpecularGlossiness` (archived, still common in older downloads): when
+    /// present it defines the BRDF inputs in place of metallic and roughness.
+    pub specular_glossiness: Option<SpecularGlossiness>,
+}
+
+/// `KHR_materials_pbrSpecularGlossiness`: the specular-glossiness model. Its diffuse colour
+/// (`diffuseFactor`, `diffuseTexture`) is held as [`Material::base_color`] and
+/// [`Material::base_color_texture`], so alpha, vertex colours and alpha MASK read it as they
+/// read a base colour; the BRDF inputs are then, by the extension's equations,
+/// c_diff = diffuse.rgb · (1 - max(specular)), F0 = specular, roughness = 1 - glossiness
+/// (α = (1 - glossiness)²), with F90 = 1 and no metal.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SpecularGlossiness {
+    /// `specularFactor` (linear): F0.
+    pub specular: Vec3,
+    /// `glossinessFactor`: 1 - perceptual roughness.
+    pub glossiness: f32,
+    /// `specularGlossinessTexture`: specular in RGB (sRGB), glossiness in A (linear), times
+    /// the factors.
+    pub texture: Option<TextureRef>,
 }
 
 /// `KHR_materials_iridescence`: a thin film over the surface (soap bubbles, oil, anodised
@@ -217,7 +237,8 @@ impl Material {
 
     /// Every texture the material references (base colour, metallic-roughness, normal,
     /// occlusion, emissive, transmission, volume thickness, then the specular, sheen,
-    /// clearcoat and iridescence layers' ones), in that order, skipping those it lacks.
+    /// clearcoat and iridescence layers' ones, then the specular-glossiness texture), in that
+    /// order, skipping those it lacks.
     pub fn texture_refs(&self) -> impl Iterator<Item = TextureRef> {
         let mut refs = vec![
             self.base_color_texture,
@@ -238,6 +259,9 @@ impl Material {
         }
         if let Some(l) = &self.iridescence {
             refs.extend([l.texture, l.thickness_texture]);
+        }
+        if let Some(l) = &self.specular_glossiness {
+            refs.push(l.texture);
         }
         refs.into_iter().flatten()
     }
@@ -267,6 +291,9 @@ impl Material {
         }
         if let Some(l) = &mut self.iridescence {
             slots.extend([&mut l.texture, &mut l.thickness_texture]);
+        }
+        if let Some(l) = &mut self.specular_glossiness {
+            slots.push(&mut l.texture);
         }
         slots
     }
@@ -382,6 +409,7 @@ impl Default for Material {
             sheen: None,
             clearcoat: None,
             iridescence: None,
+            specular_glossiness: None,
         }
     }
 }

@@ -319,6 +319,18 @@ impl Prepared {
             roughness *= t.y;
             metallic *= t.z;
         }
+        // KHR_materials_pbrSpecularGlossiness: specular (sRGB RGB) and glossiness (linear A)
+        // times their factors; c_diff = diffuse · (1 - max(specular)), F0 = specular (set
+        // after the layers below), roughness = 1 - glossiness, no metal.
+        let specular_glossiness = material.specular_glossiness.as_ref().map(|sg| {
+            let (specular, glossiness) = match sample(&sg.texture, true) {
+                Some(t) => (sg.specular * t.truncate(), sg.glossiness * t.w),
+                None => (sg.specular, sg.glossiness),
+            };
+            base = (base.truncate() * (1.0 - specular.max_element())).extend(base.w);
+            (metallic, roughness) = (0.0, 1.0 - glossiness);
+            specular
+        });
         let mut emissive = material.emissive * material.emissive_strength;
         if let Some(t) = sample(&material.emissive_texture, true) {
             emissive *= t.truncate();
@@ -359,6 +371,11 @@ impl Prepared {
             &sample,
             (tri, b, smooth, geometric),
         );
+        if let Some(specular) = specular_glossiness {
+            shaded.dielectric_f0 = specular;
+            shaded.specular_weight = 1.0;
+            shaded.specular = Some(specular);
+        }
         let mut transmission = material.transmission;
         if let Some(t) = sample(&material.transmission_texture, false) {
             transmission *= t.x;

@@ -291,6 +291,43 @@ fn out_of_range_core_material_factors_are_clamped() {
     assert_eq!(material["emissive"], json!([1.0, 0.0, 0.5]), "{material}");
 }
 
+/// `KHR_materials_pbrSpecularGlossiness`'s factors are on [0, 1] too: where the extension is
+/// present its factors are the ones drawn, so they are checked and clamped (the core factors
+/// beside it are a fallback that is not drawn, and are not reported).
+#[test]
+fn out_of_range_specular_glossiness_factors_are_clamped() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut json, bin) = unit_quad();
+    json["extensionsUsed"] = json!(["KHR_materials_pbrSpecularGlossiness"]);
+    json["materials"] = json!([{"name": "Shiny",
+        "pbrMetallicRoughness": {"baseColorFactor": [50.0, 1.0, 1.0, 1.0]},
+        "extensions": {"KHR_materials_pbrSpecularGlossiness": {
+            "diffuseFactor": [2.0, 0.5, 0.5, 1.0], "specularFactor": [1.5, -0.5, 0.5],
+            "glossinessFactor": 3.0}}}]);
+    json["meshes"][0]["primitives"][0]["material"] = json!(0);
+    let info = info(dir.path(), json, &bin);
+    let prefix = "material 0 ('Shiny'): KHR_materials_pbrSpecularGlossiness";
+    assert_eq!(
+        warnings(&info),
+        [
+            format!("{prefix} diffuseFactor [2.0, 0.5, 0.5, 1.0] is outside [0, 1]; clamped"),
+            format!("{prefix} specularFactor [1.5, -0.5, 0.5] is outside [0, 1]; clamped"),
+            format!("{prefix} glossinessFactor 3 is outside [0, 1]; clamped"),
+        ]
+    );
+    let material = &info["material_list"][0];
+    assert_eq!(
+        material["base_color"],
+        json!([1.0, 0.5, 0.5, 1.0]),
+        "{material}"
+    );
+    let sg = &material["specular_glossiness"];
+    assert_eq!(sg["specular"], json!([1.0, 0.0, 0.5]), "{material}");
+    assert_eq!(sg["glossiness"], 1.0, "{material}");
+    assert_eq!(material["roughness"], 0.0, "{material}");
+    assert_eq!(material["metallic"], 0.0, "{material}");
+}
+
 /// KHR_lights_punctual's ranges: a colour outside [0, 1] is clamped (a negative one took light
 /// away: the bundled box went from a mean of 86 to 11 of 255 with one channel at -1) and spot
 /// cones outside 0 <= inner < outer <= π/2 are corrected, one warning for each light however

@@ -551,3 +551,111 @@ fn a_glass_pane_shadow_has_no_line_along_its_diagonal() {
         assert!(diagonal >= 15, "{diagonal} pixels on the diagonal's shadow");
     }
 }
+
+/// `KHR_materials_pbrSpecularGlossiness` by the extension's equations (c_diff = diffuse ·
+/// (1 - max(specular)), F0 = specular, roughness = 1 - glossiness): a smooth sphere under a
+/// directional light must render as the metallic-roughness material with the same BRDF inputs,
+/// with the direct integrator and the path tracer alike. A coloured dielectric three ways
+/// (factors alone; factors times a specular-glossiness texture whose sRGB RGB and linear alpha
+/// give the same values; the core material with `KHR_materials_specular` for the coloured F0)
+/// and a gold metal three ways (specular-glossiness with a black diffuse, alone and beside a
+/// green metallic-roughness fallback, which must not be drawn; metallic 1). The same
+/// inputs differ only by float rounding (0.04 · 25·L against L), so every pixel must agree with
+/// the first rendering of its group within 1e-5 of the brightest pixel (measured: 4e-7, and 0
+/// where the inputs are the same floats).
+#[test]
+fn specular_glossiness_renders_as_its_metallic_roughness_equivalent() {
+    let dir = tempfile::tempdir().unwrap();
+    let srgb = |c: f32| ((c + 0.055) / 1.055).powf(2.4);
+    let l = srgb(188.0 / 255.0);
+    let texel = image::RgbaImage::from_pixel(1, 1, image::Rgba([188, 188, 188, 153]));
+    let sg = |ext: serde_json::Value| json!({"extensions": {"KHR_materials_pbrSpecularGlossiness": ext}});
+    let dielectric = [
+        sg(
+            json!({"diffuseFactor": [0.8, 0.8, 0.8, 1.0], "specularFactor": [l, 0.6 * l, 0.4 * l], "glossinessFactor": 0.6}),
+        ),
+        sg(
+            json!({"diffuseFactor": [0.8, 0.8, 0.8, 1.0], "specularFactor": [1.0, 0.6, 0.4], "glossinessFactor": 1.0,
+                  "specularGlossinessTexture": {"index": 0}}),
+        ),
+        json!({"pbrMetallicRoughness": {"baseColorFactor": [0.8 * (1.0 - l), 0.8 * (1.0 - l), 0.8 * (1.0 - l), 1.0],
+                                        "metallicFactor": 0.0, "roughnessFactor": 0.4},
+               "extensions": {"KHR_materials_specular": {"specularColorFactor": [25.0 * l, 15.0 * l, 10.0 * l]}}}),
+    ];
+    let gold = [
+        sg(
+            json!({"diffuseFactor": [0.0, 0.0, 0.0, 1.0], "specularFactor": [1.0, 0.766, 0.336], "glossinessFactor": 0.7}),
+        ),
+        json!({"pbrMetallicRoughness": {"baseColorFactor": [1.0, 0.766, 0.336, 1.0], "metallicFactor": 1.0, "roughnessFactor": 0.3}}),
+        // A metallic-roughness fallback beside the extension is not what is drawn.
+        json!({"pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.9, 0.2, 1.0], "metallicFactor": 0.0, "roughnessFactor": 1.0},
+               "extensions": {"KHR_materials_pbrSpecularGlossiness":
+                   {"diffuseFactor": [0.0, 0.0, 0.0, 1.0], "specularFactor": [1.0, 0.766, 0.336], "glossinessFactor": 0.7}}}),
+    ];
+    let sphere = |name: &str, material: &serde_json::Value| {
+        let to_light = glam::Vec3::new(0.4, 0.5, 0.8).normalize();
+        let (mut json, bin) = crate::common::sphere_gltf(
+            (32, 64),
+            glam::Vec3::ZERO,
+            1.0,
+            to_light,
+            3.0,
+            material.clone(),
+        );
+        // TEXCOORD_0 from the positions' x and y (the texture is one texel: any coordinates do).
+        json["bufferViews"][0]["byteStride"] = json!(12);
+        let count = json["accessors"][0]["count"].clone();
+        json["accessors"]
+            .as_array_mut()
+            .unwrap()
+            .push(json!({"bufferView": 0, "componentType": 5126, "count": count, "type": "VEC2"}));
+        json["meshes"][0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(2);
+        json["extensionsUsed"] = json!([
+            "KHR_lights_punctual",
+            "KHR_materials_pbrSpecularGlossiness",
+            "KHR_materials_specular"
+        ]);
+        json["images"] = json!([{"uri": png_data_uri(&texel)}]);
+        json["textures"] = json!([{"source": 0}]);
+        write_gltf(dir.path(), &format!("{name}.gltf"), json, &bin)
+    };
+    for (group, materials) in [("dielectric", &dielectric[..]), ("gold", &gold[..])] {
+        for integrator in [
+            &["--integrator", "direct", "--ambient", "0", "--spp", "1"][..],
+            &["--integrator", "path", "--spp", "4", "--no-denoise"][..],
+        ] {
+            let images: Vec<Vec<[f32; 4]>> = materials
+                .iter()
+                .enumerate()
+                .map(|(i, m)| {
+                    let model = sphere(&format!("{group}-{i}"), m);
+                    let out = dir.path().join(format!("{group}-{i}.exr"));
+                    let mut args = vec!["render", s(&model), "-o", s(&out), "--quiet"];
+                    args.extend(["--width", "48", "--height", "48"]);
+                    args.extend_from_slice(integrator);
+                    run(&args, true);
+                    read_rgba(&out).2
+                })
+                .collect();
+            let brightest = images[0]
+                .iter()
+                .flat_map(|p| &p[..3])
+                .fold(0f32, |a, &b| a.max(b));
+            assert!(
+                brightest > 0.1,
+                "{group} {integrator:?}: dark ({brightest})"
+            );
+            for (i, image) in images.iter().enumerate().skip(1) {
+                let worst = image
+                    .iter()
+                    .zip(&images[0])
+                    .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs()))
+                    .fold(0f32, f32::max);
+                assert!(
+                    worst <= 1e-5 * brightest,
+                    "{group} {integrator:?}: material {i} differs from material 0 by {worst} (brightest {brightest})"
+                );
+            }
+        }
+    }
+}

@@ -2,8 +2,8 @@
 //! texture references they hold (`KHR_texture_transform` included).
 
 use crate::scene::material::{
-    AlphaMode, ClearcoatLayer, IridescenceLayer, Material, SheenLayer, SpecularLayer, TextureRef,
-    TextureTransform,
+    AlphaMode, ClearcoatLayer, IridescenceLayer, Material, SheenLayer, SpecularGlossiness,
+    SpecularLayer, TextureRef, TextureTransform,
 };
 use glam::{Vec3, Vec4};
 
@@ -69,6 +69,33 @@ fn extension_texture_ref(
 }
 
 pub(super) fn material(m: &gltf::Material) -> Material {
+    let core = core_material(m);
+    let Some(sg) = m.pbr_specular_glossiness() else {
+        return core;
+    };
+    // KHR_materials_pbrSpecularGlossiness: "any client implementation that supports the
+    // extension should always render the asset using the specular-glossiness material
+    // properties", so a metallic-roughness fallback beside it is not drawn. The diffuse colour
+    // takes the base colour's place (see `SpecularGlossiness`); the factors are defined on
+    // [0, 1] and clamped (reported by `out_of_range`).
+    let glossiness = finite_or(sg.glossiness_factor(), 1.0).clamp(0.0, 1.0);
+    Material {
+        base_color: Vec4::from(sg.diffuse_factor()).clamp(Vec4::ZERO, Vec4::ONE),
+        base_color_texture: texture_ref(sg.diffuse_texture()),
+        metallic: 0.0,
+        roughness: 1.0 - glossiness,
+        metallic_roughness_texture: None,
+        specular_glossiness: Some(SpecularGlossiness {
+            specular: Vec3::from(sg.specular_factor()).clamp(Vec3::ZERO, Vec3::ONE),
+            glossiness,
+            texture: texture_ref(sg.specular_glossiness_texture()),
+        }),
+        ..core
+    }
+}
+
+/// `m` as the core metallic-roughness material with its extension layers.
+fn core_material(m: &gltf::Material) -> Material {
     let pbr = m.pbr_metallic_roughness();
     let normal = m.normal_texture();
     let occlusion = m.occlusion_texture();
@@ -174,6 +201,7 @@ pub(super) fn material(m: &gltf::Material) -> Material {
                 thickness_max: json_f32(e.get("iridescenceThicknessMaximum"), 400.0).max(0.0),
                 thickness_texture: json_texture_ref(e.get("iridescenceThicknessTexture")),
             }),
+        specular_glossiness: None,
     }
 }
 
@@ -184,18 +212,40 @@ pub(super) fn out_of_range(m: &gltf::Material) -> Vec<String> {
     let mut problems = Vec::new();
     let pbr = m.pbr_metallic_roughness();
     let unit = |v: &[f32]| v.iter().all(|x| (0.0..=1.0).contains(x));
-    // (property, its values) of the core material's factors, each defined on [0, 1].
-    let core: [(&str, &[f32]); 5] = [
-        ("baseColorFactor", &pbr.base_color_factor()),
-        ("metallicFactor", &[pbr.metallic_factor()]),
-        ("roughnessFactor", &[pbr.roughness_factor()]),
-        ("emissiveFactor", &m.emissive_factor()),
+    // (property, its values) of the drawn material's factors, each defined on [0, 1]: the
+    // specular-glossiness ones in place of the core colour, metalness and roughness where that
+    // extension is present (the core ones are then not drawn).
+    let sg = m.pbr_specular_glossiness();
+    let drawn: [(&str, Vec<f32>); 3] = match &sg {
+        Some(sg) => [
+            ("diffuseFactor", sg.diffuse_factor().to_vec()),
+            ("specularFactor", sg.specular_factor().to_vec()),
+            ("glossinessFactor", vec![sg.glossiness_factor()]),
+        ],
+        None => [
+            ("baseColorFactor", pbr.base_color_factor().to_vec()),
+            ("metallicFactor", vec![pbr.metallic_factor()]),
+            ("roughnessFactor", vec![pbr.roughness_factor()]),
+        ],
+    };
+    let prefix = if sg.is_some() {
+        "KHR_materials_pbrSpecularGlossiness "
+    } else {
+        ""
+    };
+    let shared = [
+        ("emissiveFactor", m.emissive_factor().to_vec()),
         (
             "occlusionTexture strength",
-            &[m.occlusion_texture().map_or(1.0, |o| o.strength())],
+            vec![m.occlusion_texture().map_or(1.0, |o| o.strength())],
         ),
     ];
-    for (property, values) in core {
+    let named = drawn
+        .into_iter()
+        .map(|(p, v)| (format!("{prefix}{p}"), v))
+        .chain(shared.into_iter().map(|(p, v)| (p.to_string(), v)));
+    for (property, values) in named {
+        let values = values.as_slice();
         if !unit(values) {
             let shown = match values {
                 [one] => one.to_string(),
