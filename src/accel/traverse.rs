@@ -60,6 +60,7 @@ pub(super) struct NodeRay {
 
 impl NodeRay {
     /// The node-test form of `ray`.
+    #[inline]
     pub(super) fn new(ray: &Ray) -> NodeRay {
         let d = ray.direction;
         let safe = |x: f32| {
