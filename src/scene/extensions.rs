@@ -151,9 +151,9 @@ pub const EXTENSIONS: &[KnownExtension] = &[
     ),
     ext(
         "KHR_materials_anisotropy",
-        Ignored,
+        Supported,
         false,
-        "drawn with the core metallic-roughness material",
+        "the specular lobe stretched along the tangent-space direction (strength, rotation, texture)",
     ),
     ext(
         "KHR_materials_dispersion",
@@ -244,10 +244,10 @@ mod tests {
         assert!(ExtensionUse::new("KHR_lights_punctual", false)
             .warning()
             .is_none());
-        let w = ExtensionUse::new("KHR_materials_anisotropy", false)
+        let w = ExtensionUse::new("KHR_materials_dispersion", false)
             .warning()
             .unwrap();
-        assert!(w.contains("KHR_materials_anisotropy is ignored"), "{w}");
+        assert!(w.contains("KHR_materials_dispersion is ignored"), "{w}");
         assert_eq!(
             ExtensionUse::new("EXT_made_up", true).status,
             ExtensionStatus::Ignored

@@ -116,6 +116,30 @@ pub struct Material {
     /// `KHR_materials_pbrSpecularGlossiness` (archived, still common in older downloads): when
     /// present it defines the BRDF inputs in place of metallic and roughness.
     pub specular_glossiness: Option<SpecularGlossiness>,
+    /// `KHR_materials_anisotropy` (absent or strength 0: an isotropic specular lobe).
+    pub anisotropy: Option<AnisotropyLayer>,
+}
+
+/// `KHR_materials_anisotropy`: the specular lobe stretched along a direction in the tangent
+/// plane (brushed metal). Along that direction GGX's α is mix(α, 1, strength²), across it the
+/// material's α = roughness².
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AnisotropyLayer {
+    /// `anisotropyStrength` in [0, 1].
+    pub strength: f32,
+    /// `anisotropyRotation`: radians counter-clockwise from the tangent, toward the bitangent.
+    pub rotation: f32,
+    /// `anisotropyTexture` (linear): direction in red and green ([0, 1] to [-1, 1] in the
+    /// tangent-bitangent plane, then rotated by `rotation`), strength in blue (times the
+    /// factor).
+    pub texture: Option<TextureRef>,
+}
+
+impl AnisotropyLayer {
+    /// Whether it stretches the lobe anywhere (a strength of 0 leaves it isotropic).
+    pub fn is_active(&self) -> bool {
+        self.strength > 0.0
+    }
 }
 
 /// `KHR_materials_pbrSpecularGlossiness`: the specular-glossiness model. Its diffuse colour
@@ -237,8 +261,8 @@ impl Material {
 
     /// Every texture the material references (base colour, metallic-roughness, normal,
     /// occlusion, emissive, transmission, volume thickness, then the specular, sheen,
-    /// clearcoat and iridescence layers' ones, then the specular-glossiness texture), in that
-    /// order, skipping those it lacks.
+    /// clearcoat and iridescence layers' ones, then the specular-glossiness and anisotropy
+    /// textures), in that order, skipping those it lacks.
     pub fn texture_refs(&self) -> impl Iterator<Item = TextureRef> {
         let mut refs = vec![
             self.base_color_texture,
@@ -261,6 +285,9 @@ impl Material {
             refs.extend([l.texture, l.thickness_texture]);
         }
         if let Some(l) = &self.specular_glossiness {
+            refs.push(l.texture);
+        }
+        if let Some(l) = &self.anisotropy {
             refs.push(l.texture);
         }
         refs.into_iter().flatten()
@@ -293,6 +320,9 @@ impl Material {
             slots.extend([&mut l.texture, &mut l.thickness_texture]);
         }
         if let Some(l) = &mut self.specular_glossiness {
+            slots.push(&mut l.texture);
+        }
+        if let Some(l) = &mut self.anisotropy {
             slots.push(&mut l.texture);
         }
         slots
@@ -410,6 +440,7 @@ impl Default for Material {
             clearcoat: None,
             iridescence: None,
             specular_glossiness: None,
+            anisotropy: None,
         }
     }
 }

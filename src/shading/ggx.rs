@@ -39,7 +39,20 @@ pub(crate) fn smith_g1(n_dot_v: f32, alpha: f32) -> f32 {
 /// Heitz 2018, listing 1.
 #[inline(always)]
 pub(crate) fn sample_visible_normal(v: Vec3, alpha: f32, u1: f32, u2: f32) -> Vec3 {
-    let vh = Vec3::new(alpha * v.x, alpha * v.y, v.z).normalize_or_zero();
+    sample_visible_normal_xy(v, alpha, alpha, u1, u2)
+}
+
+/// [`sample_visible_normal`] for an anisotropic lobe: α = `alpha_x` along the local x axis
+/// and `alpha_y` along y (Heitz's listing takes both; with equal α it is the same operations).
+#[inline(always)]
+pub(crate) fn sample_visible_normal_xy(
+    v: Vec3,
+    alpha_x: f32,
+    alpha_y: f32,
+    u1: f32,
+    u2: f32,
+) -> Vec3 {
+    let vh = Vec3::new(alpha_x * v.x, alpha_y * v.y, v.z).normalize_or_zero();
     let len2 = vh.x * vh.x + vh.y * vh.y;
     let t1 = if len2 > 0.0 {
         Vec3::new(-vh.y, vh.x, 0.0) / len2.sqrt()
@@ -53,7 +66,7 @@ pub(crate) fn sample_visible_normal(v: Vec3, alpha: f32, u1: f32, u2: f32) -> Ve
     let s = 0.5 * (1.0 + vh.z);
     let p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * r * sin;
     let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
-    Vec3::new(alpha * nh.x, alpha * nh.y, nh.z.max(0.0)).normalize_or_zero()
+    Vec3::new(alpha_x * nh.x, alpha_y * nh.y, nh.z.max(0.0)).normalize_or_zero()
 }
 
 /// Cells of the directional albedo table per axis (cos θ_v and perceptual roughness).

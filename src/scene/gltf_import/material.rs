@@ -2,8 +2,8 @@
 //! texture references they hold (`KHR_texture_transform` included).
 
 use crate::scene::material::{
-    AlphaMode, ClearcoatLayer, IridescenceLayer, Material, SheenLayer, SpecularGlossiness,
-    SpecularLayer, TextureRef, TextureTransform,
+    AlphaMode, AnisotropyLayer, ClearcoatLayer, IridescenceLayer, Material, SheenLayer,
+    SpecularGlossiness, SpecularLayer, TextureRef, TextureTransform,
 };
 use glam::{Vec3, Vec4};
 
@@ -202,6 +202,13 @@ fn core_material(m: &gltf::Material) -> Material {
                 thickness_texture: json_texture_ref(e.get("iridescenceThicknessTexture")),
             }),
         specular_glossiness: None,
+        anisotropy: m
+            .extension_value("KHR_materials_anisotropy")
+            .map(|e| AnisotropyLayer {
+                strength: json_f32(e.get("anisotropyStrength"), 0.0).clamp(0.0, 1.0),
+                rotation: json_f32(e.get("anisotropyRotation"), 0.0),
+                texture: json_texture_ref(e.get("anisotropyTexture")),
+            }),
     }
 }
 
@@ -278,6 +285,10 @@ pub(super) fn out_of_range(m: &gltf::Material) -> Vec<String> {
         problems.push(format!(
             "KHR_materials_emissive_strength emissiveStrength {strength} is negative; 0 is used"
         ));
+    }
+    if let Some(e) = m.extension_value("KHR_materials_anisotropy") {
+        let strength = json_f32(e.get("anisotropyStrength"), 0.0);
+        factors.push(("KHR_materials_anisotropy", "anisotropyStrength", strength));
     }
     if let Some(t) = m.transmission() {
         let factor = t.transmission_factor();

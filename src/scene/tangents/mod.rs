@@ -82,8 +82,10 @@ impl<'s> CornerData<'s> {
     }
 }
 
-/// Generates tangents for the triangles whose material has a normal map and whose tangents
-/// the file did not give. Returns how many triangles got tangents.
+/// Generates tangents for the triangles whose material has a normal map or an anisotropic
+/// lobe (`KHR_materials_anisotropy` sets its direction in tangent space) and whose tangents
+/// the file did not give. They follow the normal map's texture coordinates, else the
+/// anisotropy texture's, else set 0. Returns how many triangles got tangents.
 pub fn generate_missing(scene: &mut Scene) -> usize {
     let soup = &scene.soup;
     let mut faces = Vec::new();
@@ -92,14 +94,17 @@ pub fn generate_missing(scene: &mut Scene) -> usize {
         let Some(material) = scene.materials.get(soup.material[tri] as usize) else {
             continue;
         };
-        let Some(normal_map) = material.normal_texture else {
-            continue;
+        let anisotropic = material.anisotropy.as_ref().filter(|a| a.is_active());
+        let tex_coord = match (&material.normal_texture, anisotropic) {
+            (Some(normal_map), _) => normal_map.tex_coord,
+            (None, Some(a)) => a.texture.map_or(0, |t| t.tex_coord),
+            (None, None) => continue,
         };
         if soup.corner_tangents(tri).is_some_and(|t| t[0].w != 0.0) {
             continue;
         }
         faces.push(tri);
-        uv_set.push(normal_map.tex_coord);
+        uv_set.push(tex_coord);
     }
     if faces.is_empty() {
         return 0;
