@@ -202,6 +202,14 @@ pub enum LoadErrorKind {
         /// What is wrong.
         problem: String,
     },
+    /// A node's `EXT_mesh_gpu_instancing` cannot be read.
+    #[error("node {node}: EXT_mesh_gpu_instancing: {problem}")]
+    Instancing {
+        /// The node.
+        node: usize,
+        /// What is wrong.
+        problem: String,
+    },
     /// The node hierarchy has a cycle.
     #[error("node {node} is its own ancestor (the node hierarchy has a cycle)")]
     NodeCycle {

@@ -90,6 +90,12 @@ pub const EXTENSIONS: &[KnownExtension] = &[
         "every mode and filter",
     ),
     ext(
+        "EXT_mesh_gpu_instancing",
+        Supported,
+        false,
+        "each instance drawn at the node's transform times its TRANSLATION, ROTATION and SCALE",
+    ),
+    ext(
         "KHR_draco_mesh_compression",
         Supported,
         false,

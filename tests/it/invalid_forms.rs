@@ -3,7 +3,9 @@
 //! mesh, accessor or material, and the corrected picture where there is one (bounds from
 //! `info --json`). Also which messages `--quiet` and `--no-warnings` keep.
 
-use crate::common::{add_float_accessor, png_data_uri, run, s, stderr, unit_quad, write_gltf};
+use crate::common::{
+    add_float_accessor, bounds, png_data_uri, run, s, stderr, unit_quad, write_gltf,
+};
 use serde_json::{json, Value};
 use std::path::Path;
 
@@ -16,20 +18,6 @@ fn info(dir: &Path, json: Value, bin: &[u8]) -> Value {
     crate::common::copy_to_corpus(&model);
     let out = run(&["info", s(&model), "--json"], true);
     serde_json::from_slice(&out.stdout).unwrap()
-}
-
-/// The scene's bounds as ([min x, y, z], [max x, y, z]).
-fn bounds(info: &Value) -> ([f64; 3], [f64; 3]) {
-    let v = |key: &str| {
-        let list: Vec<f64> = info["bounds"][key]
-            .as_array()
-            .unwrap_or_else(|| panic!("bounds.{key}: {info}"))
-            .iter()
-            .map(|x| x.as_f64().unwrap())
-            .collect();
-        [list[0], list[1], list[2]]
-    };
-    (v("min"), v("max"))
 }
 
 fn assert_close(got: [f64; 3], expected: [f64; 3], what: &str) {

@@ -26,6 +26,8 @@ mod encoded_variants;
 mod hostile;
 /// The importer on every shared sample model.
 mod import_samples;
+/// `EXT_mesh_gpu_instancing`: instances placed, their accessors checked.
+mod instancing;
 /// Invalid glTF that changes the picture: a warning naming the place, the corrected picture.
 mod invalid_forms;
 /// The path tracer against closed forms: furnace, area light, MIS, environment sampling.

@@ -20,6 +20,7 @@ mod buffer;
 mod container;
 mod declared;
 mod draco;
+mod instancing;
 mod lenient;
 mod material;
 mod meshopt;

@@ -5,6 +5,7 @@
 use super::attributes;
 use super::buffer::Buffer;
 use super::draco;
+use super::instancing;
 use super::material::{material, out_of_range};
 use super::pose::{self, Pose, Skinning};
 use super::validate::{check_accessor, check_accessor_type, INDICES};
@@ -209,29 +210,61 @@ impl<'a> Importer<'a> {
             let weights = self
                 .pose
                 .morph_weights(node, &mesh, targets, &mut self.warnings);
-            let instance = self.instances.len() as u32;
-            self.instances.push(Instance {
-                node: Some(node.index()),
-                mesh: mesh.index(),
-                name: name.or_else(|| mesh.name().map(str::to_string)),
-            });
-            let det = world.determinant();
-            // §3.7.3: a skinned mesh is placed by its joints alone, whatever its node's transform.
-            if skinning.is_none() && (!world.is_finite() || det == 0.0 || !det.is_finite()) {
-                self.singular_instances += 1;
-                return Ok(());
-            }
             let deform = Deform {
                 weights: &weights,
                 skin: node.skin().map(|s| s.index()).zip(skinning.as_deref()),
             };
-            for primitive in mesh.primitives() {
-                let at = PrimitiveAt {
-                    mesh: mesh.index(),
-                    primitive: primitive.index(),
-                };
-                self.add_primitive(&primitive, at, world, instance, &deform)?;
+            let name = name.or_else(|| mesh.name().map(str::to_string));
+            // EXT_mesh_gpu_instancing: the mesh once per instance, at world · its T·R·S.
+            let instanced =
+                instancing::transforms(node, self.document, self.buffers, self.quantization)?;
+            let worlds = match instanced {
+                Some(_) if skinning.is_some() => {
+                    self.warnings.push(format!(
+                        "node {}: a skinned mesh with {}: drawn once, where its joints place it",
+                        node.index(),
+                        instancing::EXTENSION
+                    ));
+                    vec![world]
+                }
+                Some(locals) => locals.into_iter().map(|local| world * local).collect(),
+                None => vec![world],
+            };
+            for world in worlds {
+                self.place_mesh(node, &mesh, world, name.clone(), &deform)?;
             }
+        }
+        Ok(())
+    }
+
+    /// One instance of `node`'s `mesh` at `world`, deformed by `deform`: its triangles go
+    /// into the soup as instance `name`.
+    fn place_mesh(
+        &mut self,
+        node: &gltf::Node,
+        mesh: &gltf::Mesh,
+        world: Mat4,
+        name: Option<String>,
+        deform: &Deform,
+    ) -> Result<(), LoadErrorKind> {
+        let instance = self.instances.len() as u32;
+        self.instances.push(Instance {
+            node: Some(node.index()),
+            mesh: mesh.index(),
+            name,
+        });
+        let det = world.determinant();
+        // §3.7.3: a skinned mesh is placed by its joints alone, whatever its node's transform.
+        if deform.skin.is_none() && (!world.is_finite() || det == 0.0 || !det.is_finite()) {
+            self.singular_instances += 1;
+            return Ok(());
+        }
+        for primitive in mesh.primitives() {
+            let at = PrimitiveAt {
+                mesh: mesh.index(),
+                primitive: primitive.index(),
+            };
+            self.add_primitive(&primitive, at, world, instance, deform)?;
         }
         Ok(())
     }

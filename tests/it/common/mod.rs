@@ -483,3 +483,17 @@ pub fn copy_to_corpus(model: &Path) {
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::copy(model, dir.join(format!("model.{ext}"))).unwrap();
 }
+
+/// The scene's bounds as ([min x, y, z], [max x, y, z]).
+pub fn bounds(info: &serde_json::Value) -> ([f64; 3], [f64; 3]) {
+    let v = |key: &str| {
+        let list: Vec<f64> = info["bounds"][key]
+            .as_array()
+            .unwrap_or_else(|| panic!("bounds.{key}: {info}"))
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect();
+        [list[0], list[1], list[2]]
+    };
+    (v("min"), v("max"))
+}
