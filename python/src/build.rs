@@ -6,8 +6,8 @@
 use crate::Error;
 use glam::{Mat4, Vec3, Vec4};
 use meshtracer::scene::{
-    AlphaMode, ClearcoatLayer, Filter, IridescenceLayer, LightKind, Material, Sampler, SheenLayer,
-    SpecularLayer, TextureRef, TextureTransform, Wrap,
+    AlphaMode, AnisotropyLayer, ClearcoatLayer, Filter, IridescenceLayer, LightKind, Material,
+    Sampler, SheenLayer, SpecularLayer, TextureRef, TextureTransform, Wrap,
 };
 use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -72,7 +72,8 @@ pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
         iridescence_thickness, transmission_texture, thickness_texture, specular_texture, \
         specular_color_texture, sheen_color_texture, sheen_roughness_texture, \
         clearcoat_texture, clearcoat_roughness_texture, clearcoat_normal_texture, \
-        iridescence_texture, iridescence_thickness_texture";
+        iridescence_texture, iridescence_thickness_texture, anisotropy, anisotropy_rotation, \
+        anisotropy_texture";
     for (key, value) in dict.iter() {
         let key: String = key.extract()?;
         // Our own errors by their message alone; others (a TypeError) with their type.
@@ -204,6 +205,14 @@ fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<
             thickness_texture: None,
         })
     }
+    // KHR_materials_anisotropy: strength 0 (isotropic), rotation 0 (along the tangent).
+    fn anisotropy(m: &mut Material) -> &mut AnisotropyLayer {
+        m.anisotropy.get_or_insert(AnisotropyLayer {
+            strength: 0.0,
+            rotation: 0.0,
+            texture: None,
+        })
+    }
     let number = || value.extract::<f32>();
     let triple = || value.extract::<[f32; 3]>().map(Vec3::from);
     let texture = || texture_ref(value).map(Some);
@@ -220,6 +229,8 @@ fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<
         "clearcoat_roughness" => clearcoat(m).roughness = number()?,
         "iridescence" => iridescence(m).factor = number()?,
         "iridescence_ior" => iridescence(m).ior = number()?,
+        "anisotropy" => anisotropy(m).strength = number()?,
+        "anisotropy_rotation" => anisotropy(m).rotation = number()?,
         // Their textures: indices from `add_texture`, read with texture coordinates 0.
         "transmission_texture" => m.transmission_texture = texture()?,
         "thickness_texture" => m.thickness_texture = texture()?,
@@ -232,6 +243,7 @@ fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<
         "clearcoat_normal_texture" => clearcoat(m).normal_texture = texture()?,
         "iridescence_texture" => iridescence(m).texture = texture()?,
         "iridescence_thickness_texture" => iridescence(m).thickness_texture = texture()?,
+        "anisotropy_texture" => anisotropy(m).texture = texture()?,
         "iridescence_thickness" => {
             let [low, high] = value.extract::<[f32; 2]>()?;
             let film = iridescence(m);

@@ -617,7 +617,9 @@ fn specular_glossiness_renders_as_its_metallic_roughness_equivalent() {
         ]);
         json["images"] = json!([{"uri": png_data_uri(&texel)}]);
         json["textures"] = json!([{"source": 0}]);
-        write_gltf(dir.path(), &format!("{name}.gltf"), json, &bin)
+        let model = write_gltf(dir.path(), &format!("{name}.gltf"), json, &bin);
+        crate::common::copy_to_corpus(&model);
+        model
     };
     for (group, materials) in [("dielectric", &dielectric[..]), ("gold", &gold[..])] {
         for integrator in [
@@ -688,6 +690,7 @@ fn anisotropy_stretches_the_highlight_along_its_direction() {
         });
         let (gltf, bin) = quads_gltf(&[(crate::common::square(3.0, 0.0), 0)], extra);
         let model = write_gltf(dir.path(), &format!("{name}.gltf"), gltf, &bin);
+        crate::common::copy_to_corpus(&model);
         let n = 96;
         let camera = [
             "--look-from",
