@@ -445,9 +445,9 @@ impl PathTracer {
         radiance: &mut Vec3,
         counts: &mut RayCounts,
     ) -> Option<f32> {
-        // A punctual light behind a rough thin sheet shines through it (below); any other
-        // light must be on the eye's side.
-        let through = sample.pdf.is_none() && vertex.bsdf.transmits_thin_rough();
+        // A punctual light behind a rough thin sheet or a diffusely transmitting wall shines
+        // through it (below); any other light must be on the eye's side.
+        let through = sample.pdf.is_none() && vertex.bsdf.shines_through();
         let shadow = match vertex.surface.shadow_ray_for(sample) {
             None if through => vertex.surface.shadow_ray_through(sample),
             shadow => shadow,

@@ -156,6 +156,12 @@ pub const EXTENSIONS: &[KnownExtension] = &[
         "thin-film Fresnel at the view angle (Belcour-Barla as the Sample Viewer evaluates it)",
     ),
     ext(
+        "KHR_materials_diffuse_transmission",
+        Approximated,
+        false,
+        "a Lambertian BTDF through a thin wall (path tracer); the direct renderer draws the diffuse reflection only",
+    ),
+    ext(
         "KHR_materials_anisotropy",
         Supported,
         false,

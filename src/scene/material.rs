@@ -118,6 +118,24 @@ pub struct Material {
     pub specular_glossiness: Option<SpecularGlossiness>,
     /// `KHR_materials_anisotropy` (absent or strength 0: an isotropic specular lobe).
     pub anisotropy: Option<AnisotropyLayer>,
+    /// `KHR_materials_diffuse_transmission` (absent or factor 0: the diffuse base reflects
+    /// only).
+    pub diffuse_transmission: Option<DiffuseTransmissionLayer>,
+}
+
+/// `KHR_materials_diffuse_transmission`: a Lambertian BTDF that takes the share `factor` of
+/// the diffuse base (leaves, paper, lamp shades): base = mix(diffuse BRDF of the base colour,
+/// diffuse BTDF of `color`, factor), under the specular layer's Fresnel as before.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DiffuseTransmissionLayer {
+    /// `diffuseTransmissionFactor` in [0, 1].
+    pub factor: f32,
+    /// `diffuseTransmissionTexture` (alpha channel), times the factor.
+    pub texture: Option<TextureRef>,
+    /// `diffuseTransmissionColorFactor` (linear).
+    pub color: Vec3,
+    /// `diffuseTransmissionColorTexture` (sRGB RGB), times the colour factor.
+    pub color_texture: Option<TextureRef>,
 }
 
 /// `KHR_materials_anisotropy`: the specular lobe stretched along a direction in the tangent
@@ -261,8 +279,8 @@ impl Material {
 
     /// Every texture the material references (base colour, metallic-roughness, normal,
     /// occlusion, emissive, transmission, volume thickness, then the specular, sheen,
-    /// clearcoat and iridescence layers' ones, then the specular-glossiness and anisotropy
-    /// textures), in that order, skipping those it lacks.
+    /// clearcoat and iridescence layers' ones, then the specular-glossiness, anisotropy and
+    /// diffuse transmission textures), in that order, skipping those it lacks.
     pub fn texture_refs(&self) -> impl Iterator<Item = TextureRef> {
         let mut refs = vec![
             self.base_color_texture,
@@ -289,6 +307,9 @@ impl Material {
         }
         if let Some(l) = &self.anisotropy {
             refs.push(l.texture);
+        }
+        if let Some(l) = &self.diffuse_transmission {
+            refs.extend([l.texture, l.color_texture]);
         }
         refs.into_iter().flatten()
     }
@@ -324,6 +345,9 @@ impl Material {
         }
         if let Some(l) = &mut self.anisotropy {
             slots.push(&mut l.texture);
+        }
+        if let Some(l) = &mut self.diffuse_transmission {
+            slots.extend([&mut l.texture, &mut l.color_texture]);
         }
         slots
     }
@@ -441,6 +465,7 @@ impl Default for Material {
             iridescence: None,
             specular_glossiness: None,
             anisotropy: None,
+            diffuse_transmission: None,
         }
     }
 }

@@ -32,8 +32,8 @@ pub use error::{catch_quietly, panic_message, LoadError, LoadErrorKind};
 pub use exr_blocks::{decode_exr, MAX_EXR_TEXELS};
 pub use image_source::{Encoded, FileRange, ImageSource, SharedBytes};
 pub use material::{
-    AlphaMode, AnisotropyLayer, ClearcoatLayer, IridescenceLayer, Material, SheenLayer,
-    SpecularGlossiness, SpecularLayer, TextureRef, TextureTransform,
+    AlphaMode, AnisotropyLayer, ClearcoatLayer, DiffuseTransmissionLayer, IridescenceLayer,
+    Material, SheenLayer, SpecularGlossiness, SpecularLayer, TextureRef, TextureTransform,
 };
 pub use model::Scene;
 pub use options::{Format, LoadLimits, LoadOptions};

@@ -104,6 +104,19 @@ pub struct SurfaceMaterial {
     /// then the perceptual roughness of the geometric mean of its two α, for what the lobe
     /// is taken as isotropic: its albedo tables (multiple scattering, lobe choice), Blinn-Phong.
     pub anisotropy: Option<Anisotropy>,
+    /// `KHR_materials_diffuse_transmission`, when the diffuse base transmits here.
+    pub diffuse_transmission: Option<DiffuseTransmission>,
+}
+
+/// `KHR_materials_diffuse_transmission` at a surface point: the dielectric's diffuse base is
+/// mix(diffuse BRDF of the base colour, diffuse BTDF of `color`, `weight`), the BTDF a
+/// Lambertian lobe on the far side of a thin wall (the extension's normative `dielectric_brdf`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DiffuseTransmission {
+    /// The share of the diffuse base transmitted: factor × texture alpha, in (0, 1].
+    pub weight: f32,
+    /// The transmitted light's colour: colour factor × texture.
+    pub color: Vec3,
 }
 
 /// `KHR_materials_anisotropy` at a surface point: GGX with α = `alpha_t` along `tangent` and
@@ -183,6 +196,14 @@ impl Anisotropy {
 }
 
 impl SurfaceMaterial {
+    /// c_diff, the diffuse base's reflectance: the base colour of the dielectric part, less
+    /// the share `KHR_materials_diffuse_transmission` sends through.
+    #[inline(always)]
+    pub fn diffuse_reflectance(&self) -> Vec3 {
+        let through = self.diffuse_transmission.map_or(0.0, |d| d.weight);
+        self.base_color * ((1.0 - self.metallic) * (1.0 - through))
+    }
+
     /// The core metallic-roughness material (no extension changes it).
     pub fn core(base_color: Vec3, metallic: f32, roughness: f32) -> Self {
         SurfaceMaterial {
@@ -196,6 +217,7 @@ impl SurfaceMaterial {
             clearcoat: None,
             iridescence: None,
             anisotropy: None,
+            diffuse_transmission: None,
         }
     }
 
@@ -533,7 +555,7 @@ pub fn gltf_brdf(material: &SurfaceMaterial, n: Vec3, to_light: Vec3, to_eye: Ve
         None => ggx_dv(material.roughness, n, to_light, to_eye, h),
     };
     let n_dot_v = n.dot(to_eye);
-    let c_diff = material.base_color * (1.0 - material.metallic);
+    let c_diff = material.diffuse_reflectance();
     // What the diffuse base keeps, and the Fresnel factor times the multiple-scattering scale.
     let (kept, fresnel_scaled) = match material.iridescence {
         Some(film) if film.factor > 0.0 => {
@@ -681,7 +703,7 @@ pub fn blinn_phong(
     if cos_l <= 0.0 {
         return Vec3::ZERO;
     }
-    let kd = material.base_color * (1.0 - material.metallic);
+    let kd = material.diffuse_reflectance();
     let ks = material
         .specular
         .unwrap_or_else(|| Vec3::splat(0.04).lerp(material.base_color, material.metallic));

@@ -14,8 +14,12 @@ use crate::geometry::{spawn, Ray, SpawnPoint};
 use crate::prepare::lights::LightSample;
 use crate::prepare::textures::transform_uv;
 use crate::prepare::Prepared;
-use crate::scene::{AlphaMode, AnisotropyLayer, Material, TextureRef, TextureTransform};
-use crate::shading::{Anisotropy, Clearcoat, Iridescence, Sheen, SurfaceMaterial};
+use crate::scene::{
+    AlphaMode, AnisotropyLayer, DiffuseTransmissionLayer, Material, TextureRef, TextureTransform,
+};
+use crate::shading::{
+    Anisotropy, Clearcoat, DiffuseTransmission, Iridescence, Sheen, SurfaceMaterial,
+};
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::Cell;
 
@@ -368,6 +372,12 @@ impl Prepared {
             anisotropy.map_or(roughness, |a| a.mean_roughness()),
         );
         shaded.anisotropy = anisotropy;
+        shaded.diffuse_transmission = match &material.diffuse_transmission {
+            Some(layer) if layer.factor > 0.0 => {
+                self.diffuse_transmission_at(layer, (tri, b, cone, cos), &last)
+            }
+            _ => None,
+        };
         shaded.specular = material.specular;
         // KHR_materials_ior: the dielectric's F0 = ((ior - 1)/(ior + 1))²; 0.04 at ior 1.5 is
         // kept exactly (the core material's constant).
@@ -569,6 +579,30 @@ impl Prepared {
         let (tangent, w) = frame?;
         let t = (tangent - n * n.dot(tangent)).try_normalize()?;
         Some((t, n.cross(t) * w))
+    }
+
+    /// `KHR_materials_diffuse_transmission` (`layer`) at barycentrics `b` of triangle `tri`,
+    /// its textures read as [`Prepared::sample`] reads them (`cone`, `cos`, `last`): weight =
+    /// factor × texture alpha, colour = colour factor × texture (sRGB); `None` where the weight
+    /// is 0. Out of line, as [`Prepared::anisotropy_at`].
+    #[inline(never)]
+    fn diffuse_transmission_at(
+        &self,
+        layer: &DiffuseTransmissionLayer,
+        (tri, b, cone, cos): (usize, Vec3, f32, f32),
+        last: &Cell<Option<TexelFootprint>>,
+    ) -> Option<DiffuseTransmission> {
+        let sample = |r: &Option<TextureRef>, srgb: bool| {
+            r.as_ref()
+                .and_then(|r| self.sample(r, tri, b, cone, cos, srgb, last))
+        };
+        let weight = layer.factor * sample(&layer.texture, false).map_or(1.0, |t| t.w);
+        let color =
+            layer.color * sample(&layer.color_texture, true).map_or(Vec3::ONE, |t| t.truncate());
+        (weight > 0.0).then_some(DiffuseTransmission {
+            weight: weight.clamp(0.0, 1.0),
+            color: color.clamp(Vec3::ZERO, Vec3::ONE),
+        })
     }
 
     /// `KHR_materials_anisotropy` (`layer` of `material`) at barycentrics `b` of triangle

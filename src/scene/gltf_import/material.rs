@@ -2,8 +2,8 @@
 //! texture references they hold (`KHR_texture_transform` included).
 
 use crate::scene::material::{
-    AlphaMode, AnisotropyLayer, ClearcoatLayer, IridescenceLayer, Material, SheenLayer,
-    SpecularGlossiness, SpecularLayer, TextureRef, TextureTransform,
+    AlphaMode, AnisotropyLayer, ClearcoatLayer, DiffuseTransmissionLayer, IridescenceLayer,
+    Material, SheenLayer, SpecularGlossiness, SpecularLayer, TextureRef, TextureTransform,
 };
 use glam::{Vec3, Vec4};
 
@@ -209,6 +209,15 @@ fn core_material(m: &gltf::Material) -> Material {
                 rotation: json_f32(e.get("anisotropyRotation"), 0.0),
                 texture: json_texture_ref(e.get("anisotropyTexture")),
             }),
+        diffuse_transmission: m
+            .extension_value("KHR_materials_diffuse_transmission")
+            .map(|e| DiffuseTransmissionLayer {
+                factor: json_f32(e.get("diffuseTransmissionFactor"), 0.0).clamp(0.0, 1.0),
+                texture: json_texture_ref(e.get("diffuseTransmissionTexture")),
+                color: json_vec3(e.get("diffuseTransmissionColorFactor"), Vec3::ONE)
+                    .clamp(Vec3::ZERO, Vec3::ONE),
+                color_texture: json_texture_ref(e.get("diffuseTransmissionColorTexture")),
+            }),
     }
 }
 
@@ -284,6 +293,14 @@ pub(super) fn out_of_range(m: &gltf::Material) -> Vec<String> {
     if let Some(strength) = m.emissive_strength().filter(|e| *e < 0.0) {
         problems.push(format!(
             "KHR_materials_emissive_strength emissiveStrength {strength} is negative; 0 is used"
+        ));
+    }
+    if let Some(e) = m.extension_value("KHR_materials_diffuse_transmission") {
+        let factor = json_f32(e.get("diffuseTransmissionFactor"), 0.0);
+        factors.push((
+            "KHR_materials_diffuse_transmission",
+            "diffuseTransmissionFactor",
+            factor,
         ));
     }
     if let Some(e) = m.extension_value("KHR_materials_anisotropy") {
