@@ -118,7 +118,8 @@ _TEXTURE_SLOTS = ("base_color_texture", "metallic_roughness_texture", "normal_te
                   "specular_color_texture", "sheen_color_texture", "sheen_roughness_texture",
                   "clearcoat_texture", "clearcoat_roughness_texture",
                   "clearcoat_normal_texture", "iridescence_texture",
-                  "iridescence_thickness_texture", "anisotropy_texture")
+                  "iridescence_thickness_texture", "anisotropy_texture",
+                  "diffuse_transmission_texture", "diffuse_transmission_color_texture")
 
 
 def _rgba8(image):

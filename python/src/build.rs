@@ -6,8 +6,8 @@
 use crate::Error;
 use glam::{Mat4, Vec3, Vec4};
 use meshtracer::scene::{
-    AlphaMode, AnisotropyLayer, ClearcoatLayer, Filter, IridescenceLayer, LightKind, Material,
-    Sampler, SheenLayer, SpecularLayer, TextureRef, TextureTransform, Wrap,
+    AlphaMode, AnisotropyLayer, ClearcoatLayer, DiffuseTransmissionLayer, Filter, IridescenceLayer,
+    LightKind, Material, Sampler, SheenLayer, SpecularLayer, TextureRef, TextureTransform, Wrap,
 };
 use numpy::{PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
@@ -73,7 +73,8 @@ pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
         specular_color_texture, sheen_color_texture, sheen_roughness_texture, \
         clearcoat_texture, clearcoat_roughness_texture, clearcoat_normal_texture, \
         iridescence_texture, iridescence_thickness_texture, anisotropy, anisotropy_rotation, \
-        anisotropy_texture";
+        anisotropy_texture, diffuse_transmission, diffuse_transmission_color, \
+        diffuse_transmission_texture, diffuse_transmission_color_texture";
     for (key, value) in dict.iter() {
         let key: String = key.extract()?;
         // Our own errors by their message alone; others (a TypeError) with their type.
@@ -213,6 +214,16 @@ fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<
             texture: None,
         })
     }
+    // KHR_materials_diffuse_transmission: factor 0 (none), white.
+    fn through(m: &mut Material) -> &mut DiffuseTransmissionLayer {
+        m.diffuse_transmission
+            .get_or_insert(DiffuseTransmissionLayer {
+                factor: 0.0,
+                texture: None,
+                color: Vec3::ONE,
+                color_texture: None,
+            })
+    }
     let number = || value.extract::<f32>();
     let triple = || value.extract::<[f32; 3]>().map(Vec3::from);
     let texture = || texture_ref(value).map(Some);
@@ -231,6 +242,8 @@ fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<
         "iridescence_ior" => iridescence(m).ior = number()?,
         "anisotropy" => anisotropy(m).strength = number()?,
         "anisotropy_rotation" => anisotropy(m).rotation = number()?,
+        "diffuse_transmission" => through(m).factor = number()?,
+        "diffuse_transmission_color" => through(m).color = triple()?,
         // Their textures: indices from `add_texture`, read with texture coordinates 0.
         "transmission_texture" => m.transmission_texture = texture()?,
         "thickness_texture" => m.thickness_texture = texture()?,
@@ -244,6 +257,8 @@ fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<
         "iridescence_texture" => iridescence(m).texture = texture()?,
         "iridescence_thickness_texture" => iridescence(m).thickness_texture = texture()?,
         "anisotropy_texture" => anisotropy(m).texture = texture()?,
+        "diffuse_transmission_texture" => through(m).texture = texture()?,
+        "diffuse_transmission_color_texture" => through(m).color_texture = texture()?,
         "iridescence_thickness" => {
             let [low, high] = value.extract::<[f32; 2]>()?;
             let film = iridescence(m);

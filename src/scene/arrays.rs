@@ -395,8 +395,9 @@ pub fn check_material(material: &Material) -> Result<(), String> {
 }
 
 /// The ranges of the material extensions' factors, as their specifications define them:
-/// `KHR_materials_transmission`, `_specular`, `_sheen`, `_clearcoat`, `_iridescence` and
-/// `_anisotropy` factors and `_volume`'s attenuation colour in [0, 1] (the anisotropy's rotation
+/// `KHR_materials_transmission`, `_specular`, `_sheen`, `_clearcoat`, `_iridescence`,
+/// `_anisotropy` and `_diffuse_transmission` factors and `_volume`'s attenuation and
+/// `_diffuse_transmission`'s colours in [0, 1] (the anisotropy's rotation
 /// finite); `_ior` (and the film's) at least 1; an
 /// attenuation distance above 0 (infinite: none); a specular colour and film thicknesses (nm)
 /// finite and at least 0. Names are the Python package's keys.
@@ -446,6 +447,10 @@ fn check_extensions(material: &Material) -> Result<(), String> {
         at_least("iridescence_ior", film.ior, 1.0)?;
         at_least("iridescence_thickness[0]", film.thickness_min, 0.0)?;
         at_least("iridescence_thickness[1]", film.thickness_max, 0.0)?;
+    }
+    if let Some(layer) = &material.diffuse_transmission {
+        unit("diffuse_transmission", layer.factor)?;
+        each("diffuse_transmission_color", layer.color, &unit)?;
     }
     if let Some(layer) = &material.anisotropy {
         unit("anisotropy", layer.strength)?;
