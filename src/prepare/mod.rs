@@ -88,6 +88,7 @@ impl Prepared {
     ) -> Result<Prepared, TextureError> {
         let start = Instant::now();
         crate::scene::tangents::generate_missing(&mut scene);
+        warnings.extend(crate::scene::tangents::anisotropy_without_tangents(&scene));
         on_step(PrepareStep::Tangents, start);
         let start = Instant::now();
         let textures =

@@ -815,3 +815,53 @@ fn diffuse_transmission_lets_a_backlit_sheet_glow_by_its_closed_form() {
         }
     }
 }
+
+/// `KHR_materials_anisotropy` needs a tangent frame: a mesh with neither TANGENT nor texture
+/// coordinates (which the extension forbids) is drawn isotropic, and the render says so once,
+/// with the count of such triangles (88: the 6 x 8 sphere but its 8 degenerate pole
+/// triangles); a mesh with texture coordinates gets MikkTSpace tangents
+/// and no such warning.
+#[test]
+fn anisotropy_without_tangents_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let material = json!({"pbrMetallicRoughness": {"metallicFactor": 1.0, "roughnessFactor": 0.3},
+        "extensions": {"KHR_materials_anisotropy": {"anisotropyStrength": 0.8}}});
+    let (json, bin) = crate::common::sphere_gltf(
+        (6, 8),
+        glam::Vec3::ZERO,
+        1.0,
+        glam::Vec3::Z,
+        3.0,
+        material.clone(),
+    );
+    let sphere = write_gltf(dir.path(), "sphere.gltf", json, &bin);
+    let (json, bin) = quads_gltf(
+        &[(crate::common::square(1.0, 0.0), 0)],
+        json!({"materials": [material]}),
+    );
+    let quad = write_gltf(dir.path(), "quad.gltf", json, &bin);
+    let warned = |model: &Path| {
+        let out = dir.path().join("out.png");
+        let args = [
+            "render",
+            s(model),
+            "-o",
+            s(&out),
+            "-q",
+            "--width",
+            "16",
+            "--height",
+            "16",
+        ];
+        crate::common::stderr(&run(&args, true))
+    };
+    let err = warned(&sphere);
+    assert_eq!(
+        err.matches("88 triangles with KHR_materials_anisotropy have no tangents")
+            .count(),
+        1,
+        "{err}"
+    );
+    let err = warned(&quad);
+    assert!(!err.contains("have no tangents"), "{err}");
+}

@@ -139,6 +139,29 @@ pub fn generate_missing(scene: &mut Scene) -> usize {
     faces.len()
 }
 
+/// A warning when triangles whose material stretches its specular lobe
+/// (`KHR_materials_anisotropy`) have no tangent after [`generate_missing`]: no TANGENT and no
+/// texture coordinates to build one from (which the extension requires). Those are drawn
+/// isotropic.
+pub fn anisotropy_without_tangents(scene: &Scene) -> Option<String> {
+    let soup = &scene.soup;
+    let missing = (0..soup.len())
+        .filter(|&tri| {
+            scene
+                .materials
+                .get(soup.material[tri] as usize)
+                .and_then(|m| m.anisotropy.as_ref())
+                .is_some_and(|a| a.is_active())
+        })
+        .filter(|&tri| !soup.corner_tangents(tri).is_some_and(|t| t[0].w != 0.0))
+        .count();
+    (missing > 0).then(|| {
+        format!(
+            "{missing} triangles with KHR_materials_anisotropy have no tangents (no TANGENT and no texture coordinates to build them from); they are drawn isotropic"
+        )
+    })
+}
+
 /// Appends a copy of vertex `v` (every attribute but the tangent, which the caller pushes)
 /// and returns its index.
 fn duplicate_vertex(soup: &mut TriangleSoup, v: usize) -> u32 {
