@@ -129,7 +129,7 @@ pub struct Anisotropy {
     pub tangent: Vec3,
     /// α along `tangent`: mix(α, 1, strength²).
     pub alpha_t: f32,
-    /// α across it: the material's roughness², floored at [`MIN_GGX_ALPHA`].
+    /// α across it: the material's roughness², floored at GGX's smallest α (0.002).
     pub alpha_b: f32,
 }
 
