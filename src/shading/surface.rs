@@ -354,30 +354,14 @@ impl Prepared {
             normal = self.normal_mapped(tri, b, r, normal, geometric, t, material.normal_scale);
         }
         let normal = valid_reflection_normal(geometric, -direction, normal);
-        let roughness = roughness.clamp(0.0, 1.0);
-        let anisotropy = match &material.anisotropy {
-            Some(layer) if layer.is_active() => self.anisotropy_at(
-                material,
-                layer,
-                (tri, b, cone, cos),
-                normal,
-                roughness,
-                &last,
-            ),
-            _ => None,
-        };
         let mut shaded = SurfaceMaterial::core(
             base.truncate(),
             metallic.clamp(0.0, 1.0),
-            anisotropy.map_or(roughness, |a| a.mean_roughness()),
+            roughness.clamp(0.0, 1.0),
         );
-        shaded.anisotropy = anisotropy;
-        shaded.diffuse_transmission = match &material.diffuse_transmission {
-            Some(layer) if layer.factor > 0.0 => {
-                self.diffuse_transmission_at(layer, (tri, b, cone, cos), &last)
-            }
-            _ => None,
-        };
+        if material.anisotropy.is_some() || material.diffuse_transmission.is_some() {
+            self.add_lobes(material, &mut shaded, (tri, b, cone, cos), normal, &last);
+        }
         shaded.specular = material.specular;
         // KHR_materials_ior: the dielectric's F0 = ((ior - 1)/(ior + 1))²; 0.04 at ior 1.5 is
         // kept exactly (the core material's constant).
@@ -581,11 +565,41 @@ impl Prepared {
         Some((t, n.cross(t) * w))
     }
 
+    /// The lobes that `KHR_materials_anisotropy` and `KHR_materials_diffuse_transmission` add
+    /// to `shaded` (the core material at the point) at the hit `at` (triangle, barycentrics,
+    /// ray cone width and cosine) with shading normal `normal`: a stretched lobe, whose mean
+    /// roughness then stands for it where the lobe is taken as isotropic, and the lobe through
+    /// the wall. Out of line: code no other material runs, inlined into
+    /// [`Prepared::surface`], cost every path vertex about 1% more instructions.
+    #[inline(never)]
+    fn add_lobes(
+        &self,
+        material: &Material,
+        shaded: &mut SurfaceMaterial,
+        at: (usize, Vec3, f32, f32),
+        normal: Vec3,
+        last: &Cell<Option<TexelFootprint>>,
+    ) {
+        if let Some(layer) = material.anisotropy.as_ref().filter(|l| l.is_active()) {
+            shaded.anisotropy =
+                self.anisotropy_at(material, layer, at, normal, shaded.roughness, last);
+            if let Some(a) = shaded.anisotropy {
+                shaded.roughness = a.mean_roughness();
+            }
+        }
+        if let Some(layer) = material
+            .diffuse_transmission
+            .as_ref()
+            .filter(|l| l.factor > 0.0)
+        {
+            shaded.diffuse_transmission = self.diffuse_transmission_at(layer, at, last);
+        }
+    }
+
     /// `KHR_materials_diffuse_transmission` (`layer`) at barycentrics `b` of triangle `tri`,
     /// its textures read as [`Prepared::sample`] reads them (`cone`, `cos`, `last`): weight =
     /// factor × texture alpha, colour = colour factor × texture (sRGB); `None` where the weight
-    /// is 0. Out of line, as [`Prepared::anisotropy_at`].
-    #[inline(never)]
+    /// is 0.
     fn diffuse_transmission_at(
         &self,
         layer: &DiffuseTransmissionLayer,
@@ -611,9 +625,7 @@ impl Prepared {
     /// texture's red-green vector, else the rotation alone) taken from tangent space, the
     /// strength factor × blue. `None` where the lobe stays isotropic: strength 0, a zero
     /// direction, or no tangent frame (no TANGENT and no texture coordinates, which the
-    /// extension requires). Out of line: inlined into [`Prepared::surface`], code no other
-    /// material runs cost every path vertex 1% more instructions.
-    #[inline(never)]
+    /// extension requires).
     fn anisotropy_at(
         &self,
         material: &Material,
