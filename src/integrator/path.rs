@@ -205,7 +205,7 @@ impl Integrator for PathTracer {
             }
             let to_eye = -direction;
             let material = surface.source;
-            let bsdf = surface_bsdf(&surface, to_eye, hit.front);
+            let bsdf = surface_bsdf(&surface, to_eye, hit.front, throughput);
             // The direction to continue in, drawn from the BSDF (three numbers drawn whether or
             // not it is used, so every later number keeps its dimension of the sequence) before the light samples: its
             // evaluation then overlaps their shadow rays' traversal.
@@ -257,20 +257,37 @@ impl Integrator for PathTracer {
 }
 
 /// The BSDF of `surface` seen from `to_eye`, with its transmission lobe where it has one
-/// (`front`: the ray arrived on the front face, so a volume's boundary is entered).
+/// (`front`: the ray arrived on the front face, so a volume's boundary is entered), dispersed
+/// where the material says so (`KHR_materials_dispersion`), following the one colour channel
+/// the path's `throughput` carries, if it carries only one.
 #[inline(always)]
-fn surface_bsdf<'a>(surface: &'a Surface, to_eye: Vec3, front: bool) -> Bsdf<'a> {
+fn surface_bsdf<'a>(surface: &'a Surface, to_eye: Vec3, front: bool, throughput: Vec3) -> Bsdf<'a> {
     let bsdf = Bsdf::new(&surface.material, surface.normal, to_eye);
     if surface.transmission > 0.0 {
-        return bsdf.with_transmission(
+        let material = surface.source;
+        let bsdf = bsdf.with_transmission(
             to_eye,
             surface.transmission,
-            surface.source.ior,
+            material.ior,
             surface.thin_walled,
             front,
         );
+        if material.dispersion > 0.0 {
+            return bsdf.with_dispersion(
+                material.dispersion,
+                material.ior,
+                lone_channel(throughput),
+            );
+        }
+        return bsdf;
     }
     bsdf
+}
+
+/// The one colour channel `throughput` carries (the others 0), if it carries exactly one.
+fn lone_channel(throughput: Vec3) -> Option<usize> {
+    let carried = throughput.cmpgt(Vec3::ZERO).bitmask();
+    (carried.count_ones() == 1).then(|| carried.trailing_zeros() as usize)
 }
 
 /// A path vertex as next-event estimation sees it.

@@ -423,6 +423,7 @@ fn check_extensions(material: &Material) -> Result<(), String> {
     };
     unit("transmission", material.transmission)?;
     at_least("ior", material.ior, 1.0)?;
+    at_least("dispersion", material.dispersion, 0.0)?;
     each("attenuation_color", material.attenuation_color, &unit)?;
     let distance = material.attenuation_distance;
     if distance.is_nan() || distance <= 0.0 {
@@ -738,6 +739,10 @@ mod tests {
         assert_eq!(
             refused(&|m| m.ior = 0.5),
             "ior 0.5: must be a finite number of at least 1"
+        );
+        assert_eq!(
+            refused(&|m| m.dispersion = -1.0),
+            "dispersion -1: must be a finite number of at least 0"
         );
         assert_eq!(
             refused(&|m| m.attenuation_color = Vec3::new(1.0, -0.5, 1.0)),

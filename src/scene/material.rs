@@ -102,6 +102,11 @@ pub struct Material {
     pub attenuation_color: Vec3,
     /// Distance at which light inside the volume is reduced to `attenuation_color`.
     pub attenuation_distance: f32,
+    /// `KHR_materials_dispersion`: 20 / the Abbe number V_d (0, the default: none). The
+    /// index of refraction then varies over the spectrum; the path tracer refracts each colour
+    /// channel by its own index where a path enters or leaves a volume
+    /// ([`crate::shading::bsdf::Bsdf::with_dispersion`]).
+    pub dispersion: f32,
     /// `KHR_materials_unlit`: the surface shows its base colour as radiance, unlit (scanned or
     /// baked-lighting models).
     pub unlit: bool,
@@ -458,6 +463,7 @@ impl Default for Material {
             thickness_texture: None,
             attenuation_color: Vec3::ONE,
             attenuation_distance: f32::INFINITY,
+            dispersion: 0.0,
             unlit: false,
             specular_layer: None,
             sheen: None,

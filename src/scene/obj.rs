@@ -701,6 +701,7 @@ fn mtl_material(m: &tobj::Material) -> Material {
         thin_walled: false,
         attenuation_color: Vec3::ONE,
         attenuation_distance: f32::INFINITY,
+        dispersion: 0.0,
         double_sided: true,
         specular: if no_highlights {
             Some(Vec3::ZERO)

@@ -195,6 +195,61 @@ struct Transmission {
     /// What a rough lobe's draws are scaled by so that its albedo is what the specular layer
     /// leaves ([`transmission_scale`]); 1 for smooth ones.
     scale: f32,
+    /// `KHR_materials_dispersion` ([`Bsdf::with_dispersion`]): how far the red and blue
+    /// channels' indices of refraction lie below and above the material's; 0 without
+    /// dispersion (and through thin walls, which do not bend light).
+    spread: f32,
+    /// The colour channel (0-2) whose index a dispersed path already follows, or
+    /// [`ANY_CHANNEL`]: the draw picks one.
+    channel: u8,
+}
+
+/// [`Transmission::channel`] when the path carries every colour: a dispersive draw picks one.
+const ANY_CHANNEL: u8 = 3;
+
+impl Transmission {
+    /// The lobe as colour channel c sees it, with the weight its draws carry and what is
+    /// left of `u` for the draw, where the material disperses light
+    /// (`KHR_materials_dispersion`). The extension's per-channel indices (its non-normative
+    /// method, which the Khronos Sample Viewer uses): ior - s, ior and ior + s for red, green
+    /// and blue with s = (ior - 1)·0.025·dispersion, that is ±½·(n_F - n_C) about the
+    /// material's index, which is the green channel's, and red's at least 1.
+    ///
+    /// A path that carries every colour draws c uniformly from `u` (its remainder stays
+    /// uniform for the draw) and weighs 3 in channel c alone, 0 in the others: each channel's
+    /// estimate is then its own index's, unbiased. A path that already carries one channel
+    /// (it was dispersed before, or its colours are filtered to one) keeps following it,
+    /// weight 1, so that leaving a volume bends it by the index it entered by. Green keeps
+    /// the lobe's own `eta`, bit for bit.
+    #[inline]
+    fn dispersed(self, u: f32) -> (Transmission, Vec3, f32) {
+        if self.spread == 0.0 {
+            return (self, Vec3::ONE, u);
+        }
+        let (c, u, weight) = if self.channel < ANY_CHANNEL {
+            (usize::from(self.channel), u, 1.0)
+        } else {
+            let x = u * 3.0;
+            let c = (x as usize).min(2);
+            (c, (x - c as f32).min(1.0 - f32::EPSILON / 2.0), 3.0)
+        };
+        let eta = if c == 1 {
+            self.eta
+        } else {
+            // eta is 1/ior entering the volume and ior leaving it.
+            let entering = self.eta < 1.0;
+            let ior = if entering { 1.0 / self.eta } else { self.eta };
+            let ior = (ior + (c as f32 - 1.0) * self.spread).max(1.0);
+            if entering {
+                1.0 / ior
+            } else {
+                ior
+            }
+        };
+        let mut mask = Vec3::ZERO;
+        mask[c] = weight;
+        (Transmission { eta, ..self }, mask, u)
+    }
 }
 
 /// The multiple-scattering scale of a rough transmission lobe at the view (cos θ_v =
@@ -461,11 +516,30 @@ impl<'a> Bsdf<'a> {
             probability,
             eta,
             scale,
+            spread: 0.0,
+            channel: ANY_CHANNEL,
         });
         self.core = None;
         // KHR_materials_diffuse_transmission: "the transmission effect overrides the diffuse
         // transmission effect" (approximated: its share of the base is not reflected either).
         self.p_through = 0.0;
+        self
+    }
+
+    /// Adds `KHR_materials_dispersion` (`dispersion` = 20 / the Abbe number, on a material of
+    /// index `ior`) to the transmission lobe of a volume's boundary: its draws then refract
+    /// one colour channel by that channel's index ([`Transmission::dispersed`]): `channel`,
+    /// the one a path already carries alone, else one drawn at random. Nothing changes
+    /// without a transmission lobe or through a thin wall (no bending, so no dispersion).
+    /// The rough lobe's multiple-scattering scale stays the material's index's
+    /// (approximated: the channels' indices differ by a few percent).
+    pub fn with_dispersion(mut self, dispersion: f32, ior: f32, channel: Option<usize>) -> Self {
+        if let Some(t) = &mut self.transmission {
+            if t.eta != 1.0 && dispersion > 0.0 && dispersion.is_finite() {
+                t.spread = (ior - 1.0).max(0.0) * 0.025 * dispersion;
+                t.channel = channel.map_or(ANY_CHANNEL, |c| c.min(2) as u8);
+            }
+        }
         self
     }
 
@@ -702,6 +776,7 @@ impl<'a> Bsdf<'a> {
         t: Transmission,
         [u1, u2, u_inside]: [f32; 3],
     ) -> Option<BsdfSample> {
+        let (t, channels, u_inside) = t.dispersed(u_inside);
         let n = self.normal;
         let rough = self.alpha > MIN_ALPHA;
         // The facet that refracts: the surface itself, or a visible GGX normal.
@@ -760,6 +835,7 @@ impl<'a> Bsdf<'a> {
             );
             weight *= t.scale * (1.0 + lv) / (1.0 + lv + ll);
         }
+        weight *= channels;
         weight.is_finite().then_some(BsdfSample {
             direction,
             weight,
@@ -1273,6 +1349,88 @@ mod tests {
                     (got - want).abs() <= (0.03 * want).max(0.003),
                     "entering {entering}, cos {cos_v}: {what} {got}, expected {want}"
                 );
+            }
+        }
+    }
+
+    /// `KHR_materials_dispersion` on smooth glass (index 1.5, dispersion 2: the channels'
+    /// indices 1.475, 1.5 and 1.525): a draw that passes into (or out of) the volume follows
+    /// Snell's law with one channel's index and carries weight in that channel alone, three
+    /// times its share; the three channels are drawn a third of the time each, so the mean
+    /// transmitted weight is the undispersed glass's in every channel. A path that carries one
+    /// channel keeps it, at weight 1. Without dispersion, or through a thin wall, the draws
+    /// are the plain glass's, bit for bit.
+    #[test]
+    fn dispersion_refracts_each_channel_by_its_own_index() {
+        let mut m = material(1.0, 0.0, 0.0);
+        m.dielectric_f0 = Vec3::splat(0.04);
+        for entering in [true, false] {
+            let cos_v = if entering { 0.6f32 } else { 0.9 };
+            let to_eye = Vec3::new((1.0 - cos_v * cos_v).sqrt(), 0.0, cos_v);
+            let plain =
+                Bsdf::new(&m, Vec3::Z, to_eye).with_transmission(to_eye, 1.0, 1.5, false, entering);
+            let dispersed = plain.with_dispersion(2.0, 1.5, None);
+            let sin_v = (1.0 - cos_v * cos_v).sqrt();
+            let (mut sums, mut plain_sum) = ([0.0f64; 3], 0.0f64);
+            let draws = 30_000;
+            for k in 0..draws {
+                // Lobe numbers spread evenly over the transmission lobe's share; the same
+                // numbers for both BSDFs.
+                let share = plain.transmission.map_or(0.0, |t| t.probability);
+                let u_lobe = (k as f32 + 0.5) / draws as f32 * share;
+                let Some(s) = dispersed.sample(to_eye, u_lobe, 0.5, 0.5) else {
+                    continue;
+                };
+                if s.direction.z >= 0.0 {
+                    continue;
+                }
+                let lit: Vec<usize> = (0..3).filter(|&c| s.weight[c] > 0.0).collect();
+                assert_eq!(lit.len(), 1, "one channel a draw: {:?}", s.weight);
+                let c = lit[0];
+                let ior = [1.475f32, 1.5, 1.525][c];
+                let (n1, n2) = if entering { (1.0, ior) } else { (ior, 1.0) };
+                let sin_t = (s.direction.x.powi(2) + s.direction.y.powi(2)).sqrt();
+                assert!(
+                    (n1 * sin_v - n2 * sin_t).abs() < 1e-5,
+                    "entering {entering}, channel {c}: Snell's law broken, {n1}·{sin_v} against {n2}·{sin_t}"
+                );
+                sums[c] += f64::from(s.weight[c]) / f64::from(draws);
+                if let Some(p) = plain.sample(to_eye, u_lobe, 0.5, 0.5) {
+                    if p.direction.z < 0.0 {
+                        plain_sum += f64::from(p.weight.y) / f64::from(draws);
+                    }
+                }
+            }
+            for (c, sum) in sums.iter().enumerate() {
+                assert!(
+                    (sum - plain_sum).abs() < 0.01 * plain_sum,
+                    "entering {entering}, channel {c}: mean {sum} against the plain glass's {plain_sum}"
+                );
+            }
+            // A path carrying blue alone refracts by blue's index at weight 1.
+            let blue = plain.with_dispersion(2.0, 1.5, Some(2));
+            let s = blue.sample(to_eye, 0.45, 0.5, 0.5).unwrap();
+            assert_eq!(s.weight.x, 0.0);
+            assert_eq!(s.weight.y, 0.0);
+            let p = plain.sample(to_eye, 0.45, 0.5, 0.5).unwrap();
+            assert!(
+                (s.weight.z - p.weight.z).abs() < 0.02 * p.weight.z,
+                "{s:?} {p:?}"
+            );
+            // No dispersion, or a thin wall: the plain lobe's draws.
+            let thin =
+                Bsdf::new(&m, Vec3::Z, to_eye).with_transmission(to_eye, 1.0, 1.5, true, entering);
+            for (other, reference) in [
+                (plain.with_dispersion(0.0, 1.5, None), plain),
+                (thin.with_dispersion(2.0, 1.5, None), thin),
+            ] {
+                for u in [0.1f32, 0.5, 0.93] {
+                    let (a, b) = (
+                        other.sample(to_eye, u, 0.3, 0.7),
+                        reference.sample(to_eye, u, 0.3, 0.7),
+                    );
+                    assert_eq!(format!("{a:?}"), format!("{b:?}"));
+                }
             }
         }
     }

@@ -217,10 +217,12 @@ fn out_of_range_material_extension_values_are_corrected() {
     json["extensionsUsed"] = json!([
         "KHR_materials_ior",
         "KHR_materials_specular",
-        "KHR_materials_emissive_strength"
+        "KHR_materials_emissive_strength",
+        "KHR_materials_dispersion"
     ]);
     json["materials"] = json!([{"name": "Odd", "emissiveFactor": [1.0, 1.0, 1.0], "extensions": {
         "KHR_materials_ior": {"ior": 0.5},
+        "KHR_materials_dispersion": {"dispersion": -2.0},
         "KHR_materials_specular": {"specularFactor": 2.0, "specularColorFactor": [-1.0, 0.5, 0.5]},
         "KHR_materials_emissive_strength": {"emissiveStrength": -3.0}
     }}]);
@@ -232,10 +234,13 @@ fn out_of_range_material_extension_values_are_corrected() {
             "material 0 ('Odd'): KHR_materials_ior ior 0.5 is not at least 1; the default 1.5 is used",
             "material 0 ('Odd'): KHR_materials_specular specularColorFactor [-1.0, 0.5, 0.5] is negative; clamped to 0",
             "material 0 ('Odd'): KHR_materials_emissive_strength emissiveStrength -3 is negative; 0 is used",
-            "material 0 ('Odd'): KHR_materials_specular specularFactor 2 is outside [0, 1]; clamped"
+            "material 0 ('Odd'): KHR_materials_dispersion dispersion -2 is negative; 0 (none) is used",
+            "material 0 ('Odd'): KHR_materials_specular specularFactor 2 is outside [0, 1]; clamped",
+            "extension KHR_materials_dispersion is approximated: each colour channel refracted by its own index into and out of volumes (path tracer); no dispersion in the direct renderer"
         ]
     );
     let material = &info["material_list"][0];
+    assert_eq!(material["dispersion"], 0.0, "{material}");
     assert_eq!(material["ior"], 1.5, "{material}");
     assert_eq!(material["emissive_strength"], 0.0, "{material}");
     assert_eq!(material["specular_layer"]["factor"], 1.0, "{material}");

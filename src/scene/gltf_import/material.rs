@@ -164,6 +164,10 @@ fn core_material(m: &gltf::Material) -> Material {
         attenuation_distance: m
             .volume()
             .map_or(f32::INFINITY, |v| v.attenuation_distance()),
+        // KHR_materials_dispersion: any value of at least 0 is valid (above 1 exaggerates).
+        dispersion: m
+            .extension_value("KHR_materials_dispersion")
+            .map_or(0.0, |e| json_f32(e.get("dispersion"), 0.0).max(0.0)),
         unlit: m.unlit(),
         specular_layer: m.specular().map(|sp| SpecularLayer {
             factor: finite_or(sp.specular_factor(), 1.0).clamp(0.0, 1.0),
@@ -294,6 +298,14 @@ pub(super) fn out_of_range(m: &gltf::Material) -> Vec<String> {
         problems.push(format!(
             "KHR_materials_emissive_strength emissiveStrength {strength} is negative; 0 is used"
         ));
+    }
+    if let Some(e) = m.extension_value("KHR_materials_dispersion") {
+        let dispersion = json_f32(e.get("dispersion"), 0.0);
+        if dispersion < 0.0 {
+            problems.push(format!(
+                "KHR_materials_dispersion dispersion {dispersion} is negative; 0 (none) is used"
+            ));
+        }
     }
     if let Some(e) = m.extension_value("KHR_materials_diffuse_transmission") {
         let factor = json_f32(e.get("diffuseTransmissionFactor"), 0.0);
