@@ -196,7 +196,7 @@ def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, mat
     RGBA, ``metallic``, ``roughness``, ``emissive``, ``emissive_strength``, ``alpha_mode``,
     ``alpha_cutoff``, ``double_sided``, ``unlit``, ``normal_scale``, ``occlusion_strength``,
     ``name``), every key optional with glTF's default (white, metallic 1, roughness 1), the
-    factors of the material extensions (``transmission``, ``ior``, ``thickness`` (0: a thin
+    factors of the material extensions (``transmission``, ``ior``, ``dispersion``, ``thickness`` (0: a thin
     wall, above: a volume), ``attenuation_color``, ``attenuation_distance``, ``specular``,
     ``specular_color``, ``sheen_color``, ``sheen_roughness``, ``clearcoat``,
     ``clearcoat_roughness``, ``iridescence``, ``iridescence_ior``, ``iridescence_thickness``

@@ -66,7 +66,7 @@ pub fn material(dict: Option<&Bound<'_, PyDict>>) -> PyResult<Material> {
     const KEYS: &str = "base_color, metallic, roughness, emissive, emissive_strength, \
         alpha_mode, alpha_cutoff, double_sided, unlit, name, base_color_texture, \
         metallic_roughness_texture, normal_texture, normal_scale, occlusion_texture, \
-        occlusion_strength, emissive_texture, transmission, ior, thickness, \
+        occlusion_strength, emissive_texture, transmission, ior, dispersion, thickness, \
         attenuation_color, attenuation_distance, specular, specular_color, sheen_color, \
         sheen_roughness, clearcoat, clearcoat_roughness, iridescence, iridescence_ior, \
         iridescence_thickness, transmission_texture, thickness_texture, specular_texture, \
@@ -230,6 +230,7 @@ fn extension(m: &mut Material, key: &str, value: &Bound<'_, PyAny>) -> PyResult<
     match key {
         "transmission" => m.transmission = number()?,
         "ior" => m.ior = number()?,
+        "dispersion" => m.dispersion = number()?,
         "attenuation_color" => m.attenuation_color = triple()?,
         "attenuation_distance" => m.attenuation_distance = number()?,
         "specular" => specular(m).factor = number()?,

@@ -156,6 +156,8 @@ def test_the_scene_says_what_it_holds():
      "<arrays>: mesh 0: material: transmission 1.5: must be from 0 to 1"),
     (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, material={"ior": 0.5}),
      "material: ior 0.5: must be a finite number of at least 1"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, material={"dispersion": -1}),
+     "material: dispersion -1: must be a finite number of at least 0"),
     (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, material={"thickness": -1}),
      "material: thickness -1: must be a finite number of at least 0"),
     (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES,
