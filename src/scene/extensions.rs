@@ -42,7 +42,7 @@ const fn ext(
     }
 }
 
-use ExtensionStatus::{Approximated, Ignored, Supported};
+use ExtensionStatus::{Approximated, Supported};
 
 /// Every extension meshtracer knows. One not listed is ignored when used and refused when
 /// required (it may change what the geometry is).
@@ -193,9 +193,9 @@ pub const EXTENSIONS: &[KnownExtension] = &[
     ),
     ext(
         "KHR_animation_pointer",
-        Ignored,
+        Supported,
         false,
-        "the static pose is drawn",
+        "with --animation/--time: node transforms and weights, material factors, texture transforms, lights and cameras",
     ),
 ];
 
@@ -256,10 +256,11 @@ mod tests {
         assert!(ExtensionUse::new("KHR_lights_punctual", false)
             .warning()
             .is_none());
-        let w = ExtensionUse::new("KHR_animation_pointer", false)
-            .warning()
-            .unwrap();
-        assert!(w.contains("KHR_animation_pointer is ignored"), "{w}");
+        let w = ExtensionUse::new("EXT_made_up", false).warning().unwrap();
+        assert_eq!(
+            w,
+            "extension EXT_made_up is ignored: unknown to meshtracer: drawn as if absent"
+        );
         assert_eq!(
             ExtensionUse::new("EXT_made_up", true).status,
             ExtensionStatus::Ignored

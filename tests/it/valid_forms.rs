@@ -3,9 +3,7 @@
 //! and checks that it is drawn (pixels covered) or, where there is nothing to draw, that the
 //! program says so.
 
-use crate::common::{
-    add_float_accessor, glb_bytes, read_rgba, run, s, stderr, unit_quad as quad, write_gltf,
-};
+use crate::common::{glb_bytes, read_rgba, run, s, stderr, unit_quad as quad, write_gltf};
 use serde_json::{json, Value};
 use std::path::Path;
 
@@ -235,58 +233,6 @@ fn a_light_of_an_unknown_type_is_skipped() {
         err.contains("KHR_lights_punctual light 0: type 'area' is not one of directional, point, spot; the light is skipped"),
         "{err}"
     );
-}
-
-/// `KHR_animation_pointer` channels are not supported: the static pose is drawn with a
-/// warning, and choosing an animation made only of them says so.
-#[test]
-fn animation_pointer_channels_are_ignored_with_a_warning() {
-    let (mut json, mut bin) = quad();
-    let times = add_float_accessor(
-        &mut json,
-        &mut bin,
-        &[0.0, 1.0],
-        json!({"count": 2, "type": "SCALAR", "min": [0.0], "max": [1.0]}),
-    );
-    let values = add_float_accessor(
-        &mut json,
-        &mut bin,
-        &[0.0, 0.0, 0.0, 5.0, 0.0, 0.0],
-        json!({"count": 2, "type": "VEC3"}),
-    );
-    json["extensionsUsed"] = json!(["KHR_animation_pointer"]);
-    json["animations"] = json!([{"name": "Slide",
-        "samplers": [{"input": times, "output": values}],
-        "channels": [{"sampler": 0, "target": {"path": "pointer",
-            "extensions": {"KHR_animation_pointer": {"pointer": "/nodes/0/translation"}}}}]}]);
-    let dir = tempfile::tempdir().unwrap();
-    let dir = dir.path();
-    let model = write_gltf(dir, "model.gltf", json.clone(), &bin);
-    let err = quad_is_drawn("pointer-render", json, &bin);
-    assert!(
-        err.contains("animation 0 ('Slide'): 1 KHR_animation_pointer channel(s) ignored"),
-        "{err}"
-    );
-    let image = dir.join("posed.png");
-    let out = run(
-        &[
-            "render",
-            s(&model),
-            "-o",
-            s(&image),
-            "--animation",
-            "Slide",
-            "--time",
-            "1",
-        ],
-        false,
-    );
-    assert!(
-        stderr(&out).contains("animation: animation 0: all its 1 channels are KHR_animation_pointer channels, which meshtracer does not support"),
-        "{}",
-        stderr(&out)
-    );
-    assert!(!image.exists());
 }
 
 /// A GLB may end with padding or other bytes after its last chunk, and may hold chunks of

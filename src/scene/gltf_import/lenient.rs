@@ -14,8 +14,8 @@
 //! - a `KHR_lights_punctual` light of a type the extension does not define (a later version's):
 //!   removed, with a warning, and the nodes' references renumbered;
 //! - `KHR_animation_pointer` channels (a target with a `pointer` instead of a node and path):
-//!   removed, with a warning; [`Rewritten::pointer_channels`] remembers how many each animation
-//!   lost, so that choosing one says what is not supported.
+//!   taken out into [`Rewritten::pointer_channels`], which [`super::pointer`] samples when
+//!   their animation is drawn.
 //!
 //! Invalid, corrected with a warning:
 //! - a node `rotation` that is not a unit quaternion (§5.25) is normalised: the `gltf` crate
@@ -23,6 +23,7 @@
 //! - a node with both `matrix` and `translation`/`rotation`/`scale` (§5.25: not allowed) keeps
 //!   its matrix, as the `gltf` crate reads it.
 
+use super::pointer::PointerChannel;
 use serde_json::{Map, Value};
 
 /// How far a rotation's length may be from 1 before it is normalised and reported: exporters
@@ -42,8 +43,8 @@ pub(super) struct Rewritten {
     pub root: gltf::json::Root,
     /// One line per correction or omission, naming the place.
     pub warnings: Vec<String>,
-    /// For each animation (by index), the `KHR_animation_pointer` channels removed from it.
-    pub pointer_channels: Vec<usize>,
+    /// For each animation (by index), the `KHR_animation_pointer` channels taken out of it.
+    pub pointer_channels: Vec<Vec<PointerChannel>>,
 }
 
 /// Deserializes glTF JSON after the rewriting above. A document that still does not
@@ -67,7 +68,7 @@ pub(super) fn deserialize(bytes: &[u8]) -> Result<Rewritten, gltf::Error> {
             }
             unknown_lights(top, &mut warnings);
             node_transforms(top, &mut warnings);
-            pointer_channels(top, &mut warnings)
+            pointer_channels(top)
         }
         None => Vec::new(),
     };
@@ -222,26 +223,36 @@ fn name_of(object: &Map<String, Value>) -> String {
         .map_or(String::new(), |n| format!(" ('{n}')"))
 }
 
-/// Removes `KHR_animation_pointer` channels; returns how many each animation lost.
-fn pointer_channels(top: &mut Map<String, Value>, warnings: &mut Vec<String>) -> Vec<usize> {
-    let mut removed = Vec::new();
-    for (a, animation) in array(top, "animations").into_iter().flatten().enumerate() {
-        let label = animation.as_object().map_or(String::new(), name_of);
-        let Some(channels) = animation.get_mut("channels").and_then(Value::as_array_mut) else {
-            removed.push(0);
-            continue;
-        };
-        let before = channels.len();
-        channels.retain(|channel| !is_pointer_channel(channel));
-        let count = before - channels.len();
-        if count > 0 {
-            warnings.push(format!(
-                "animation {a}{label}: {count} KHR_animation_pointer channel(s) ignored (meshtracer animates node translation, rotation, scale and weights only)"
-            ));
+/// Takes the `KHR_animation_pointer` channels out of each animation.
+fn pointer_channels(top: &mut Map<String, Value>) -> Vec<Vec<PointerChannel>> {
+    let mut taken = Vec::new();
+    for animation in array(top, "animations").into_iter().flatten() {
+        let mut out = Vec::new();
+        if let Some(channels) = animation.get_mut("channels").and_then(Value::as_array_mut) {
+            let mut index = 0;
+            channels.retain(|channel| {
+                let keep = !is_pointer_channel(channel);
+                if !keep {
+                    out.push(PointerChannel {
+                        channel: index,
+                        // An index that is not one points at no sampler: refused when sampled.
+                        sampler: channel
+                            .get("sampler")
+                            .and_then(Value::as_u64)
+                            .map_or(usize::MAX, |s| usize::try_from(s).unwrap_or(usize::MAX)),
+                        pointer: channel
+                            .pointer("/target/extensions/KHR_animation_pointer/pointer")
+                            .and_then(Value::as_str)
+                            .map(str::to_string),
+                    });
+                }
+                index += 1;
+                keep
+            });
         }
-        removed.push(count);
+        taken.push(out);
     }
-    removed
+    taken
 }
 
 /// A channel whose target is a `KHR_animation_pointer` pointer (path `pointer`, no node).

@@ -24,6 +24,7 @@ mod instancing;
 mod lenient;
 mod material;
 mod meshopt;
+mod pointer;
 mod pose;
 mod textures;
 mod validate;
@@ -85,15 +86,25 @@ pub(crate) fn load(
         Some(name) => Some(choose_variant(&variants, name).map_err(err)?),
     };
     let mut pose_warnings = Vec::new();
-    let animations = pose::list_animations(&document, &buffers, &mut pose_warnings);
-    let pose = pose::pose(
+    let animations =
+        pose::list_animations(&document, &buffers, &pointer_channels, &mut pose_warnings);
+    // KHR_animation_pointer: the chosen animation's pointer channels written into the JSON,
+    // which is then read as the file.
+    let animated = pointer::animate(
         &document,
         &buffers,
-        &animations,
+        pointer::chosen(&animations, &options.pose),
         &pointer_channels,
         &options.pose,
+        &mut pose_warnings,
     )
     .map_err(|p| err(LoadErrorKind::Animation(p)))?;
+    let document = match animated {
+        Some(root) => validate(root).map_err(|e| err(convert(e)))?,
+        None => document,
+    };
+    let pose = pose::pose(&document, &buffers, &animations, &options.pose)
+        .map_err(|p| err(LoadErrorKind::Animation(p)))?;
     let pose_description = pose.description.clone();
     steps.mark("parse");
     let mut importer = Importer::new(
@@ -202,8 +213,8 @@ struct Parsed<'a> {
     webp_fallbacks: Vec<Option<usize>>,
     /// What the JSON's rewriting corrected or left out ([`lenient`]).
     warnings: Vec<String>,
-    /// The `KHR_animation_pointer` channels each animation lost ([`lenient`]).
-    pointer_channels: Vec<usize>,
+    /// The `KHR_animation_pointer` channels taken out of each animation ([`lenient`]).
+    pointer_channels: Vec<Vec<pointer::PointerChannel>>,
 }
 
 /// Parses the GLB container or JSON, refuses required extensions that are not supported,

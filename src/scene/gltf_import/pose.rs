@@ -21,6 +21,7 @@
 
 use super::attributes;
 use super::buffer::Buffer;
+use super::pointer::PointerChannel;
 use crate::scene::pose::{AnimationInfo, PoseOptions};
 use glam::{Mat3, Mat4, Quat, Vec3, Vec4};
 use gltf::accessor::{DataType, Dimensions};
@@ -191,6 +192,43 @@ fn expect_float(accessor: &gltf::Accessor, dims: Dimensions, what: &str) -> Resu
     ))
 }
 
+/// An animation sampler's keyframe times (`input`, which must be scalar floats).
+pub(super) fn read_times(input: &gltf::Accessor, buffers: &[Buffer]) -> Result<Vec<f32>, String> {
+    expect_float(input, Dimensions::Scalar, "input (keyframe times)")?;
+    Ok(attributes::read::<1>(input, buffers, false)
+        .map_err(|p| format!("input accessor {}: {p}", input.index()))?
+        .into_iter()
+        .map(|[t]| t)
+        .collect())
+}
+
+/// An animation sampler's output numbers, element after element: scalars or vectors of 2 to
+/// 4 (normalized integers mapped to floats); a matrix is refused.
+pub(super) fn read_output(output: &gltf::Accessor, buffers: &[Buffer]) -> Result<Vec<f32>, String> {
+    let normalized = output.normalized();
+    let read_err = |p: String| format!("output accessor {}: {p}", output.index());
+    Ok(match output.dimensions() {
+        Dimensions::Scalar => attributes::read::<1>(output, buffers, normalized)
+            .map_err(read_err)?
+            .concat(),
+        Dimensions::Vec2 => attributes::read::<2>(output, buffers, normalized)
+            .map_err(read_err)?
+            .concat(),
+        Dimensions::Vec3 => attributes::read::<3>(output, buffers, normalized)
+            .map_err(read_err)?
+            .concat(),
+        Dimensions::Vec4 => attributes::read::<4>(output, buffers, normalized)
+            .map_err(read_err)?
+            .concat(),
+        other => {
+            return Err(format!(
+                "output accessor {}: {other:?} is no animatable value",
+                output.index()
+            ))
+        }
+    })
+}
+
 /// Reads one channel's keyframes, checked (`buffers` after the importer's view checks).
 pub(crate) fn read_track(
     channel: &gltf::animation::Channel,
@@ -198,13 +236,7 @@ pub(crate) fn read_track(
     morph_targets: usize,
 ) -> Result<Track, String> {
     let sampler = channel.sampler();
-    let input = sampler.input();
-    expect_float(&input, Dimensions::Scalar, "input (keyframe times)")?;
-    let times: Vec<f32> = attributes::read::<1>(&input, buffers, false)
-        .map_err(|p| format!("input accessor {}: {p}", input.index()))?
-        .into_iter()
-        .map(|[t]| t)
-        .collect();
+    let times = read_times(&sampler.input(), buffers)?;
     let property = channel.target().property();
     let (dims, width, rotation) = match property {
         Property::Translation | Property::Scale => (Dimensions::Vec3, 3, false),
@@ -235,19 +267,7 @@ pub(crate) fn read_track(
             output.data_type()
         ));
     }
-    let normalized = output.normalized();
-    let read_err = |p: String| format!("output accessor {}: {p}", output.index());
-    let values: Vec<f32> = match dims {
-        Dimensions::Vec3 => attributes::read::<3>(&output, buffers, normalized)
-            .map_err(read_err)?
-            .concat(),
-        Dimensions::Vec4 => attributes::read::<4>(&output, buffers, normalized)
-            .map_err(read_err)?
-            .concat(),
-        _ => attributes::read::<1>(&output, buffers, normalized)
-            .map_err(read_err)?
-            .concat(),
-    };
+    let values = read_output(&output, buffers)?;
     let track = Track {
         times,
         values,
@@ -387,12 +407,16 @@ pub(crate) fn check_channel_targets(root: &gltf::json::Root) -> Result<(), Strin
 pub(crate) fn list_animations(
     document: &gltf::Document,
     buffers: &[Buffer],
+    pointer_channels: &[Vec<PointerChannel>],
     warnings: &mut Vec<String>,
 ) -> Vec<AnimationInfo> {
     document
         .animations()
         .map(|animation| {
-            let mut duration = 0.0f32;
+            let pointers = pointer_channels
+                .get(animation.index())
+                .map_or(&[][..], Vec::as_slice);
+            let mut duration = super::pointer::duration(&animation, pointers, buffers, warnings);
             for channel in animation.channels() {
                 match read_track(&channel, buffers, targets_of(&channel.target().node())) {
                     Ok(track) => {
@@ -419,7 +443,7 @@ pub(crate) fn list_animations(
                 index: animation.index(),
                 name: animation.name().map(str::to_string),
                 duration,
-                channels: animation.channels().count(),
+                channels: animation.channels().count() + pointers.len(),
             }
         })
         .collect()
@@ -467,14 +491,12 @@ pub(crate) fn choose_animation(
 }
 
 /// The pose `options` ask for: the rest pose, or animation `options.animation` sampled at
-/// `options.time` (missing parts default to animation 0 and time 0). `pointer_channels` holds,
-/// per animation, the `KHR_animation_pointer` channels removed from the file: an animation
-/// made of nothing else is refused, and one that lost some says so in its description.
+/// `options.time` (missing parts default to animation 0 and time 0). Its
+/// `KHR_animation_pointer` channels are in `document` already ([`super::pointer::animate`]).
 pub(crate) fn pose(
     document: &gltf::Document,
     buffers: &[Buffer],
     animations: &[AnimationInfo],
-    pointer_channels: &[usize],
     options: &PoseOptions,
 ) -> Result<Pose, String> {
     let mut pose = Pose::rest(document);
@@ -486,12 +508,6 @@ pub(crate) fn pose(
     let Some(animation) = document.animations().nth(index) else {
         return Err(format!("no animation {index}"));
     };
-    let pointers = pointer_channels.get(index).copied().unwrap_or(0);
-    if pointers > 0 && animation.channels().next().is_none() {
-        return Err(format!(
-            "animation {index}: all its {pointers} channels are KHR_animation_pointer channels, which meshtracer does not support (it animates node translation, rotation, scale and weights)"
-        ));
-    }
     let time = options.time.unwrap_or(0.0);
     let mut trs: Vec<Option<(Vec3, Quat, Vec3)>> = vec![None; pose.local.len()];
     for channel in animation.channels() {
@@ -528,16 +544,11 @@ pub(crate) fn pose(
         .get(index)
         .map_or_else(|| index.to_string(), AnimationInfo::label);
     let end = animations.get(index).map_or(0.0, |a| a.duration);
-    let mut description = if time > end {
+    let description = if time > end {
         format!("animation {label} at {time} s (past its end at {end} s: its last keyframes)")
     } else {
         format!("animation {label} at {time} s")
     };
-    if pointers > 0 {
-        description += &format!(
-            " without its {pointers} KHR_animation_pointer channel(s), which meshtracer does not support"
-        );
-    }
     pose.description = Some(description);
     Ok(pose)
 }

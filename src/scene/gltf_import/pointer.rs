@@ -1,0 +1,454 @@
+//! `KHR_animation_pointer`: animation channels that target a property by a JSON pointer
+//! (`/materials/0/pbrMetallicRoughness/baseColorFactor`, `/extensions/KHR_lights_punctual/lights/1/intensity`)
+//! instead of a node's transform.
+//!
+//! The pointer channels of the animation a render asks for (`--animation`, `--time`) are
+//! sampled like the core channels ([`pose::Track`]: STEP, LINEAR, CUBICSPLINE; node rotations
+//! by slerp) and their values written into the document's JSON where the pointers point; the
+//! document is then read as if the file held those values, so every animated property is drawn
+//! exactly as the same value written in a file would be (clamped and warned about the same
+//! way). The static pose, and every other animation, leave the JSON alone.
+//!
+//! What can be animated is what the extension's list of animatable properties names and
+//! meshtracer draws: node `translation`, `rotation`, `scale` and `weights`; the material
+//! factors (`baseColorFactor`, `metallicFactor`, `roughnessFactor`, `emissiveFactor`,
+//! `alphaCutoff`, a normal texture's `scale`, an occlusion texture's `strength`) and those of
+//! the `KHR_materials_*` extensions; `KHR_texture_transform`'s `offset`, `rotation` and
+//! `scale`; `KHR_lights_punctual`'s `color`, `intensity`, `range` and spot cone angles; and the
+//! cameras' `yfov`, `aspectRatio`, `xmag`, `ymag`, `znear` and `zfar`. Any other pointer is
+//! left out with a warning naming the channel and the pointer.
+
+use super::buffer::Buffer;
+use super::pose::{self, Track};
+use crate::scene::pose::PoseOptions;
+use gltf::accessor::DataType;
+use gltf::animation::Interpolation;
+use serde_json::{Map, Value};
+
+/// One `KHR_animation_pointer` channel, taken out of the JSON before the `gltf` crate reads it
+/// (which knows only node targets).
+#[derive(Clone, Debug)]
+pub(crate) struct PointerChannel {
+    /// Its index among the animation's channels in the file.
+    pub channel: usize,
+    /// The animation sampler it reads.
+    pub sampler: usize,
+    /// The JSON pointer it animates (RFC 6901), `None` when the channel has none.
+    pub pointer: Option<String>,
+}
+
+/// What a pointer may animate: `Some(true)` for a node rotation (a quaternion, slerped),
+/// `Some(false)` for any other animatable property, `None` for a pointer meshtracer does not
+/// animate.
+fn animatable(segments: &[String]) -> Option<bool> {
+    let is_index = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    let strs: Vec<&str> = segments.iter().map(String::as_str).collect();
+    match strs.as_slice() {
+        ["nodes", i, property] if is_index(i) => match *property {
+            "rotation" => Some(true),
+            "translation" | "scale" | "weights" => Some(false),
+            _ => None,
+        },
+        ["materials", i, rest @ ..] if is_index(i) && !rest.is_empty() => {
+            material_property(rest).then_some(false)
+        }
+        ["extensions", "KHR_lights_punctual", "lights", i, rest @ ..] if is_index(i) => matches!(
+            rest,
+            ["color" | "intensity" | "range"] | ["spot", "innerConeAngle" | "outerConeAngle"]
+        )
+        .then_some(false),
+        ["cameras", i, kind, property] if is_index(i) => {
+            let ok = match *kind {
+                "perspective" => matches!(*property, "yfov" | "aspectRatio" | "znear" | "zfar"),
+                "orthographic" => matches!(*property, "xmag" | "ymag" | "znear" | "zfar"),
+                _ => false,
+            };
+            ok.then_some(false)
+        }
+        _ => None,
+    }
+}
+
+/// Whether `path` (below `/materials/i/`) is an animatable material property: a factor (of the
+/// core material or a `KHR_materials_*` extension, any name ending in `Factor`), one of the
+/// extensions' other numbers, a texture's scale or strength, or a `KHR_texture_transform`.
+fn material_property(path: &[&str]) -> bool {
+    const NUMBERS: [&str; 11] = [
+        "alphaCutoff",
+        "ior",
+        "emissiveStrength",
+        "dispersion",
+        "attenuationDistance",
+        "attenuationColor",
+        "iridescenceIor",
+        "iridescenceThicknessMinimum",
+        "iridescenceThicknessMaximum",
+        "anisotropyStrength",
+        "anisotropyRotation",
+    ];
+    let Some((last, parents)) = path.split_last() else {
+        return false;
+    };
+    if let Some(at) = parents.iter().position(|s| *s == "extensions") {
+        let extension = parents.get(at + 1).copied().unwrap_or(*last);
+        if extension == "KHR_texture_transform" {
+            return parents.len() == at + 2 && matches!(*last, "offset" | "rotation" | "scale");
+        }
+        if !extension.starts_with("KHR_materials_") {
+            return false;
+        }
+    }
+    last.ends_with("Factor")
+        || NUMBERS.contains(last)
+        || (*last == "scale" && parents.last().is_some_and(|p| p.ends_with("Texture")))
+        || (*last == "strength" && parents.last() == Some(&"occlusionTexture"))
+}
+
+/// The segments of a JSON pointer (`/a/b~1c` is `a`, `b/c`), `None` if it is not one.
+fn segments(pointer: &str) -> Option<Vec<String>> {
+    let rest = pointer.strip_prefix('/')?;
+    Some(
+        rest.split('/')
+            .map(|s| s.replace("~1", "/").replace("~0", "~"))
+            .collect(),
+    )
+}
+
+/// Reads a pointer channel's keyframes. The output may be scalar or a vector of 2 to 4
+/// floats (or normalized integers); a scalar output with several values a keyframe (morph
+/// weights) is read as one array a keyframe.
+fn read_track(
+    sampler: &gltf::animation::Sampler,
+    buffers: &[Buffer],
+    rotation: bool,
+) -> Result<Track, String> {
+    let times = pose::read_times(&sampler.input(), buffers)?;
+    let output = sampler.output();
+    if output.data_type() != DataType::F32
+        && !(output.normalized() && output.data_type() != DataType::U32)
+    {
+        return Err(format!(
+            "output accessor {} must be float or normalized integer, not {:?}",
+            output.index(),
+            output.data_type()
+        ));
+    }
+    let values = pose::read_output(&output, buffers)?;
+    let interpolation = sampler.interpolation();
+    let elements = times.len()
+        * if interpolation == Interpolation::CubicSpline {
+            3
+        } else {
+            1
+        };
+    if elements == 0 || !values.len().is_multiple_of(elements) {
+        return Err(format!(
+            "output accessor {} holds {} numbers, not a whole number for each of {elements} keyframe elements",
+            output.index(),
+            values.len()
+        ));
+    }
+    let track = Track {
+        width: values.len() / elements,
+        times,
+        values,
+        interpolation,
+        rotation,
+    };
+    if rotation && track.width != 4 {
+        return Err(format!(
+            "output accessor {}: a rotation needs 4 numbers a keyframe, not {}",
+            output.index(),
+            track.width
+        ));
+    }
+    track
+        .check()
+        .map_err(|p| format!("sampler {}: {p}", sampler.index()))?;
+    Ok(track)
+}
+
+/// The keyframes of `channel` of `animation`, and whether its pointer is animatable (`None`
+/// with the reason when it is not).
+fn channel_track(
+    animation: &gltf::Animation,
+    channel: &PointerChannel,
+    buffers: &[Buffer],
+) -> Result<Result<(Vec<String>, Track), String>, String> {
+    let Some(pointer) = &channel.pointer else {
+        return Ok(Err("it names no pointer".to_string()));
+    };
+    let Some(path) = segments(pointer) else {
+        return Ok(Err(format!("'{pointer}' is not a JSON pointer")));
+    };
+    let Some(rotation) = animatable(&path) else {
+        return Ok(Err(format!("meshtracer does not animate '{pointer}'")));
+    };
+    let sampler = animation
+        .samplers()
+        .nth(channel.sampler)
+        .ok_or_else(|| format!("sampler {} does not exist", channel.sampler))?;
+    Ok(Ok((path, read_track(&sampler, buffers, rotation)?)))
+}
+
+/// The last keyframe time of the animatable pointer channels of `animation` (0 without),
+/// with a warning for each channel that cannot be read.
+pub(crate) fn duration(
+    animation: &gltf::Animation,
+    channels: &[PointerChannel],
+    buffers: &[Buffer],
+    warnings: &mut Vec<String>,
+) -> f32 {
+    let mut end = 0.0f32;
+    for channel in channels {
+        match channel_track(animation, channel, buffers) {
+            Ok(Ok((_, track))) => end = end.max(track.end()),
+            Ok(Err(_)) => {}
+            Err(problem) => warnings.push(format!(
+                "animation {} channel {}: {problem}",
+                animation.index(),
+                channel.channel
+            )),
+        }
+    }
+    end
+}
+
+/// The document's JSON with the pointer channels of the animation `options` ask for written at
+/// its time, or `None` when the render draws the static pose or that animation has no pointer
+/// channels. A channel that cannot be read stops the load (as a core channel's does); one
+/// whose pointer meshtracer does not animate, or that points at nothing, is left out with a
+/// warning.
+pub(crate) fn animate(
+    document: &gltf::Document,
+    buffers: &[Buffer],
+    index: Option<usize>,
+    channels: &[Vec<PointerChannel>],
+    options: &PoseOptions,
+    warnings: &mut Vec<String>,
+) -> Result<Option<gltf::json::Root>, String> {
+    let Some(index) = index.filter(|_| options.animates()) else {
+        return Ok(None);
+    };
+    let list = channels.get(index).map_or(&[][..], Vec::as_slice);
+    let Some(animation) = document.animations().nth(index) else {
+        return Ok(None);
+    };
+    if list.is_empty() {
+        return Ok(None);
+    }
+    let time = options.time.unwrap_or(0.0);
+    let mut json = serde_json::to_value(document.as_json())
+        .map_err(|e| format!("the document as JSON: {e}"))?;
+    for channel in list {
+        let at =
+            |problem: String| format!("animation {index} channel {}: {problem}", channel.channel);
+        match channel_track(&animation, channel, buffers).map_err(at)? {
+            Ok((path, track)) => {
+                let value = track.sample(time);
+                if let Err(problem) = write(&mut json, &path, &value) {
+                    warnings.push(at(format!("KHR_animation_pointer {problem}; left out")));
+                }
+            }
+            Err(problem) => {
+                warnings.push(at(format!("KHR_animation_pointer: {problem}; left out")))
+            }
+        }
+    }
+    restore_empty_lists(&mut json);
+    serde_json::from_value(json)
+        .map(Some)
+        .map_err(|e| format!("animation {index}: the animated document does not read back: {e}"))
+}
+
+/// Puts back the lists gltf-json leaves out of its JSON when empty but needs to read it: an
+/// animation's `channels` (empty once its pointer channels are taken out) and a scene's
+/// `nodes`.
+fn restore_empty_lists(json: &mut Value) {
+    for (list, field) in [("animations", "channels"), ("scenes", "nodes")] {
+        if let Some(items) = json.get_mut(list).and_then(Value::as_array_mut) {
+            for item in items.iter_mut().filter_map(Value::as_object_mut) {
+                item.entry(field)
+                    .or_insert_with(|| Value::Array(Vec::new()));
+            }
+        }
+    }
+}
+
+/// Writes `value` (one number, or an array of them) where `path` points in `json`, creating
+/// the objects on the way that the file left out (a default factor, an extension's object); an
+/// array index must exist. A number stays a number and an array keeps its length.
+fn write(json: &mut Value, path: &[String], value: &[f32]) -> Result<(), String> {
+    let pointer = || format!("'/{}'", path.join("/"));
+    if let Some((i, bad)) = value.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(format!("{}: value {i} is {bad}", pointer()));
+    }
+    let Some((last, parents)) = path.split_last() else {
+        return Err("an empty pointer".to_string());
+    };
+    let mut at = json;
+    for segment in parents {
+        at = match at {
+            Value::Object(map) => map
+                .entry(segment.as_str())
+                .or_insert_with(|| Value::Object(Map::new())),
+            Value::Array(list) => segment
+                .parse::<usize>()
+                .ok()
+                .and_then(|i| list.get_mut(i))
+                .ok_or_else(|| format!("{} points at nothing", pointer()))?,
+            _ => return Err(format!("{} points into a number", pointer())),
+        };
+    }
+    let Value::Object(map) = at else {
+        return Err(format!("{} points at nothing", pointer()));
+    };
+    if parents.first().map(String::as_str) == Some("nodes")
+        && last != "weights"
+        && map.contains_key("matrix")
+    {
+        return Err(format!(
+            "{}: the node has a matrix, which its translation, rotation and scale may not replace",
+            pointer()
+        ));
+    }
+    let number = |v: f32| Value::from(f64::from(v));
+    let new = match (map.get(last.as_str()), value) {
+        (Some(Value::Number(_)) | None, [one]) => number(*one),
+        (Some(Value::Array(old)), many) if old.len() == many.len() => {
+            Value::Array(many.iter().map(|v| number(*v)).collect())
+        }
+        (None, many) => Value::Array(many.iter().map(|v| number(*v)).collect()),
+        (Some(old), _) => {
+            return Err(format!(
+                "{}: {} number(s) a keyframe for {old}",
+                pointer(),
+                value.len()
+            ))
+        }
+    };
+    map.insert(last.clone(), new);
+    Ok(())
+}
+
+/// The animation `options` choose, when the render animates (for [`animate`]).
+pub(crate) fn chosen(
+    animations: &[crate::scene::pose::AnimationInfo],
+    options: &PoseOptions,
+) -> Option<usize> {
+    if !options.animates() {
+        return None;
+    }
+    pose::choose_animation(animations, options.animation.as_deref()).ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn path(p: &str) -> Vec<String> {
+        segments(p).unwrap()
+    }
+
+    #[test]
+    fn the_animatable_properties_are_recognised() {
+        for (p, expected) in [
+            ("/nodes/0/rotation", Some(true)),
+            ("/nodes/3/translation", Some(false)),
+            ("/nodes/3/weights", Some(false)),
+            ("/nodes/x/scale", None),
+            ("/nodes/0/mesh", None),
+            ("/materials/1/pbrMetallicRoughness/baseColorFactor", Some(false)),
+            ("/materials/1/emissiveFactor", Some(false)),
+            ("/materials/1/alphaCutoff", Some(false)),
+            ("/materials/1/normalTexture/scale", Some(false)),
+            ("/materials/1/occlusionTexture/strength", Some(false)),
+            ("/materials/1/normalTexture/index", None),
+            ("/materials/0/extensions/KHR_materials_emissive_strength/emissiveStrength", Some(false)),
+            ("/materials/0/extensions/KHR_materials_transmission/transmissionFactor", Some(false)),
+            ("/materials/0/extensions/KHR_materials_volume/attenuationColor", Some(false)),
+            ("/materials/0/pbrMetallicRoughness/baseColorTexture/extensions/KHR_texture_transform/offset", Some(false)),
+            ("/materials/0/pbrMetallicRoughness/baseColorTexture/extensions/KHR_texture_transform/texCoord", None),
+            ("/materials/0/extensions/EXT_made_up/someFactor", None),
+            ("/extensions/KHR_lights_punctual/lights/2/intensity", Some(false)),
+            ("/extensions/KHR_lights_punctual/lights/2/spot/outerConeAngle", Some(false)),
+            ("/extensions/KHR_lights_punctual/lights/2/type", None),
+            ("/cameras/0/perspective/yfov", Some(false)),
+            ("/cameras/0/orthographic/xmag", Some(false)),
+            ("/cameras/0/perspective/xmag", None),
+            ("/accessors/0/count", None),
+        ] {
+            assert_eq!(animatable(&path(p)), expected, "{p}");
+        }
+        assert_eq!(path("/a~1b/c~0d"), ["a/b", "c~d"]);
+        assert!(segments("nodes/0").is_none());
+    }
+
+    #[test]
+    fn values_are_written_where_the_pointer_points() {
+        let mut doc = json!({
+            "nodes": [{"translation": [0.0, 0.0, 0.0]}, {"matrix": [1.0]}],
+            "materials": [{"pbrMetallicRoughness": {"metallicFactor": 1.0}}]
+        });
+        write(&mut doc, &path("/nodes/0/translation"), &[1.0, 2.0, 3.0]).unwrap();
+        write(
+            &mut doc,
+            &path("/materials/0/pbrMetallicRoughness/metallicFactor"),
+            &[0.5],
+        )
+        .unwrap();
+        // A default the file left out, and an extension object it did not have.
+        write(
+            &mut doc,
+            &path("/materials/0/emissiveFactor"),
+            &[1.0, 0.5, 0.0],
+        )
+        .unwrap();
+        write(
+            &mut doc,
+            &path("/materials/0/extensions/KHR_materials_emissive_strength/emissiveStrength"),
+            &[4.0],
+        )
+        .unwrap();
+        assert_eq!(doc["nodes"][0]["translation"], json!([1.0, 2.0, 3.0]));
+        assert_eq!(
+            doc["materials"][0]["pbrMetallicRoughness"]["metallicFactor"],
+            json!(0.5)
+        );
+        assert_eq!(
+            doc["materials"][0]["emissiveFactor"],
+            json!([1.0, 0.5, 0.0])
+        );
+        assert_eq!(
+            doc["materials"][0]["extensions"]["KHR_materials_emissive_strength"]
+                ["emissiveStrength"],
+            json!(4.0)
+        );
+        for (p, value, problem) in [
+            (
+                "/nodes/5/translation",
+                &[1.0f32, 2.0, 3.0][..],
+                "points at nothing",
+            ),
+            (
+                "/nodes/0/translation",
+                &[1.0, 2.0][..],
+                "2 number(s) a keyframe",
+            ),
+            (
+                "/nodes/1/translation",
+                &[1.0, 2.0, 3.0][..],
+                "the node has a matrix",
+            ),
+            (
+                "/materials/0/alphaCutoff",
+                &[f32::NAN][..],
+                "value 0 is NaN",
+            ),
+        ] {
+            let err = write(&mut doc, &path(p), value).unwrap_err();
+            assert!(err.contains(problem), "{p}: {err}");
+        }
+    }
+}
