@@ -528,8 +528,9 @@ impl<'a> Bsdf<'a> {
 
     /// Adds `KHR_materials_dispersion` (`dispersion` = 20 / the Abbe number, on a material of
     /// index `ior`) to the transmission lobe of a volume's boundary: its draws then refract
-    /// one colour channel by that channel's index ([`Transmission::dispersed`]): `channel`,
-    /// the one a path already carries alone, else one drawn at random. Nothing changes
+    /// one colour channel by that channel's index (ior - s, ior, ior + s for red, green and
+    /// blue, s = (ior - 1)·0.025·dispersion): `channel`, the one a path already carries alone
+    /// (weight 1), else one drawn at random (weight 3 in it, 0 in the others). Nothing changes
     /// without a transmission lobe or through a thin wall (no bending, so no dispersion).
     /// The rough lobe's multiple-scattering scale stays the material's index's
     /// (approximated: the channels' indices differ by a few percent).
