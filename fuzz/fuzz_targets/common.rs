@@ -1,6 +1,6 @@
 //! Shared by the fuzz targets: load bytes through the public `Scene::from_bytes` path.
 
-use meshtracer::scene::{LoadLimits, LoadOptions};
+use meshtracer::scene::{LoadLimits, LoadOptions, PoseOptions};
 use meshtracer::Scene;
 use std::path::Path;
 
@@ -22,7 +22,22 @@ pub fn load(name: &str, data: &[u8]) {
         ..Default::default()
     };
     let path = Path::new("/nonexistent-meshtracer-fuzz").join(name);
-    if let Ok(mut scene) = Scene::from_bytes(&path, data, &options) {
+    let loaded = Scene::from_bytes(&path, data, &options);
+    // A file with animations is loaded posed too, each animation at a time inside it: the
+    // channels' sampling and the KHR_animation_pointer writes run only then.
+    if let Ok(scene) = &loaded {
+        for animation in scene.animations.iter().take(4) {
+            let posed = LoadOptions {
+                pose: PoseOptions {
+                    animation: Some(animation.index.to_string()),
+                    time: Some(0.37 * animation.duration.min(1e6)),
+                },
+                ..options.clone()
+            };
+            let _ = Scene::from_bytes(&path, data, &posed);
+        }
+    }
+    if let Ok(mut scene) = loaded {
         // Whatever loads must be a soup the tracer can trust.
         assert!(!scene.soup.is_empty());
         assert!(scene.check_references().is_ok());

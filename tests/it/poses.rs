@@ -884,6 +884,7 @@ fn animation_pointer_channels_animate_nodes_materials_lights_and_cameras() {
         )
     };
     let model = write("pointers.gltf", &channels);
+    crate::common::copy_to_corpus(&model);
     let at_rest = info(&model, &[]);
     assert_eq!(at_rest["warnings"], json!([]), "{}", at_rest["warnings"]);
     assert_close(bounds(&at_rest).0, [-2.0, -2.0, 0.0], "static pose");
@@ -938,6 +939,7 @@ fn animation_pointer_channels_animate_nodes_materials_lights_and_cameras() {
     // A pointer at something meshtracer does not animate is named and left out.
     channels.push(channel(4, "/accessors/0/count"));
     let model = write("unsupported.gltf", &channels);
+    crate::common::copy_to_corpus(&model);
     let v = info(&model, &["--animation", "pointers", "--time", "1.5"]);
     assert_eq!(
         v["warnings"],
