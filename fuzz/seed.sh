@@ -2,7 +2,7 @@
 # Seeds fuzz/corpus/{gltf_json,glb,obj} from the shared sample models (small files only) and
 # from the files tests/it/broken_files.rs, valid_forms.rs, invalid_forms.rs, instancing.rs and
 # materials.rs (anisotropy, specular-glossiness, diffuse transmission, dispersion) and
-# poses.rs (KHR_animation_pointer) generate.
+# poses.rs (KHR_animation_pointer, KHR_node_visibility) generate.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 samples="${MESHTRACER_SAMPLES:-../shared/assets}"
@@ -70,7 +70,7 @@ cp assets/*.gltf fuzz/corpus/gltf_json/
 cp assets/*.obj fuzz/corpus/obj/
 broken=$(mktemp -d)
 MESHTRACER_WRITE_CORPUS="$broken" cargo test -q --test it -- broken_files::every_broken_file valid_forms:: invalid_forms:: \
-  instancing:: materials::anisotropy materials::specular_glossiness materials::diffuse_transmission materials::dispersion poses::animation_pointer >/dev/null
+  instancing:: materials::anisotropy materials::specular_glossiness materials::diffuse_transmission materials::dispersion poses::animation_pointer poses::node_visibility >/dev/null
 find "$broken" -name 'model.gltf' -type f | while read -r f; do cp "$f" "fuzz/corpus/gltf_json/$(basename "$(dirname "$f")").gltf"; done
 find "$broken" -name 'model.glb' | while read -r f; do cp "$f" "fuzz/corpus/glb/$(basename "$(dirname "$f")").glb"; done
 find "$broken" -name 'model.obj' | while read -r f; do cp "$f" "fuzz/corpus/obj/$(basename "$(dirname "$f")").obj"; done

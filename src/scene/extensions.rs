@@ -192,6 +192,12 @@ pub const EXTENSIONS: &[KnownExtension] = &[
         "metadata only: nothing to draw",
     ),
     ext(
+        "KHR_node_visibility",
+        Supported,
+        false,
+        "a node whose visible is false draws no mesh or light, nor do the nodes below it (cameras stay)",
+    ),
+    ext(
         "KHR_animation_pointer",
         Supported,
         false,

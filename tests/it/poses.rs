@@ -949,3 +949,55 @@ fn animation_pointer_channels_animate_nodes_materials_lights_and_cameras() {
     );
     check(&v);
 }
+
+/// `KHR_node_visibility`: a node whose `visible` is false hides its mesh and light and every
+/// node below it, but not the camera of a node below it ("visibility affects neither
+/// cameras"); a `KHR_animation_pointer` channel (STEP, unsigned bytes, as the extension asks)
+/// shows it again from 1 s on. `info`: at rest only the visible square (x from 8 to 12) and no
+/// light, with the hidden node's camera; at 1.5 s both squares and the light.
+#[test]
+fn node_visibility_hides_a_subtree_and_animates() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut b = Buffer::default();
+    let (position, indices) = square(&mut b, 2.0);
+    let times = b.floats(&[0.0, 1.0], "SCALAR");
+    let shown = b.add(
+        &[0u8, 1],
+        2,
+        json!({"componentType": 5121, "type": "SCALAR"}),
+    );
+    let model = b.write(
+        dir.path(),
+        "visibility.gltf",
+        json!({
+            "scene": 0,
+            "scenes": [{"nodes": [0, 3]}],
+            "extensionsUsed": ["KHR_lights_punctual", "KHR_node_visibility", "KHR_animation_pointer"],
+            "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point", "intensity": 5.0}]}},
+            "nodes": [
+                {"children": [1, 2], "extensions": {"KHR_node_visibility": {"visible": false}}},
+                {"mesh": 0, "extensions": {"KHR_lights_punctual": {"light": 0}, "KHR_node_visibility": {"visible": true}}},
+                {"camera": 0, "translation": [0.0, 0.0, 5.0]},
+                {"mesh": 0, "translation": [10.0, 0.0, 0.0]}
+            ],
+            "cameras": [{"type": "orthographic", "orthographic": {"xmag": 2.0, "ymag": 2.0, "znear": 0.1, "zfar": 100.0}}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": position}, "indices": indices}]}],
+            "animations": [{"name": "show",
+                "samplers": [{"input": times, "output": shown, "interpolation": "STEP"}],
+                "channels": [{"sampler": 0, "target": {"path": "pointer",
+                    "extensions": {"KHR_animation_pointer": {"pointer": "/nodes/0/extensions/KHR_node_visibility/visible"}}}}]}]
+        }),
+    );
+    crate::common::copy_to_corpus(&model);
+    let at_rest = info(&model, &[]);
+    assert_close(bounds(&at_rest).0, [8.0, -2.0, 0.0], "hidden at rest");
+    assert_eq!(at_rest["lights"], json!([]), "{}", at_rest["lights"]);
+    assert_eq!(at_rest["cameras"].as_array().map(Vec::len), Some(1));
+    assert_eq!(at_rest["warnings"], json!([]), "{}", at_rest["warnings"]);
+    let early = info(&model, &["--animation", "show", "--time", "0.5"]);
+    assert_close(bounds(&early).0, [8.0, -2.0, 0.0], "still hidden at 0.5 s");
+    let shown = info(&model, &["--animation", "show", "--time", "1.5"]);
+    assert_close(bounds(&shown).0, [-2.0, -2.0, 0.0], "shown at 1.5 s");
+    assert_eq!(shown["lights"].as_array().map(Vec::len), Some(1));
+    assert_eq!(shown["warnings"], json!([]), "{}", shown["warnings"]);
+}

@@ -15,13 +15,13 @@
 //! `alphaCutoff`, a normal texture's `scale`, an occlusion texture's `strength`) and those of
 //! the `KHR_materials_*` extensions; `KHR_texture_transform`'s `offset`, `rotation` and
 //! `scale`; `KHR_lights_punctual`'s `color`, `intensity`, `range` and spot cone angles; and the
-//! cameras' `yfov`, `aspectRatio`, `xmag`, `ymag`, `znear` and `zfar`. Any other pointer is
-//! left out with a warning naming the channel and the pointer.
+//! cameras' `yfov`, `aspectRatio`, `xmag`, `ymag`, `znear` and `zfar`; and
+//! `KHR_node_visibility`'s `visible` (0 false, anything else true). Any other pointer is left
+//! out with a warning naming the channel and the pointer.
 
 use super::buffer::Buffer;
 use super::pose::{self, Track};
 use crate::scene::pose::PoseOptions;
-use gltf::accessor::DataType;
 use gltf::animation::Interpolation;
 use serde_json::{Map, Value};
 
@@ -37,33 +37,46 @@ pub(crate) struct PointerChannel {
     pub pointer: Option<String>,
 }
 
-/// What a pointer may animate: `Some(true)` for a node rotation (a quaternion, slerped),
-/// `Some(false)` for any other animatable property, `None` for a pointer meshtracer does not
-/// animate.
-fn animatable(segments: &[String]) -> Option<bool> {
+/// What kind of value an animatable property holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    /// A number or an array of them.
+    Number,
+    /// A node rotation: a quaternion, slerped.
+    Rotation,
+    /// A boolean (`KHR_node_visibility`'s `visible`): 0 is false, anything else true (the
+    /// extension's STEP keyframes of unsigned bytes).
+    Flag,
+}
+
+/// The kind of value a pointer animates, `None` for a pointer meshtracer does not animate.
+fn animatable(segments: &[String]) -> Option<Kind> {
     let is_index = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
     let strs: Vec<&str> = segments.iter().map(String::as_str).collect();
     match strs.as_slice() {
         ["nodes", i, property] if is_index(i) => match *property {
-            "rotation" => Some(true),
-            "translation" | "scale" | "weights" => Some(false),
+            "rotation" => Some(Kind::Rotation),
+            "translation" | "scale" | "weights" => Some(Kind::Number),
             _ => None,
         },
+        ["nodes", i, "extensions", "KHR_node_visibility", "visible"] if is_index(i) => {
+            Some(Kind::Flag)
+        }
         ["materials", i, rest @ ..] if is_index(i) && !rest.is_empty() => {
-            material_property(rest).then_some(false)
+            material_property(rest).then_some(Kind::Number)
         }
         ["extensions", "KHR_lights_punctual", "lights", i, rest @ ..] if is_index(i) => matches!(
             rest,
             ["color" | "intensity" | "range"] | ["spot", "innerConeAngle" | "outerConeAngle"]
         )
-        .then_some(false),
+        .then_some(Kind::Number),
         ["cameras", i, kind, property] if is_index(i) => {
             let ok = match *kind {
                 "perspective" => matches!(*property, "yfov" | "aspectRatio" | "znear" | "zfar"),
                 "orthographic" => matches!(*property, "xmag" | "ymag" | "znear" | "zfar"),
                 _ => false,
             };
-            ok.then_some(false)
+            ok.then_some(Kind::Number)
         }
         _ => None,
     }
@@ -115,25 +128,18 @@ fn segments(pointer: &str) -> Option<Vec<String>> {
 }
 
 /// Reads a pointer channel's keyframes. The output may be scalar or a vector of 2 to 4
-/// floats (or normalized integers); a scalar output with several values a keyframe (morph
-/// weights) is read as one array a keyframe.
+/// numbers: floats as they are, normalized integers by glTF's dequantisation, other integers
+/// as the equal floats (the extension's conversions); a scalar output with several values a
+/// keyframe (morph weights) is read as one array a keyframe.
 fn read_track(
     sampler: &gltf::animation::Sampler,
     buffers: &[Buffer],
-    rotation: bool,
+    kind: Kind,
 ) -> Result<Track, String> {
     let times = pose::read_times(&sampler.input(), buffers)?;
     let output = sampler.output();
-    if output.data_type() != DataType::F32
-        && !(output.normalized() && output.data_type() != DataType::U32)
-    {
-        return Err(format!(
-            "output accessor {} must be float or normalized integer, not {:?}",
-            output.index(),
-            output.data_type()
-        ));
-    }
     let values = pose::read_output(&output, buffers)?;
+    let rotation = kind == Kind::Rotation;
     let interpolation = sampler.interpolation();
     let elements = times.len()
         * if interpolation == Interpolation::CubicSpline {
@@ -168,27 +174,43 @@ fn read_track(
     Ok(track)
 }
 
-/// The keyframes of `channel` of `animation`, and whether its pointer is animatable (`None`
-/// with the reason when it is not).
+/// What a pointer channel animates.
+enum Target {
+    /// The property at `path`, of `kind`, with its keyframes.
+    Animated {
+        path: Vec<String>,
+        kind: Kind,
+        track: Track,
+    },
+    /// Nothing meshtracer animates, for this reason.
+    Skipped(String),
+}
+
+/// What `channel` of `animation` animates; an error when its keyframes cannot be read.
 fn channel_track(
     animation: &gltf::Animation,
     channel: &PointerChannel,
     buffers: &[Buffer],
-) -> Result<Result<(Vec<String>, Track), String>, String> {
+) -> Result<Target, String> {
     let Some(pointer) = &channel.pointer else {
-        return Ok(Err("it names no pointer".to_string()));
+        return Ok(Target::Skipped("it names no pointer".to_string()));
     };
     let Some(path) = segments(pointer) else {
-        return Ok(Err(format!("'{pointer}' is not a JSON pointer")));
+        return Ok(Target::Skipped(format!(
+            "'{pointer}' is not a JSON pointer"
+        )));
     };
-    let Some(rotation) = animatable(&path) else {
-        return Ok(Err(format!("meshtracer does not animate '{pointer}'")));
+    let Some(kind) = animatable(&path) else {
+        return Ok(Target::Skipped(format!(
+            "meshtracer does not animate '{pointer}'"
+        )));
     };
     let sampler = animation
         .samplers()
         .nth(channel.sampler)
         .ok_or_else(|| format!("sampler {} does not exist", channel.sampler))?;
-    Ok(Ok((path, read_track(&sampler, buffers, rotation)?)))
+    let track = read_track(&sampler, buffers, kind)?;
+    Ok(Target::Animated { path, kind, track })
 }
 
 /// The last keyframe time of the animatable pointer channels of `animation` (0 without),
@@ -202,8 +224,8 @@ pub(crate) fn duration(
     let mut end = 0.0f32;
     for channel in channels {
         match channel_track(animation, channel, buffers) {
-            Ok(Ok((_, track))) => end = end.max(track.end()),
-            Ok(Err(_)) => {}
+            Ok(Target::Animated { track, .. }) => end = end.max(track.end()),
+            Ok(Target::Skipped(_)) => {}
             Err(problem) => warnings.push(format!(
                 "animation {} channel {}: {problem}",
                 animation.index(),
@@ -244,13 +266,13 @@ pub(crate) fn animate(
         let at =
             |problem: String| format!("animation {index} channel {}: {problem}", channel.channel);
         match channel_track(&animation, channel, buffers).map_err(at)? {
-            Ok((path, track)) => {
+            Target::Animated { path, kind, track } => {
                 let value = track.sample(time);
-                if let Err(problem) = write(&mut json, &path, &value) {
+                if let Err(problem) = write(&mut json, &path, &value, kind) {
                     warnings.push(at(format!("KHR_animation_pointer {problem}; left out")));
                 }
             }
-            Err(problem) => {
+            Target::Skipped(problem) => {
                 warnings.push(at(format!("KHR_animation_pointer: {problem}; left out")))
             }
         }
@@ -275,10 +297,11 @@ fn restore_empty_lists(json: &mut Value) {
     }
 }
 
-/// Writes `value` (one number, or an array of them) where `path` points in `json`, creating
-/// the objects on the way that the file left out (a default factor, an extension's object); an
-/// array index must exist. A number stays a number and an array keeps its length.
-fn write(json: &mut Value, path: &[String], value: &[f32]) -> Result<(), String> {
+/// Writes `value` (one number, or an array of them; a [`Kind::Flag`] as a boolean) where
+/// `path` points in `json`, creating the objects on the way that the file left out (a default
+/// factor, an extension's object); an array index must exist. A number stays a number and an
+/// array keeps its length.
+fn write(json: &mut Value, path: &[String], value: &[f32], kind: Kind) -> Result<(), String> {
     let pointer = || format!("'/{}'", path.join("/"));
     if let Some((i, bad)) = value.iter().enumerate().find(|(_, v)| !v.is_finite()) {
         return Err(format!("{}: value {i} is {bad}", pointer()));
@@ -314,6 +337,7 @@ fn write(json: &mut Value, path: &[String], value: &[f32]) -> Result<(), String>
     }
     let number = |v: f32| Value::from(f64::from(v));
     let new = match (map.get(last.as_str()), value) {
+        (Some(Value::Bool(_)) | None, [one]) if kind == Kind::Flag => Value::Bool(*one != 0.0),
         (Some(Value::Number(_)) | None, [one]) => number(*one),
         (Some(Value::Array(old)), many) if old.len() == many.len() => {
             Value::Array(many.iter().map(|v| number(*v)).collect())
@@ -354,28 +378,29 @@ mod tests {
     #[test]
     fn the_animatable_properties_are_recognised() {
         for (p, expected) in [
-            ("/nodes/0/rotation", Some(true)),
-            ("/nodes/3/translation", Some(false)),
-            ("/nodes/3/weights", Some(false)),
+            ("/nodes/0/rotation", Some(Kind::Rotation)),
+            ("/nodes/3/translation", Some(Kind::Number)),
+            ("/nodes/3/weights", Some(Kind::Number)),
             ("/nodes/x/scale", None),
             ("/nodes/0/mesh", None),
-            ("/materials/1/pbrMetallicRoughness/baseColorFactor", Some(false)),
-            ("/materials/1/emissiveFactor", Some(false)),
-            ("/materials/1/alphaCutoff", Some(false)),
-            ("/materials/1/normalTexture/scale", Some(false)),
-            ("/materials/1/occlusionTexture/strength", Some(false)),
+            ("/materials/1/pbrMetallicRoughness/baseColorFactor", Some(Kind::Number)),
+            ("/materials/1/emissiveFactor", Some(Kind::Number)),
+            ("/materials/1/alphaCutoff", Some(Kind::Number)),
+            ("/materials/1/normalTexture/scale", Some(Kind::Number)),
+            ("/materials/1/occlusionTexture/strength", Some(Kind::Number)),
             ("/materials/1/normalTexture/index", None),
-            ("/materials/0/extensions/KHR_materials_emissive_strength/emissiveStrength", Some(false)),
-            ("/materials/0/extensions/KHR_materials_transmission/transmissionFactor", Some(false)),
-            ("/materials/0/extensions/KHR_materials_volume/attenuationColor", Some(false)),
-            ("/materials/0/pbrMetallicRoughness/baseColorTexture/extensions/KHR_texture_transform/offset", Some(false)),
+            ("/materials/0/extensions/KHR_materials_emissive_strength/emissiveStrength", Some(Kind::Number)),
+            ("/materials/0/extensions/KHR_materials_transmission/transmissionFactor", Some(Kind::Number)),
+            ("/materials/0/extensions/KHR_materials_volume/attenuationColor", Some(Kind::Number)),
+            ("/materials/0/pbrMetallicRoughness/baseColorTexture/extensions/KHR_texture_transform/offset", Some(Kind::Number)),
             ("/materials/0/pbrMetallicRoughness/baseColorTexture/extensions/KHR_texture_transform/texCoord", None),
             ("/materials/0/extensions/EXT_made_up/someFactor", None),
-            ("/extensions/KHR_lights_punctual/lights/2/intensity", Some(false)),
-            ("/extensions/KHR_lights_punctual/lights/2/spot/outerConeAngle", Some(false)),
+            ("/extensions/KHR_lights_punctual/lights/2/intensity", Some(Kind::Number)),
+            ("/extensions/KHR_lights_punctual/lights/2/spot/outerConeAngle", Some(Kind::Number)),
             ("/extensions/KHR_lights_punctual/lights/2/type", None),
-            ("/cameras/0/perspective/yfov", Some(false)),
-            ("/cameras/0/orthographic/xmag", Some(false)),
+            ("/nodes/1/extensions/KHR_node_visibility/visible", Some(Kind::Flag)),
+            ("/cameras/0/perspective/yfov", Some(Kind::Number)),
+            ("/cameras/0/orthographic/xmag", Some(Kind::Number)),
             ("/cameras/0/perspective/xmag", None),
             ("/accessors/0/count", None),
         ] {
@@ -391,11 +416,18 @@ mod tests {
             "nodes": [{"translation": [0.0, 0.0, 0.0]}, {"matrix": [1.0]}],
             "materials": [{"pbrMetallicRoughness": {"metallicFactor": 1.0}}]
         });
-        write(&mut doc, &path("/nodes/0/translation"), &[1.0, 2.0, 3.0]).unwrap();
+        write(
+            &mut doc,
+            &path("/nodes/0/translation"),
+            &[1.0, 2.0, 3.0],
+            Kind::Number,
+        )
+        .unwrap();
         write(
             &mut doc,
             &path("/materials/0/pbrMetallicRoughness/metallicFactor"),
             &[0.5],
+            Kind::Number,
         )
         .unwrap();
         // A default the file left out, and an extension object it did not have.
@@ -403,14 +435,27 @@ mod tests {
             &mut doc,
             &path("/materials/0/emissiveFactor"),
             &[1.0, 0.5, 0.0],
+            Kind::Number,
         )
         .unwrap();
         write(
             &mut doc,
             &path("/materials/0/extensions/KHR_materials_emissive_strength/emissiveStrength"),
             &[4.0],
+            Kind::Number,
         )
         .unwrap();
+        write(
+            &mut doc,
+            &path("/nodes/0/extensions/KHR_node_visibility/visible"),
+            &[0.0],
+            Kind::Flag,
+        )
+        .unwrap();
+        assert_eq!(
+            doc["nodes"][0]["extensions"]["KHR_node_visibility"]["visible"],
+            json!(false)
+        );
         assert_eq!(doc["nodes"][0]["translation"], json!([1.0, 2.0, 3.0]));
         assert_eq!(
             doc["materials"][0]["pbrMetallicRoughness"]["metallicFactor"],
@@ -447,7 +492,7 @@ mod tests {
                 "value 0 is NaN",
             ),
         ] {
-            let err = write(&mut doc, &path(p), value).unwrap_err();
+            let err = write(&mut doc, &path(p), value, Kind::Number).unwrap_err();
             assert!(err.contains(problem), "{p}: {err}");
         }
     }

@@ -113,22 +113,24 @@ impl<'a> Importer<'a> {
         // Where each node was first reached: `Some(None)` as a root, `Some(Some(p))` under p.
         let mut reached: Vec<Option<Option<usize>>> = vec![None; nodes.len()];
         // An explicit stack: a hostile hierarchy a million levels deep must not overflow ours.
+        // Enter: the node, its parent, the parent's world transform, whether the parent is
+        // visible (KHR_node_visibility).
         enum Step {
-            Enter(usize, Option<usize>, Mat4),
+            Enter(usize, Option<usize>, Mat4, bool),
             Leave(usize),
         }
         let mut stack: Vec<Step> = scene
             .nodes()
-            .map(|n| Step::Enter(n.index(), None, Mat4::IDENTITY))
+            .map(|n| Step::Enter(n.index(), None, Mat4::IDENTITY, true))
             .collect();
         stack.reverse();
         while let Some(step) = stack.pop() {
-            let (index, parent, parent_world) = match step {
+            let (index, parent, parent_world, parent_visible) = match step {
                 Step::Leave(index) => {
                     on_path[index] = false;
                     continue;
                 }
-                Step::Enter(index, parent, world) => (index, parent, world),
+                Step::Enter(index, parent, world, visible) => (index, parent, world, visible),
             };
             let Some(node) = nodes.get(index) else {
                 continue;
@@ -166,18 +168,26 @@ impl<'a> Importer<'a> {
                 .copied()
                 .unwrap_or(Mat4::IDENTITY);
             let world = parent_world * local;
-            self.visit(node, world)?;
+            let visible = parent_visible && visible_by_itself(node);
+            self.visit(node, world, visible)?;
             on_path[index] = true;
             stack.push(Step::Leave(index));
             let children: Vec<usize> = node.children().map(|c| c.index()).collect();
             for child in children.into_iter().rev() {
-                stack.push(Step::Enter(child, Some(index), world));
+                stack.push(Step::Enter(child, Some(index), world, visible));
             }
         }
         Ok(None)
     }
 
-    fn visit(&mut self, node: &gltf::Node, world: Mat4) -> Result<(), LoadErrorKind> {
+    /// Places `node`'s camera, light and mesh at `world`; a node that is not `visible`
+    /// (`KHR_node_visibility`) keeps its camera only: "visibility affects neither cameras".
+    fn visit(
+        &mut self,
+        node: &gltf::Node,
+        world: Mat4,
+        visible: bool,
+    ) -> Result<(), LoadErrorKind> {
         let name = node.name().map(str::to_string);
         if let Some(camera) = node.camera() {
             match place_camera(&camera, world, name.clone()) {
@@ -187,6 +197,9 @@ impl<'a> Importer<'a> {
                     node.index()
                 )),
             }
+        }
+        if !visible {
+            return Ok(());
         }
         if let Some(light) = node.light() {
             match place_light(&light, world) {
@@ -493,6 +506,15 @@ impl<'a> Importer<'a> {
         }
         out
     }
+}
+
+/// `KHR_node_visibility`: a node whose `visible` is false is hidden with everything below it
+/// (its meshes and lights, not its camera); absent, or anything but `false`, is visible.
+fn visible_by_itself(node: &gltf::Node) -> bool {
+    node.extension_value("KHR_node_visibility")
+        .and_then(|e| e.get("visible"))
+        .and_then(serde_json::Value::as_bool)
+        != Some(false)
 }
 
 fn place_camera(camera: &gltf::Camera, world: Mat4, node_name: Option<String>) -> Option<Camera> {
