@@ -16,7 +16,7 @@
 use crate::color::luminance;
 use crate::sampling::{cosine_hemisphere, frame};
 use crate::shading::ggx::{
-    self, ggx_d, sample_visible_normal, sample_visible_normal_xy, smith_g1, smith_lambda,
+    ggx_d, sample_visible_normal, sample_visible_normal_xy, smith_g1, smith_lambda,
     visible_normal_pdf,
 };
 use crate::shading::{
@@ -132,7 +132,7 @@ impl LobeResponse {
             // The mix of the two parts, each compensated for its own Fresnel, from one table
             // lookup: what `specular_response`, `diffuse_kept` and `scaled_fresnel_ends`
             // compute for it, with the same operations, where they took six.
-            let terms = ggx::AlbedoTerms::at(n_dot_v, material.roughness);
+            let terms = material.albedo_terms(n_dot_v);
             let (d0, d90) = material.part(0.0).fresnel_ends();
             let (m0, m90) = material.part(1.0).fresnel_ends();
             let (d90, m90) = (Vec3::splat(d90), Vec3::splat(m90));
@@ -157,7 +157,7 @@ impl LobeResponse {
         }
         let (f0, f90) = material.fresnel_ends();
         let f90 = Vec3::splat(f90);
-        let (scale, albedo) = ggx::multiple_scattering(f0, f90, n_dot_v, material.roughness);
+        let (scale, albedo) = material.multiple_scattering(f0, f90, n_dot_v);
         LobeResponse {
             albedo,
             kept: if dielectric {
@@ -1194,22 +1194,63 @@ mod tests {
         }
     }
 
-    /// White furnace for anisotropic lobes: a white metal stretched along x never reflects
-    /// more light than arrives, and at least 0.75 of it, viewed head-on, along the stretch and
-    /// across it. Its multiple scattering is compensated as for the isotropic lobe of the two
-    /// α's geometric mean (MaterialX's `mx_average_alpha`): an approximation that undershoots
-    /// the glTF extension's stretch, which grows only α_t (measured 0.78-0.97; the arithmetic
-    /// mean gave 0.83-1.03, the quadratic 0.89-1.10, gaining light).
+    /// White furnace for anisotropic lobes: a white metal stretched along x returns the light
+    /// that arrives within 2% (measured 0.989-1.009), viewed head-on, along the stretch, across it and between, at
+    /// grazing angles too. Its multiple scattering is compensated by the stretched lobe's own
+    /// directional albedo at the view ([`Anisotropy::seen_from`]). With the isotropic lobe of
+    /// the two α's geometric mean standing in (MaterialX's `mx_average_alpha`, Cycles'
+    /// choice too), these lobes returned 0.61-1.03: at strength 1 the lobe's albedo depends
+    /// on the view's azimuth and is far below the mean roughness's.
+    /// White furnace for anisotropic lobes: a white metal stretched along x returns the light
+    /// that arrives within 2% (measured 0.989-1.009), viewed head-on, along the stretch, across it and between, at
+    /// grazing angles too. Its multiple scattering is compensated by the stretched lobe's own
+    /// directional albedo at the view ([`Anisotropy::seen_from`]). With the isotropic lobe of
+    /// the two α's geometric mean standing in (MaterialX's `mx_average_alpha`, Cycles'
+    /// choice too), these lobes returned 0.61-1.03: at strength 1 the lobe's albedo depends
+    /// on the view's azimuth and is far below the mean roughness's.
+    #[test]
+    fn probe_iso_grazing() {
+        let mut rng = Rng::new(5);
+        for roughness in [0.1f32, 0.2, 0.3, 0.5] {
+            let to_eye = test_views(1.5)[2];
+            let m = material(1.0, 1.0, roughness);
+            let albedo = sampled_albedo(&Bsdf::new(&m, Vec3::Z, to_eye), to_eye, &mut rng);
+            let a = Anisotropy::new(Vec3::Z, Vec3::X, roughness, 0.5)
+                .unwrap()
+                .seen_from(Vec3::Z, to_eye);
+            let iso = crate::shading::ggx::directional_albedo(to_eye.z, roughness);
+            eprintln!(
+                "ISO r {roughness} v {to_eye}: furnace {albedo:.4} table {:?} aniso-table {:?}",
+                iso, a.albedo
+            );
+        }
+    }
+
     #[test]
     fn white_furnace_holds_for_anisotropic_metal() {
         let mut rng = Rng::new(5);
-        for (roughness, strength) in [(0.2f32, 0.5f32), (0.4, 0.8), (0.6, 1.0), (0.0, 0.6)] {
-            for to_eye in test_views(1.0).into_iter().chain([test_views(1.3)[3]]) {
+        for (roughness, strength) in [
+            (0.2f32, 0.5f32),
+            (0.4, 0.8),
+            (0.6, 1.0),
+            (0.0, 0.6),
+            (0.3, 1.0),
+            (0.05, 1.0),
+            (0.8, 1.0),
+        ] {
+            for to_eye in test_views(1.0)
+                .into_iter()
+                .chain([test_views(1.3)[3], test_views(1.5)[2]])
+            {
                 let m = stretched(material(1.0, 1.0, roughness), Vec3::X, strength);
+                let m = SurfaceMaterial {
+                    anisotropy: m.anisotropy.map(|a| a.seen_from(Vec3::Z, to_eye)),
+                    ..m
+                };
                 let bsdf = Bsdf::new(&m, Vec3::Z, to_eye);
                 let albedo = sampled_albedo(&bsdf, to_eye, &mut rng);
                 assert!(
-                    (0.75..=1.01).contains(&albedo),
+                    (0.98..=1.02).contains(&albedo),
                     "roughness {roughness} strength {strength} view {to_eye}: {albedo}"
                 );
             }

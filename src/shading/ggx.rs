@@ -179,6 +179,126 @@ pub fn multiple_scattering(f0: Vec3, f90: Vec3, cos: f32, roughness: f32) -> (Ve
     AlbedoTerms::at(cos, roughness).multiple_scattering(f0, f90)
 }
 
+/// The directional albedo terms (a, b) of an anisotropic GGX lobe (α = `alpha_x` along the
+/// local x axis, `alpha_y` along y, z the normal; `alpha_x` ≥ `alpha_y`, as
+/// `KHR_materials_anisotropy` stretches them) seen from the local unit view `v`: what
+/// [`directional_albedo`] gives an isotropic lobe, for a lobe whose albedo also depends on
+/// the view's azimuth. Read from a table over (cos θ_v, azimuth, α_y, stretch) built at the
+/// first call (12 x 7 x 12 x 12 entries of 144 stratified visible-normal draws each),
+/// interpolated in all four.
+pub fn anisotropic_albedo(v: Vec3, alpha_x: f32, alpha_y: f32) -> (f32, f32) {
+    let table = anisotropic_albedo_table();
+    let [n_mu, n_phi, n_b, n_s] = ANISO_TABLE;
+    let mu = v.z.clamp(0.0, 1.0);
+    // By symmetry of the lobe, the azimuth folds into [0, π/2].
+    let phi = if v.x.abs() + v.y.abs() > 0.0 {
+        v.y.abs().atan2(v.x.abs())
+    } else {
+        0.0
+    };
+    let stretch = if alpha_y < 1.0 {
+        ((alpha_x - alpha_y) / (1.0 - alpha_y)).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let coordinate = |x: f32, n: usize| {
+        let x = x.clamp(0.0, 1.0) * (n - 1) as f32;
+        let i = (x as usize).min(n - 2);
+        (i, x - i as f32)
+    };
+    let axes = [
+        coordinate(mu.sqrt(), n_mu),
+        coordinate(phi / std::f32::consts::FRAC_PI_2, n_phi),
+        coordinate(alpha_y.sqrt(), n_b),
+        coordinate(stretch, n_s),
+    ];
+    let (mut a, mut b) = (0.0f32, 0.0f32);
+    for corner in 0..16u32 {
+        let mut weight = 1.0f32;
+        let mut index = 0usize;
+        for (axis, &(i, f)) in axes.iter().enumerate() {
+            let up = (corner >> axis) & 1 == 1;
+            weight *= if up { f } else { 1.0 - f };
+            index = index * ANISO_TABLE[axis] + i + usize::from(up);
+        }
+        let [ea, eb] = table[index];
+        a += weight * ea;
+        b += weight * eb;
+    }
+    (a, b)
+}
+
+/// Points of [`anisotropic_albedo`]'s table along cos θ_v, the azimuth, α_y and the stretch
+/// (α_x - α_y) / (1 - α_y).
+const ANISO_TABLE: [usize; 4] = [12, 7, 12, 12];
+
+/// Draws a side of the grid each entry of [`anisotropic_albedo_table`] averages.
+const ANISO_STRATA: usize = 12;
+
+/// [`anisotropic_albedo`]'s table, built once in parallel (about 10,000 entries of 144
+/// stratified visible-normal draws each: a few tens of milliseconds on two cores, paid only by
+/// renders with anisotropic materials). Entry (i, j, k, l), row-major in that order, is the
+/// lobe with α_y = (k/(n-1))² (roughness k/(n-1)) and stretch l/(n-1), seen at cos θ_v =
+/// (i/(n-1))² (at least 0.01: the albedo changes fastest near grazing) and azimuth
+/// j/(n-1)·π/2: the mean of G2/G1 = (1 + Λ(v)) / (1 + Λ(v) + Λ(l)) and of
+/// (1 - v·m)⁵·G2/G1 over the midpoints of a grid of the draws' two numbers (0 below the
+/// surface), as [`directional_albedo`]'s table averages them for one α.
+fn anisotropic_albedo_table() -> &'static [[f32; 2]] {
+    use rayon::prelude::*;
+    static TABLE: std::sync::OnceLock<Vec<[f32; 2]>> = std::sync::OnceLock::new();
+    TABLE.get_or_init(|| {
+        let [n_mu, n_phi, n_b, n_s] = ANISO_TABLE;
+        (0..n_mu * n_phi * n_b * n_s)
+            .into_par_iter()
+            .map(|index| {
+                let l = index % n_s;
+                let k = (index / n_s) % n_b;
+                let j = (index / (n_s * n_b)) % n_phi;
+                let i = index / (n_s * n_b * n_phi);
+                let mu = (i as f32 / (n_mu - 1) as f32).powi(2).max(0.01);
+                let phi = j as f32 / (n_phi - 1) as f32 * std::f32::consts::FRAC_PI_2;
+                let alpha_y = (k as f32 / (n_b - 1) as f32)
+                    .powi(2)
+                    .max(crate::shading::MIN_GGX_ALPHA);
+                let stretch = l as f32 / (n_s - 1) as f32;
+                let alpha_x = alpha_y + (1.0 - alpha_y) * stretch;
+                let sin = (1.0 - mu * mu).max(0.0).sqrt();
+                let (sp, cp) = phi.sin_cos();
+                integrate_anisotropic(Vec3::new(sin * cp, sin * sp, mu), alpha_x, alpha_y)
+            })
+            .collect()
+    })
+}
+
+/// One entry of [`anisotropic_albedo_table`].
+fn integrate_anisotropic(v: Vec3, alpha_x: f32, alpha_y: f32) -> [f32; 2] {
+    let lambda = |w: Vec3| {
+        let cos2 = (w.z * w.z).max(1e-8);
+        let tangential = (alpha_x * w.x).powi(2) + (alpha_y * w.y).powi(2);
+        0.5 * ((1.0 + tangential / cos2).sqrt() - 1.0)
+    };
+    let lambda_v = lambda(v);
+    let n = ANISO_STRATA;
+    let (mut a, mut b) = (0.0f32, 0.0f32);
+    for i in 0..n {
+        for j in 0..n {
+            let u1 = (i as f32 + 0.5) / n as f32;
+            let u2 = (j as f32 + 0.5) / n as f32;
+            let m = sample_visible_normal_xy(v, alpha_x, alpha_y, u1, u2);
+            let v_dot_m = v.dot(m);
+            let l = 2.0 * v_dot_m * m - v;
+            if l.z <= 0.0 {
+                continue;
+            }
+            let weight = (1.0 + lambda_v) / (1.0 + lambda_v + lambda(l));
+            a += weight;
+            b += weight * (1.0 - v_dot_m.clamp(0.0, 1.0)).powi(5);
+        }
+    }
+    let count = (n * n) as f32;
+    [a / count, b / count]
+}
+
 /// What [`multiple_scattering`] reads from the albedo tables for one view and roughness,
 /// whatever the Fresnel: [`directional_albedo`]'s (a, b) and [`average_albedo`]. A material
 /// that mixes a dielectric and a metal (0 < metallic < 1) compensates both with one lookup.
@@ -190,6 +310,17 @@ pub struct AlbedoTerms {
 }
 
 impl AlbedoTerms {
+    /// The terms of a lobe whose directional albedo terms at the view are (`a`, `b`) (see
+    /// [`directional_albedo`]) and whose hemispherical average albedo is `e_avg`.
+    pub fn from_parts(a: f32, b: f32, e_avg: f32) -> Self {
+        AlbedoTerms { a, b, e_avg }
+    }
+
+    /// The directional albedo terms (a, b).
+    pub fn directional(&self) -> (f32, f32) {
+        (self.a, self.b)
+    }
+
     /// The terms at cos θ_v = `cos` and perceptual `roughness`.
     #[inline]
     pub fn at(cos: f32, roughness: f32) -> Self {
@@ -382,6 +513,69 @@ fn integrate_refraction(cos_v: f32, roughness: f32, eta: f32, strata: usize) -> 
 
 #[cfg(test)]
 mod tests {
+    /// The anisotropic albedo table against independent estimates: with no stretch it is the
+    /// isotropic table's lobe (within 2%: the two tables interpolate differently near grazing, 1.6% at cos 0.17), and for stretched lobes it agrees with a
+    /// 200,000-draw Monte Carlo estimate of E[G2/G1] within 2%, at views head-on, along the
+    /// stretch, across it, between, and grazing.
+    #[test]
+    fn anisotropic_albedo_matches_independent_estimates() {
+        use crate::sampling::Rng;
+        let mut rng = Rng::new(11);
+        let view = |theta: f32, phi: f32| {
+            let (s, c) = theta.sin_cos();
+            glam::Vec3::new(s * phi.cos(), s * phi.sin(), c)
+        };
+        for roughness in [0.1f32, 0.4, 0.8] {
+            for theta in [0.0f32, 1.0, 1.4] {
+                let v = view(theta, 0.3);
+                let alpha = roughness * roughness;
+                let (a, _) = super::anisotropic_albedo(v, alpha, alpha);
+                let (iso, _) = super::directional_albedo(v.z, roughness);
+                assert!(
+                    (a - iso).abs() < 0.02 * iso,
+                    "r {roughness} θ {theta}: {a} against {iso}"
+                );
+            }
+        }
+        for (alpha_x, alpha_y) in [(0.3f32, 0.04f32), (0.7, 0.16), (1.0, 0.09), (1.0, 0.5)] {
+            for (theta, phi) in [
+                (0.0f32, 0.0f32),
+                (1.0, 0.0),
+                (1.0, std::f32::consts::FRAC_PI_2),
+                (1.0, 0.8),
+                (1.4, 1.2),
+            ] {
+                let v = view(theta, phi);
+                let lambda = |w: glam::Vec3| {
+                    let t =
+                        ((alpha_x * w.x).powi(2) + (alpha_y * w.y).powi(2)) / (w.z * w.z).max(1e-8);
+                    0.5 * ((1.0 + t).sqrt() - 1.0)
+                };
+                let draws = 200_000;
+                let mut sum = 0.0f64;
+                for _ in 0..draws {
+                    let m = super::sample_visible_normal_xy(
+                        v,
+                        alpha_x,
+                        alpha_y,
+                        rng.next_f32(),
+                        rng.next_f32(),
+                    );
+                    let l = 2.0 * v.dot(m) * m - v;
+                    if l.z > 0.0 {
+                        sum += f64::from((1.0 + lambda(v)) / (1.0 + lambda(v) + lambda(l)));
+                    }
+                }
+                let reference = sum / f64::from(draws);
+                let (a, _) = super::anisotropic_albedo(v, alpha_x, alpha_y);
+                assert!(
+                    (f64::from(a) - reference).abs() < 0.02 * reference,
+                    "α ({alpha_x}, {alpha_y}), θ {theta}, φ {phi}: table {a}, Monte Carlo {reference}"
+                );
+            }
+        }
+    }
+
     use super::*;
 
     /// Checks that every entry of a baked table is the integral `computed` gives for it (to
