@@ -277,22 +277,46 @@ pub(crate) fn animate(
             }
         }
     }
-    restore_empty_lists(&mut json);
+    readable_again(&mut json);
     serde_json::from_value(json)
         .map(Some)
         .map_err(|e| format!("animation {index}: the animated document does not read back: {e}"))
 }
 
-/// Puts back the lists gltf-json leaves out of its JSON when empty but needs to read it: an
-/// animation's `channels` (empty once its pointer channels are taken out) and a scene's
-/// `nodes`.
-fn restore_empty_lists(json: &mut Value) {
-    for (list, field) in [("animations", "channels"), ("scenes", "nodes")] {
+/// Makes gltf-json's own JSON of a document readable by gltf-json again: puts back the lists
+/// it leaves out when empty but needs to read (an animation's `channels`, empty once its
+/// pointer channels are taken out, its `samplers`, and a scene's `nodes`), and drops the members it writes as
+/// `null`, which are defaults it holds as non-finite numbers (`KHR_materials_volume`'s
+/// infinite `attenuationDistance`) and reads back the same when absent.
+fn readable_again(json: &mut Value) {
+    drop_nulls(json);
+    for (list, field) in [
+        ("animations", "channels"),
+        ("animations", "samplers"),
+        ("scenes", "nodes"),
+    ] {
         if let Some(items) = json.get_mut(list).and_then(Value::as_array_mut) {
             for item in items.iter_mut().filter_map(Value::as_object_mut) {
                 item.entry(field)
                     .or_insert_with(|| Value::Array(Vec::new()));
             }
+        }
+    }
+}
+
+/// Removes every object member whose value is `null`, at any depth (see
+/// [`readable_again`]); glTF's schema allows `null` nowhere.
+fn drop_nulls(json: &mut Value) {
+    // An explicit stack: a hostile document nested a million levels deep must not overflow.
+    let mut stack = vec![json];
+    while let Some(value) = stack.pop() {
+        match value {
+            Value::Object(map) => {
+                map.retain(|_, v| !v.is_null());
+                stack.extend(map.values_mut());
+            }
+            Value::Array(list) => stack.extend(list.iter_mut()),
+            _ => {}
         }
     }
 }
@@ -408,6 +432,32 @@ mod tests {
         }
         assert_eq!(path("/a~1b/c~0d"), ["a/b", "c~d"]);
         assert!(segments("nodes/0").is_none());
+    }
+
+    /// gltf-json writes an absent `attenuationDistance` (infinite) as `null` and leaves out an
+    /// animation's emptied channel list, and reads neither back; the document it writes must
+    /// read back as it was.
+    #[test]
+    fn a_document_reads_back_after_its_round_trip() {
+        let root: gltf::json::Root = serde_json::from_value(json!({
+            "asset": {"version": "2.0"},
+            "extensionsUsed": ["KHR_materials_volume", "KHR_materials_transmission"],
+            "materials": [{"extensions": {
+                "KHR_materials_transmission": {"transmissionFactor": 1.0},
+                "KHR_materials_volume": {"thicknessFactor": 1.0}
+            }}],
+            "scenes": [{"nodes": []}],
+            "animations": [{"channels": [], "samplers": []}]
+        }))
+        .unwrap();
+        let mut json = serde_json::to_value(&root).unwrap();
+        assert!(serde_json::from_value::<gltf::json::Root>(json.clone()).is_err());
+        readable_again(&mut json);
+        let back: gltf::json::Root = serde_json::from_value(json).unwrap();
+        assert_eq!(
+            serde_json::to_string(&back).unwrap(),
+            serde_json::to_string(&root).unwrap()
+        );
     }
 
     #[test]
