@@ -285,9 +285,10 @@ pub(crate) fn animate(
 
 /// Makes gltf-json's own JSON of a document readable by gltf-json again: puts back the lists
 /// it leaves out when empty but needs to read (an animation's `channels`, empty once its
-/// pointer channels are taken out, its `samplers`, and a scene's `nodes`), and drops the members it writes as
-/// `null`, which are defaults it holds as non-finite numbers (`KHR_materials_volume`'s
-/// infinite `attenuationDistance`) and reads back the same when absent.
+/// pointer channels are taken out, its `samplers`, and a scene's `nodes`), and drops the
+/// members it writes as `null`, which are defaults it holds as non-finite numbers
+/// (`KHR_materials_volume`'s infinite `attenuationDistance`) and reads back the same when
+/// absent.
 fn readable_again(json: &mut Value) {
     drop_nulls(json);
     for (list, field) in [
