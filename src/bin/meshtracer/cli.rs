@@ -124,8 +124,10 @@ pub struct LoadArgs {
     #[arg(long, default_value_t = meshtracer::defaults::MAX_TRIANGLES, value_name = "N")]
     pub max_triangles: u64,
     /// Pose the model by this glTF animation, by name or index (`info` lists them) [default
-    /// with --time: animation 0]. Without --animation and --time the file's static pose is
-    /// drawn: the nodes' own transforms, default morph weights, skins through their joints.
+    /// with --time: animation 0]: its node channels, and its KHR_animation_pointer channels
+    /// (material, texture-transform, light, camera and visibility properties). Without
+    /// --animation and --time the file's static pose is drawn: the nodes' own transforms,
+    /// default morph weights, skins through their joints.
     #[arg(long, value_name = "NAME|INDEX")]
     pub animation: Option<String>,
     /// Seconds into the animation [default with --animation: 0]; past the animation's end the
