@@ -825,8 +825,8 @@ fn keyframe_accessors_larger_than_their_view_are_refused() {
 /// emissive strength (an extension object the file does not have) steps to 3 at 1 s, a point
 /// light's intensity and an orthographic camera's ymag ramp up. `info` at 1.5 s must show
 /// each value at its closed form, and the render the frame the camera's ymag gives; the static pose shows the file's values, without warnings;
-/// a pointer meshtracer does not animate (an accessor's count) is left out with a warning
-/// naming it, and the rest still animate.
+/// a pointer meshtracer does not animate (an accessor's count), or a keyframe of the wrong
+/// size for the property, is left out with a warning naming it, and the rest still animate.
 #[test]
 fn animation_pointer_channels_animate_nodes_materials_lights_and_cameras() {
     let dir = tempfile::tempdir().unwrap();
@@ -944,6 +944,21 @@ fn animation_pointer_channels_animate_nodes_materials_lights_and_cameras() {
     assert_eq!(
         v["warnings"],
         json!(["animation 0 channel 5: KHR_animation_pointer: meshtracer does not animate '/accessors/0/count'; left out"]),
+        "{}",
+        v["warnings"]
+    );
+    check(&v);
+    // So is a keyframe of the wrong size for a property the file leaves out (one number for a
+    // colour), which had made the rewritten document unreadable and stopped the load.
+    channels.pop();
+    let sheen = "/materials/0/extensions/KHR_materials_sheen/sheenColorFactor";
+    channels.push(channel(4, sheen));
+    let model = write("wrong_shape.gltf", &channels);
+    crate::common::copy_to_corpus(&model);
+    let v = info(&model, &["--animation", "pointers", "--time", "1.5"]);
+    assert_eq!(
+        v["warnings"],
+        json!([format!("animation 0 channel 5: KHR_animation_pointer '{sheen}': 1 number a keyframe, where the property takes 3 numbers; left out")]),
         "{}",
         v["warnings"]
     );

@@ -324,8 +324,9 @@ fn drop_nulls(json: &mut Value) {
 
 /// Writes `value` (one number, or an array of them; a [`Kind::Flag`] as a boolean) where
 /// `path` points in `json`, creating the objects on the way that the file left out (a default
-/// factor, an extension's object); an array index must exist. A number stays a number and an
-/// array keeps its length.
+/// factor, an extension's object); an array index must exist. The value takes the property's
+/// [`shape`]: a keyframe of another size is an error (the channel is then left out), and
+/// morph target weights keep the length the file gives them.
 fn write(json: &mut Value, path: &[String], value: &[f32], kind: Kind) -> Result<(), String> {
     let pointer = || format!("'/{}'", path.join("/"));
     if let Some((i, bad)) = value.iter().enumerate().find(|(_, v)| !v.is_finite()) {
@@ -361,23 +362,71 @@ fn write(json: &mut Value, path: &[String], value: &[f32], kind: Kind) -> Result
         ));
     }
     let number = |v: f32| Value::from(f64::from(v));
-    let new = match (map.get(last.as_str()), value) {
-        (Some(Value::Bool(_)) | None, [one]) if kind == Kind::Flag => Value::Bool(*one != 0.0),
-        (Some(Value::Number(_)) | None, [one]) => number(*one),
-        (Some(Value::Array(old)), many) if old.len() == many.len() => {
-            Value::Array(many.iter().map(|v| number(*v)).collect())
-        }
-        (None, many) => Value::Array(many.iter().map(|v| number(*v)).collect()),
-        (Some(old), _) => {
+    let count = |n: usize| match n {
+        1 => "1 number".to_string(),
+        n => format!("{n} numbers"),
+    };
+    let new = match (shape(path), map.get(last.as_str())) {
+        (Some(n), _) if value.len() != n => {
             return Err(format!(
-                "{}: {} number(s) a keyframe for {old}",
+                "{}: {} a keyframe, where the property takes {}",
                 pointer(),
-                value.len()
+                count(value.len()),
+                count(n)
             ))
         }
+        (None, Some(Value::Array(old))) if old.len() != value.len() => {
+            return Err(format!(
+                "{}: {} a keyframe, where the file has {}",
+                pointer(),
+                count(value.len()),
+                count(old.len())
+            ))
+        }
+        (Some(1), _) if kind == Kind::Flag => Value::Bool(value[0] != 0.0),
+        (Some(1), _) => number(value[0]),
+        _ => Value::Array(value.iter().map(|v| number(*v)).collect()),
     };
     map.insert(last.clone(), new);
     Ok(())
+}
+
+/// How many numbers a keyframe of the animatable property at `path` holds, as glTF's schema
+/// types it: `Some(1)` a number (or a boolean), `Some(n)` an array of n, `None` an array of
+/// any length (a node's morph target `weights`, as many as its mesh has targets). A value the
+/// file leaves out is written in this shape, so one of the wrong shape is left out here
+/// rather than refused by the schema when the document is read again.
+fn shape(path: &[String]) -> Option<usize> {
+    let strs: Vec<&str> = path.iter().map(String::as_str).collect();
+    let last = strs.last().copied().unwrap_or_default();
+    let extension = strs
+        .iter()
+        .rposition(|s| *s == "extensions")
+        .and_then(|at| strs.get(at + 1).copied());
+    match (strs.first().copied(), extension, last) {
+        (Some("nodes"), None, "translation" | "scale") => Some(3),
+        (Some("nodes"), None, "rotation") => Some(4),
+        (Some("nodes"), None, "weights") => None,
+        (_, Some("KHR_texture_transform"), "offset" | "scale") => Some(2),
+        (Some("materials"), _, "baseColorFactor") => Some(4),
+        (Some("materials"), Some("KHR_materials_pbrSpecularGlossiness"), "diffuseFactor") => {
+            Some(4)
+        }
+        (Some("materials"), Some("KHR_materials_pbrSpecularGlossiness"), "specularFactor") => {
+            Some(3)
+        }
+        (
+            Some("materials"),
+            _,
+            "emissiveFactor"
+            | "sheenColorFactor"
+            | "specularColorFactor"
+            | "attenuationColor"
+            | "diffuseTransmissionColorFactor",
+        ) => Some(3),
+        (Some("extensions"), _, "color") => Some(3),
+        _ => Some(1),
+    }
 }
 
 /// The animation `options` choose, when the render animates (for [`animate`]).
@@ -503,6 +552,17 @@ mod tests {
             Kind::Flag,
         )
         .unwrap();
+        // One morph target's weight, which the file leaves out: an array of one.
+        write(&mut doc, &path("/nodes/0/weights"), &[0.5], Kind::Number).unwrap();
+        // A texture transform inside an extension's texture: two numbers, not one.
+        let offset = "/materials/0/extensions/KHR_materials_clearcoat/clearcoatTexture/extensions/KHR_texture_transform/offset";
+        write(&mut doc, &path(offset), &[0.25, 0.5], Kind::Number).unwrap();
+        assert_eq!(doc["nodes"][0]["weights"], json!([0.5]));
+        assert_eq!(
+            doc["materials"][0]["extensions"]["KHR_materials_clearcoat"]["clearcoatTexture"]
+                ["extensions"]["KHR_texture_transform"]["offset"],
+            json!([0.25, 0.5])
+        );
         assert_eq!(
             doc["nodes"][0]["extensions"]["KHR_node_visibility"]["visible"],
             json!(false)
@@ -530,7 +590,7 @@ mod tests {
             (
                 "/nodes/0/translation",
                 &[1.0, 2.0][..],
-                "2 number(s) a keyframe",
+                "2 numbers a keyframe, where the property takes 3 numbers",
             ),
             (
                 "/nodes/1/translation",
@@ -541,6 +601,17 @@ mod tests {
                 "/materials/0/alphaCutoff",
                 &[f32::NAN][..],
                 "value 0 is NaN",
+            ),
+            // Properties the file leaves out take the schema's shape, not the channel's.
+            (
+                "/materials/0/extensions/KHR_materials_sheen/sheenColorFactor",
+                &[1.0][..],
+                "1 number a keyframe, where the property takes 3 numbers",
+            ),
+            (
+                "/materials/0/occlusionTexture/strength",
+                &[1.0, 2.0][..],
+                "2 numbers a keyframe, where the property takes 1 number",
             ),
         ] {
             let err = write(&mut doc, &path(p), value, Kind::Number).unwrap_err();
