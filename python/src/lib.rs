@@ -329,7 +329,7 @@ impl PyScene {
                 setup::expected_rays(
                     u64::from(s.view.width) * u64::from(s.view.height),
                     s.spp,
-                    s.noise.map(|_| s.adaptive_batch()),
+                    s.noise.map(|_| s.first_batch()),
                     s.lights.len(),
                     s.integrator,
                     s.bounces,

@@ -89,6 +89,14 @@ pub const ADAPTIVE_BATCH: u32 = 4;
 /// prefix a pixel stops at still covers it evenly.
 pub const DENOISED_BATCH: u32 = 2;
 
+/// The samples a denoised image's pixels take between them before adaptive sampling first
+/// checks any: [`DENOISED_BATCH`] a pixel at 640x480 and above, more for smaller images (8 a
+/// pixel at 320x240, 32 at 128x128; see [`RenderSettings::first_batch`]). Two samples leave
+/// the filter too little to tell grain from detail: at 320x240 a textured model came out
+/// mottled (docs/path-tracer.md, "Small images"), while the render's time there is a few
+/// tens of milliseconds beside the load's.
+pub const DENOISED_SAMPLES: u64 = 2 * 640 * 480;
+
 /// The least share of a pixel's footprint one sample's texture filter covers (pbrt-v4's
 /// 1/8): beyond 64 samples a pixel, finer mip levels than an eighth of a pixel would only
 /// cost memory traffic.
@@ -109,6 +117,21 @@ impl RenderSettings {
         } else {
             ADAPTIVE_BATCH
         }
+    }
+
+    /// Samples a pixel takes before adaptive sampling first estimates its error (or `spp`, if
+    /// fewer): [`Self::adaptive_batch`], and for a denoised image at least its share of
+    /// [`DENOISED_SAMPLES`], rounded down to a power of two (so that the Sobol prefix a pixel
+    /// stops at still covers it evenly). Checks then follow every [`Self::adaptive_batch`].
+    pub fn first_batch(&self) -> u32 {
+        let batch = self.adaptive_batch();
+        if !self.guides {
+            return batch;
+        }
+        let pixels = u64::from(self.view.width) * u64::from(self.view.height);
+        let share = (DENOISED_SAMPLES / pixels.max(1)).clamp(1, 1 << 16);
+        let power_of_two = 1u32 << share.ilog2();
+        power_of_two.max(batch)
     }
 }
 
@@ -257,7 +280,7 @@ pub fn render_region(
     let mut image = Image::new(width, height);
     // Adaptive sampling stops no pixel before its first batch.
     image.samples = match settings.noise {
-        Some(_) => settings.spp.clamp(1, settings.adaptive_batch()),
+        Some(_) => settings.spp.clamp(1, settings.first_batch()),
         None => settings.spp.max(1),
     };
     let pixel_count = width as usize * height as usize;
@@ -750,7 +773,10 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
         pixel.luminance_squares += f64::from(luminance(color * self.scale)).powi(2);
         if let Some(target) = self.settings.noise {
             let n = s + 1;
-            if n < pixel.taken && n.is_multiple_of(self.settings.adaptive_batch()) {
+            if n < pixel.taken
+                && n.is_multiple_of(self.settings.adaptive_batch())
+                && n >= self.settings.first_batch()
+            {
                 let mean = f64::from(luminance(pixel.sum.truncate())) / f64::from(n);
                 let error = standard_error(pixel.luminance_squares, mean, n);
                 if error <= f64::from(target) * mean.max(f64::from(NOISE_FLOOR)) {
@@ -790,6 +816,57 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                 out.normal.push(Vec3::ZERO);
                 out.instance.push(0);
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrator::IntegratorKind;
+
+    fn settings(width: u32, height: u32, denoised: bool) -> RenderSettings {
+        let camera = crate::camera::look_at(Vec3::Z, Vec3::ZERO, Vec3::Y, 0.8, 1.0, 1.0);
+        RenderSettings {
+            view: View::from_camera(&camera, width, height),
+            spp: 32,
+            seed: 0,
+            lights: Vec::new(),
+            ambient: Vec3::ZERO,
+            exposure: 0.0,
+            shading: ShadingModel::Pbr,
+            aovs: false,
+            integrator: IntegratorKind::Path,
+            bounces: 8,
+            environment: None,
+            environment_visible: false,
+            noise: Some(1.0),
+            clamp_indirect: None,
+            guides: denoised,
+        }
+    }
+
+    /// A denoised image's pixels take their share of [`DENOISED_SAMPLES`] (a power of two)
+    /// before the first check, never fewer than [`DENOISED_BATCH`]: the default render at
+    /// 640x480 and above is unchanged, 320x240 takes 8, a thumbnail more (the render caps it
+    /// at `spp`). An image that is not denoised checks after [`ADAPTIVE_BATCH`] at any size.
+    #[test]
+    fn small_denoised_images_take_more_samples_before_the_first_check() {
+        for (width, height, first) in [
+            (1920, 1080, 2),
+            (1024, 768, 2),
+            (640, 480, 2),
+            (400, 300, 4),
+            (320, 240, 8),
+            (256, 256, 8),
+            (128, 128, 32),
+            (1, 1, 1 << 16),
+        ] {
+            let s = settings(width, height, true);
+            assert_eq!(s.first_batch(), first, "{width}x{height}");
+            assert_eq!(s.adaptive_batch(), DENOISED_BATCH);
+            let plain = settings(width, height, false);
+            assert_eq!(plain.first_batch(), ADAPTIVE_BATCH, "{width}x{height}");
         }
     }
 }

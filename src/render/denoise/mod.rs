@@ -86,7 +86,7 @@ pub fn guides(scene: &Prepared, settings: &RenderSettings, region: Region) -> Gu
     // follow the fewest, not the cap, which cost many times the rays (at the default cap of
     // 32, 16 guide rays a pixel took longer than the 4-sample render they guided).
     let spp = match settings.noise {
-        Some(_) => settings.spp.min(settings.adaptive_batch()),
+        Some(_) => settings.spp.min(settings.first_batch()),
         None => settings.spp,
     };
     let grid = ((spp.max(1) as f32).sqrt().floor() as u32).clamp(1, MAX_GUIDE_GRID);

@@ -406,7 +406,7 @@ fn prepare_and_render(
     let rays = meshtracer::setup::expected_rays(
         u64::from(shot.width) * u64::from(shot.height),
         settings.spp,
-        settings.noise.map(|_| settings.adaptive_batch()),
+        settings.noise.map(|_| settings.first_batch()),
         settings.lights.len(),
         settings.integrator,
         settings.bounces,
