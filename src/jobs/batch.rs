@@ -26,7 +26,7 @@ pub const JOB_FILE: &str = "job.json";
 pub const RESULTS_FILE: &str = "results.jsonl";
 
 /// Model file extensions a folder manifest picks up (compared without case).
-pub const MODEL_EXTENSIONS: [&str; 3] = ["gltf", "glb", "obj"];
+pub use crate::scene::MODEL_EXTENSIONS;
 
 /// A manifest that cannot be read at all (a bad line only fails its job).
 #[derive(Debug, thiserror::Error)]

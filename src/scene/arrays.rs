@@ -73,6 +73,7 @@ impl Scene {
             animations: Vec::new(),
             pose: None,
             load_steps: Vec::new(),
+            archive: None,
         }
     }
 

@@ -58,6 +58,9 @@ pub enum LoadErrorKind {
     /// The file is empty.
     #[error("file is empty (0 bytes)")]
     EmptyFile,
+    /// A zip archive that cannot be unpacked, or does not hold exactly one model.
+    #[error("zip archive: {0}")]
+    Archive(String),
     /// A file is larger than the configured limit.
     #[error("file is {bytes} bytes, over the limit of {limit} bytes")]
     FileTooLarge {

@@ -3,6 +3,7 @@
 //! Importers ([`gltf_import`] and [`obj`]) turn a file into a [`Scene`]; nothing here knows
 //! about rays. Units are the glTF ones (glTF 2.0 §3.4): metres, radians, right-handed, +Y up.
 
+mod archive;
 mod arrays;
 mod builder;
 mod error;
@@ -26,6 +27,7 @@ pub mod tangents;
 mod texture;
 mod viewpoint;
 
+pub use archive::{Archive, MODEL_EXTENSIONS};
 pub use arrays::{check_material, ArraysError, MeshArrays};
 pub use builder::{SoupBuilder, TriangleIn, VerticesIn};
 pub use error::{catch_quietly, panic_message, LoadError, LoadErrorKind};
@@ -53,10 +55,20 @@ impl Scene {
         Scene::load_with(path, &LoadOptions::default())
     }
 
-    /// Loads a glTF (.gltf/.glb) or OBJ file. The format is decided by content (GLB magic, JSON),
-    /// then by the `.obj` extension.
+    /// Loads a glTF (.gltf/.glb) or OBJ file, or a zip archive holding one (with the files it
+    /// references beside it). The format is decided by content (zip and GLB magic, JSON), then
+    /// by the `.obj` extension.
     pub fn load_with(path: impl AsRef<Path>, options: &LoadOptions) -> Result<Scene, LoadError> {
         let path = path.as_ref();
+        Scene::check_size(path, options)?;
+        if archive::is_zip(path) {
+            return Scene::load_archive(path, options);
+        }
+        Scene::load_file(path, options)
+    }
+
+    /// Refuses what is not a regular file, or is larger than the limit.
+    fn check_size(path: &Path, options: &LoadOptions) -> Result<(), LoadError> {
         let err = |kind| LoadError::new(path, kind);
         let meta = paths::regular_file(path).map_err(err)?;
         if meta.len() > options.limits.max_file_bytes {
@@ -65,6 +77,46 @@ impl Scene {
                 limit: options.limits.max_file_bytes,
             }));
         }
+        Ok(())
+    }
+
+    /// The one model of the zip archive at `path`, unpacked with its files ([`archive`]); what
+    /// names a file inside it (errors, warnings, [`Scene::source`]) names it as
+    /// `ARCHIVE/PATH-INSIDE`. A model inside may not be an archive itself.
+    fn load_archive(path: &Path, options: &LoadOptions) -> Result<Scene, LoadError> {
+        let mut steps = crate::measure::Steps::new();
+        let (archive, model) = archive::unpack(path, options.limits.max_file_bytes)
+            .map_err(|kind| LoadError::new(path, kind))?;
+        steps.mark("unpack");
+        let folder = archive.folder().to_path_buf();
+        let outside = |p: &Path| match p.strip_prefix(&folder) {
+            Ok(inner) => path.join(inner),
+            Err(_) => p.to_path_buf(),
+        };
+        let inner = folder.join(&model);
+        if archive::is_zip(&inner) {
+            return Err(LoadError::new(
+                &path.join(&model),
+                LoadErrorKind::Archive("a zip archive inside the archive".to_string()),
+            ));
+        }
+        let mut scene = Scene::load_file(&inner, options).map_err(|mut e| {
+            e.path = outside(&e.path);
+            e
+        })?;
+        let (from, to) = (folder.display().to_string(), path.display().to_string());
+        for warning in &mut scene.warnings {
+            *warning = warning.replace(&from, &to);
+        }
+        scene.source = outside(&scene.source);
+        scene.archive = Some(archive);
+        scene.load_steps.splice(0..0, steps.list().iter().cloned());
+        Ok(scene)
+    }
+
+    /// Loads a glTF (.gltf/.glb) or OBJ file whose size was checked.
+    fn load_file(path: &Path, options: &LoadOptions) -> Result<Scene, LoadError> {
+        let meta = paths::regular_file(path).map_err(|kind| LoadError::new(path, kind))?;
         let mut steps = crate::measure::Steps::new();
         let (bytes, deferred) = read::read_model(path, meta.len(), options)?;
         let bytes = std::sync::Arc::new(bytes);

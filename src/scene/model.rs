@@ -56,4 +56,7 @@ pub struct Scene {
     pub pose: Option<String>,
     /// How long each step of the load took ("read", "parse", "flatten", ...), for `--stats`.
     pub load_steps: Vec<crate::measure::Step>,
+    /// For a model loaded from a zip archive, the folder it was unpacked into, kept while the
+    /// scene lives (its textures are read after the load).
+    pub archive: Option<super::archive::Archive>,
 }

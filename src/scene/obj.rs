@@ -137,6 +137,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         animations: Vec::new(),
         pose: None,
         load_steps: steps.list().to_vec(),
+        archive: None,
     })
 }
 

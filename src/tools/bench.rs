@@ -122,6 +122,7 @@ pub fn scene_from_soup(soup: TriangleSoup, name: &str) -> Scene {
         bounds,
         warnings: Vec::new(),
         load_steps: Vec::new(),
+        archive: None,
     }
 }
 

@@ -8,6 +8,8 @@
 #[allow(dead_code)]
 mod common;
 
+/// Zip archives: a zipped download rendered as its files; ambiguous and hostile archives.
+mod archives;
 /// `batch` and `batch-merge`: manifests, shards, resume, the pinned fingerprint, schedulers.
 mod batch;
 /// `bench`: the table, the path-tracer row, the plot, refusals.

@@ -195,6 +195,7 @@ pub(crate) fn load(
             steps.mark("materials and images");
             steps.list().to_vec()
         },
+        archive: None,
     };
     Ok((scene, nothing_to_draw.is_some()))
 }

@@ -1,0 +1,253 @@
+//! Zip archives: what Sketchfab's and many asset stores' "glTF" downloads are (`scene.gltf`,
+//! `scene.bin` and a `textures/` folder in one `.zip`). The one model inside (`.gltf`, `.glb`
+//! or `.obj`) is loaded with the files beside it, from a private temporary folder the archive
+//! is unpacked into, which lives as long as the scene (textures are decoded after the load).
+//!
+//! A hostile archive gets one error, nothing written outside that folder: entries whose path
+//! leaves it (`../`, absolute paths) are refused, symbolic links are skipped, and the bytes
+//! unpacked (counted as they are inflated, not as the archive declares them) may not exceed
+//! the model file limit (`LoadLimits::max_file_bytes`), so a zip bomb stops at the limit.
+
+use super::error::LoadErrorKind;
+use std::io::Read;
+use std::path::{Component, Path, PathBuf};
+use std::sync::Arc;
+
+/// A zip's local file header signature, its first bytes.
+const MAGIC: &[u8; 4] = b"PK\x03\x04";
+
+/// Most entries an archive may hold: a model's download has a few dozen.
+const MAX_ENTRIES: usize = 100_000;
+
+/// The extensions of the model files meshtracer reads (compared without case): what an
+/// archive's model and a folder manifest's jobs are found by.
+pub const MODEL_EXTENSIONS: [&str; 3] = ["gltf", "glb", "obj"];
+
+/// Keeps an archive's unpacked files while the scene made from them lives.
+#[derive(Clone, Debug)]
+pub struct Archive {
+    /// The temporary folder, removed when the last clone is dropped.
+    folder: Arc<tempfile::TempDir>,
+}
+
+impl Archive {
+    /// The folder the archive was unpacked into.
+    pub(super) fn folder(&self) -> &Path {
+        self.folder.path()
+    }
+}
+
+/// Whether the file at `path` starts as a zip archive does.
+pub(super) fn is_zip(path: &Path) -> bool {
+    let mut head = [0u8; 4];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut head))
+        .is_ok_and(|()| &head == MAGIC)
+}
+
+/// Unpacks the zip archive at `path` into a new temporary folder, at most `max_bytes` of it,
+/// and names the one model in it (relative to the folder).
+pub(super) fn unpack(path: &Path, max_bytes: u64) -> Result<(Archive, PathBuf), LoadErrorKind> {
+    let bad = |problem: String| LoadErrorKind::Archive(problem);
+    let file = std::fs::File::open(path).map_err(LoadErrorKind::Io)?;
+    let mut zip =
+        zip::ZipArchive::new(file).map_err(|e| bad(format!("not a readable zip archive ({e})")))?;
+    if zip.len() > MAX_ENTRIES {
+        return Err(bad(format!(
+            "{} entries, over the limit of {MAX_ENTRIES}",
+            zip.len()
+        )));
+    }
+    let model = the_model(&mut zip, max_bytes)?;
+    let folder = tempfile::Builder::new()
+        .prefix("meshtracer-zip-")
+        .tempdir()
+        .map_err(|e| bad(format!("no temporary folder to unpack it into ({e})")))?;
+    let mut left = max_bytes;
+    for i in 0..zip.len() {
+        let mut entry = zip
+            .by_index(i)
+            .map_err(|e| bad(format!("entry {i}: {e}")))?;
+        if entry.is_dir() || entry.is_symlink() {
+            continue;
+        }
+        let name = entry.name().to_string();
+        let relative = inside(&name).ok_or_else(|| {
+            bad(format!(
+                "entry '{name}' would be written outside the archive's folder"
+            ))
+        })?;
+        if skipped(&relative) {
+            continue;
+        }
+        let target = folder.path().join(&relative);
+        if let Some(parent) = target.parent() {
+            std::fs::create_dir_all(parent).map_err(|e| bad(format!("entry '{name}': {e}")))?;
+        }
+        let mut out =
+            std::fs::File::create_new(&target).map_err(|e| bad(format!("entry '{name}': {e}")))?;
+        let copied = std::io::copy(&mut (&mut entry).take(left.saturating_add(1)), &mut out)
+            .map_err(|e| bad(format!("entry '{name}': {e}")))?;
+        if copied > left {
+            return Err(bad(format!(
+                "unpacks to more than the limit of {max_bytes} bytes (at entry '{name}')"
+            )));
+        }
+        left -= copied;
+    }
+    let archive = Archive {
+        folder: Arc::new(folder),
+    };
+    Ok((archive, model))
+}
+
+/// The one model file the archive holds, or an error naming what it holds instead; an
+/// archive whose entries declare more than `max_bytes` between them is refused before
+/// anything is unpacked (what they really inflate to is counted again as they are).
+fn the_model<R: std::io::Read + std::io::Seek>(
+    zip: &mut zip::ZipArchive<R>,
+    max_bytes: u64,
+) -> Result<PathBuf, LoadErrorKind> {
+    let mut models = Vec::new();
+    let mut declared = 0u64;
+    for i in 0..zip.len() {
+        let entry = zip
+            .by_index_raw(i)
+            .map_err(|e| LoadErrorKind::Archive(format!("entry {i}: {e}")))?;
+        declared = declared.saturating_add(entry.size());
+        if declared > max_bytes {
+            return Err(LoadErrorKind::Archive(format!(
+                "its entries declare more than the limit of {max_bytes} bytes unpacked"
+            )));
+        }
+        if entry.is_dir() || entry.is_symlink() {
+            continue;
+        }
+        let Some(relative) = inside(entry.name()) else {
+            continue;
+        };
+        let is_model = relative
+            .extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| MODEL_EXTENSIONS.iter().any(|m| e.eq_ignore_ascii_case(m)));
+        if is_model && !skipped(&relative) {
+            models.push(relative);
+        }
+    }
+    match models.as_slice() {
+        [one] => Ok(one.clone()),
+        [] => Err(LoadErrorKind::Archive(
+            "holds no .gltf, .glb or .obj file".to_string(),
+        )),
+        many => {
+            let names: Vec<String> = many
+                .iter()
+                .take(5)
+                .map(|p| format!("'{}'", p.display()))
+                .collect();
+            let more = if many.len() > 5 { ", ..." } else { "" };
+            Err(LoadErrorKind::Archive(format!(
+                "holds {} models ({}{more}): unzip it and render one",
+                many.len(),
+                names.join(", ")
+            )))
+        }
+    }
+}
+
+/// `name` as a relative path that stays inside the folder (no `..`, no root, no prefix), or
+/// `None`.
+fn inside(name: &str) -> Option<PathBuf> {
+    let path = Path::new(name);
+    let mut out = PathBuf::new();
+    for component in path.components() {
+        match component {
+            Component::Normal(part) => out.push(part),
+            Component::CurDir => {}
+            Component::ParentDir | Component::RootDir | Component::Prefix(_) => return None,
+        }
+    }
+    (!out.as_os_str().is_empty()).then_some(out)
+}
+
+/// Entries left packed: macOS's resource forks (`__MACOSX/`, `._name`), which hold no model.
+fn skipped(relative: &Path) -> bool {
+    relative.components().any(|c| {
+        c.as_os_str()
+            .to_str()
+            .is_some_and(|s| s == "__MACOSX" || s.starts_with("._"))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    /// An archive's entries: (name, bytes).
+    type Entries<'a> = &'a [(&'a str, &'a [u8])];
+
+    fn zip_of(entries: Entries) -> (tempfile::TempDir, PathBuf) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("model.zip");
+        let mut w = zip::ZipWriter::new(std::fs::File::create(&path).unwrap());
+        let options = zip::write::SimpleFileOptions::default()
+            .compression_method(zip::CompressionMethod::Deflated);
+        for (name, bytes) in entries {
+            w.start_file(*name, options).unwrap();
+            w.write_all(bytes).unwrap();
+        }
+        w.finish().unwrap();
+        (dir, path)
+    }
+
+    #[test]
+    fn the_one_model_is_found_and_its_files_unpacked_beside_it() {
+        let (_dir, path) = zip_of(&[
+            ("duck/scene.gltf", b"{}"),
+            ("duck/textures/a.png", b"png"),
+            ("__MACOSX/duck/._scene.gltf", b"fork"),
+        ]);
+        assert!(is_zip(&path));
+        let (archive, model) = unpack(&path, 1 << 20).unwrap();
+        assert_eq!(model, Path::new("duck/scene.gltf"));
+        let folder = archive.folder().to_path_buf();
+        assert_eq!(
+            std::fs::read(folder.join("duck/textures/a.png")).unwrap(),
+            b"png"
+        );
+        assert!(!folder.join("__MACOSX").exists());
+        drop(archive);
+        assert!(!folder.exists(), "the folder goes with the last clone");
+    }
+
+    #[test]
+    fn hostile_and_ambiguous_archives_are_refused() {
+        let cases: [(Entries, &str); 4] = [
+            (
+                &[("a.glb", b"x"), ("b.obj", b"x")],
+                "holds 2 models ('a.glb', 'b.obj')",
+            ),
+            (&[("readme.txt", b"x")], "holds no .gltf, .glb or .obj file"),
+            (
+                &[("m.gltf", b"{}"), ("../escape.bin", b"x")],
+                "entry '../escape.bin' would be written outside",
+            ),
+            (
+                &[("m.gltf", &[b'{'; 4096])],
+                "its entries declare more than the limit of 1000 bytes unpacked",
+            ),
+        ];
+        for (entries, problem) in cases {
+            let (_dir, path) = zip_of(entries);
+            let err = unpack(&path, 1000).unwrap_err().to_string();
+            assert!(err.contains(problem), "{err}");
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let truncated = dir.path().join("t.zip");
+        std::fs::write(&truncated, b"PK\x03\x04 and then nothing").unwrap();
+        assert!(is_zip(&truncated));
+        let err = unpack(&truncated, 1000).unwrap_err().to_string();
+        assert!(err.contains("not a readable zip archive"), "{err}");
+    }
+}

@@ -1,0 +1,100 @@
+//! Zip archives through the binary: a zipped download (a model and the files it references in
+//! a folder, with macOS's resource forks beside them) renders byte for byte as its unzipped
+//! files do and is named as `ARCHIVE/PATH` inside; an archive without exactly one model is
+//! refused with one message naming it, and nothing is written.
+
+use crate::common::{run, s, stderr};
+use std::io::Write;
+use std::path::Path;
+
+/// Writes a zip at `path` of `(name in the archive, bytes)`.
+fn write_zip(path: &Path, entries: &[(&str, Vec<u8>)]) {
+    let file = std::fs::File::create(path).expect("zip file");
+    let mut zip = zip::ZipWriter::new(file);
+    let options = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated);
+    for (name, bytes) in entries {
+        zip.start_file(*name, options).expect("entry");
+        zip.write_all(bytes).expect("entry bytes");
+    }
+    zip.finish().expect("zip written");
+}
+
+#[test]
+fn a_zipped_download_renders_as_its_files_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let assets = crate::common::root().join("assets");
+    let read = |name: &str| std::fs::read(assets.join(name)).unwrap();
+    let archive = dir.path().join("shapes.zip");
+    write_zip(
+        &archive,
+        &[
+            ("shapes/shapes.obj", read("shapes.obj")),
+            ("shapes/shapes.mtl", read("shapes.mtl")),
+            ("__MACOSX/shapes/._shapes.obj", b"resource fork".to_vec()),
+        ],
+    );
+    let render = |model: &Path, out: &Path| {
+        let args = ["--width", "64", "--height", "48", "--spp", "2", "-q"];
+        let mut all = vec!["render", s(model), "-o", s(out)];
+        all.extend(args);
+        run(&all, true);
+        std::fs::read(out).unwrap()
+    };
+    let plain = render(&assets.join("shapes.obj"), &dir.path().join("plain.png"));
+    let zipped = render(&archive, &dir.path().join("zipped.png"));
+    assert!(
+        plain == zipped,
+        "the archive renders differently from its files"
+    );
+    let out = run(&["info", s(&archive), "--json"], true);
+    let info: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let file = info["file"].as_str().unwrap();
+    assert!(file.ends_with("shapes.zip/shapes/shapes.obj"), "{file}");
+    let names: Vec<&str> = info["material_list"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|m| m["name"].as_str())
+        .collect();
+    assert_eq!(
+        names,
+        ["ground", "blue", "gold"],
+        "the MTL beside it was read"
+    );
+}
+
+#[test]
+fn an_archive_without_exactly_one_model_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_png = dir.path().join("out.png");
+    for (name, entries, problem) in [
+        (
+            "two.zip",
+            vec![("a.glb", b"x".to_vec()), ("b/c.obj", b"x".to_vec())],
+            "zip archive: holds 2 models ('a.glb', 'b/c.obj'): unzip it and render one",
+        ),
+        (
+            "none.zip",
+            vec![("readme.txt", b"x".to_vec())],
+            "zip archive: holds no .gltf, .glb or .obj file",
+        ),
+        (
+            "escape.zip",
+            vec![("m.obj", b"v 0 0 0".to_vec()), ("../up.mtl", b"x".to_vec())],
+            "zip archive: entry '../up.mtl' would be written outside the archive's folder",
+        ),
+    ] {
+        let archive = dir.path().join(name);
+        write_zip(&archive, &entries);
+        let out = run(&["render", s(&archive), "-o", s(&out_png), "-q"], false);
+        let err = stderr(&out);
+        assert_eq!(
+            err.trim(),
+            format!("meshtracer: error: {}: {problem}", archive.display()),
+            "{name}"
+        );
+        assert!(!out_png.exists(), "{name}: nothing written");
+        assert!(!dir.path().parent().unwrap().join("up.mtl").exists());
+    }
+}
