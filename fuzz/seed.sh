@@ -6,7 +6,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 samples="${MESHTRACER_SAMPLES:-../shared/assets}"
-mkdir -p fuzz/corpus/gltf_json fuzz/corpus/glb fuzz/corpus/obj fuzz/corpus/image fuzz/corpus/panorama
+mkdir -p fuzz/corpus/gltf_json fuzz/corpus/glb fuzz/corpus/obj fuzz/corpus/image fuzz/corpus/panorama fuzz/corpus/zip
 if [ -d "$samples" ]; then
   find "$samples" -name '*.gltf' -size -200k -exec cp {} fuzz/corpus/gltf_json/ \;
   find "$samples" -name '*.glb' -size -200k -exec cp {} fuzz/corpus/glb/ \;
@@ -91,6 +91,24 @@ for f in sorted(glob.glob(os.path.join(sys.argv[1], "*.gltf"))):
     for m in doc["materials"]:
         m["normalTexture"] = {"index": 0}
     json.dump(doc, open(f[:-5] + "-normalmapped.gltf", "w"))
+PY
+# The zip target's seeds: the bundled models zipped as downloads are (in a folder, deflated or
+# stored, with a macOS resource fork), the Duck with its texture if the samples are here, and
+# an archive of two models.
+python3 - fuzz/corpus/zip "$samples" <<'PY'
+import os, sys, zipfile
+out, samples = sys.argv[1], sys.argv[2]
+def write(name, files, method=zipfile.ZIP_DEFLATED):
+    with zipfile.ZipFile(os.path.join(out, name), "w", method) as z:
+        for arcname, path in files:
+            z.write(path, arcname)
+write("shapes.zip", [("shapes/shapes.obj", "assets/shapes.obj"), ("shapes/shapes.mtl", "assets/shapes.mtl")])
+write("box-stored.zip", [("cornell-box.gltf", "assets/cornell-box.gltf")], zipfile.ZIP_STORED)
+write("fork.zip", [("m/shapes.obj", "assets/shapes.obj"), ("__MACOSX/m/._shapes.obj", "assets/shapes.mtl")])
+write("two.zip", [("a.obj", "assets/shapes.obj"), ("b.gltf", "assets/cornell-box.gltf")])
+duck = os.path.join(samples, "Duck", "glTF")
+if os.path.isdir(duck):
+    write("duck.zip", [("duck/" + f, os.path.join(duck, f)) for f in sorted(os.listdir(duck))])
 PY
 # The panorama target's seeds: small .hdr and .exr files written by meshtracer itself (its
 # encoders: RGBE run-length scanlines, OpenEXR with alpha), and the shared panoramas' headers

@@ -4,11 +4,10 @@ use meshtracer::scene::{LoadLimits, LoadOptions, PoseOptions};
 use meshtracer::Scene;
 use std::path::Path;
 
-/// Loads `data` as if it were the file `name` in a folder that does not exist, so relative
-/// URIs in the input resolve to nothing on this machine. Limits are small so that a valid but
-/// huge input is refused quickly instead of timing out the fuzzer.
-pub fn load(name: &str, data: &[u8]) {
-    let options = LoadOptions {
+/// The options every target loads with. Limits are small so that a valid but huge input is
+/// refused quickly instead of timing out the fuzzer.
+fn options() -> LoadOptions {
+    LoadOptions {
         limits: LoadLimits {
             max_file_bytes: 16 << 20,
             max_triangles: 1 << 20,
@@ -20,7 +19,24 @@ pub fn load(name: &str, data: &[u8]) {
         strict: false,
         // Static pose, default variant: the options a plain load uses.
         ..Default::default()
-    };
+    }
+}
+
+/// Loads `data` as a zip archive on disk (an archive is unpacked from its path into a
+/// temporary folder, and its model loaded from there with the files beside it).
+pub fn load_archive(data: &[u8]) {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let path = dir.path().join("model.zip");
+    std::fs::write(&path, data).expect("the archive written");
+    if let Ok(scene) = Scene::load_with(&path, &options()) {
+        check(scene);
+    }
+}
+
+/// Loads `data` as if it were the file `name` in a folder that does not exist, so relative
+/// URIs in the input resolve to nothing on this machine.
+pub fn load(name: &str, data: &[u8]) {
+    let options = options();
     let path = Path::new("/nonexistent-meshtracer-fuzz").join(name);
     let loaded = Scene::from_bytes(&path, data, &options);
     // A file with animations is loaded posed too, each animation at a time inside it: the
@@ -37,23 +53,29 @@ pub fn load(name: &str, data: &[u8]) {
             let _ = Scene::from_bytes(&path, data, &posed);
         }
     }
-    if let Ok(mut scene) = loaded {
-        // Whatever loads must be a soup the tracer can trust.
-        assert!(!scene.soup.is_empty());
-        assert!(scene.check_references().is_ok());
-        // Tangents for normal maps (MikkTSpace) run after the load in a render; they add
-        // vertices where a tangent space splits, and the soup must stay sound.
-        meshtracer::scene::tangents::generate_missing(&mut scene);
-        assert!(scene.check_references().is_ok());
-        assert!(scene.soup.positions.iter().all(|p| p.is_finite()));
-        assert!(scene.soup.normals.iter().all(|n| n.is_finite()));
-        for &m in &scene.soup.material {
-            assert!((m as usize) < scene.materials.len());
-        }
-        // The image decoders (PNG, JPEG, WebP, KTX2/Basis Universal) run in the texture
-        // phase, not in the load: decode what the drawn materials use, within a small budget.
-        // An image that fails is a warning (or the error of --strict), never a panic.
-        let mut warnings = Vec::new();
-        let _ = meshtracer::prepare::textures::TextureSet::load(&scene, 64 << 20, false, &mut warnings);
+    if let Ok(scene) = loaded {
+        check(scene);
     }
+}
+
+/// What every loaded scene must be: a soup the tracer can trust, also after tangents, and
+/// textures that decode or warn.
+fn check(mut scene: Scene) {
+    // Whatever loads must be a soup the tracer can trust.
+    assert!(!scene.soup.is_empty());
+    assert!(scene.check_references().is_ok());
+    // Tangents for normal maps (MikkTSpace) run after the load in a render; they add
+    // vertices where a tangent space splits, and the soup must stay sound.
+    meshtracer::scene::tangents::generate_missing(&mut scene);
+    assert!(scene.check_references().is_ok());
+    assert!(scene.soup.positions.iter().all(|p| p.is_finite()));
+    assert!(scene.soup.normals.iter().all(|n| n.is_finite()));
+    for &m in &scene.soup.material {
+        assert!((m as usize) < scene.materials.len());
+    }
+    // The image decoders (PNG, JPEG, WebP, KTX2/Basis Universal) run in the texture
+    // phase, not in the load: decode what the drawn materials use, within a small budget.
+    // An image that fails is a warning (or the error of --strict), never a panic.
+    let mut warnings = Vec::new();
+    let _ = meshtracer::prepare::textures::TextureSet::load(&scene, 64 << 20, false, &mut warnings);
 }
