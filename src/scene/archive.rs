@@ -126,19 +126,27 @@ fn the_model<R: std::io::Read + std::io::Seek>(
         let Some(relative) = inside(entry.name()) else {
             continue;
         };
-        let is_model = relative
-            .extension()
-            .and_then(|e| e.to_str())
-            .is_some_and(|e| MODEL_EXTENSIONS.iter().any(|m| e.eq_ignore_ascii_case(m)));
-        if is_model && !skipped(&relative) {
+        if is_model(&relative) && !skipped(&relative) {
             models.push(relative);
         }
     }
+    one_model(models, "unzip it and render one").map_err(LoadErrorKind::Archive)
+}
+
+/// Whether `path` names a model file by its extension ([`MODEL_EXTENSIONS`]).
+fn is_model(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| MODEL_EXTENSIONS.iter().any(|m| e.eq_ignore_ascii_case(m)))
+}
+
+/// The one model among `models`, or what there is instead: none, or several (the first five
+/// named), with `advice`.
+fn one_model(mut models: Vec<PathBuf>, advice: &str) -> Result<PathBuf, String> {
+    models.sort();
     match models.as_slice() {
         [one] => Ok(one.clone()),
-        [] => Err(LoadErrorKind::Archive(
-            "holds no .gltf, .glb or .obj file".to_string(),
-        )),
+        [] => Err("holds no .gltf, .glb or .obj file".to_string()),
         many => {
             let names: Vec<String> = many
                 .iter()
@@ -146,13 +154,53 @@ fn the_model<R: std::io::Read + std::io::Seek>(
                 .map(|p| format!("'{}'", p.display()))
                 .collect();
             let more = if many.len() > 5 { ", ..." } else { "" };
-            Err(LoadErrorKind::Archive(format!(
-                "holds {} models ({}{more}): unzip it and render one",
+            Err(format!(
+                "holds {} models ({}{more}): {advice}",
                 many.len(),
                 names.join(", ")
-            )))
+            ))
         }
     }
+}
+
+/// Most entries [`folder_model`] looks at, and how deep.
+const FOLDER_ENTRIES: usize = 10_000;
+const FOLDER_DEPTH: usize = 6;
+
+/// The one model file in the folder `dir` or below it (an unzipped download), relative to
+/// it: symbolic links are not followed, hidden entries and macOS's resource forks are passed
+/// over, and at most [`FOLDER_ENTRIES`] entries [`FOLDER_DEPTH`] levels deep are looked at.
+pub(super) fn folder_model(dir: &Path) -> Result<PathBuf, LoadErrorKind> {
+    let mut models = Vec::new();
+    let mut seen = 0usize;
+    let mut stack = vec![(PathBuf::new(), 0usize)];
+    while let Some((relative, depth)) = stack.pop() {
+        let entries = std::fs::read_dir(dir.join(&relative)).map_err(LoadErrorKind::Io)?;
+        for entry in entries {
+            let entry = entry.map_err(LoadErrorKind::Io)?;
+            seen += 1;
+            if seen > FOLDER_ENTRIES {
+                return Err(LoadErrorKind::Folder(format!(
+                    "more than {FOLDER_ENTRIES} entries to look through: name the model file"
+                )));
+            }
+            let name = relative.join(entry.file_name());
+            let hidden = entry
+                .file_name()
+                .to_str()
+                .is_some_and(|s| s.starts_with('.'));
+            if hidden || skipped(&name) {
+                continue;
+            }
+            let kind = entry.file_type().map_err(LoadErrorKind::Io)?;
+            if kind.is_dir() && depth + 1 < FOLDER_DEPTH {
+                stack.push((name, depth + 1));
+            } else if kind.is_file() && is_model(&name) {
+                models.push(name);
+            }
+        }
+    }
+    one_model(models, "name the one to render").map_err(LoadErrorKind::Folder)
 }
 
 /// `name` as a relative path that stays inside the folder (no `..`, no root, no prefix), or

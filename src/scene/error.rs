@@ -61,6 +61,9 @@ pub enum LoadErrorKind {
     /// A zip archive that cannot be unpacked, or does not hold exactly one model.
     #[error("zip archive: {0}")]
     Archive(String),
+    /// A folder given as the model that does not hold exactly one model file.
+    #[error("folder: {0}")]
+    Folder(String),
     /// A file is larger than the configured limit.
     #[error("file is {bytes} bytes, over the limit of {limit} bytes")]
     FileTooLarge {

@@ -55,11 +55,16 @@ impl Scene {
         Scene::load_with(path, &LoadOptions::default())
     }
 
-    /// Loads a glTF (.gltf/.glb) or OBJ file, or a zip archive holding one (with the files it
-    /// references beside it). The format is decided by content (zip and GLB magic, JSON), then
-    /// by the `.obj` extension.
+    /// Loads a glTF (.gltf/.glb) or OBJ file, or a zip archive or a folder holding one (with
+    /// the files it references beside it). The format is decided by content (zip and GLB
+    /// magic, JSON), then by the `.obj` extension.
     pub fn load_with(path: impl AsRef<Path>, options: &LoadOptions) -> Result<Scene, LoadError> {
         let path = path.as_ref();
+        if path.is_dir() {
+            // An unzipped download: its one model.
+            let model = archive::folder_model(path).map_err(|kind| LoadError::new(path, kind))?;
+            return Scene::load_with(path.join(model), options);
+        }
         Scene::check_size(path, options)?;
         if archive::is_zip(path) {
             return Scene::load_archive(path, options);

@@ -1,7 +1,8 @@
-//! Zip archives through the binary: a zipped download (a model and the files it references in
-//! a folder, with macOS's resource forks beside them) renders byte for byte as its unzipped
-//! files do and is named as `ARCHIVE/PATH` inside; an archive without exactly one model is
-//! refused with one message naming it, and nothing is written.
+//! Zip archives and folders through the binary: a zipped download (a model and the files it
+//! references in a folder, with macOS's resource forks beside them) renders byte for byte as
+//! its unzipped files do and is named as `ARCHIVE/PATH` inside; so does the folder it unzips
+//! to; an archive or a folder without exactly one model is refused with one message naming
+//! it, and nothing is written.
 
 use crate::common::{run, s, stderr};
 use std::io::Write;
@@ -97,4 +98,52 @@ fn an_archive_without_exactly_one_model_is_refused() {
         assert!(!out_png.exists(), "{name}: nothing written");
         assert!(!dir.path().parent().unwrap().join("up.mtl").exists());
     }
+}
+
+#[test]
+fn a_folder_holding_one_model_renders_as_the_model_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let assets = crate::common::root().join("assets");
+    let download = dir.path().join("download");
+    std::fs::create_dir_all(download.join("shapes")).unwrap();
+    std::fs::create_dir_all(download.join("__MACOSX")).unwrap();
+    for name in ["shapes.obj", "shapes.mtl"] {
+        std::fs::copy(assets.join(name), download.join("shapes").join(name)).unwrap();
+    }
+    std::fs::write(download.join("__MACOSX/._shapes.obj"), b"fork").unwrap();
+    std::fs::write(download.join(".hidden.obj"), b"v 0 0 0").unwrap();
+    let (from_folder, from_file) = (dir.path().join("folder.png"), dir.path().join("file.png"));
+    for (model, out) in [
+        (&download, &from_folder),
+        (&assets.join("shapes.obj"), &from_file),
+    ] {
+        run(
+            &[
+                "render",
+                s(model),
+                "-o",
+                s(out),
+                "--width",
+                "64",
+                "--height",
+                "48",
+                "--spp",
+                "2",
+                "-q",
+            ],
+            true,
+        );
+    }
+    assert!(std::fs::read(&from_folder).unwrap() == std::fs::read(&from_file).unwrap());
+    // The bundled assets folder holds two models: both named, nothing written.
+    let out_png = dir.path().join("none.png");
+    let out = run(&["render", s(&assets), "-o", s(&out_png), "-q"], false);
+    assert_eq!(
+        stderr(&out).trim(),
+        format!(
+            "meshtracer: error: {}: folder: holds 2 models ('cornell-box.gltf', 'shapes.obj'): name the one to render",
+            assets.display()
+        )
+    );
+    assert!(!out_png.exists());
 }

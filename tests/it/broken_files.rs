@@ -280,10 +280,10 @@ fn cases() -> Vec<Case> {
             expect: |k| matches!(k, K::Gltf(_)),
         },
         Case {
-            name: "a directory given as the model",
+            name: "a directory without a model given as the model",
             files: vec![("model.gltf/x".into(), vec![1])],
             model: "model.gltf".into(),
-            expect: |k| matches!(k, K::IsDirectory),
+            expect: |k| matches!(k, K::Folder(m) if m == "holds no .gltf, .glb or .obj file"),
         },
         Case {
             name: "missing file",

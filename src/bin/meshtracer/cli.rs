@@ -153,7 +153,8 @@ fn parse_time(text: &str) -> Result<f32, String> {
 /// `meshtracer info`.
 #[derive(Debug, Args)]
 pub struct InfoArgs {
-    /// The model: .gltf, .glb or .obj, or a .zip download holding one with its files.
+    /// The model: .gltf, .glb or .obj, or a .zip download (or the folder it unzips to) holding
+    /// one with its files.
     pub model: PathBuf,
     /// Print one JSON object instead of text.
     #[arg(long)]
@@ -167,7 +168,8 @@ pub struct InfoArgs {
 #[derive(Debug, Args, Clone)]
 #[command(group(clap::ArgGroup::new("many_views").args(["views", "turntable"])))]
 pub struct RenderArgs {
-    /// The model: .gltf, .glb or .obj, or a .zip download holding one with its files.
+    /// The model: .gltf, .glb or .obj, or a .zip download (or the folder it unzips to) holding
+    /// one with its files.
     pub model: PathBuf,
     /// Output image: .png (8-bit sRGB with alpha), .jpg (8-bit sRGB over --background or
     /// black), .exr or .hdr (linear float); with --views or --turntable, the folder the views
