@@ -48,6 +48,14 @@ fn a_zipped_download_renders_as_its_files_do() {
         plain == zipped,
         "the archive renders differently from its files"
     );
+    // The summary names the file drawn, inside the archive.
+    let out_png = dir.path().join("summary.png");
+    let args = ["--width", "8", "--height", "6", "--spp", "1"];
+    let mut all = vec!["render", s(&archive), "-o", s(&out_png)];
+    all.extend(args);
+    let summary = stderr(&run(&all, true));
+    let inside = format!("{}: ", archive.join("shapes/shapes.obj").display());
+    assert!(summary.starts_with(&inside), "{summary}");
     let out = run(&["info", s(&archive), "--json"], true);
     let info: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let file = info["file"].as_str().unwrap();

@@ -723,7 +723,8 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
     };
     eprintln!(
         "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {spp} rendered in {:.3} s ({:.0} samples/s{}){denoise_note}, peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {threads} threads -> {}",
-        args.model.display(),
+        // The file drawn: the model given, or the one inside the archive or folder given.
+        scene.source.display(),
         scene.soup.len(),
         done.load_time.as_secs_f64() * 1e3,
         prepared.textures.bytes >> 20,
