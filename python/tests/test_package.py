@@ -104,6 +104,21 @@ def test_info_is_what_info_json_prints(cli):
     assert scene.info() == json.loads(cli("info", "--json", CORNELL).stdout)
 
 
+def test_a_zip_download_loads_as_its_files_and_is_named_inside(tmp_path):
+    import zipfile
+
+    archive = tmp_path / "shapes.zip"
+    with zipfile.ZipFile(archive, "w", zipfile.ZIP_DEFLATED) as z:
+        for name in ("shapes.obj", "shapes.mtl"):
+            z.write(ASSETS / name, f"shapes/{name}")
+    zipped, plain = meshtracer.load(archive), meshtracer.load(ASSETS / "shapes.obj")
+    info = zipped.info()
+    assert info["file"] == str(archive / "shapes" / "shapes.obj")
+    assert info["material_list"] == plain.info()["material_list"]
+    a, b = zipped.render(32, 24, spp=2), plain.render(32, 24, spp=2)
+    np.testing.assert_array_equal(a["color"], b["color"])
+
+
 # Colour, depth and mask against the CLI's files --------------------------------------------
 
 def render_both(cli, tmp_path, model, width, height, extra_cli=(), **render_options):
