@@ -65,15 +65,16 @@ impl Scene {
             let model = archive::folder_model(path).map_err(|kind| LoadError::new(path, kind))?;
             return Scene::load_with(path.join(model), options);
         }
-        Scene::check_size(path, options)?;
+        let len = Scene::checked_len(path, options)?;
         if archive::is_zip(path) {
             return Scene::load_archive(path, options);
         }
-        Scene::load_file(path, options)
+        Scene::load_file(path, len, options)
     }
 
-    /// Refuses what is not a regular file, or is larger than the limit.
-    fn check_size(path: &Path, options: &LoadOptions) -> Result<(), LoadError> {
+    /// The length of the file at `path`; what is not a regular file, or is larger than the
+    /// limit, is refused.
+    fn checked_len(path: &Path, options: &LoadOptions) -> Result<u64, LoadError> {
         let err = |kind| LoadError::new(path, kind);
         let meta = paths::regular_file(path).map_err(err)?;
         if meta.len() > options.limits.max_file_bytes {
@@ -82,7 +83,7 @@ impl Scene {
                 limit: options.limits.max_file_bytes,
             }));
         }
-        Ok(())
+        Ok(meta.len())
     }
 
     /// The one model of the zip archive at `path`, unpacked with its files ([`archive`]); what
@@ -105,10 +106,12 @@ impl Scene {
                 LoadErrorKind::Archive("a zip archive inside the archive".to_string()),
             ));
         }
-        let mut scene = Scene::load_file(&inner, options).map_err(|mut e| {
+        let relabel = |mut e: LoadError| {
             e.path = outside(&e.path);
             e
-        })?;
+        };
+        let len = Scene::checked_len(&inner, options).map_err(relabel)?;
+        let mut scene = Scene::load_file(&inner, len, options).map_err(relabel)?;
         let (from, to) = (folder.display().to_string(), path.display().to_string());
         for warning in &mut scene.warnings {
             *warning = warning.replace(&from, &to);
@@ -119,11 +122,11 @@ impl Scene {
         Ok(scene)
     }
 
-    /// Loads a glTF (.gltf/.glb) or OBJ file whose size was checked.
-    fn load_file(path: &Path, options: &LoadOptions) -> Result<Scene, LoadError> {
-        let meta = paths::regular_file(path).map_err(|kind| LoadError::new(path, kind))?;
+    /// Loads a glTF (.gltf/.glb) or OBJ file of `len` bytes, checked by
+    /// [`Scene::checked_len`].
+    fn load_file(path: &Path, len: u64, options: &LoadOptions) -> Result<Scene, LoadError> {
         let mut steps = crate::measure::Steps::new();
-        let (bytes, deferred) = read::read_model(path, meta.len(), options)?;
+        let (bytes, deferred) = read::read_model(path, len, options)?;
         let bytes = std::sync::Arc::new(bytes);
         steps.mark("read");
         let file = LoadedFile {
