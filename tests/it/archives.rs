@@ -104,7 +104,9 @@ fn an_archive_without_exactly_one_model_is_refused() {
             "{name}"
         );
         assert!(!out_png.exists(), "{name}: nothing written");
-        assert!(!dir.path().parent().unwrap().join("up.mtl").exists());
+        // The archive is unpacked under the system's temporary folder: `../up.mtl` would land
+        // there.
+        assert!(!std::env::temp_dir().join("up.mtl").exists());
     }
 }
 
@@ -154,4 +156,43 @@ fn a_folder_holding_one_model_renders_as_the_model_does() {
         )
     );
     assert!(!out_png.exists());
+}
+
+#[test]
+fn a_zip_inside_the_zip_and_an_encrypted_entry_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let inner = dir.path().join("inner.zip");
+    write_zip(&inner, &[("m.obj", b"v 0 0 0".to_vec())]);
+    let nested = dir.path().join("nested.zip");
+    write_zip(&nested, &[("model.glb", std::fs::read(&inner).unwrap())]);
+    // An entry marked encrypted (bit 0 of the general-purpose flags, in its local header and
+    // in the central directory), as a password-protected download's are.
+    let locked = dir.path().join("locked.zip");
+    write_zip(&locked, &[("m.obj", b"v 0 0 0".to_vec())]);
+    let mut bytes = std::fs::read(&locked).unwrap();
+    let at = |signature: &[u8]| bytes.windows(4).position(|w| w == signature).unwrap();
+    let (local, central) = (at(b"PK\x03\x04") + 6, at(b"PK\x01\x02") + 8);
+    bytes[local] |= 1;
+    bytes[central] |= 1;
+    std::fs::write(&locked, &bytes).unwrap();
+    let out_png = dir.path().join("out.png");
+    // The archive given, the file the error names, and the problem.
+    for (given, named, problem) in [
+        (
+            &nested,
+            nested.join("model.glb"),
+            "zip archive: a zip archive inside the archive",
+        ),
+        (
+            &locked,
+            locked.clone(),
+            "zip archive: entry 0: unsupported Zip archive: Password required to decrypt file",
+        ),
+    ] {
+        let out = run(&["render", s(given), "-o", s(&out_png), "-q"], false);
+        let err = stderr(&out);
+        let expected = format!("meshtracer: error: {}: {problem}", named.display());
+        assert_eq!(err.trim(), expected);
+        assert!(!out_png.exists());
+    }
 }
