@@ -563,6 +563,8 @@ struct PixelLoop<'a, I> {
     /// Whether the tiles average the denoiser's guides ([`RenderSettings::guides`], path
     /// tracer only).
     collect_guides: bool,
+    /// [`RenderSettings::first_batch`], computed once.
+    first_batch: u32,
 }
 
 impl<'a, I: Integrator> PixelLoop<'a, I> {
@@ -591,6 +593,7 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
             scale: settings.exposure.exp2(),
             spread,
             collect_guides: settings.guides && settings.integrator == IntegratorKind::Path,
+            first_batch: settings.first_batch(),
         }
     }
 
@@ -775,7 +778,7 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
             let n = s + 1;
             if n < pixel.taken
                 && n.is_multiple_of(self.settings.adaptive_batch())
-                && n >= self.settings.first_batch()
+                && n >= self.first_batch
             {
                 let mean = f64::from(luminance(pixel.sum.truncate())) / f64::from(n);
                 let error = standard_error(pixel.luminance_squares, mean, n);
