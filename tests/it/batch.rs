@@ -786,6 +786,23 @@ fn the_slurm_and_kubernetes_examples_cover_every_job() {
 /// outputs are byte for byte those of a run that was never interrupted.
 #[test]
 fn a_killed_batch_resumes_redoing_only_the_unfinished_jobs() {
+    stop_and_resume("KILL");
+}
+
+/// SIGTERM, what a Slurm time limit or `scancel` and a Kubernetes pod's deletion or eviction
+/// send, stops a batch as Ctrl-C does: the job under way is cancelled, exit 130 with a
+/// message naming `--resume`, and nothing of meshtracer's own is left in the folder: no
+/// temporary file and, above all, no job lock, which a retry on another host (a new pod, a
+/// requeued task) would take for a live batch's and wait on. Then `--resume` finishes as
+/// after a kill.
+#[test]
+fn a_batch_stopped_by_sigterm_leaves_no_lock_and_resumes() {
+    stop_and_resume("TERM");
+}
+
+/// Runs 32 jobs whole, then again until three are done, sends `SIG<signal>`, checks what the
+/// stop left, and resumes: the outputs must be the whole run's, byte for byte.
+fn stop_and_resume(signal: &str) {
     let dir = tempfile::tempdir().unwrap();
     let lines: Vec<String> = (0..32)
         .map(|k| format!(r#"{{"id": "job-{k:02}", "model": "cornell-box.gltf", "seed": {k}}}"#))
@@ -823,7 +840,7 @@ fn a_killed_batch_resumes_redoing_only_the_unfinished_jobs() {
     let kill_args: Vec<&str> = kill_args.iter().map(String::as_str).collect();
     let mut child = command(env!("CARGO_BIN_EXE_meshtracer"), &kill_args, &[])
         .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
     let finished = |out: &Path| -> BTreeSet<String> {
@@ -844,8 +861,18 @@ fn a_killed_batch_resumes_redoing_only_the_unfinished_jobs() {
         );
         std::thread::sleep(std::time::Duration::from_millis(5));
     }
-    child.kill().unwrap();
-    child.wait().unwrap();
+    crate::hostile::send(&child, signal);
+    let stopped = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&stopped.stderr);
+    if signal != "KILL" {
+        assert_eq!(stopped.status.code(), Some(130), "{err}");
+        assert!(err.contains("--resume to finish"), "{err}");
+        let own: Vec<String> = outputs_tree(&out)
+            .into_keys()
+            .filter(|name| name.rsplit('/').next().unwrap().starts_with(".meshtracer-"))
+            .collect();
+        assert!(own.is_empty(), "left behind: {own:?}");
+    }
     let done = finished(&out);
     assert!(done.len() < 32, "the kill came before the end");
     assert!(

@@ -38,37 +38,46 @@ fn a_symlink_out_of_the_model_folder_is_refused() {
     run(&["info", s(&model), "--allow-external-files"], true);
 }
 
+/// Ctrl-C (SIGINT), and the signals a scheduler or a closed terminal sends (SIGTERM: a Slurm
+/// time limit or `scancel`, a Kubernetes pod deleted; SIGHUP), stop a render the same way:
+/// exit 130, the previous output kept, no temporary file left.
 #[test]
-fn ctrl_c_during_a_render_keeps_the_previous_output() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("image.png");
-    std::fs::write(&out, b"previous image").unwrap();
-    let model = crate::common::root().join("assets/cornell-box.gltf");
-    // Far more work than can finish before the signal: 4096x3072 at 64 spp.
-    let child = crate::common::bin()
-        .args([
-            "render",
-            s(&model),
-            "-o",
-            s(&out),
-            "--width",
-            "4096",
-            "--spp",
-            "64",
-            "--quiet",
-        ])
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
-    std::thread::sleep(std::time::Duration::from_millis(1500));
-    interrupt(&child);
-    let output = child.wait_with_output().unwrap();
-    let err = String::from_utf8_lossy(&output.stderr);
-    assert_eq!(output.status.code(), Some(130), "{err}");
-    assert!(err.contains("interrupted"), "{err}");
-    assert_eq!(std::fs::read(&out).unwrap(), b"previous image");
-    let names = crate::common::file_names(dir.path());
-    assert_eq!(names.len(), 1, "no temporary file left: {names:?}");
+fn a_signal_during_a_render_keeps_the_previous_output() {
+    for signal in ["INT", "TERM", "HUP"] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("image.png");
+        std::fs::write(&out, b"previous image").unwrap();
+        let model = crate::common::root().join("assets/cornell-box.gltf");
+        // Far more work than can finish before the signal: 4096x3072 at 64 spp.
+        let child = crate::common::bin()
+            .args([
+                "render",
+                s(&model),
+                "-o",
+                s(&out),
+                "--width",
+                "4096",
+                "--spp",
+                "64",
+                "--quiet",
+            ])
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(1500));
+        send(&child, signal);
+        let output = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(130), "SIG{signal}: {err}");
+        assert!(err.contains("interrupted"), "SIG{signal}: {err}");
+        assert_eq!(std::fs::read(&out).unwrap(), b"previous image");
+        let names = crate::common::file_names(dir.path());
+        assert_eq!(
+            names.len(),
+            1,
+            "SIG{signal}: no temporary file left: {names:?}"
+        );
+    }
 }
 
 /// Ctrl-C during a multi-view render: every view reported done is on disk whole (image, depth,
@@ -209,8 +218,13 @@ fn a_second_ctrl_c_quits_a_benchmark_at_once() {
 
 /// Sends SIGINT (what Ctrl-C sends) to a child process.
 fn interrupt(child: &std::process::Child) {
+    send(child, "INT");
+}
+
+/// Sends the signal `SIG<name>` to a child process.
+pub(crate) fn send(child: &std::process::Child, name: &str) {
     let kill = std::process::Command::new("kill")
-        .args(["-INT", &child.id().to_string()])
+        .args([&format!("-{name}"), &child.id().to_string()])
         .status()
         .unwrap();
     assert!(kill.success());
