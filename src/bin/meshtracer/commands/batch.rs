@@ -129,11 +129,19 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
     }
     for (k, entry, holder) in busy {
         progress.waiting(entry, &holder, dir);
+        let mut watch = lock::Watch::new();
         let record = loop {
             if cancel.load(Ordering::SeqCst) {
                 return Err(interrupted(records.len()));
             }
-            match run_job(args, dir, entry, &progress, started, Some(&holder)) {
+            match run_job(
+                args,
+                dir,
+                entry,
+                &progress,
+                started,
+                Some((&holder, &mut watch)),
+            ) {
                 Outcome::Done(record, note) => {
                     progress.job_done(records.len(), &record, note.as_deref());
                     break record;
@@ -246,14 +254,14 @@ const LOCK_POLL: Duration = Duration::from_millis(200);
 /// Runs one job: refused, skipped (`--resume`, verified), or rendered and recorded.
 /// The job's lock is taken first: a job another batch holds is left alone (`Busy`), and a job
 /// another batch recorded since this one `started` (also one taken up again `after` its holder
-/// let it go) adopts that batch's record instead of rendering again.
+/// let it go, its lock watched meanwhile) adopts that batch's record instead of rendering again.
 fn run_job(
     args: &BatchArgs,
     dir: &Path,
     entry: &Entry,
     progress: &Progress,
     started: SystemTime,
-    after: Option<&Holder>,
+    after: Option<(&Holder, &mut lock::Watch)>,
 ) -> Outcome {
     let start = Instant::now();
     let fail = |error: String| {
@@ -280,7 +288,8 @@ fn run_job(
         return fail(format!("cannot create {}: {e}", job_dir.display()));
     }
     // Held until this function returns, whatever it returns.
-    let _lock = match lock::acquire(&job_dir) {
+    let (after, watch) = after.unzip();
+    let _lock = match lock::acquire(&job_dir, watch) {
         Ok(Acquired::Held(lock)) => lock,
         Ok(Acquired::Busy(holder)) => return Outcome::Busy(holder),
         Err(e) => return fail(format!("job '{}': cannot lock its folder: {e}", job.id)),
@@ -293,7 +302,8 @@ fn run_job(
             Some(format!("rendered meanwhile by {by}")),
         );
     }
-    let mut note = None;
+    // Let go without a record: its batch is gone (killed, or its host lost).
+    let mut note = after.map(|h| format!("taken over from the batch of {h}, which is gone"));
     if args.resume {
         match finished_record(&record_path, &fingerprint, dir) {
             Ok(Some(mut record)) => {
@@ -881,8 +891,9 @@ impl Progress {
         let lock = dir.join(id).join(lock::LOCK_FILE);
         self.multi.suspend(|| {
             eprintln!(
-                "{id}: held by the batch of {holder}; waiting for its record (if that batch is gone, delete {})",
-                lock.display()
+                "{id}: held by the batch of {holder}; waiting for its record ({} is taken over once that batch is gone: at once on this host, after {} s without a heartbeat from another)",
+                lock.display(),
+                lock::LEASE.as_secs()
             );
         });
     }
