@@ -11,7 +11,7 @@
 use super::error::LoadErrorKind;
 use std::io::Read;
 use std::path::{Component, Path, PathBuf};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 /// A zip's local file header signature, its first bytes.
 const MAGIC: &[u8; 4] = b"PK\x03\x04";
@@ -27,13 +27,48 @@ pub const MODEL_EXTENSIONS: [&str; 3] = ["gltf", "glb", "obj"];
 #[derive(Clone, Debug)]
 pub struct Archive {
     /// The temporary folder, removed when the last clone is dropped.
-    folder: Arc<tempfile::TempDir>,
+    folder: Arc<Unpacked>,
 }
 
 impl Archive {
     /// The folder the archive was unpacked into.
     pub(super) fn folder(&self) -> &Path {
-        self.folder.path()
+        self.folder.0.path()
+    }
+}
+
+/// The folders of the archives being unpacked or held by a scene: what [`remove_unpacked`]
+/// removes for a process about to exit without dropping its scenes.
+static UNPACKED: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// An archive's temporary folder, listed in [`UNPACKED`] from its creation until it is
+/// dropped (and removed, by `TempDir`).
+#[derive(Debug)]
+struct Unpacked(tempfile::TempDir);
+
+impl Unpacked {
+    fn new(folder: tempfile::TempDir) -> Unpacked {
+        let mut listed = UNPACKED.lock().unwrap_or_else(|e| e.into_inner());
+        listed.push(folder.path().to_path_buf());
+        Unpacked(folder)
+    }
+}
+
+impl Drop for Unpacked {
+    fn drop(&mut self) {
+        let mut listed = UNPACKED.lock().unwrap_or_else(|e| e.into_inner());
+        listed.retain(|p| p != self.0.path());
+    }
+}
+
+/// Removes the temporary folder of every archive unpacked and not yet dropped: for a process
+/// that is about to exit at once (`std::process::exit` runs no destructors), such as the
+/// command line's second Ctrl-C or a closed standard output. A scene still using one then
+/// finds its files gone, so call it only on the way out.
+pub fn remove_unpacked() {
+    let mut listed = UNPACKED.lock().unwrap_or_else(|e| e.into_inner());
+    for folder in listed.drain(..) {
+        let _ = std::fs::remove_dir_all(folder);
     }
 }
 
@@ -62,6 +97,7 @@ pub(super) fn unpack(path: &Path, max_bytes: u64) -> Result<(Archive, PathBuf), 
     let folder = tempfile::Builder::new()
         .prefix("meshtracer-zip-")
         .tempdir()
+        .map(Unpacked::new)
         .map_err(|e| bad(format!("no temporary folder to unpack it into ({e})")))?;
     let mut left = max_bytes;
     for i in 0..zip.len() {
@@ -80,7 +116,7 @@ pub(super) fn unpack(path: &Path, max_bytes: u64) -> Result<(Archive, PathBuf), 
         if skipped(&relative) {
             continue;
         }
-        let target = folder.path().join(&relative);
+        let target = folder.0.path().join(&relative);
         if let Some(parent) = target.parent() {
             std::fs::create_dir_all(parent).map_err(|e| bad(format!("entry '{name}': {e}")))?;
         }
@@ -265,8 +301,11 @@ mod tests {
             b"png"
         );
         assert!(!folder.join("__MACOSX").exists());
+        let listed = || UNPACKED.lock().unwrap().contains(&folder);
+        assert!(listed(), "listed for a process exiting at once");
         drop(archive);
         assert!(!folder.exists(), "the folder goes with the last clone");
+        assert!(!listed(), "and leaves the list");
     }
 
     #[test]

@@ -27,7 +27,7 @@ pub mod tangents;
 mod texture;
 mod viewpoint;
 
-pub use archive::{Archive, MODEL_EXTENSIONS};
+pub use archive::{remove_unpacked as remove_unpacked_archives, Archive, MODEL_EXTENSIONS};
 pub use arrays::{check_material, ArraysError, MeshArrays};
 pub use builder::{SoupBuilder, TriangleIn, VerticesIn};
 pub use error::{catch_quietly, panic_message, LoadError, LoadErrorKind};

@@ -216,6 +216,61 @@ fn a_second_ctrl_c_quits_a_benchmark_at_once() {
     assert!(crate::common::file_names(dir.path()).is_empty());
 }
 
+/// A second Ctrl-C quits at once, and removes the folder a zipped model was unpacked into
+/// (quitting at once runs no destructors, so the scene holding it is never dropped).
+#[test]
+fn a_second_ctrl_c_leaves_no_unpacked_archive() {
+    let dir = tempfile::tempdir().unwrap();
+    // A 200,000-triangle grid, whose linear scan takes seconds.
+    let n = 316;
+    let mut obj = String::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            obj += &format!("v {} {} 0\n", i as f32 / n as f32, j as f32 / n as f32);
+        }
+    }
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i + 1;
+            let (b, c, d) = (a + 1, a + n + 1, a + n + 2);
+            obj += &format!("f {a} {b} {d}\nf {a} {d} {c}\n");
+        }
+    }
+    let archive = dir.path().join("grid.zip");
+    let mut zip = zip::ZipWriter::new(std::fs::File::create(&archive).unwrap());
+    let options = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated);
+    zip.start_file("grid/grid.obj", options).unwrap();
+    std::io::Write::write_all(&mut zip, obj.as_bytes()).unwrap();
+    zip.finish().unwrap();
+    let temporary = dir.path().join("tmp");
+    std::fs::create_dir(&temporary).unwrap();
+    let unpacked = || crate::common::file_names(&temporary);
+    let mut child = crate::common::bin()
+        .args(["bench", s(&archive), "--sizes="])
+        .env("TMPDIR", &temporary)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Signalled while the archive is unpacked and the bench measures the model.
+    let start = std::time::Instant::now();
+    while unpacked().is_empty() {
+        assert!(child.try_wait().unwrap().is_none(), "bench ended early");
+        assert!(start.elapsed().as_secs() < 60, "nothing unpacked in 60 s");
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    interrupt(&child);
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    interrupt(&child);
+    let output = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(130), "{err}");
+    assert!(err.contains("no output written"), "{err}");
+    assert_eq!(unpacked(), Vec::<std::ffi::OsString>::new(), "{err}");
+}
+
 /// Sends SIGINT (what Ctrl-C sends) to a child process.
 fn interrupt(child: &std::process::Child) {
     send(child, "INT");

@@ -21,7 +21,7 @@ macro_rules! out {
         use std::io::Write as _;
         if let Err(e) = writeln!(std::io::stdout(), $($arg)*) {
             if e.kind() == std::io::ErrorKind::BrokenPipe {
-                std::process::exit(0);
+                $crate::commands::exit_now(0);
             }
             return Err(anyhow::Error::from(e).context("cannot write to standard output"));
         }
@@ -580,7 +580,7 @@ fn interrupt_flag() -> Arc<AtomicBool> {
         let _ = ctrlc::set_handler(move || {
             if handler_flag.swap(true, Ordering::SeqCst) && QUIT_ON_SECOND_PRESS.get().is_some() {
                 eprintln!("meshtracer: interrupted; no output written");
-                std::process::exit(130);
+                exit_now(130);
             }
             if let Some(notice) = QUIT_ON_SECOND_PRESS.get() {
                 eprintln!("{notice}");
@@ -588,6 +588,13 @@ fn interrupt_flag() -> Arc<AtomicBool> {
         });
         flag
     }))
+}
+
+/// Exits at once with `code`, after removing the folders of the zip archives still unpacked:
+/// `std::process::exit` runs no destructors, and the scenes holding them are not dropped.
+pub(crate) fn exit_now(code: i32) -> ! {
+    meshtracer::scene::remove_unpacked_archives();
+    std::process::exit(code)
 }
 
 /// Set by a command whose first Ctrl-C lets it finish what is under way and report (bench):
