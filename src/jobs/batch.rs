@@ -361,10 +361,14 @@ pub fn read_manifest(path: &Path) -> Result<Vec<Entry>, ManifestError> {
     Ok(entries)
 }
 
-/// Every model file below `root`, sorted by path; hidden files and folders (`.git`...) are
-/// skipped and symbolic links to folders not followed (no cycles).
+/// Every model file below `root`, and every zip holding one (a zipped download), sorted by
+/// path; hidden files and folders (`.git`...) are skipped and symbolic links to folders not
+/// followed (no cycles). A zip is left out when its unzipped copy is beside it (a folder of its
+/// name, whose model is found as a file) or a model file has its job id (`duck.glb` beside
+/// `duck.zip`), so that no model renders twice and no id is claimed twice.
 fn read_folder(root: &Path) -> Result<Vec<Entry>, ManifestError> {
     let mut found: Vec<PathBuf> = Vec::new();
+    let mut zips: Vec<PathBuf> = Vec::new();
     let mut pending = vec![root.to_path_buf()];
     while let Some(folder) = pending.pop() {
         let listing =
@@ -388,9 +392,21 @@ fn read_folder(root: &Path) -> Result<Vec<Entry>, ManifestError> {
                 && path.is_file()
             {
                 found.push(path);
+            } else if path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("zip"))
+                && path.is_file()
+            {
+                zips.push(path);
             }
         }
     }
+    let ids: std::collections::HashSet<PathBuf> =
+        found.iter().map(|p| p.with_extension("")).collect();
+    found.extend(zips.into_iter().filter(|zip| {
+        let id = zip.with_extension("");
+        !id.is_dir() && !ids.contains(&id) && crate::scene::zip_holds_a_model(zip)
+    }));
     let mut entries: Vec<(String, Entry)> = found
         .into_iter()
         .map(|path| {

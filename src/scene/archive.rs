@@ -144,6 +144,30 @@ fn the_model<R: std::io::Read + std::io::Seek>(
     zip: &mut zip::ZipArchive<R>,
     max_bytes: u64,
 ) -> Result<PathBuf, LoadErrorKind> {
+    let models = models_in(zip, max_bytes)?;
+    one_model(models, "unzip it and render one").map_err(LoadErrorKind::Archive)
+}
+
+/// Whether the file at `path` is a zip archive whose entries name at least one model file
+/// (`.gltf`, `.glb`, `.obj`; macOS's resource forks aside): what a batch's folder manifest
+/// takes for a zipped download. Only the archive's directory is read; nothing is unpacked. An
+/// archive that cannot be read is not one.
+pub fn holds_a_model(path: &Path) -> bool {
+    is_zip(path)
+        && std::fs::File::open(path)
+            .ok()
+            .and_then(|file| zip::ZipArchive::new(file).ok())
+            .filter(|zip| zip.len() <= MAX_ENTRIES)
+            .and_then(|mut zip| models_in(&mut zip, u64::MAX).ok())
+            .is_some_and(|models| !models.is_empty())
+}
+
+/// The model files among the archive's entries; an error if they declare more than
+/// `max_bytes` between them.
+fn models_in<R: std::io::Read + std::io::Seek>(
+    zip: &mut zip::ZipArchive<R>,
+    max_bytes: u64,
+) -> Result<Vec<PathBuf>, LoadErrorKind> {
     let mut models = Vec::new();
     let mut declared = 0u64;
     for i in 0..zip.len() {
@@ -166,7 +190,7 @@ fn the_model<R: std::io::Read + std::io::Seek>(
             models.push(relative);
         }
     }
-    one_model(models, "unzip it and render one").map_err(LoadErrorKind::Archive)
+    Ok(models)
 }
 
 /// Whether `path` names a model file by its extension ([`MODEL_EXTENSIONS`]).

@@ -27,7 +27,10 @@ pub mod tangents;
 mod texture;
 mod viewpoint;
 
-pub use archive::{remove_unpacked as remove_unpacked_archives, Archive, MODEL_EXTENSIONS};
+pub use archive::{
+    holds_a_model as zip_holds_a_model, remove_unpacked as remove_unpacked_archives, Archive,
+    MODEL_EXTENSIONS,
+};
 pub use arrays::{check_material, ArraysError, MeshArrays};
 pub use builder::{SoupBuilder, TriangleIn, VerticesIn};
 pub use error::{catch_quietly, panic_message, LoadError, LoadErrorKind};

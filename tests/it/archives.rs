@@ -9,7 +9,7 @@ use std::io::Write;
 use std::path::Path;
 
 /// Writes a zip at `path` of `(name in the archive, bytes)`.
-fn write_zip(path: &Path, entries: &[(&str, Vec<u8>)]) {
+pub(crate) fn write_zip(path: &Path, entries: &[(&str, Vec<u8>)]) {
     let file = std::fs::File::create(path).expect("zip file");
     let mut zip = zip::ZipWriter::new(file);
     let options = zip::write::SimpleFileOptions::default()

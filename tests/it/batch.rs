@@ -278,6 +278,68 @@ fn a_folder_batch_records_every_model_and_isolates_the_broken_one() {
     }
 }
 
+/// A folder of zipped downloads: each zip holding a model is a job (id: its path without
+/// `.zip`) that renders as the model's files do, one holding two fails naming them, and a zip
+/// without a model, a file that only ends in `.zip`, a zip beside its unzipped copy and one
+/// beside a model of its id are not jobs.
+#[test]
+fn a_folder_batch_renders_zipped_downloads_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let models = dir.path().join("models");
+    std::fs::create_dir_all(models.join("plain")).unwrap();
+    std::fs::create_dir_all(models.join("duck")).unwrap();
+    let assets = root().join("assets");
+    let read = |name: &str| std::fs::read(assets.join(name)).unwrap();
+    let shapes = || {
+        vec![
+            ("shapes/shapes.obj", read("shapes.obj")),
+            ("shapes/shapes.mtl", read("shapes.mtl")),
+        ]
+    };
+    for name in ["shapes.obj", "shapes.mtl"] {
+        std::fs::write(models.join("plain").join(name), read(name)).unwrap();
+        std::fs::write(models.join("duck").join(name), read(name)).unwrap();
+    }
+    std::fs::rename(models.join("duck/shapes.obj"), models.join("duck/duck.obj")).unwrap();
+    let zip = |name: &str, entries: &[(&str, Vec<u8>)]| {
+        crate::archives::write_zip(&models.join(name), entries);
+    };
+    zip("shapes.zip", &shapes());
+    zip("duck.zip", &shapes());
+    zip("box.zip", &shapes());
+    std::fs::write(models.join("box.gltf"), read("cornell-box.gltf")).unwrap();
+    zip("textures.zip", &[("textures/a.png", b"png".to_vec())]);
+    std::fs::write(models.join("junk.zip"), b"not a zip").unwrap();
+    let mut two = shapes();
+    two.push(("shapes/other.obj", read("shapes.obj")));
+    zip("two.zip", &two);
+
+    let out = dir.path().join("out");
+    let run = batch(&models, &out, &[], &[], false);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    let jobs = by_id(&records(&out.join("results.jsonl")));
+    assert_eq!(
+        jobs.keys().collect::<Vec<_>>(),
+        ["box", "duck/duck", "plain/shapes", "shapes", "two"],
+        "{stderr}"
+    );
+    let two = &jobs["two"];
+    assert_eq!(two["status"], "failed");
+    let error = two["error"].as_str().unwrap();
+    assert!(
+        error.contains("two.zip") && error.contains("2 models"),
+        "{error}"
+    );
+    for id in ["box", "duck/duck", "plain/shapes", "shapes"] {
+        assert_eq!(jobs[id]["status"], "ok", "{id}: {}", jobs[id]);
+    }
+    let image = |id: &str| std::fs::read(out.join(id).join("image.png")).unwrap();
+    assert!(
+        image("shapes") == image("plain/shapes"),
+        "the zip renders as its files"
+    );
+}
+
 /// A model whose texture file is missing renders without it (a job that succeeds), and its
 /// record says why the picture lacks the texture: the warnings `render` prints, naming the
 /// image and its file, are in results.jsonl. A model without problems records none.

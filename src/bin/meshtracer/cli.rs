@@ -553,7 +553,7 @@ impl RenderArgs {
 #[command(
     mut_arg("model", |a| a
         .value_name("MANIFEST")
-        .help("A folder of models (every .gltf, .glb and .obj below it, sorted) or a JSONL file of jobs, one a line: {\"id\", \"model\", \"views\", \"width\", \"height\", \"spp\", \"seed\", \"animation\", \"time\", \"outputs\"}; relative model paths resolve against the manifest's folder")),
+        .help("A folder of models (every .gltf, .glb and .obj below it, and every .zip holding one that is not unzipped beside it, sorted) or a JSONL file of jobs, one a line: {\"id\", \"model\", \"views\", \"width\", \"height\", \"spp\", \"seed\", \"animation\", \"time\", \"outputs\"}; relative model paths resolve against the manifest's folder")),
     mut_arg("output", |a| a
         .value_name("DIR")
         .help("The output folder: each job writes into DIR/<job id>/, the batch records every job in DIR/results.jsonl (results.I-of-N.jsonl for a shard)")),
