@@ -354,6 +354,24 @@ mod tests {
             let err = unpack(&path, 1000).unwrap_err().to_string();
             assert!(err.contains(problem), "{err}");
         }
+        // An entry that declares 10 bytes and inflates to 4,096 (its sizes patched in the
+        // local and central headers): the declared sum passes, the bytes counted as they are
+        // inflated stop it.
+        let (_dir, path) = zip_of(&[("m.gltf", &[b' '; 4096])]);
+        let mut bytes = std::fs::read(&path).unwrap();
+        let find = |bytes: &[u8], magic: &[u8]| bytes.windows(4).position(|w| w == magic).unwrap();
+        let local = find(&bytes, b"PK\x03\x04");
+        let central = find(&bytes, b"PK\x01\x02");
+        for at in [local + 22, central + 24] {
+            assert_eq!(bytes[at..at + 4], 4096u32.to_le_bytes(), "the size field");
+            bytes[at..at + 4].copy_from_slice(&10u32.to_le_bytes());
+        }
+        std::fs::write(&path, bytes).unwrap();
+        let err = unpack(&path, 1000).unwrap_err().to_string();
+        assert!(
+            err.contains("unpacks to more than the limit of 1000 bytes (at entry 'm.gltf')"),
+            "{err}"
+        );
         let dir = tempfile::tempdir().unwrap();
         let truncated = dir.path().join("t.zip");
         std::fs::write(&truncated, b"PK\x03\x04 and then nothing").unwrap();
