@@ -302,8 +302,10 @@ fn run_job(
             Some(format!("rendered meanwhile by {by}")),
         );
     }
-    // Let go without a record: its batch is gone (killed, or its host lost).
-    let mut note = after.map(|h| format!("taken over from the batch of {h}, which is gone"));
+    // Let go without a record this batch can adopt: that batch stopped (interrupted, killed,
+    // its host lost) or renders with other options.
+    let mut note =
+        after.map(|h| format!("taken over from the batch of {h}, which left no record of it"));
     if args.resume {
         match finished_record(&record_path, &fingerprint, dir) {
             Ok(Some(mut record)) => {
