@@ -80,6 +80,49 @@ fn a_signal_during_a_render_keeps_the_previous_output() {
     }
 }
 
+/// A signal the render was started ignoring stays ignored: `nohup` ignores SIGHUP (closing
+/// the terminal must not stop the render), and a shell starts a background job with SIGINT
+/// ignored. The render, signalled once it has begun, finishes and writes its image.
+#[test]
+fn a_signal_ignored_at_start_stays_ignored() {
+    use std::os::unix::process::CommandExt;
+    for (signal, number) in [("HUP", libc::SIGHUP), ("INT", libc::SIGINT)] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("image.png");
+        let model = crate::common::root().join("assets/cornell-box.gltf");
+        let mut command = crate::common::bin();
+        command
+            .args(["render", s(&model), "-o", s(&out), "--quiet"])
+            .args(["--width", "320", "--height", "240", "--spp", "64"])
+            .stderr(std::process::Stdio::piped());
+        // SAFETY: between fork and exec the closure only calls signal(2), which is
+        // async-signal-safe.
+        unsafe {
+            command.pre_exec(move || {
+                libc::signal(number, libc::SIG_IGN);
+                Ok(())
+            });
+        }
+        let mut child = command.spawn().unwrap();
+        // Signalled once the render is under way: its output file is reserved by then.
+        let start = std::time::Instant::now();
+        while crate::common::file_names(dir.path()).is_empty() {
+            assert!(
+                child.try_wait().unwrap().is_none(),
+                "ended before the signal"
+            );
+            assert!(start.elapsed().as_secs() < 60, "no output reserved in 60 s");
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        }
+        send(&child, signal);
+        let output = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(0), "SIG{signal}: {err}");
+        let (w, h, _) = crate::common::read_rgba(&out);
+        assert_eq!((w, h), (320, 240), "SIG{signal}");
+    }
+}
+
 /// Ctrl-C during a multi-view render: every view reported done is on disk whole (image, depth,
 /// view file), nothing else is left (no partial image of the interrupted view, no temporary
 /// file, no transforms.json), and the exit is 130 with a message saying how many views were

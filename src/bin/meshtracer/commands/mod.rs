@@ -577,17 +577,52 @@ fn interrupt_flag() -> Arc<AtomicBool> {
     Arc::clone(FLAG.get_or_init(|| {
         let flag = Arc::new(AtomicBool::new(false));
         let handler_flag = Arc::clone(&flag);
-        let _ = ctrlc::set_handler(move || {
-            if handler_flag.swap(true, Ordering::SeqCst) && QUIT_ON_SECOND_PRESS.get().is_some() {
-                eprintln!("meshtracer: interrupted; no output written");
-                exit_now(130);
-            }
-            if let Some(notice) = QUIT_ON_SECOND_PRESS.get() {
-                eprintln!("{notice}");
-            }
+        let _ = keeping_ignored_signals(|| {
+            ctrlc::set_handler(move || {
+                if handler_flag.swap(true, Ordering::SeqCst) && QUIT_ON_SECOND_PRESS.get().is_some()
+                {
+                    eprintln!("meshtracer: interrupted; no output written");
+                    exit_now(130);
+                }
+                if let Some(notice) = QUIT_ON_SECOND_PRESS.get() {
+                    eprintln!("{notice}");
+                }
+            })
         });
         flag
     }))
+}
+
+/// Runs `install` (ctrlc's, which takes SIGINT, SIGTERM and SIGHUP whatever their
+/// disposition), then sets back to ignored each of those signals the process was started
+/// ignoring: `nohup` starts it with SIGHUP ignored, so that closing the terminal does not stop
+/// the render, and a shell starts a background job with SIGINT ignored.
+#[cfg(unix)]
+fn keeping_ignored_signals<T>(install: impl FnOnce() -> T) -> T {
+    let signals = [libc::SIGINT, libc::SIGTERM, libc::SIGHUP];
+    let ignored: Vec<libc::c_int> = signals
+        .into_iter()
+        .filter(|&signal| {
+            // SAFETY: with a null new action, sigaction only reads the current one into `old`,
+            // a zeroed (valid) sigaction struct.
+            unsafe {
+                let mut old: libc::sigaction = std::mem::zeroed();
+                libc::sigaction(signal, std::ptr::null(), &mut old) == 0
+                    && old.sa_sigaction == libc::SIG_IGN
+            }
+        })
+        .collect();
+    let installed = install();
+    for signal in ignored {
+        // SAFETY: setting a signal's disposition to SIG_IGN runs no code of ours.
+        unsafe { libc::signal(signal, libc::SIG_IGN) };
+    }
+    installed
+}
+
+#[cfg(not(unix))]
+fn keeping_ignored_signals<T>(install: impl FnOnce() -> T) -> T {
+    install()
 }
 
 /// Exits at once with `code`, after removing the folders of the zip archives still unpacked:
