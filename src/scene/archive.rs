@@ -153,13 +153,20 @@ fn the_model<R: std::io::Read + std::io::Seek>(
 /// takes for a zipped download. Only the archive's directory is read; nothing is unpacked. An
 /// archive that cannot be read is not one.
 pub fn holds_a_model(path: &Path) -> bool {
-    is_zip(path)
-        && std::fs::File::open(path)
-            .ok()
-            .and_then(|file| zip::ZipArchive::new(file).ok())
-            .filter(|zip| zip.len() <= MAX_ENTRIES)
-            .and_then(|mut zip| models_in(&mut zip, u64::MAX).ok())
-            .is_some_and(|models| !models.is_empty())
+    let Ok(mut file) = std::fs::File::open(path) else {
+        return false;
+    };
+    // The magic first (a cheap refusal of what only ends in `.zip`), then the directory,
+    // read through the same file.
+    let mut head = [0u8; 4];
+    if file.read_exact(&mut head).is_err() || &head != MAGIC {
+        return false;
+    }
+    zip::ZipArchive::new(file)
+        .ok()
+        .filter(|zip| zip.len() <= MAX_ENTRIES)
+        .and_then(|mut zip| models_in(&mut zip, u64::MAX).ok())
+        .is_some_and(|models| !models.is_empty())
 }
 
 /// The model files among the archive's entries; an error if they declare more than
