@@ -730,19 +730,25 @@ impl JobRecord {
 
     /// Checks that every output the record lists is in `dir` with its recorded hash.
     pub fn verify(&self, dir: &Path) -> Result<(), String> {
-        if self.outputs.is_empty() {
-            return Err("no outputs recorded".into());
-        }
-        for output in &self.outputs {
-            let path = dir.join(&output.path);
-            match sha256_file(&path) {
-                Ok(hash) if hash == output.sha256 => {}
-                Ok(_) => return Err(format!("{} changed since it was written", output.path)),
-                Err(e) => return Err(format!("{}: {e}", output.path)),
-            }
-        }
-        Ok(())
+        verify_outputs(dir, &self.outputs)
     }
+}
+
+/// Checks that each of `outputs` (none is an error: nothing to vouch for) is in `dir` with its
+/// recorded hash; the error names the first that is missing, unreadable or changed.
+pub fn verify_outputs(dir: &Path, outputs: &[OutputRecord]) -> Result<(), String> {
+    if outputs.is_empty() {
+        return Err("no outputs recorded".into());
+    }
+    for output in outputs {
+        let path = dir.join(&output.path);
+        match sha256_file(&path) {
+            Ok(hash) if hash == output.sha256 => {}
+            Ok(_) => return Err(format!("{} changed since it was written", output.path)),
+            Err(e) => return Err(format!("{}: {e}", output.path)),
+        }
+    }
+    Ok(())
 }
 
 /// Results as JSONL: one record a line, in [`JobRecord::sort`] order.

@@ -12,13 +12,18 @@
 //!
 //! Generated cameras look at the target with +Y up and stand at one distance from it (by
 //! default the automatic camera's, which frames the model).
+//!
+//! A run records each view it finishes in the folder's [`RENDERED_FILE`] ([`RenderedView`]),
+//! so that `--resume` keeps what an interrupted run finished.
 
 use crate::camera::{look_at, near_plane};
 use crate::defaults::MAX_VIEWS;
+use crate::jobs::batch::{verify_outputs, OutputRecord};
 use crate::output::view_file::ViewCamera;
 use crate::sampling::Rng;
 use crate::scene::Camera;
 use glam::Vec3;
+use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
 /// What `--views` asks for.
@@ -598,6 +603,72 @@ impl NamePattern {
     }
 }
 
+/// The file in a `--views` folder that records every finished view, one [`RenderedView`] a
+/// line: appended as each view's files are all written, rewritten in view order at the end (so
+/// the same run writes the same bytes). `--resume` reads it.
+pub const RENDERED_FILE: &str = "rendered.jsonl";
+
+/// A finished view, a line of [`RENDERED_FILE`]: what it was rendered from and its files.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct RenderedView {
+    /// The view number.
+    pub view: usize,
+    /// SHA-256 (hex) of everything that decides the view's files: meshtracer's version, the
+    /// model file's hash, the render settings and the view file's text.
+    pub fingerprint: String,
+    /// Its files (image, AOVs, mask, view file), paths as named under the folder, with their
+    /// SHA-256.
+    pub files: Vec<OutputRecord>,
+}
+
+impl RenderedView {
+    /// The record as one line of [`RENDERED_FILE`], newline included.
+    pub fn line(&self) -> String {
+        serde_json::to_string(self).expect("a record serialises") + "\n"
+    }
+
+    /// Whether this record vouches for view `view` rendered from `fingerprint` into the files
+    /// `names` in `dir`: the same view, fingerprint and file names, and every file still with
+    /// its recorded hash. The error says what differs.
+    pub fn vouches_for(
+        &self,
+        dir: &Path,
+        view: usize,
+        fingerprint: &str,
+        names: &[&str],
+    ) -> Result<(), String> {
+        if self.view != view {
+            return Err(format!("the record is of view {}", self.view));
+        }
+        if self.fingerprint != fingerprint {
+            return Err("the options, the model or meshtracer changed".into());
+        }
+        let recorded: Vec<&str> = self.files.iter().map(|f| f.path.as_str()).collect();
+        if recorded != names {
+            return Err("its files have other names".into());
+        }
+        verify_outputs(dir, &self.files)
+    }
+}
+
+/// The records of [`RENDERED_FILE`] at `path`, by view number (the last line of a view wins);
+/// none when the file is missing. A line that is not a record (torn by a kill as it was
+/// appended) is passed over: its view is rendered again.
+pub fn read_rendered(
+    path: &Path,
+) -> std::io::Result<std::collections::HashMap<usize, RenderedView>> {
+    let text = match std::fs::read(path) {
+        Ok(bytes) => bytes,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Default::default()),
+        Err(e) => return Err(e),
+    };
+    Ok(text
+        .split(|&b| b == b'\n')
+        .filter_map(|line| serde_json::from_slice::<RenderedView>(line).ok())
+        .map(|record| (record.view, record))
+        .collect())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -609,6 +680,55 @@ mod tests {
             yfov: 45f32.to_radians(),
             scene_radius: 1.5,
         }
+    }
+
+    /// The record reads back what it wrote, passes over a torn line, and vouches for a view
+    /// only with the same view, fingerprint, names and bytes.
+    #[test]
+    fn a_rendered_view_vouches_only_for_what_it_recorded() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("000.png"), b"image").unwrap();
+        std::fs::write(dir.path().join("000.view.json"), b"{}").unwrap();
+        let file = |path: &str| OutputRecord {
+            path: path.into(),
+            sha256: crate::jobs::batch::sha256_file(&dir.path().join(path)).unwrap(),
+        };
+        let record = RenderedView {
+            view: 0,
+            fingerprint: "f".into(),
+            files: vec![file("000.png"), file("000.view.json")],
+        };
+        let names = ["000.png", "000.view.json"];
+        assert_eq!(record.vouches_for(dir.path(), 0, "f", &names), Ok(()));
+        let refusals = [
+            (record.vouches_for(dir.path(), 1, "f", &names), "of view 0"),
+            (record.vouches_for(dir.path(), 0, "g", &names), "options"),
+            (
+                record.vouches_for(dir.path(), 0, "f", &["000.exr", "000.view.json"]),
+                "other names",
+            ),
+        ];
+        for (result, words) in refusals {
+            assert!(result.unwrap_err().contains(words), "{words}");
+        }
+        std::fs::write(dir.path().join("000.png"), b"other").unwrap();
+        let changed = record.vouches_for(dir.path(), 0, "f", &names).unwrap_err();
+        assert_eq!(changed, "000.png changed since it was written");
+
+        let path = dir.path().join(RENDERED_FILE);
+        assert!(
+            read_rendered(&path).unwrap().is_empty(),
+            "no file, no views"
+        );
+        let second = RenderedView {
+            view: 1,
+            ..record.clone()
+        };
+        let torn = &second.line()[..20];
+        std::fs::write(&path, record.line() + torn).unwrap();
+        let read = read_rendered(&path).unwrap();
+        assert_eq!(read.len(), 1);
+        assert_eq!(read[&0], record);
     }
 
     #[test]
