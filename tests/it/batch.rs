@@ -862,6 +862,39 @@ fn a_batch_stopped_by_sigterm_leaves_no_lock_and_resumes() {
     stop_and_resume("TERM");
 }
 
+/// Runs `batch MANIFEST -o DIR/whole` to its end, then starts the same batch into
+/// `DIR/killed` (standard error piped) for a test to stop: returns both folders, the second
+/// run's arguments and its process. The renders are [`STOPPABLE`]'s, heavier than SMALL, so
+/// that a stop lands with most of the work still to do (about 60 ms a box in a debug build on
+/// 2 cores).
+fn whole_then_started(
+    dir: &Path,
+    manifest: &Path,
+) -> (PathBuf, PathBuf, Vec<String>, std::process::Child) {
+    let args = |out: &Path| {
+        let mut args = vec!["batch", s(manifest), "-o", s(out)];
+        args.extend_from_slice(&crate::common::STOPPABLE);
+        args.push("-q");
+        args.into_iter().map(String::from).collect::<Vec<_>>()
+    };
+    let whole = dir.join("whole");
+    let run_args = args(&whole);
+    let run_args: Vec<&str> = run_args.iter().map(String::as_str).collect();
+    check(
+        command(env!("CARGO_BIN_EXE_meshtracer"), &run_args, &[]),
+        true,
+    );
+    let out = dir.join("killed");
+    let kill_args = args(&out);
+    let child = command(env!("CARGO_BIN_EXE_meshtracer"), &[], &[])
+        .args(&kill_args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    (whole, out, kill_args, child)
+}
+
 /// Runs 32 jobs whole, then again until three are done, sends `SIG<signal>`, checks what the
 /// stop left, and resumes: the outputs must be the whole run's, byte for byte.
 fn stop_and_resume(signal: &str) {
@@ -870,41 +903,8 @@ fn stop_and_resume(signal: &str) {
         .map(|k| format!(r#"{{"id": "job-{k:02}", "model": "cornell-box.gltf", "seed": {k}}}"#))
         .collect();
     let manifest = jsonl_manifest(dir.path(), "jobs.jsonl", &lines);
-    // Heavier than SMALL, so that the kill lands with most jobs still to do (about 60 ms a
-    // job in a debug build on 2 cores).
-    let work = [
-        "--width",
-        "96",
-        "--height",
-        "72",
-        "--spp",
-        "8",
-        "--integrator",
-        "path",
-        "-q",
-    ];
-    let whole = dir.path().join("whole");
-    let args = |out: &Path| {
-        let mut args = vec!["batch", s(&manifest), "-o"];
-        args.push(out.to_str().unwrap());
-        args.extend_from_slice(&work);
-        args.into_iter().map(String::from).collect::<Vec<_>>()
-    };
-    let run_args = args(&whole);
-    let run_args: Vec<&str> = run_args.iter().map(String::as_str).collect();
-    check(
-        command(env!("CARGO_BIN_EXE_meshtracer"), &run_args, &[]),
-        true,
-    );
-
-    let out = dir.path().join("killed");
-    let kill_args = args(&out);
+    let (whole, out, kill_args, mut child) = whole_then_started(dir.path(), &manifest);
     let kill_args: Vec<&str> = kill_args.iter().map(String::as_str).collect();
-    let mut child = command(env!("CARGO_BIN_EXE_meshtracer"), &kill_args, &[])
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .unwrap();
     let finished = |out: &Path| -> BTreeSet<String> {
         (0..32)
             .map(|k| format!("job-{k:02}"))
@@ -960,6 +960,48 @@ fn stop_and_resume(signal: &str) {
         outputs_tree(&whole),
         "the resumed run's files are the uninterrupted run's, with no temporary file left"
     );
+}
+
+/// A batch killed in the middle of a job with views keeps that job's finished views on
+/// `--resume`: they are not written again (the same files, not copies), and the job ends with
+/// the files of an uninterrupted batch.
+#[test]
+fn a_job_with_views_resumes_within_the_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let line = r#"{"id": "turn", "model": "cornell-box.gltf", "views": "orbit:12"}"#;
+    let manifest = jsonl_manifest(dir.path(), "jobs.jsonl", &[line.to_string()]);
+    let (whole, out, kill_args, mut child) = whole_then_started(dir.path(), &manifest);
+    let kill_args: Vec<&str> = kill_args.iter().map(String::as_str).collect();
+    let view = |k: usize| out.join("turn").join(format!("{k:03}.view.json"));
+    let start = std::time::Instant::now();
+    while !view(2).is_file() {
+        assert!(child.try_wait().unwrap().is_none(), "the batch ended first");
+        assert!(start.elapsed().as_secs() < 120, "no view in 2 minutes");
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    crate::hostile::send(&child, "KILL");
+    child.wait().unwrap();
+    let finished: Vec<usize> = (0..12).filter(|&k| view(k).is_file()).collect();
+    assert!(finished.len() < 12, "the kill came before the end");
+    let identity = |k: usize| {
+        use std::os::unix::fs::MetadataExt;
+        let meta = std::fs::metadata(out.join("turn").join(format!("{k:03}.png"))).unwrap();
+        (meta.ino(), meta.mtime_nsec())
+    };
+    let before: Vec<_> = finished.iter().map(|&k| identity(k)).collect();
+
+    let mut resume_args = kill_args.clone();
+    resume_args.push("--resume");
+    check(
+        command(env!("CARGO_BIN_EXE_meshtracer"), &resume_args, &[]),
+        true,
+    );
+    let after: Vec<_> = finished.iter().map(|&k| identity(k)).collect();
+    assert_eq!(before, after, "the finished views were written again");
+    let resumed = by_id(&records(&out.join("results.jsonl")));
+    assert_eq!(resumed["turn"]["status"], "ok");
+    assert_hashes_match(&out, &resumed["turn"]);
+    assert_eq!(outputs_tree(&out), outputs_tree(&whole));
 }
 
 /// The resume fingerprint of fixed jobs is pinned, so a batch finished by one build stays

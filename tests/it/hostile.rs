@@ -171,9 +171,13 @@ fn ctrl_c_during_views_keeps_the_finished_views_whole() {
                 format!("{k:03}.view.json"),
             ]
         })
+        .chain(std::iter::once("rendered.jsonl".to_string()))
         .collect();
     expected.sort();
     assert_eq!(names, expected, "{err}");
+    // Each view written is recorded, for --resume.
+    let record = std::fs::read_to_string(out.join("rendered.jsonl")).unwrap();
+    assert_eq!(record.lines().count(), reported, "{record}");
     for k in 0..reported {
         let (w, h, _) = crate::common::read_rgba(&out.join(format!("{k:03}.png")));
         assert_eq!((w, h), (160, 120));

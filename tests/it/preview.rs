@@ -444,7 +444,7 @@ fn views_and_batches_preview_one_sheet_and_write_no_extra_file() {
     let mut written: Vec<String> = std::fs::read_dir(&views)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .filter(|n| !n.ends_with(".view.json") && n != "transforms.json")
+        .filter(|n| !n.ends_with(".view.json") && n != "transforms.json" && n != "rendered.jsonl")
         .collect();
     written.sort();
     assert_eq!(written, ["000.png", "001.png", "002.png", "003.png"]);

@@ -447,7 +447,7 @@ fn the_same_command_writes_the_same_bytes() {
             }
         }
     }
-    assert_eq!(files.len(), 3 * 2 + 3 + 3 + 1, "{files:?}");
+    assert_eq!(files.len(), 3 * 2 + 3 + 3 + 2, "{files:?}");
     for f in &files {
         assert!(
             std::fs::read(a.join(f)).unwrap() == std::fs::read(b.join(f)).unwrap(),
@@ -699,4 +699,204 @@ fn a_run_failing_part_way_records_the_views_written() {
     for name in ["002.png", "002.view.json", "003.png"] {
         assert!(!out.join(name).exists(), "{name}");
     }
+}
+
+/// Every file under `dir` (relative path -> bytes).
+fn tree(dir: &Path) -> std::collections::BTreeMap<String, Vec<u8>> {
+    let mut files = std::collections::BTreeMap::new();
+    let mut folders = vec![dir.to_path_buf()];
+    while let Some(folder) = folders.pop() {
+        for entry in std::fs::read_dir(&folder).unwrap().flatten() {
+            let path = entry.path();
+            if path.is_dir() {
+                folders.push(path);
+            } else {
+                let name = path
+                    .strip_prefix(dir)
+                    .unwrap()
+                    .to_string_lossy()
+                    .into_owned();
+                files.insert(name, std::fs::read(&path).unwrap());
+            }
+        }
+    }
+    files
+}
+
+/// The options of the resume tests: 12 path-traced views (more than it takes to stop a run
+/// before its end in a release build) of the box with depth, masks, a GIF
+/// and a contact sheet (named after `tag`, beside the folder `out`).
+fn resume_args(out: &Path, tag: &str) -> Vec<String> {
+    let beside = out.parent().unwrap();
+    let mut args: Vec<String> = [
+        "render",
+        s(&cornell()),
+        "--views",
+        "orbit:12",
+        "-o",
+        s(out),
+        "--depth-out",
+        "d/{view:03}.exr",
+        "--mask-out",
+        "m/{view}.png",
+    ]
+    .map(String::from)
+    .to_vec();
+    args.extend(crate::common::STOPPABLE.map(String::from));
+    args.push("--gif".into());
+    args.push(s(&beside.join(format!("{tag}.gif"))).into());
+    args.push("--contact-sheet".into());
+    args.push(s(&beside.join(format!("{tag}.png"))).into());
+    args
+}
+
+/// A `--views` run stopped by `signal` once 3 views are written keeps those views on
+/// `--resume` and renders only the rest, ending with the files of an uninterrupted run byte
+/// for byte: images, AOVs, view files, transforms.json, the record of finished views, and the
+/// GIF and the contact sheet made again with the kept views' images read back.
+fn stop_and_resume_views(signal: &str) {
+    let dir = tempfile::tempdir().unwrap();
+    let whole = dir.path().join("whole");
+    let args = resume_args(&whole, "whole");
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    run(&[&args[..], &["-q"]].concat(), true);
+
+    let cut = dir.path().join("cut");
+    let cut_args = resume_args(&cut, "cut");
+    let cut_args: Vec<&str> = cut_args.iter().map(String::as_str).collect();
+    let mut child = crate::common::bin()
+        .args(&cut_args)
+        .arg("-q")
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = std::time::Instant::now();
+    while !cut.join("002.view.json").is_file() {
+        assert!(child.try_wait().unwrap().is_none(), "the run ended first");
+        assert!(start.elapsed().as_secs() < 120, "no view in 2 minutes");
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    crate::hostile::send(&child, signal);
+    let stopped = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&stopped.stderr);
+    if signal != "KILL" {
+        assert_eq!(stopped.status.code(), Some(130), "{err}");
+        assert!(err.contains("run the same command with --resume"), "{err}");
+    }
+    let finished = (0..12)
+        .filter(|k| cut.join(format!("{k:03}.view.json")).is_file())
+        .count();
+    assert!(
+        (3..12).contains(&finished),
+        "{finished} views before the stop"
+    );
+    assert!(!cut.join("transforms.json").exists());
+
+    let resumed = run(&[&cut_args[..], &["--resume"]].concat(), true);
+    let err = crate::common::stderr(&resumed);
+    assert!(
+        err.contains(&format!("--resume: {finished} of 12 views finished before")),
+        "{err}"
+    );
+    assert_eq!(
+        err.matches(" kept: finished by an earlier run").count(),
+        finished,
+        "{err}"
+    );
+    assert_eq!(
+        err.matches(".png rendered in ").count(),
+        12 - finished,
+        "{err}"
+    );
+    assert_eq!(tree(&cut), tree(&whole), "the resumed folder differs");
+    for ext in ["gif", "png"] {
+        assert!(
+            std::fs::read(dir.path().join(format!("cut.{ext}"))).unwrap()
+                == std::fs::read(dir.path().join(format!("whole.{ext}"))).unwrap(),
+            "the resumed {ext} differs"
+        );
+    }
+}
+
+#[test]
+fn a_views_run_killed_part_way_resumes_to_the_files_of_a_whole_run() {
+    stop_and_resume_views("KILL");
+}
+
+#[test]
+fn a_views_run_stopped_by_sigterm_resumes_to_the_files_of_a_whole_run() {
+    stop_and_resume_views("TERM");
+}
+
+/// `--resume` keeps only what still vouches for itself: a view whose image changed or whose
+/// depth is gone, and every view once an option changes, is rendered again, saying why; a torn
+/// last line of the record costs its view only. Bad combinations are refused up front.
+#[test]
+fn resume_renders_again_what_changed_and_refuses_what_it_cannot_keep() {
+    let dir = tempfile::tempdir().unwrap();
+    let whole = dir.path().join("whole");
+    let args = resume_args(&whole, "whole");
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    run(&[&args[..], &["-q"]].concat(), true);
+    let expected = tree(&whole);
+
+    std::fs::write(whole.join("001.png"), b"not the image").unwrap();
+    std::fs::remove_file(whole.join("d/002.exr")).unwrap();
+    // A line torn by a kill as it was appended: view 11's record is lost, not the others'.
+    let record = whole.join("rendered.jsonl");
+    let text = std::fs::read_to_string(&record).unwrap();
+    std::fs::write(&record, &text[..text.len() - 40]).unwrap();
+    let out = run(&[&args[..], &["--resume"]].concat(), true);
+    let err = crate::common::stderr(&out);
+    assert!(
+        err.contains("--resume: 9 of 12 views finished before"),
+        "{err}"
+    );
+    assert!(
+        err.contains("view 1: rendered again: 001.png changed since it was written"),
+        "{err}"
+    );
+    assert!(err.contains("view 2: rendered again: d/002.exr: "), "{err}");
+    for k in [1, 2, 11] {
+        let line = format!(
+            "[{}/12] {} rendered in",
+            k + 1,
+            s(&whole.join(format!("{k:03}.png")))
+        );
+        assert!(err.contains(&line), "{line}: {err}");
+    }
+    assert_eq!(err.matches(".png rendered in ").count(), 3, "{err}");
+    assert_eq!(tree(&whole), expected);
+
+    // Other samples: nothing is kept.
+    let mut more = args.clone();
+    let spp = more.iter().position(|a| *a == "--spp").unwrap();
+    more[spp + 1] = "4";
+    let out = run(&[&more[..], &["--resume"]].concat(), true);
+    let err = crate::common::stderr(&out);
+    assert!(
+        err.contains("--resume: 0 of 12 views finished before"),
+        "{err}"
+    );
+    assert_eq!(
+        err.matches("rendered again: the options, the model or meshtracer changed")
+            .count(),
+        12,
+        "{err}"
+    );
+
+    for (extra, words) in [
+        (&["--no-clobber"][..], "not with --no-clobber"),
+        (&["--view-name", "{view}.exr"][..], "needs the views as PNG"),
+    ] {
+        let out = run(&[&args[..], &["--resume"], extra].concat(), false);
+        assert!(crate::common::stderr(&out).contains(words), "{extra:?}");
+    }
+    let single = dir.path().join("one.png");
+    let out = run(
+        &["render", s(&cornell()), "-o", s(&single), "--resume"],
+        false,
+    );
+    assert!(crate::common::stderr(&out).contains("a single render has nothing to keep"));
+    assert!(!single.exists());
 }

@@ -467,6 +467,11 @@ pub struct RenderArgs {
     /// Refuse to overwrite an existing output file.
     #[arg(long)]
     pub no_clobber: bool,
+    /// With --views or --turntable: keep the views that an earlier run of the same command
+    /// finished in the -o folder (DIR/rendered.jsonl records each, with its files' SHA-256)
+    /// and render the rest; the folder ends as an uninterrupted run leaves it.
+    #[arg(long)]
+    pub resume: bool,
     /// No progress bar and no summary. Warnings about the picture (a texture drawn without,
     /// a value corrected) are still printed: --no-warnings silences them.
     #[arg(short, long)]
@@ -557,6 +562,8 @@ impl RenderArgs {
     mut_arg("output", |a| a
         .value_name("DIR")
         .help("The output folder: each job writes into DIR/<job id>/, the batch records every job in DIR/results.jsonl (results.I-of-N.jsonl for a shard)")),
+    mut_arg("resume", |a| a
+        .help("Skip the jobs whose job.json says they finished with these options and whose outputs still have the recorded SHA-256 hashes; redo the others (a job with views keeps the views it finished)")),
 )]
 pub struct BatchArgs {
     /// The manifest, the output folder and the render options every job starts from.
@@ -568,10 +575,6 @@ pub struct BatchArgs {
     /// {view}: depth.exr becomes {view:03}.depth.exr.
     #[arg(long, value_name = "NAME")]
     pub image_name: Option<String>,
-    /// Skip the jobs whose job.json says they finished with these options and whose outputs
-    /// still have the recorded SHA-256 hashes; redo the others.
-    #[arg(long)]
-    pub resume: bool,
     /// Render only shard I of N (0-based, I < N): the jobs whose id hashes (FNV-1a 64 of its
     /// UTF-8 bytes) to I modulo N [default: from SLURM_ARRAY_TASK_ID and
     /// SLURM_ARRAY_TASK_COUNT, or JOB_COMPLETION_INDEX and --shard-count; 0/1 for all jobs].

@@ -8,6 +8,19 @@ pub fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_meshtracer"))
 }
 
+/// Render options heavy enough that a test can stop a run of several renders part way: 96x72,
+/// 8 spp, path traced (about 60 ms for the bundled box in a debug build on 2 cores).
+pub const STOPPABLE: [&str; 8] = [
+    "--width",
+    "96",
+    "--height",
+    "72",
+    "--spp",
+    "8",
+    "--integrator",
+    "path",
+];
+
 /// Runs the binary; on an unexpected outcome, panics with the command, stdout and stderr.
 pub fn run(args: &[&str], expect_success: bool) -> Output {
     let out = bin().args(args).output().expect("the binary runs");

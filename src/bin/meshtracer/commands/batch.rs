@@ -306,7 +306,7 @@ fn run_job(
     // its host lost) or renders with other options.
     let mut note =
         after.map(|h| format!("taken over from the batch of {h}, which left no record of it"));
-    if args.resume {
+    if args.render.resume {
         match finished_record(&record_path, &fingerprint, dir) {
             Ok(Some(mut record)) => {
                 record.status = Status::Skipped;
@@ -585,6 +585,9 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         max_pixels,
         max_spp,
         no_clobber,
+        // How the job is done, never what it writes (a job with views keeps its finished
+        // views, which are what it would render again): not part of the fingerprint.
+        resume: _,
         quiet,
         // Changes what is printed, never what is written: not part of the fingerprint.
         no_warnings: _,
@@ -671,6 +674,9 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
 fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArgs> {
     let mut args = batch.render.clone();
     args.model = job.model.clone();
+    // A job with views keeps its finished views on --resume; under --no-clobber, which
+    // `render --views --resume` refuses, the job renders as before.
+    args.resume = batch.render.resume && !batch.render.no_clobber;
     args.quiet = true;
     // A job's warnings go to its record (job.json, results.jsonl), not between the batch's
     // progress lines.

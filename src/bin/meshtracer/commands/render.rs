@@ -33,6 +33,10 @@ const MAX_BOUNCES: u32 = meshtracer::output::view_file::MAX_VIEW_BOUNCES;
 
 /// `meshtracer render`.
 pub(super) fn render_command(args: &RenderArgs) -> Result<()> {
+    // A batch passes its --resume to every job; only a run of many views resumes within it.
+    if args.resume && args.views.is_none() && args.turntable.is_none() {
+        bail!("--resume keeps the finished views of an interrupted --views or --turntable run (a single render has nothing to keep; batch --resume skips finished jobs)");
+    }
     render_model(args, &|_, _| {}).map(|_| ())
 }
 

@@ -41,7 +41,11 @@ pub(super) fn region(args: &RenderArgs, width: u32, height: u32) -> Result<Regio
 }
 
 /// Everything that decides a pixel's value, as text: tiles join only when this agrees.
-fn render_fingerprint(args: &RenderArgs, settings: &RenderSettings, scene: &Scene) -> String {
+pub(super) fn render_fingerprint(
+    args: &RenderArgs,
+    settings: &RenderSettings,
+    scene: &Scene,
+) -> String {
     let environment = settings
         .environment
         .as_ref()

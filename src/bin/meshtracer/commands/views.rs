@@ -18,9 +18,10 @@ use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use meshtracer::accel::AccelKind;
 use meshtracer::camera::{auto_camera, View};
+use meshtracer::jobs::batch::{sha256_file, sha256_hex, OutputRecord};
 use meshtracer::jobs::views::{
-    azimuth_degrees, elevation_degrees, plan_cameras, read_views_file, ExplicitView, NamePattern,
-    PlanOptions, ViewSpec,
+    azimuth_degrees, elevation_degrees, plan_cameras, read_rendered, read_views_file, ExplicitView,
+    NamePattern, PlanOptions, RenderedView, ViewSpec, RENDERED_FILE,
 };
 use meshtracer::light::environment::Environment;
 use meshtracer::output::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
@@ -60,6 +61,23 @@ impl ViewNames {
             .into_iter()
             .flatten()
             .chain(std::iter::once(&self.view))
+    }
+
+    /// Every file of the view in the order [`ViewRun::render`] writes them: image, depth,
+    /// normals, segmentation, mask, view file.
+    fn in_order(&self) -> Vec<&str> {
+        [
+            Some(&self.image),
+            self.depth.as_ref(),
+            self.normal.as_ref(),
+            self.segmentation.as_ref(),
+            self.mask.as_ref(),
+            Some(&self.view),
+        ]
+        .into_iter()
+        .flatten()
+        .map(String::as_str)
+        .collect()
     }
 }
 
@@ -157,6 +175,7 @@ impl Layout {
             "transforms.json",
             no_clobber,
         )?;
+        claim(&mut taken, dir, RENDERED_FILE, RENDERED_FILE, no_clobber)?;
         let mut names = Vec::with_capacity(count);
         for k in 0..count {
             let mut optional = |p: &Option<NamePattern>, option: &'static str| {
@@ -241,6 +260,7 @@ pub(super) fn render_views(
     check_orbit_options(args, &spec)?;
     let dir = args.output.as_path();
     check_output_folder(dir)?;
+    check_resume(args)?;
     let known_count = match spec {
         ViewSpec::File(_) => Some(explicit.len()),
         _ => spec.count(),
@@ -324,6 +344,30 @@ fn check_orbit_options(args: &RenderArgs, spec: &ViewSpec) -> Result<()> {
         if !matches!(spec, ViewSpec::Orbit(_)) {
             bail!("--orbit-azimuth: only orbits (--views orbit:N, --turntable N) have a starting azimuth");
         }
+    }
+    Ok(())
+}
+
+/// Refuses `--resume` with `--no-clobber` (a resumed run rewrites transforms.json and the
+/// views it renders again), and with a GIF or a sheet of views that are not PNG: those are
+/// made from the images, and only a PNG gives back the bytes they were made from.
+fn check_resume(args: &RenderArgs) -> Result<()> {
+    if !args.resume {
+        return Ok(());
+    }
+    if args.no_clobber {
+        bail!("--resume rewrites transforms.json and the views it renders again: not with --no-clobber");
+    }
+    let extras = args.gif.is_some() || args.contact_sheet.is_some() || args.preview.is_some();
+    let png = args
+        .view_name
+        .as_deref()
+        .is_none_or(|name| has_extension(Path::new(name), "png"));
+    if extras && !png {
+        bail!(
+            "--resume with --gif, --contact-sheet or --preview needs the views as PNG (the GIF and the sheet are made again from the kept views' images, and only a PNG gives them back as they were): not --view-name {}",
+            args.view_name.as_deref().unwrap_or_default()
+        );
     }
     Ok(())
 }
@@ -509,24 +553,9 @@ fn render_all(
         environment: &lit.environment,
         cancel,
         count: cameras.len(),
+        model_sha256: sha256_file(&args.model).unwrap_or_else(|e| format!("unreadable ({e})")),
     };
-    let mut frames = Vec::with_capacity(cameras.len());
-    let mut totals = RenderStats::default();
-    on_view(0, cameras.len());
-    for (k, (camera, names)) in cameras.iter().zip(&plan.names).enumerate() {
-        let (frame, stats, image) = match run.render(k, camera, names) {
-            Ok(done) => done,
-            Err(e) => return Err(failed_part_way(args, plan, frames, k, e)),
-        };
-        extras.add(k, camera, &image, (args.background, args.tonemap))?;
-        on_view(k + 1, cameras.len());
-        frames.push(frame);
-        totals.primary_rays += stats.primary_rays;
-        totals.shadow_rays += stats.shadow_rays;
-        totals.indirect_rays += stats.indirect_rays;
-        totals.samples += stats.samples;
-        totals.time += stats.time;
-    }
+    let (frames, totals, kept) = render_each(&run, plan, extras, on_view)?;
     let summary = Summary {
         triangles: prepared.scene.soup.len(),
         accel: prepared.accel.kind(),
@@ -534,12 +563,194 @@ fn render_all(
         load_time,
         bvh_time,
         views: cameras.len(),
+        kept,
         width,
         height,
         totals,
         threads: plan.threads,
     };
     Ok((summary, frames, warnings))
+}
+
+/// Renders and writes the views of `plan` in order, keeping those an earlier run finished
+/// (`--resume`, [`RecordLog`]) and recording each view as it finishes; adds each to the GIF
+/// and the sheet and calls `on_view(done, total)`. Returns the frames of transforms.json, what
+/// the renders did and how many views were kept.
+fn render_each(
+    run: &ViewRun,
+    plan: &Plan,
+    extras: &mut Extras,
+    on_view: &(dyn Fn(usize, usize) + Sync),
+) -> Result<(Vec<Frame>, RenderStats, usize)> {
+    let (args, cameras) = (run.args, &plan.cameras);
+    let mut log = RecordLog::start(run, plan)?;
+    let mut frames = Vec::with_capacity(cameras.len());
+    let mut totals = RenderStats::default();
+    on_view(0, cameras.len());
+    for (k, (camera, names)) in cameras.iter().zip(&plan.names).enumerate() {
+        let work = match run.prepare(k, camera, names) {
+            Ok(work) => work,
+            Err(e) => return Err(failed_part_way(args, plan, frames, k, e)),
+        };
+        match log.kept_image(run, k, names, extras.needs_images()) {
+            Some(rgba) => {
+                if let Some(rgba) = rgba {
+                    extras.add_rgba(k, camera, rgba)?;
+                }
+                if !args.quiet {
+                    eprintln!(
+                        "[{}/{}] {} kept: finished by an earlier run, its files verified",
+                        k + 1,
+                        cameras.len(),
+                        run.dir.join(&names.image).display()
+                    );
+                }
+            }
+            None => {
+                let (stats, image, record) = match run.render(k, &work, names) {
+                    Ok(done) => done,
+                    Err(e) => return Err(failed_part_way(args, plan, frames, k, e)),
+                };
+                log.append(record)?;
+                extras.add(k, camera, &image, (args.background, args.tonemap))?;
+                totals.primary_rays += stats.primary_rays;
+                totals.shadow_rays += stats.shadow_rays;
+                totals.indirect_rays += stats.indirect_rays;
+                totals.samples += stats.samples;
+                totals.time += stats.time;
+            }
+        }
+        on_view(k + 1, cameras.len());
+        frames.push(work.frame);
+    }
+    let kept = log.finish()?;
+    Ok((frames, totals, kept))
+}
+
+/// The run's record of finished views ([`RENDERED_FILE`] in the -o folder): the views kept from
+/// an earlier run, then each view rendered, appended as its files are all written, so that a
+/// run stopped at any point (a scheduler's time limit, a preemption, SIGKILL) leaves a record
+/// of every view it finished. Rewritten in view order at the end.
+struct RecordLog {
+    path: PathBuf,
+    file: std::fs::File,
+    records: std::collections::BTreeMap<usize, RenderedView>,
+    /// The views kept from the earlier run.
+    kept: BTreeSet<usize>,
+}
+
+impl RecordLog {
+    /// Starts the record. With `--resume`, an earlier run's record of a view is kept when it
+    /// vouches for the view this run would render ([`RenderedView::vouches_for`]: the same
+    /// fingerprint, file names and file hashes), and the file is rewritten with those alone;
+    /// otherwise it starts empty.
+    fn start(run: &ViewRun, plan: &Plan) -> Result<RecordLog> {
+        let path = run.dir.join(RENDERED_FILE);
+        let mut records = std::collections::BTreeMap::new();
+        if run.args.resume {
+            let earlier = read_rendered(&path)
+                .with_context(|| format!("--resume: cannot read {}", path.display()))?;
+            for (k, (camera, names)) in plan.cameras.iter().zip(&plan.names).enumerate() {
+                let Some(record) = earlier.get(&k) else {
+                    continue;
+                };
+                let fingerprint = run.prepare(k, camera, names)?.fingerprint;
+                match record.vouches_for(run.dir, k, &fingerprint, &names.in_order()) {
+                    Ok(()) => {
+                        records.insert(k, record.clone());
+                    }
+                    Err(why) if !run.args.quiet => {
+                        eprintln!("view {k}: rendered again: {why}");
+                    }
+                    Err(_) => {}
+                }
+            }
+            if !run.args.quiet {
+                eprintln!(
+                    "--resume: {} of {} views finished before, their files verified; rendering the other {}",
+                    records.len(),
+                    plan.cameras.len(),
+                    plan.cameras.len() - records.len()
+                );
+            }
+        }
+        let text: String = records.values().map(RenderedView::line).collect();
+        meshtracer::output::write_atomic(&path, text.as_bytes())?;
+        let file = std::fs::OpenOptions::new()
+            .append(true)
+            .open(&path)
+            .with_context(|| format!("cannot open {} to record the views", path.display()))?;
+        let kept = records.keys().copied().collect();
+        Ok(RecordLog {
+            path,
+            file,
+            records,
+            kept,
+        })
+    }
+
+    /// Whether view `k` is kept from the earlier run: `Some` with its image read back as the
+    /// GIF and the sheet take it (`want_image`; the PNG holds the bytes they would be given),
+    /// `None` when it must be rendered (not kept, or its image cannot be read back).
+    fn kept_image(
+        &mut self,
+        run: &ViewRun,
+        k: usize,
+        names: &ViewNames,
+        want_image: bool,
+    ) -> Option<Option<image::RgbaImage>> {
+        if !self.kept.contains(&k) {
+            return None;
+        }
+        if !want_image {
+            return Some(None);
+        }
+        let path = run.dir.join(&names.image);
+        let read = std::fs::read(&path)
+            .map_err(|e| e.to_string())
+            .and_then(|bytes| {
+                image::load_from_memory_with_format(&bytes, image::ImageFormat::Png)
+                    .map_err(|e| e.to_string())
+            })
+            .map(|image| image.to_rgba8());
+        match read {
+            Ok(rgba) if rgba.dimensions() == (run.width, run.height) => Some(Some(rgba)),
+            Ok(_) | Err(_) => {
+                if !run.args.quiet {
+                    eprintln!(
+                        "view {k}: rendered again: {} cannot be read back for the GIF or the sheet",
+                        path.display()
+                    );
+                }
+                self.kept.remove(&k);
+                None
+            }
+        }
+    }
+
+    /// Records a view just rendered.
+    fn append(&mut self, record: RenderedView) -> Result<()> {
+        self.file
+            .write_all(record.line().as_bytes())
+            .with_context(|| {
+                format!(
+                    "cannot record view {} in {}",
+                    record.view,
+                    self.path.display()
+                )
+            })?;
+        self.records.insert(record.view, record);
+        Ok(())
+    }
+
+    /// Rewrites the record in view order (the same bytes as an uninterrupted run's); returns
+    /// how many views were kept.
+    fn finish(self) -> Result<usize> {
+        drop(self.file);
+        let text: String = self.records.values().map(RenderedView::line).collect();
+        meshtracer::output::write_atomic(&self.path, text.as_bytes())?;
+        Ok(self.kept.len())
+    }
 }
 
 /// The error of a run whose view `k` failed (not interrupted) after views `0..k` were written
@@ -608,17 +819,10 @@ fn written(
 ) -> Vec<PathBuf> {
     let mut outputs: Vec<PathBuf> = args.env_out.iter().cloned().collect();
     for view in names {
-        let files = [
-            Some(&view.image),
-            view.depth.as_ref(),
-            view.normal.as_ref(),
-            view.segmentation.as_ref(),
-            view.mask.as_ref(),
-            Some(&view.view),
-        ];
-        outputs.extend(files.into_iter().flatten().map(|name| dir.join(name)));
+        outputs.extend(view.in_order().into_iter().map(|name| dir.join(name)));
     }
     outputs.push(dir.join(TRANSFORMS_FILE));
+    outputs.push(dir.join(RENDERED_FILE));
     outputs.extend(extras);
     outputs
 }
@@ -685,17 +889,24 @@ struct ViewRun<'a> {
     environment: &'a Option<Arc<Environment>>,
     cancel: &'a AtomicBool,
     count: usize,
+    /// SHA-256 of the model file, part of every view's fingerprint.
+    model_sha256: String,
+}
+
+/// One view as it will be rendered: the text of its view file, its render settings, its frame
+/// of transforms.json and the fingerprint its record carries.
+struct ViewWork {
+    text: String,
+    view_path: PathBuf,
+    settings: RenderSettings,
+    frame: Frame,
+    fingerprint: String,
 }
 
 impl ViewRun<'_> {
-    /// Renders view `k` and writes its files: image, AOVs, view file. Returns its frame of
-    /// transforms.json, what the render did and the image.
-    fn render(
-        &self,
-        k: usize,
-        camera: &Camera,
-        names: &ViewNames,
-    ) -> Result<(Frame, RenderStats, meshtracer::output::Image)> {
+    /// What view `k` is rendered from: the view file's text, the settings read back from it,
+    /// its frame and its fingerprint. No work beyond that.
+    fn prepare(&self, k: usize, camera: &Camera, names: &ViewNames) -> Result<ViewWork> {
         let (args, dir, (width, height)) = (self.args, self.dir, (self.width, self.height));
         let mut record = ViewFile::new(
             camera,
@@ -736,24 +947,66 @@ impl ViewRun<'_> {
             clamp_indirect: args.clamp_indirect,
             guides: false,
         };
+        let frame = Frame {
+            file_path: names.image.clone(),
+            transform_matrix: camera_to_world(&settings.view),
+            intrinsics,
+            depth_file_path: names.depth.clone(),
+            mask_path: names.mask.clone(),
+        };
+        // Everything that decides the view's bytes: the pixels' inputs (as tiles join on
+        // them), the model file and meshtracer's version, and the view file's text.
+        let fingerprint = sha256_hex(
+            format!(
+                "meshtracer {}\nmodel sha256 {}\nrender {}\nview file {text}",
+                env!("CARGO_PKG_VERSION"),
+                self.model_sha256,
+                super::tiles::render_fingerprint(args, &settings, &self.prepared.scene),
+            )
+            .as_bytes(),
+        );
+        Ok(ViewWork {
+            text,
+            view_path,
+            settings,
+            frame,
+            fingerprint,
+        })
+    }
+
+    /// Renders view `k` and writes its files: image, AOVs, view file. Returns what the
+    /// render did, the image and the view's record (its files hashed).
+    fn render(
+        &self,
+        k: usize,
+        work: &ViewWork,
+        names: &ViewNames,
+    ) -> Result<(RenderStats, meshtracer::output::Image, RenderedView)> {
+        let (args, dir) = (self.args, self.dir);
         let image_path = dir.join(&names.image);
         let output = PendingOutput::reserve(&image_path, args.no_clobber)?;
-        let (image, stats, aovs) = render(self.prepared, &settings, self.cancel, &|_, _| {})
+        let (image, stats, aovs) = render(self.prepared, &work.settings, self.cancel, &|_, _| {})
             .map_err(|_| {
                 Interrupted(format!(
-                    "{k} of {} views written to {} ({TRANSFORMS_FILE} not written)",
+                    "{k} of {} views written to {} ({TRANSFORMS_FILE} not written; each finished view is recorded in {RENDERED_FILE}: run the same command with --resume to finish)",
                     self.count,
                     dir.display()
                 ))
             })?;
         output.commit(&image, args.background, args.tonemap)?;
-        if let Err(e) = self.write_companions(names, &image, aovs.as_ref(), &view_path, &text) {
-            // None of this view's files without the others: the image goes with its AOVs.
-            for name in std::iter::once(&names.image).chain(names.companions()) {
-                let _ = std::fs::remove_file(dir.join(name));
+        let written = self
+            .write_companions(names, &image, aovs.as_ref(), &work.view_path, &work.text)
+            .and_then(|()| self.record(k, work, names));
+        let record = match written {
+            Ok(record) => record,
+            Err(e) => {
+                // None of this view's files without the others: the image goes with its AOVs.
+                for name in std::iter::once(&names.image).chain(names.companions()) {
+                    let _ = std::fs::remove_file(dir.join(name));
+                }
+                return Err(e);
             }
-            return Err(e);
-        }
+        };
         if !args.quiet {
             eprintln!(
                 "[{}/{}] {} rendered in {:.3} s",
@@ -763,14 +1016,29 @@ impl ViewRun<'_> {
                 stats.time.as_secs_f64()
             );
         }
-        let frame = Frame {
-            file_path: names.image.clone(),
-            transform_matrix: camera_to_world(&settings.view),
-            intrinsics,
-            depth_file_path: names.depth.clone(),
-            mask_path: names.mask.clone(),
-        };
-        Ok((frame, stats, image))
+        Ok((stats, image, record))
+    }
+
+    /// The record of view `k`, its files just written: their names and hashes.
+    fn record(&self, k: usize, work: &ViewWork, names: &ViewNames) -> Result<RenderedView> {
+        let files = names
+            .in_order()
+            .into_iter()
+            .map(|name| {
+                let path = self.dir.join(name);
+                let sha256 = sha256_file(&path)
+                    .with_context(|| format!("{}: cannot read it back", path.display()))?;
+                Ok(OutputRecord {
+                    path: name.to_string(),
+                    sha256,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(RenderedView {
+            view: k,
+            fingerprint: work.fingerprint.clone(),
+            files,
+        })
     }
 
     /// Writes view `k`'s files after its image: the AOVs, the mask, the view file (`text`).
@@ -823,6 +1091,8 @@ struct Summary {
     load_time: Duration,
     bvh_time: Duration,
     views: usize,
+    /// Views kept from an earlier run (`--resume`), not rendered.
+    kept: usize,
     width: u32,
     height: u32,
     totals: RenderStats,
@@ -842,17 +1112,21 @@ impl Summary {
             AccelKind::Linear => "linear scan (no BVH)".to_string(),
         };
         let render_seconds = self.totals.time.as_secs_f64();
+        let rendered = self.views - self.kept;
+        let kept = match self.kept {
+            0 => String::new(),
+            n => format!(", {n} kept from an earlier run"),
+        };
         eprintln!(
-            "{}: {} triangles, loaded once in {:.1} ms, {structure}; {} views of {}x{} at {} spp rendered in {:.3} s ({:.3} s a view): {} rays, {:.2} Mrays/s on {} threads; {:.3} s in all -> {}",
+            "{}: {} triangles, loaded once in {:.1} ms, {structure}; {rendered} views of {}x{} at {} spp rendered in {:.3} s ({:.3} s a view{kept}): {} rays, {:.2} Mrays/s on {} threads; {:.3} s in all -> {}",
             args.model.display(),
             self.triangles,
             self.load_time.as_secs_f64() * 1e3,
-            self.views,
             self.width,
             self.height,
             args.spp(),
             render_seconds,
-            render_seconds / self.views.max(1) as f64,
+            render_seconds / rendered.max(1) as f64,
             self.totals.rays(),
             self.totals.mrays_per_second(),
             self.threads,
@@ -950,6 +1224,11 @@ impl Extras {
         Ok(())
     }
 
+    /// Whether the GIF or the sheet (file or terminal) takes the views' images.
+    fn needs_images(&self) -> bool {
+        self.gif.is_some() || self.sheet.is_some()
+    }
+
     /// Adds view `k` to the GIF and the sheet, over `background` through the view transform.
     fn add(
         &mut self,
@@ -958,12 +1237,18 @@ impl Extras {
         image: &meshtracer::output::Image,
         (background, view): (Option<Vec3>, meshtracer::color::ViewTransform),
     ) -> Result<()> {
-        if self.gif.is_none() && self.sheet.is_none() {
+        if !self.needs_images() {
             return Ok(());
         }
+        // The bytes a PNG view holds (`PendingOutput::commit`), which a resumed run reads back.
         let rgba =
             image::RgbaImage::from_raw(image.width, image.height, image.to_srgb8(background, view))
                 .context("an image of the wrong size (a bug)")?;
+        self.add_rgba(k, camera, rgba)
+    }
+
+    /// Adds view `k`, as 8-bit sRGB RGBA, to the GIF and the sheet.
+    fn add_rgba(&mut self, k: usize, camera: &Camera, rgba: image::RgbaImage) -> Result<()> {
         if let Some(sheet) = self.sheet.as_mut().and_then(|s| s.sheet.as_mut()) {
             let label = match &camera.name {
                 Some(name) => format!("{k} {name}"),
