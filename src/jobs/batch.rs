@@ -163,16 +163,30 @@ impl Shard {
     /// The results file this shard writes: [`RESULTS_FILE`] for the whole batch,
     /// `results.I-of-N.jsonl` for a shard, so that shards never write the same file.
     pub fn results_file(&self) -> String {
-        if self.count == 1 {
-            RESULTS_FILE.to_string()
-        } else {
-            format!("results.{}-of-{}.jsonl", self.index, self.count)
-        }
+        self.jsonl_file("results")
     }
 
     /// Reads `results.I-of-N.jsonl` back into the shard it names.
     pub fn of_results_file(name: &str) -> Option<Shard> {
-        let middle = name.strip_prefix("results.")?.strip_suffix(".jsonl")?;
+        Shard::of_jsonl_file("results", name)
+    }
+
+    /// This shard's JSONL file named `stem`: `STEM.jsonl` for the whole, `STEM.I-of-N.jsonl`
+    /// for a shard.
+    pub fn jsonl_file(&self, stem: &str) -> String {
+        if self.count == 1 {
+            format!("{stem}.jsonl")
+        } else {
+            format!("{stem}.{}-of-{}.jsonl", self.index, self.count)
+        }
+    }
+
+    /// Reads `STEM.I-of-N.jsonl` back into the shard it names.
+    pub fn of_jsonl_file(stem: &str, name: &str) -> Option<Shard> {
+        let middle = name
+            .strip_prefix(stem)?
+            .strip_prefix('.')?
+            .strip_suffix(".jsonl")?;
         let (i, n) = middle.split_once("-of-")?;
         let all_digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
         if !all_digits(i) || !all_digits(n) {

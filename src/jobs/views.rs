@@ -18,7 +18,7 @@
 
 use crate::camera::{look_at, near_plane};
 use crate::defaults::MAX_VIEWS;
-use crate::jobs::batch::{verify_outputs, OutputRecord};
+use crate::jobs::batch::{verify_outputs, OutputRecord, Shard};
 use crate::output::view_file::ViewCamera;
 use crate::sampling::Rng;
 use crate::scene::Camera;
@@ -651,6 +651,57 @@ impl RenderedView {
     }
 }
 
+/// The records of finished views by view number, as [`read_rendered_in`] finds them.
+pub type ViewRecords = std::collections::HashMap<usize, Vec<RenderedView>>;
+
+/// The record file of `shard`'s views: [`RENDERED_FILE`] for a whole run,
+/// `rendered.I-of-N.jsonl` for a shard, so that shards never write the same file.
+pub fn rendered_file(shard: Shard) -> String {
+    shard.jsonl_file("rendered")
+}
+
+/// Whether view `view` is one of `shard`'s: view k belongs to shard k mod N, so that each
+/// shard of an orbit gets views from all around it.
+pub fn in_shard(view: usize, shard: Shard) -> bool {
+    view % shard.count == shard.index
+}
+
+/// The shards' record files (`rendered.I-of-N.jsonl`, N > 1) in `dir`, sorted; none when
+/// `dir` does not exist.
+pub fn shard_record_files(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
+    let listing = match std::fs::read_dir(dir) {
+        Ok(listing) => listing,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(e),
+    };
+    let mut files = Vec::new();
+    for item in listing {
+        let item = item?;
+        let is_shard = item
+            .file_name()
+            .to_str()
+            .and_then(|n| Shard::of_jsonl_file("rendered", n))
+            .is_some_and(|s| s.count > 1);
+        if is_shard {
+            files.push(item.path());
+        }
+    }
+    files.sort();
+    Ok(files)
+}
+
+/// Every record of finished views in `dir`, from [`RENDERED_FILE`] and every shard's
+/// ([`shard_record_files`]): the records of each view, several when the files overlap.
+pub fn read_rendered_in(dir: &Path) -> std::io::Result<ViewRecords> {
+    let mut records = ViewRecords::new();
+    for path in std::iter::once(dir.join(RENDERED_FILE)).chain(shard_record_files(dir)?) {
+        for (view, record) in read_rendered(&path)? {
+            records.entry(view).or_default().push(record);
+        }
+    }
+    Ok(records)
+}
+
 /// The records of [`RENDERED_FILE`] at `path`, by view number (the last line of a view wins);
 /// none when the file is missing. A line that is not a record (torn by a kill as it was
 /// appended) is passed over: its view is rendered again.
@@ -729,6 +780,44 @@ mod tests {
         let read = read_rendered(&path).unwrap();
         assert_eq!(read.len(), 1);
         assert_eq!(read[&0], record);
+    }
+
+    /// Every view belongs to exactly one shard, round the views; each shard records apart, and
+    /// the records of a folder are read from the whole run's file and every shard's.
+    #[test]
+    fn shards_split_the_views_and_their_records_are_found() {
+        let shards: Vec<Shard> = (0..3).map(|i| Shard::new(i, 3).unwrap()).collect();
+        for view in 0..10 {
+            let holders = shards.iter().filter(|&&s| in_shard(view, s)).count();
+            assert_eq!(holders, 1, "view {view}");
+        }
+        assert!(in_shard(7, shards[1]) && in_shard(7, Shard::ALL));
+        assert_eq!(rendered_file(Shard::ALL), RENDERED_FILE);
+        assert_eq!(rendered_file(shards[2]), "rendered.2-of-3.jsonl");
+
+        let dir = tempfile::tempdir().unwrap();
+        assert!(read_rendered_in(&dir.path().join("missing"))
+            .unwrap()
+            .is_empty());
+        let record = |view| RenderedView {
+            view,
+            fingerprint: "f".into(),
+            files: Vec::new(),
+        };
+        let write = |name: &str, views: &[usize]| {
+            let text: String = views.iter().map(|&v| record(v).line()).collect();
+            std::fs::write(dir.path().join(name), text).unwrap();
+        };
+        write(RENDERED_FILE, &[0, 1]);
+        write("rendered.1-of-3.jsonl", &[1, 4]);
+        write("rendered.0-of-1.jsonl", &[9]);
+        write("rendered.x-of-3.jsonl", &[8]);
+        let files = shard_record_files(dir.path()).unwrap();
+        assert_eq!(files, [dir.path().join("rendered.1-of-3.jsonl")]);
+        let found = read_rendered_in(dir.path()).unwrap();
+        let mut views: Vec<(usize, usize)> = found.iter().map(|(&v, r)| (v, r.len())).collect();
+        views.sort();
+        assert_eq!(views, [(0, 1), (1, 2), (4, 1)]);
     }
 
     #[test]
