@@ -750,16 +750,40 @@ fn resume_args(out: &Path, tag: &str) -> Vec<String> {
     args
 }
 
+/// Runs [`resume_args`]'s render uninterrupted into `dir/whole` (GIF and sheet beside it);
+/// returns the folder and the arguments.
+fn whole_run(dir: &Path) -> (PathBuf, Vec<String>) {
+    let whole = dir.join("whole");
+    let args = resume_args(&whole, "whole");
+    let quiet: Vec<&str> = args.iter().map(String::as_str).chain(["-q"]).collect();
+    run(&quiet, true);
+    (whole, args)
+}
+
+/// The folder, GIF and contact sheet of [`resume_args`]'s run `tag` in `dir` are those of
+/// run `reference`, byte for byte.
+fn assert_same_run(dir: &Path, tag: &str, reference: &str) {
+    assert_eq!(
+        tree(&dir.join(tag)),
+        tree(&dir.join(reference)),
+        "{tag}: the folder differs"
+    );
+    for ext in ["gif", "png"] {
+        assert!(
+            std::fs::read(dir.join(format!("{tag}.{ext}"))).unwrap()
+                == std::fs::read(dir.join(format!("{reference}.{ext}"))).unwrap(),
+            "{tag}: the {ext} differs"
+        );
+    }
+}
+
 /// A `--views` run stopped by `signal` once 3 views are written keeps those views on
 /// `--resume` and renders only the rest, ending with the files of an uninterrupted run byte
 /// for byte: images, AOVs, view files, transforms.json, the record of finished views, and the
 /// GIF and the contact sheet made again with the kept views' images read back.
 fn stop_and_resume_views(signal: &str) {
     let dir = tempfile::tempdir().unwrap();
-    let whole = dir.path().join("whole");
-    let args = resume_args(&whole, "whole");
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    run(&[&args[..], &["-q"]].concat(), true);
+    whole_run(dir.path());
 
     let cut = dir.path().join("cut");
     let cut_args = resume_args(&cut, "cut");
@@ -808,14 +832,7 @@ fn stop_and_resume_views(signal: &str) {
         12 - finished,
         "{err}"
     );
-    assert_eq!(tree(&cut), tree(&whole), "the resumed folder differs");
-    for ext in ["gif", "png"] {
-        assert!(
-            std::fs::read(dir.path().join(format!("cut.{ext}"))).unwrap()
-                == std::fs::read(dir.path().join(format!("whole.{ext}"))).unwrap(),
-            "the resumed {ext} differs"
-        );
-    }
+    assert_same_run(dir.path(), "cut", "whole");
 }
 
 #[test]
@@ -834,10 +851,8 @@ fn a_views_run_stopped_by_sigterm_resumes_to_the_files_of_a_whole_run() {
 #[test]
 fn resume_renders_again_what_changed_and_refuses_what_it_cannot_keep() {
     let dir = tempfile::tempdir().unwrap();
-    let whole = dir.path().join("whole");
-    let args = resume_args(&whole, "whole");
+    let (whole, args) = whole_run(dir.path());
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    run(&[&args[..], &["-q"]].concat(), true);
     let expected = tree(&whole);
 
     std::fs::write(whole.join("001.png"), b"not the image").unwrap();
@@ -899,4 +914,96 @@ fn resume_renders_again_what_changed_and_refuses_what_it_cannot_keep() {
     );
     assert!(crate::common::stderr(&out).contains("a single render has nothing to keep"));
     assert!(!single.exists());
+}
+
+/// Three shards of a run, started together into one folder (as the tasks of a Slurm array or
+/// a Kubernetes Indexed Job), each render only their views and record them apart; the same
+/// command without `--shard` and with `--resume` joins them, rendering nothing, into the files
+/// of an unsharded run byte for byte (the GIF and the sheet made there), with no shard's record
+/// left. What a shard cannot make is refused.
+#[test]
+fn shards_of_a_views_run_join_into_the_whole_run() {
+    let dir = tempfile::tempdir().unwrap();
+    whole_run(dir.path());
+
+    let joined = dir.path().join("joined");
+    let join_args = resume_args(&joined, "joined");
+    let join_args: Vec<&str> = join_args.iter().map(String::as_str).collect();
+    // The options of a shard: the run's, without the GIF and the sheet.
+    let gif = join_args.iter().position(|a| *a == "--gif").unwrap();
+    let shard_args = &join_args[..gif];
+    let shards: Vec<_> = (0..3)
+        .map(|i| {
+            let shard = format!("{i}/3");
+            crate::common::bin()
+                .args(shard_args)
+                .args(["--shard", &shard, "-q"])
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for child in shards {
+        let out = child.wait_with_output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let mut records: Vec<String> = crate::common::file_names(&joined)
+        .into_iter()
+        .map(|n| n.to_string_lossy().into_owned())
+        .filter(|n| n.starts_with("rendered"))
+        .collect();
+    records.sort();
+    assert_eq!(
+        records,
+        [
+            "rendered.0-of-3.jsonl",
+            "rendered.1-of-3.jsonl",
+            "rendered.2-of-3.jsonl"
+        ]
+    );
+    assert!(!joined.join("transforms.json").exists());
+    let shard_1 = std::fs::read_to_string(joined.join("rendered.1-of-3.jsonl")).unwrap();
+    let views: Vec<u64> = shard_1
+        .lines()
+        .map(|l| {
+            serde_json::from_str::<Value>(l).unwrap()["view"]
+                .as_u64()
+                .unwrap()
+        })
+        .collect();
+    assert_eq!(views, [1, 4, 7, 10]);
+
+    let out = run(&[&join_args[..], &["--resume"]].concat(), true);
+    let err = crate::common::stderr(&out);
+    assert!(
+        err.contains("--resume: 12 of 12 views finished before"),
+        "{err}"
+    );
+    assert_eq!(err.matches(".png rendered in").count(), 0, "{err}");
+    assert_same_run(dir.path(), "joined", "whole");
+
+    for (extra, words) in [
+        (
+            &["--shard", "1/3", "--gif", "x.gif"][..],
+            "--gif needs every view",
+        ),
+        (
+            &["--shard", "1/3", "--no-clobber"][..],
+            "not with --no-clobber",
+        ),
+        (&["--shard", "3/3"][..], "must be below the count"),
+    ] {
+        let out = run(&[shard_args, extra].concat(), false);
+        assert!(crate::common::stderr(&out).contains(words), "{extra:?}");
+    }
+    let single = dir.path().join("one.png");
+    let out = run(
+        &["render", s(&cornell()), "-o", s(&single), "--shard", "0/2"],
+        false,
+    );
+    assert!(crate::common::stderr(&out).contains("splits the views"));
 }

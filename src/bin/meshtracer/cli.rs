@@ -472,6 +472,12 @@ pub struct RenderArgs {
     /// and render the rest; the folder ends as an uninterrupted run leaves it.
     #[arg(long)]
     pub resume: bool,
+    /// With --views: render only shard I of N (0-based, I < N), the views k with k mod N = I,
+    /// into the -o folder, recording them in DIR/rendered.I-of-N.jsonl (no transforms.json);
+    /// then the same command without --shard and with --resume keeps every shard's views and
+    /// writes transforms.json (and the GIF or the sheet).
+    #[arg(long, value_name = "I/N", value_parser = meshtracer::jobs::batch::Shard::parse)]
+    pub shard: Option<meshtracer::jobs::batch::Shard>,
     /// No progress bar and no summary. Warnings about the picture (a texture drawn without,
     /// a value corrected) are still printed: --no-warnings silences them.
     #[arg(short, long)]
@@ -562,6 +568,8 @@ impl RenderArgs {
     mut_arg("output", |a| a
         .value_name("DIR")
         .help("The output folder: each job writes into DIR/<job id>/, the batch records every job in DIR/results.jsonl (results.I-of-N.jsonl for a shard)")),
+    mut_arg("shard", |a| a
+        .help("Render only shard I of N (0-based, I < N): the jobs whose id hashes (FNV-1a 64 of its UTF-8 bytes) to I modulo N [default: from SLURM_ARRAY_TASK_ID and SLURM_ARRAY_TASK_COUNT, or JOB_COMPLETION_INDEX and --shard-count; 0/1 for all jobs]")),
     mut_arg("resume", |a| a
         .help("Skip the jobs whose job.json says they finished with these options and whose outputs still have the recorded SHA-256 hashes; redo the others (a job with views keeps the views it finished)")),
 )]
@@ -575,11 +583,6 @@ pub struct BatchArgs {
     /// {view}: depth.exr becomes {view:03}.depth.exr.
     #[arg(long, value_name = "NAME")]
     pub image_name: Option<String>,
-    /// Render only shard I of N (0-based, I < N): the jobs whose id hashes (FNV-1a 64 of its
-    /// UTF-8 bytes) to I modulo N [default: from SLURM_ARRAY_TASK_ID and
-    /// SLURM_ARRAY_TASK_COUNT, or JOB_COMPLETION_INDEX and --shard-count; 0/1 for all jobs].
-    #[arg(long, value_name = "I/N", value_parser = meshtracer::jobs::batch::Shard::parse)]
-    pub shard: Option<meshtracer::jobs::batch::Shard>,
     /// The number of shards when JOB_COMPLETION_INDEX (a Kubernetes Indexed Job) gives the
     /// index [default: MESHTRACER_SHARD_COUNT].
     #[arg(long, value_name = "N", conflicts_with = "shard")]

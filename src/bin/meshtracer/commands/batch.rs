@@ -60,7 +60,7 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
             );
         }
     }
-    let shard = match args.shard {
+    let shard = match args.render.shard {
         Some(shard) => shard,
         None => Shard::from_env(|name| std::env::var(name).ok(), args.shard_count)
             .map_err(anyhow::Error::msg)?
@@ -588,6 +588,8 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         // How the job is done, never what it writes (a job with views keeps its finished
         // views, which are what it would render again): not part of the fingerprint.
         resume: _,
+        // Which jobs the batch renders, never what a job writes.
+        shard: _,
         quiet,
         // Changes what is printed, never what is written: not part of the fingerprint.
         no_warnings: _,
@@ -677,6 +679,8 @@ fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArg
     // A job with views keeps its finished views on --resume; under --no-clobber, which
     // `render --views --resume` refuses, the job renders as before.
     args.resume = batch.render.resume && !batch.render.no_clobber;
+    // The batch's shard picks jobs; a job renders all its views.
+    args.shard = None;
     args.quiet = true;
     // A job's warnings go to its record (job.json, results.jsonl), not between the batch's
     // progress lines.

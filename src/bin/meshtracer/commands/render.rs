@@ -37,6 +37,9 @@ pub(super) fn render_command(args: &RenderArgs) -> Result<()> {
     if args.resume && args.views.is_none() && args.turntable.is_none() {
         bail!("--resume keeps the finished views of an interrupted --views or --turntable run (a single render has nothing to keep; batch --resume skips finished jobs)");
     }
+    if args.shard.is_some() && args.views.is_none() && args.turntable.is_none() {
+        bail!("--shard I/N splits the views of --views or --turntable (a single image splits into tiles with --tile; batch --shard splits jobs)");
+    }
     render_model(args, &|_, _| {}).map(|_| ())
 }
 

@@ -18,10 +18,11 @@ use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use meshtracer::accel::AccelKind;
 use meshtracer::camera::{auto_camera, View};
-use meshtracer::jobs::batch::{sha256_file, sha256_hex, OutputRecord};
+use meshtracer::jobs::batch::{sha256_file, sha256_hex, OutputRecord, Shard};
 use meshtracer::jobs::views::{
-    azimuth_degrees, elevation_degrees, plan_cameras, read_rendered, read_views_file, ExplicitView,
-    NamePattern, PlanOptions, RenderedView, ViewSpec, RENDERED_FILE,
+    azimuth_degrees, elevation_degrees, in_shard, plan_cameras, read_rendered_in, read_views_file,
+    rendered_file, shard_record_files, ExplicitView, NamePattern, PlanOptions, RenderedView,
+    ViewSpec, RENDERED_FILE,
 };
 use meshtracer::light::environment::Environment;
 use meshtracer::output::dataset::{camera_to_world, Dataset, Frame, Intrinsics};
@@ -260,7 +261,7 @@ pub(super) fn render_views(
     check_orbit_options(args, &spec)?;
     let dir = args.output.as_path();
     check_output_folder(dir)?;
-    check_resume(args)?;
+    check_resume_and_shard(args)?;
     let known_count = match spec {
         ViewSpec::File(_) => Some(explicit.len()),
         _ => spec.count(),
@@ -297,7 +298,10 @@ pub(super) fn render_views(
             on_view,
         )
     })?;
-    write_transforms(args, dir, width, height, frames)?;
+    // A shard's views join the others' in the run that writes transforms.json (--resume).
+    if shard(args) == Shard::ALL {
+        write_transforms(args, dir, width, height, frames)?;
+    }
     let extra_outputs = outputs.extras.finish(args.quiet, args.preview)?;
     if !args.quiet {
         summary.print(args, run_start.elapsed());
@@ -350,8 +354,24 @@ fn check_orbit_options(args: &RenderArgs, spec: &ViewSpec) -> Result<()> {
 
 /// Refuses `--resume` with `--no-clobber` (a resumed run rewrites transforms.json and the
 /// views it renders again), and with a GIF or a sheet of views that are not PNG: those are
-/// made from the images, and only a PNG gives back the bytes they were made from.
-fn check_resume(args: &RenderArgs) -> Result<()> {
+/// made from the images, and only a PNG gives back the bytes they were made from. Refuses a
+/// shard of several with a GIF, a sheet or a preview (they need every view: the run that
+/// joins the shards makes them) and with `--no-clobber` (the shards share the folder).
+fn check_resume_and_shard(args: &RenderArgs) -> Result<()> {
+    let shard = shard(args);
+    if shard != Shard::ALL {
+        let extras = [
+            ("--gif", args.gif.is_some()),
+            ("--contact-sheet", args.contact_sheet.is_some()),
+            ("--preview", args.preview.is_some()),
+        ];
+        if let Some((option, _)) = extras.iter().find(|(_, given)| *given) {
+            bail!("--shard {shard}: {option} needs every view; give it to the run that joins the shards (the same command without --shard, with --resume)");
+        }
+        if args.no_clobber {
+            bail!("--shard {shard}: not with --no-clobber (the shards write into one folder)");
+        }
+    }
     if !args.resume {
         return Ok(());
     }
@@ -554,6 +574,7 @@ fn render_all(
         cancel,
         count: cameras.len(),
         model_sha256: sha256_file(&args.model).unwrap_or_else(|e| format!("unreadable ({e})")),
+        shard: shard(args),
     };
     let (frames, totals, kept) = render_each(&run, plan, extras, on_view)?;
     let summary = Summary {
@@ -562,7 +583,7 @@ fn render_all(
         preset: prepared.accel.preset(),
         load_time,
         bvh_time,
-        views: cameras.len(),
+        views: run.views().len(),
         kept,
         width,
         height,
@@ -584,10 +605,12 @@ fn render_each(
 ) -> Result<(Vec<Frame>, RenderStats, usize)> {
     let (args, cameras) = (run.args, &plan.cameras);
     let mut log = RecordLog::start(run, plan)?;
-    let mut frames = Vec::with_capacity(cameras.len());
+    let mine = run.views();
+    let mut frames = Vec::with_capacity(mine.len());
     let mut totals = RenderStats::default();
-    on_view(0, cameras.len());
-    for (k, (camera, names)) in cameras.iter().zip(&plan.names).enumerate() {
+    on_view(0, mine.len());
+    for (done, &k) in mine.iter().enumerate() {
+        let (camera, names) = (&cameras[k], &plan.names[k]);
         let work = match run.prepare(k, camera, names) {
             Ok(work) => work,
             Err(e) => return Err(failed_part_way(args, plan, frames, k, e)),
@@ -620,10 +643,10 @@ fn render_each(
                 totals.time += stats.time;
             }
         }
-        on_view(k + 1, cameras.len());
+        on_view(done + 1, mine.len());
         frames.push(work.frame);
     }
-    let kept = log.finish()?;
+    let kept = log.finish(run.shard)?;
     Ok((frames, totals, kept))
 }
 
@@ -645,32 +668,40 @@ impl RecordLog {
     /// fingerprint, file names and file hashes), and the file is rewritten with those alone;
     /// otherwise it starts empty.
     fn start(run: &ViewRun, plan: &Plan) -> Result<RecordLog> {
-        let path = run.dir.join(RENDERED_FILE);
+        let path = run.dir.join(rendered_file(run.shard));
         let mut records = std::collections::BTreeMap::new();
         if run.args.resume {
-            let earlier = read_rendered(&path)
-                .with_context(|| format!("--resume: cannot read {}", path.display()))?;
-            for (k, (camera, names)) in plan.cameras.iter().zip(&plan.names).enumerate() {
-                let Some(record) = earlier.get(&k) else {
+            let earlier = read_rendered_in(run.dir).with_context(|| {
+                format!("--resume: cannot read the records of {}", run.dir.display())
+            })?;
+            let mine = run.views();
+            for &k in &mine {
+                let Some(candidates) = earlier.get(&k) else {
                     continue;
                 };
-                let fingerprint = run.prepare(k, camera, names)?.fingerprint;
-                match record.vouches_for(run.dir, k, &fingerprint, &names.in_order()) {
-                    Ok(()) => {
-                        records.insert(k, record.clone());
+                let names = &plan.names[k];
+                let fingerprint = run.prepare(k, &plan.cameras[k], names)?.fingerprint;
+                // The whole run's record, then each shard's: the first that still holds.
+                let mut why = String::new();
+                for record in candidates {
+                    match record.vouches_for(run.dir, k, &fingerprint, &names.in_order()) {
+                        Ok(()) => {
+                            records.insert(k, record.clone());
+                            break;
+                        }
+                        Err(reason) => why = reason,
                     }
-                    Err(why) if !run.args.quiet => {
-                        eprintln!("view {k}: rendered again: {why}");
-                    }
-                    Err(_) => {}
+                }
+                if !records.contains_key(&k) && !run.args.quiet {
+                    eprintln!("view {k}: rendered again: {why}");
                 }
             }
             if !run.args.quiet {
                 eprintln!(
                     "--resume: {} of {} views finished before, their files verified; rendering the other {}",
                     records.len(),
-                    plan.cameras.len(),
-                    plan.cameras.len() - records.len()
+                    mine.len(),
+                    mine.len() - records.len()
                 );
             }
         }
@@ -744,11 +775,20 @@ impl RecordLog {
     }
 
     /// Rewrites the record in view order (the same bytes as an uninterrupted run's); returns
-    /// how many views were kept.
-    fn finish(self) -> Result<usize> {
+    /// how many views were kept. A whole run's record then vouches for every view, and the
+    /// shards' records (joined by this run, or stale) are removed, so that the folder is an
+    /// unsharded run's.
+    fn finish(self, shard: Shard) -> Result<usize> {
         drop(self.file);
         let text: String = self.records.values().map(RenderedView::line).collect();
         meshtracer::output::write_atomic(&self.path, text.as_bytes())?;
+        if shard == Shard::ALL {
+            let folder = self.path.parent().unwrap_or(Path::new("."));
+            for file in shard_record_files(folder).unwrap_or_default() {
+                std::fs::remove_file(&file)
+                    .with_context(|| format!("cannot remove {}", file.display()))?;
+            }
+        }
         Ok(self.kept.len())
     }
 }
@@ -765,6 +805,12 @@ fn failed_part_way(
 ) -> anyhow::Error {
     if k == 0 || error.is::<Interrupted>() {
         return error;
+    }
+    if shard(args) != Shard::ALL {
+        return error.context(format!(
+            "view {k} failed; the views of shard {} before it are written whole",
+            shard(args)
+        ));
     }
     let total = plan.cameras.len();
     let dir = args.output.as_path();
@@ -817,14 +863,24 @@ fn written(
     names: &[ViewNames],
     extras: Vec<PathBuf>,
 ) -> Vec<PathBuf> {
+    let shard = shard(args);
     let mut outputs: Vec<PathBuf> = args.env_out.iter().cloned().collect();
-    for view in names {
-        outputs.extend(view.in_order().into_iter().map(|name| dir.join(name)));
+    for (k, view) in names.iter().enumerate() {
+        if in_shard(k, shard) {
+            outputs.extend(view.in_order().into_iter().map(|name| dir.join(name)));
+        }
     }
-    outputs.push(dir.join(TRANSFORMS_FILE));
-    outputs.push(dir.join(RENDERED_FILE));
+    if shard == Shard::ALL {
+        outputs.push(dir.join(TRANSFORMS_FILE));
+    }
+    outputs.push(dir.join(rendered_file(shard)));
     outputs.extend(extras);
     outputs
+}
+
+/// The shard of the views this run renders (`--shard`; all of them without).
+fn shard(args: &RenderArgs) -> Shard {
+    args.shard.unwrap_or(Shard::ALL)
 }
 
 /// The cameras of a spec, all perspective (transforms.json describes pinhole cameras only).
@@ -891,6 +947,8 @@ struct ViewRun<'a> {
     count: usize,
     /// SHA-256 of the model file, part of every view's fingerprint.
     model_sha256: String,
+    /// The views to render (`--shard`).
+    shard: Shard,
 }
 
 /// One view as it will be rendered: the text of its view file, its render settings, its frame
@@ -904,6 +962,13 @@ struct ViewWork {
 }
 
 impl ViewRun<'_> {
+    /// The numbers of the views this run renders: all, or its shard's.
+    fn views(&self) -> Vec<usize> {
+        (0..self.count)
+            .filter(|&k| in_shard(k, self.shard))
+            .collect()
+    }
+
     /// What view `k` is rendered from: the view file's text, the settings read back from it,
     /// its frame and its fingerprint. No work beyond that.
     fn prepare(&self, k: usize, camera: &Camera, names: &ViewNames) -> Result<ViewWork> {
@@ -987,10 +1052,12 @@ impl ViewRun<'_> {
         let output = PendingOutput::reserve(&image_path, args.no_clobber)?;
         let (image, stats, aovs) = render(self.prepared, &work.settings, self.cancel, &|_, _| {})
             .map_err(|_| {
+                let done = (0..k).filter(|&v| in_shard(v, self.shard)).count();
                 Interrupted(format!(
-                    "{k} of {} views written to {} ({TRANSFORMS_FILE} not written; each finished view is recorded in {RENDERED_FILE}: run the same command with --resume to finish)",
-                    self.count,
-                    dir.display()
+                    "{done} of {} views written to {} ({TRANSFORMS_FILE} not written; each finished view is recorded in {}: run the same command with --resume to finish)",
+                    self.views().len(),
+                    dir.display(),
+                    rendered_file(self.shard)
                 ))
             })?;
         output.commit(&image, args.background, args.tonemap)?;
@@ -1131,7 +1198,13 @@ impl Summary {
             self.totals.mrays_per_second(),
             self.threads,
             wall.as_secs_f64(),
-            args.output.join(TRANSFORMS_FILE).display()
+            args.output
+                .join(match shard(args) {
+                    Shard::ALL => TRANSFORMS_FILE.to_string(),
+                    // A shard writes no transforms.json: its record is what it adds.
+                    part => rendered_file(part),
+                })
+                .display()
         );
     }
 }
