@@ -1007,3 +1007,65 @@ fn shards_of_a_views_run_join_into_the_whole_run() {
     );
     assert!(crate::common::stderr(&out).contains("splits the views"));
 }
+
+/// `examples/slurm/views_array.sbatch`, run for every task of its array with the variables
+/// Slurm sets (half the tasks given only MIN and MAX, not COUNT), then the join its header
+/// gives: the folder of one process rendering every view, byte for byte.
+#[test]
+fn the_slurm_views_example_covers_every_view() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = env!("CARGO_BIN_EXE_meshtracer");
+    let options = ["--width", "48", "--height", "36", "--spp", "2"];
+    let options = [&options[..], &["--depth-out", "depth/{view:03}.exr"]].concat();
+    let (model, views) = (cornell(), "orbit:7");
+    let render = |out: &Path, extra: &[&str]| {
+        let args = [
+            &["render", s(&model), "--views", views, "-o", s(out), "-q"],
+            &options[..],
+            extra,
+        ];
+        run(&args.concat(), true);
+    };
+    let whole = dir.path().join("whole");
+    render(&whole, &[]);
+
+    let script = root().join("examples/slurm/views_array.sbatch");
+    let text = std::fs::read_to_string(&script).unwrap();
+    let array = text
+        .lines()
+        .find_map(|l| l.strip_prefix("#SBATCH --array="))
+        .expect("an #SBATCH --array line");
+    let (min, max) = array.split_once('-').expect("--array=MIN-MAX");
+    let (min, max): (usize, usize) = (min.parse().unwrap(), max.parse().unwrap());
+    assert!(max > min, "an array of several tasks");
+    let out = dir.path().join("slurm");
+    let joined_options = options.join(" ");
+    for task in min..=max {
+        let mut command = std::process::Command::new("bash");
+        command
+            .args([s(&script), s(&model), s(&out)])
+            .env("SLURM_ARRAY_TASK_ID", task.to_string())
+            .env("SLURM_ARRAY_TASK_MIN", min.to_string())
+            .env("SLURM_ARRAY_TASK_MAX", max.to_string())
+            .env("SLURM_CPUS_PER_TASK", "1")
+            .env("MESHTRACER", exe)
+            .env("MESHTRACER_VIEWS", views)
+            .env("MESHTRACER_OPTIONS", &joined_options);
+        if task % 2 == 0 {
+            command.env("SLURM_ARRAY_TASK_COUNT", (max - min + 1).to_string());
+        }
+        let result = command.output().unwrap();
+        assert!(
+            result.status.success(),
+            "task {task}: {}",
+            String::from_utf8_lossy(&result.stderr)
+        );
+    }
+    let records = crate::common::file_names(&out)
+        .into_iter()
+        .filter(|n| n.to_string_lossy().starts_with("rendered."))
+        .count();
+    assert_eq!(records, max - min + 1, "one record a task");
+    render(&out, &["--resume"]);
+    assert_eq!(tree(&out), tree(&whole));
+}
