@@ -80,6 +80,86 @@ fn a_signal_during_a_render_keeps_the_previous_output() {
     }
 }
 
+/// A signal that comes while the model is still loading stops the render as one during the
+/// render does (exit 130, no temporary file, the previous output kept) for a single image and
+/// for views, instead of killing the process beside the output file it had reserved. The
+/// signal is sent as soon as the temporary file exists, which is made before the load.
+#[test]
+fn a_signal_during_the_load_leaves_no_temporary_file() {
+    let dir = tempfile::tempdir().unwrap();
+    // A 250,000-triangle grid as OBJ text (8 MB): its parse and BVH build take a while.
+    let n = 250;
+    let mut obj = String::with_capacity(9 << 20);
+    for i in 0..=n {
+        for j in 0..=n {
+            obj += &format!(
+                "v {} {} {}\n",
+                i as f32 / n as f32,
+                j as f32 / n as f32,
+                (i * j % 7) as f32 * 1e-3
+            );
+        }
+    }
+    for i in 0..n {
+        for j in 0..n {
+            let a = i * (n + 1) + j + 1;
+            let (b, c, d) = (a + 1, a + n + 1, a + n + 2);
+            obj += &format!("f {a} {b} {d}\nf {a} {d} {c}\n");
+        }
+    }
+    let model = dir.path().join("grid.obj");
+    std::fs::write(&model, obj).unwrap();
+    for (many, signal) in [(false, "TERM"), (true, "TERM"), (false, "INT")] {
+        let out = dir.path().join("out");
+        std::fs::create_dir_all(&out).unwrap();
+        let image = out.join("image.png");
+        std::fs::write(&image, b"previous image").unwrap();
+        let mut command = crate::common::bin();
+        command.args(["render", s(&model), "--spp", "64", "--quiet"]);
+        if many {
+            command.args(["--views", "orbit:4", "-o", s(&out.join("views"))]);
+            command.args(["--contact-sheet", s(&out.join("sheet.png"))]);
+        } else {
+            command.args(["-o", s(&image)]);
+        }
+        let child = command
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let start = std::time::Instant::now();
+        let reserved = || {
+            crate::common::file_names(&out)
+                .iter()
+                .any(|n| n.to_string_lossy().starts_with(".meshtracer-"))
+        };
+        while !reserved() {
+            assert!(
+                start.elapsed().as_secs() < 60,
+                "nothing reserved in a minute"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        send(&child, signal);
+        let output = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&output.stderr);
+        let what = format!("SIG{signal}, views {many}");
+        assert_eq!(output.status.code(), Some(130), "{what}: {err}");
+        assert_eq!(std::fs::read(&image).unwrap(), b"previous image");
+        let mut names: Vec<String> = crate::common::file_names(&out)
+            .into_iter()
+            .map(|n| n.to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        let expected: &[&str] = if many {
+            &["image.png", "views"]
+        } else {
+            &["image.png"]
+        };
+        assert_eq!(names, expected, "{what}: no temporary file left");
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+}
+
 /// A signal the render was started ignoring stays ignored: `nohup` ignores SIGHUP (closing
 /// the terminal must not stop the render), and a shell starts a background job with SIGINT
 /// ignored. The render, signalled once it has begun, finishes and writes its image.

@@ -49,6 +49,9 @@ pub(super) fn render_model(
     on_view: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<RenderReport> {
     let run_start = Instant::now();
+    // Before any output is reserved: a Ctrl-C or a scheduler's SIGTERM during the load or the
+    // BVH build would otherwise kill the process, leaving the reserved temporary file behind.
+    let cancel = interrupt_flag();
     start_load_threads(args.threads);
     // Everything that can be refused is refused before any work: options, output, then model.
     check_image_options(args)?;
@@ -71,12 +74,12 @@ pub(super) fn render_model(
 
     let mut phases = Phases::default();
     let (scene, load_time) = load_model(args, &mut phases)?;
+    stop_if_cancelled(&cancel)?;
     let shot = choose_view(args, &scene, view_file.as_ref())?;
     let view = View::from_camera(&shot.camera, shot.width, shot.height);
     let lit = light_view(args, &scene.lights, view_file.as_ref(), &view, env_file)?;
     let using_rig = lit.default_rig;
     let mut settings = render_settings(args, view, lit);
-    let cancel = interrupt_flag();
     let rendered = pool
         .install(|| prepare_and_render(args, scene, &mut settings, &shot, &cancel, &mut phases))?;
     let done = Finished {
@@ -99,6 +102,15 @@ pub(super) fn render_model(
     }
     on_view(1, 1);
     Ok(done.report(args))
+}
+
+/// Stops a run whose Ctrl-C (or SIGTERM, SIGHUP) came during the load, before the BVH build
+/// and the render: exit 130, as a cancelled render ends.
+pub(super) fn stop_if_cancelled(cancel: &AtomicBool) -> Result<()> {
+    if cancel.load(Ordering::SeqCst) {
+        return Err(meshtracer::render::Cancelled.into());
+    }
+    Ok(())
 }
 
 /// Refuses, in this order, the sampling and image options that are wrong on their own:

@@ -256,6 +256,8 @@ pub(super) fn render_views(
     on_view: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<RenderReport> {
     let run_start = Instant::now();
+    // Installed by the caller before anything was reserved (the process has one flag).
+    let cancel = interrupt_flag();
     // Everything that can be refused without the model is refused before loading it.
     let (spec, explicit) = read_spec(spec_text)?;
     check_orbit_options(args, &spec)?;
@@ -271,6 +273,7 @@ pub(super) fn render_views(
 
     let load_start = Instant::now();
     let scene = load(&args.model, &super::render_load_options(args))?;
+    super::render::stop_if_cancelled(&cancel)?;
     let load_time = load_start.elapsed();
     super::report_load(args, &scene);
 
@@ -286,7 +289,6 @@ pub(super) fn render_views(
         threads,
     };
     let lit = fixed_lighting(args, &scene, width, height, env_file)?;
-    let cancel = interrupt_flag();
     let (summary, frames, warnings) = pool.install(|| {
         render_all(
             args,
