@@ -82,6 +82,9 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create the output folder {}", dir.display()))?;
     let mine: Vec<&Entry> = entries.iter().filter(|e| shard.holds(&e.key)).collect();
+    // Installed before the sheet's temporary file is reserved, so that a signal never kills
+    // the batch beside it.
+    let cancel = interrupt_flag();
     // The sheet of jobs goes to --contact-sheet, and to the terminal for --preview (a batch
     // shows its jobs together once, not each job as it finishes).
     let wants_sheet = defaults.contact_sheet.is_some() || defaults.preview.is_some();
@@ -96,7 +99,6 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
 
     let progress = Progress::new(defaults.quiet, mine.len());
     let started = SystemTime::now();
-    let cancel = interrupt_flag();
     let mut records = Vec::with_capacity(mine.len());
     let interrupted = |done: usize| -> anyhow::Error {
         progress.finish();
