@@ -815,6 +815,14 @@ fn stop_and_resume_views(signal: &str) {
         "{finished} views before the stop"
     );
     assert!(!cut.join("transforms.json").exists());
+    if signal == "KILL" {
+        // SIGKILL leaves the temporary file of the view it stopped in (when it lands during a
+        // render): planted here so that the resume's clean-up is always tested.
+        for folder in [cut.clone(), cut.join("d")] {
+            std::fs::create_dir_all(&folder).unwrap();
+            std::fs::write(folder.join(".meshtracer-killed.partial"), b"half").unwrap();
+        }
+    }
 
     let resumed = run(&[&cut_args[..], &["--resume"]].concat(), true);
     let err = crate::common::stderr(&resumed);

@@ -16,7 +16,9 @@
 //! crossed-out cell, labelled with the job id.
 
 use super::views::{has_extension, sheet_layout, write_sheet};
-use super::{image_size, interrupt_flag, render_model, Interrupted, RenderReport};
+use super::{
+    image_size, interrupt_flag, remove_leftovers, render_model, Interrupted, RenderReport,
+};
 use crate::cli::{BatchArgs, BatchMergeArgs, LoadArgs, RenderArgs};
 use anyhow::{anyhow, bail, Context, Result};
 use meshtracer::jobs::batch::{
@@ -406,21 +408,6 @@ fn output_folders(args: &RenderArgs, job_dir: &Path) -> Vec<PathBuf> {
         }
     }
     folders
-}
-
-/// Removes the temporary files (`.meshtracer-*.partial`) that a killed run left in `folder`
-/// (a kill cannot clean up): a job about to be redone owns its folders.
-fn remove_leftovers(folder: &Path) {
-    let Ok(listing) = std::fs::read_dir(folder) else {
-        return;
-    };
-    for item in listing.flatten() {
-        let name = item.file_name();
-        let name = name.to_string_lossy();
-        if name.starts_with(".meshtracer-") && name.ends_with(".partial") {
-            let _ = std::fs::remove_file(item.path());
-        }
-    }
 }
 
 /// The record of a finished render: its timings and every output with its hash.

@@ -625,6 +625,22 @@ fn keeping_ignored_signals<T>(install: impl FnOnce() -> T) -> T {
     install()
 }
 
+/// Removes the temporary files (`.meshtracer-*.partial`) that a killed run left in `folder`
+/// (SIGKILL cannot be caught, so nothing cleaned up): for a run that owns the folder and is
+/// about to redo that run's work (a batch's job, a resumed `--views` run).
+fn remove_leftovers(folder: &std::path::Path) {
+    let Ok(listing) = std::fs::read_dir(folder) else {
+        return;
+    };
+    for item in listing.flatten() {
+        let name = item.file_name();
+        let name = name.to_string_lossy();
+        if name.starts_with(".meshtracer-") && name.ends_with(".partial") {
+            let _ = std::fs::remove_file(item.path());
+        }
+    }
+}
+
 /// Exits at once with `code`, after removing the folders of the zip archives still unpacked:
 /// `std::process::exit` runs no destructors, and the scenes holding them are not dropped.
 pub(crate) fn exit_now(code: i32) -> ! {

@@ -268,6 +268,7 @@ pub(super) fn render_views(
         ViewSpec::File(_) => Some(explicit.len()),
         _ => spec.count(),
     };
+    remove_leftovers_of_a_killed_run(args, dir)?;
     let mut outputs = Outputs::reserve(args, dir, known_count)?;
     let (threads, pool) = worker_pool(args.threads)?;
 
@@ -350,6 +351,36 @@ fn check_orbit_options(args: &RenderArgs, spec: &ViewSpec) -> Result<()> {
         if !matches!(spec, ViewSpec::Orbit(_)) {
             bail!("--orbit-azimuth: only orbits (--views orbit:N, --turntable N) have a starting azimuth");
         }
+    }
+    Ok(())
+}
+
+/// With `--resume`, removes the temporary files a killed run left in the folders of the views
+/// (SIGKILL, a lost node: nothing cleaned up), before this run reserves any of its own, so
+/// that the folder ends as an uninterrupted run leaves it. Not for a shard: shards share the
+/// folders, and another's temporary file may be in use; the join cleans up.
+fn remove_leftovers_of_a_killed_run(args: &RenderArgs, dir: &Path) -> Result<()> {
+    if !args.resume || shard(args) != Shard::ALL {
+        return Ok(());
+    }
+    let layout = Layout::from_args(args)?;
+    let patterns = [
+        &layout.image,
+        &layout.depth,
+        &layout.normal,
+        &layout.mask,
+        &layout.segmentation,
+        &layout.view,
+    ];
+    // A pattern's folder, when it is one for every view (no `{view}` in it).
+    let folders: BTreeSet<PathBuf> = std::iter::once(dir.to_path_buf())
+        .chain(patterns.into_iter().flatten().filter_map(|p| {
+            let folder = dir.join(p.as_str()).parent()?.to_path_buf();
+            (!folder.to_string_lossy().contains('{')).then_some(folder)
+        }))
+        .collect();
+    for folder in &folders {
+        super::remove_leftovers(folder);
     }
     Ok(())
 }
