@@ -216,8 +216,9 @@ pub fn sampling(
 /// Whether a render that neither asks for denoising nor refuses it (`--denoise`,
 /// `--no-denoise`) is denoised: the default render is, that is the path tracer with its
 /// default sampling (no `--spp`, `--noise` or time budget) making one whole image
-/// (`single_image`: not several views, a turntable, a tile or a crop, which the filter does
-/// not handle). Asking for a sampling is asking for exactly that image.
+/// (`single_image`: not several views, which are denoised only when asked, nor a tile or a
+/// crop, which the filter does not handle). Asking for a sampling is asking for exactly that
+/// image.
 pub fn denoises_by_default(
     integrator: IntegratorKind,
     spp: Option<u32>,

@@ -514,6 +514,21 @@ def test_render_views_orbit_gives_n_views_around_the_model(cli, tmp_path):
             np.testing.assert_array_equal(view["srgb8"], np.asarray(image.convert("RGBA")))
 
 
+def test_denoised_views_are_the_clis(cli, tmp_path):
+    # The default sampling with denoise=True: each view adaptive and denoised, as
+    # `render --views --denoise` makes it.
+    out = meshtracer.load(CORNELL).render_views("orbit:2", 48, 36, srgb8=True, denoise=True)
+    cli("render", CORNELL, "--views", "orbit:2", "-o", tmp_path, "--width", 48, "--height", 36,
+        "--denoise", "--quiet")
+    from PIL import Image
+    pngs = sorted(tmp_path.glob("*.png"))
+    assert len(pngs) == 2, pngs
+    for view, png in zip(out, pngs):
+        assert view["stats"]["denoise_seconds"] is not None
+        with Image.open(png) as image:
+            np.testing.assert_array_equal(view["srgb8"], np.asarray(image.convert("RGBA")))
+
+
 def test_bad_view_specs_raise_the_clis_message():
     scene = meshtracer.load(CORNELL)
     with pytest.raises(meshtracer.Error, match="--views orbit:0: the number of views must be at least 1"):

@@ -124,15 +124,19 @@ impl RenderSettings {
     /// [`DENOISED_SAMPLES`], rounded down to a power of two (so that the Sobol prefix a pixel
     /// stops at still covers it evenly). Checks then follow every [`Self::adaptive_batch`].
     pub fn first_batch(&self) -> u32 {
-        let batch = self.adaptive_batch();
-        if !self.guides {
-            return batch;
-        }
-        let pixels = u64::from(self.view.width) * u64::from(self.view.height);
-        let share = (DENOISED_SAMPLES / pixels.max(1)).clamp(1, 1 << 16);
-        let power_of_two = 1u32 << share.ilog2();
-        power_of_two.max(batch)
+        first_batch(self.view.width, self.view.height, self.guides)
     }
+}
+
+/// [`RenderSettings::first_batch`] of a `width` x `height` image, denoised when `guides`.
+pub fn first_batch(width: u32, height: u32, guides: bool) -> u32 {
+    if !guides {
+        return ADAPTIVE_BATCH;
+    }
+    let pixels = u64::from(width) * u64::from(height);
+    let share = (DENOISED_SAMPLES / pixels.max(1)).clamp(1, 1 << 16);
+    let power_of_two = 1u32 << share.ilog2();
+    power_of_two.max(DENOISED_BATCH)
 }
 
 /// Arbitrary output variables, from one ray through each pixel's centre (no anti-aliasing,

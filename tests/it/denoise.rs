@@ -2,7 +2,8 @@
 //! Open Image Denoise in builds with `--features denoise` (docs/denoising.md). A path-traced
 //! Cornell box at 4 spp comes out closer to a reference once denoised; an albedo edge
 //! stays sharp (built-in filter); the same bytes every run and for any --threads, with either
-//! integrator, and recorded in the summary and the view file; refused with tiles and views.
+//! integrator, and recorded in the summary and the view file; each view of --views --denoise
+//! denoised as a single render is; refused with tiles.
 
 use crate::common::{run, s, small_run, stderr};
 use meshtracer::tools::compare::{compare_files, Metrics};
@@ -269,10 +270,10 @@ fn direct_renders_denoise_and_the_view_file_records_it() {
 
 /// A tile cannot be denoised alone (the filter sees across its edges): refused up front.
 #[test]
-fn tiles_and_views_are_refused() {
+fn tiles_are_refused() {
     let dir = scratch("refused");
     let model = cornell();
-    for extra in [&["--tile", "0/2"][..], &["--views", "orbit:2"][..]] {
+    for extra in [&["--tile", "0/2"][..], &["--crop", "0,0,8,6"][..]] {
         let out = dir.join("out.png");
         let mut args = small_run("render", &model, s(&out), ("16", "12"), "1", &["--denoise"]);
         args.extend_from_slice(extra);
@@ -284,6 +285,54 @@ fn tiles_and_views_are_refused() {
         );
         assert!(!out.exists());
     }
+}
+
+/// Each view of a `--denoise` run is a whole image denoised as a single render is: with the
+/// default sampling it is byte for byte the same view rendered alone from its view file (a
+/// single render is denoised by default), and its view file records the filter. Without
+/// `--denoise` views are not denoised (the default), and differ.
+#[test]
+fn views_are_denoised_as_single_renders_are() {
+    let dir = scratch("views");
+    let model = cornell();
+    let views = dir.join("views");
+    let size = ["--width", "80", "--height", "60", "-q"];
+    let base = [
+        &["render", model.as_str(), "--views", "orbit:3"][..],
+        &size[..],
+    ]
+    .concat();
+    run(&[&base[..], &["-o", s(&views), "--denoise"]].concat(), true);
+    for k in 0..3 {
+        let view_file = views.join(format!("{k:03}.view.json"));
+        let record: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&view_file).unwrap()).unwrap();
+        assert_eq!(record["denoise"]["hdr"], true, "view {k}");
+        let alone = dir.join(format!("alone-{k}.png"));
+        let single = [
+            "render",
+            model.as_str(),
+            "--view",
+            s(&view_file),
+            "-o",
+            s(&alone),
+            "-q",
+        ];
+        run(&single, true);
+        assert!(
+            std::fs::read(&alone).unwrap()
+                == std::fs::read(views.join(format!("{k:03}.png"))).unwrap(),
+            "view {k} differs from the same view rendered alone"
+        );
+    }
+    let noisy = dir.join("noisy");
+    run(&[&base[..], &["-o", s(&noisy)]].concat(), true);
+    let record = std::fs::read_to_string(noisy.join("000.view.json")).unwrap();
+    assert!(!record.contains("\"denoise\""), "{record}");
+    assert!(
+        std::fs::read(noisy.join("000.png")).unwrap()
+            != std::fs::read(views.join("000.png")).unwrap()
+    );
 }
 
 /// The built-in filter keeps an albedo edge sharp: a plane seen from above, its left half red

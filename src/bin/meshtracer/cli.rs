@@ -206,11 +206,12 @@ pub struct RenderArgs {
     /// surfaces (and, in the path tracer, by where its punctual lights' hard shadows fall),
     /// with either integrator: the built-in edge-avoiding à-trous filter, or Intel
     /// Open Image Denoise's RT filter in builds made with `--features denoise`
-    /// (docs/denoising.md); the view file, --stats and the summary say which. Not with
-    /// --views, --turntable, --tile or --crop. [default: on for the default render (the path
-    /// tracer without --spp, --noise or --time-limit, one whole image), whose noise target is
-    /// then 1.0; off otherwise]. Read it through [`RenderArgs::denoises`].
-    #[arg(long, conflicts_with_all = ["views", "turntable", "tile", "crop", "no_denoise"])]
+    /// (docs/denoising.md); the view file, --stats and the summary say which. With --views
+    /// or --turntable each view is denoised as a single image; not with --tile or --crop.
+    /// [default: on for the default render (the path tracer without --spp, --noise or
+    /// --time-limit, one whole image), whose noise target is then 1.0; off otherwise].
+    /// Read it through [`RenderArgs::denoises`].
+    #[arg(long, conflicts_with_all = ["tile", "crop", "no_denoise"])]
     pub denoise: bool,
     /// Do not denoise the default render: it then samples to --noise 0.1 instead of 1.0.
     #[arg(long)]
@@ -534,6 +535,9 @@ impl RenderArgs {
                     self.spp_given,
                     self.noise_given,
                     self.time_limit.is_some(),
+                    // Views are denoised when asked: a denoiser's residual blotches differ
+                    // from view to view, which multi-view reconstruction does not average out
+                    // as it does zero-mean noise.
                     self.views.is_none()
                         && self.turntable.is_none()
                         && self.tile.is_none()

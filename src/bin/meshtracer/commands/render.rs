@@ -133,10 +133,6 @@ fn check_image_options(args: &RenderArgs) -> Result<()> {
     if !args.exposure.is_finite() {
         bail!("--exposure must be a finite number");
     }
-    // The command line refuses these combinations; a batch job's manifest can still ask.
-    if args.denoise && (args.views.is_some() || args.turntable.is_some()) {
-        bail!("--denoise denoises a single image: not with --views or --turntable (yet)");
-    }
     if let Some(yfov) = args.yfov {
         if !(yfov > 0.0 && yfov < 180.0) {
             bail!("--yfov {yfov}: must be between 0 and 180 degrees");
@@ -400,13 +396,13 @@ struct Rendered {
 }
 
 /// What `--denoise` did.
-struct Denoising {
+pub(super) struct Denoising {
     /// The denoiser's own report (which filter, its version).
-    report: Denoised,
+    pub(super) report: Denoised,
     /// Guide rays per pixel.
-    guide_samples: u32,
+    pub(super) guide_samples: u32,
     /// Wall time of the guides and the filter together.
-    time: Duration,
+    pub(super) time: Duration,
 }
 
 /// Runs on the worker pool: prepares `scene` ([`prepare_scene`], the BVH preset chosen for the
@@ -516,7 +512,7 @@ fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
 /// Denoises `image` in place (`--denoise`) on the linear HDR film, before the output encodes
 /// it (sRGB PNG, EXR, HDR): the guides of `region` first, then the filter, each timed into
 /// `phases`. A Ctrl-C during either ends it with [`meshtracer::render::Cancelled`].
-fn denoise_image(
+pub(super) fn denoise_image(
     prepared: &Prepared,
     settings: &RenderSettings,
     region: Region,
@@ -649,20 +645,21 @@ fn view_record(args: &RenderArgs, done: &Finished) -> ViewFile {
         &done.rendered.prepared.scene,
         settings.environment.as_ref(),
     );
-    view.denoise =
-        done.rendered
-            .denoised
-            .as_ref()
-            .map(|d| meshtracer::output::view_file::ViewDenoise {
-                denoiser: d.report.denoiser.name().into(),
-                version: d.report.version.clone(),
-                filter: d.report.denoiser.filter().into(),
-                hdr: true,
-                guides: d.report.guides().iter().map(|g| g.to_string()).collect(),
-                guide_samples_per_pixel: d.guide_samples,
-                clean_aux: true,
-            });
+    view.denoise = done.rendered.denoised.as_ref().map(view_denoise);
     view
+}
+
+/// The view file's record of how an image was denoised.
+pub(super) fn view_denoise(d: &Denoising) -> meshtracer::output::view_file::ViewDenoise {
+    meshtracer::output::view_file::ViewDenoise {
+        denoiser: d.report.denoiser.name().into(),
+        version: d.report.version.clone(),
+        filter: d.report.denoiser.filter().into(),
+        hdr: true,
+        guides: d.report.guides().iter().map(|g| g.to_string()).collect(),
+        guide_samples_per_pixel: d.guide_samples,
+        clean_aux: true,
+    }
 }
 
 /// Writes `--stats`: the image, the threads, each phase's time and peak memory (`phases`), the

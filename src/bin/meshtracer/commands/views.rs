@@ -577,8 +577,8 @@ fn render_all(
     let rays = meshtracer::setup::expected_rays(
         u64::from(width) * u64::from(height),
         args.spp(),
-        // Views are not denoised (their settings' `guides` is false).
-        args.noise().map(|_| meshtracer::render::ADAPTIVE_BATCH),
+        args.noise()
+            .map(|_| meshtracer::render::first_batch(width, height, args.denoises())),
         lit.lights.len(),
         args.integrator,
         args.bounces,
@@ -987,7 +987,8 @@ struct ViewRun<'a> {
 /// One view as it will be rendered: the text of its view file, its render settings, its frame
 /// of transforms.json and the fingerprint its record carries.
 struct ViewWork {
-    text: String,
+    /// The view file, before the render adds how it was denoised.
+    record: ViewFile,
     view_path: PathBuf,
     settings: RenderSettings,
     frame: Frame,
@@ -1024,16 +1025,16 @@ impl ViewRun<'_> {
         // that the view rendered alone from its file gives the same bytes.
         let text = record.to_json();
         let view_path = dir.join(&names.view);
-        let record = ViewFile::from_json(&text, &view_path)?;
-        let view = View::from_camera(&record.camera()?, width, height);
+        let read_back = ViewFile::from_json(&text, &view_path)?;
+        let view = View::from_camera(&read_back.camera()?, width, height);
         let intrinsics =
             Intrinsics::of(&view).with_context(|| format!("view {k}: not a perspective camera"))?;
         let settings = RenderSettings {
             view,
             spp: args.spp(),
             seed: args.seed,
-            lights: record.lights(),
-            ambient: Vec3::from(record.ambient),
+            lights: read_back.lights(),
+            ambient: Vec3::from(read_back.ambient),
             exposure: args.exposure,
             shading: args.shading,
             aovs: names.depth.is_some() || names.normal.is_some() || names.segmentation.is_some(),
@@ -1043,7 +1044,8 @@ impl ViewRun<'_> {
             environment_visible: args.env_visible,
             noise: args.noise(),
             clamp_indirect: args.clamp_indirect,
-            guides: false,
+            // The denoiser's guides, gathered from the path tracer's own samples.
+            guides: args.denoises(),
         };
         let frame = Frame {
             file_path: names.image.clone(),
@@ -1056,15 +1058,16 @@ impl ViewRun<'_> {
         // them), the model file and meshtracer's version, and the view file's text.
         let fingerprint = sha256_hex(
             format!(
-                "meshtracer {}\nmodel sha256 {}\nrender {}\nview file {text}",
+                "meshtracer {}\nmodel sha256 {}\nrender {}\ndenoised {}\nview file {text}",
                 env!("CARGO_PKG_VERSION"),
                 self.model_sha256,
                 super::tiles::render_fingerprint(args, &settings, &self.prepared.scene),
+                args.denoises(),
             )
             .as_bytes(),
         );
         Ok(ViewWork {
-            text,
+            record,
             view_path,
             settings,
             frame,
@@ -1083,19 +1086,43 @@ impl ViewRun<'_> {
         let (args, dir) = (self.args, self.dir);
         let image_path = dir.join(&names.image);
         let output = PendingOutput::reserve(&image_path, args.no_clobber)?;
-        let (image, stats, aovs) = render(self.prepared, &work.settings, self.cancel, &|_, _| {})
-            .map_err(|_| {
-                let done = (0..k).filter(|&v| in_shard(v, self.shard)).count();
-                Interrupted(format!(
-                    "{done} of {} views written to {} ({TRANSFORMS_FILE} not written; each finished view is recorded in {}: run the same command with --resume to finish)",
-                    self.views().len(),
-                    dir.display(),
-                    rendered_file(self.shard)
-                ))
+        let interrupted = || {
+            let done = (0..k).filter(|&v| in_shard(v, self.shard)).count();
+            Interrupted(format!(
+                "{done} of {} views written to {} ({TRANSFORMS_FILE} not written; each finished view is recorded in {}: run the same command with --resume to finish)",
+                self.views().len(),
+                dir.display(),
+                rendered_file(self.shard)
+            ))
+        };
+        let (mut image, stats, aovs) =
+            render(self.prepared, &work.settings, self.cancel, &|_, _| {})
+                .map_err(|_| interrupted())?;
+        // Each view is a whole image: denoised as a single render is, and recorded so.
+        let mut record = work.record.clone();
+        if args.denoises() {
+            let region = meshtracer::render::Region::full(self.width, self.height);
+            let denoised = super::render::denoise_image(
+                self.prepared,
+                &work.settings,
+                region,
+                &mut image,
+                self.cancel,
+                &mut super::Phases::default(),
+            )
+            .map_err(|e| {
+                if e.is::<meshtracer::render::Cancelled>() {
+                    interrupted().into()
+                } else {
+                    e
+                }
             })?;
+            record.denoise = Some(super::render::view_denoise(&denoised));
+        }
         output.commit(&image, args.background, args.tonemap)?;
+        let text = record.to_json();
         let written = self
-            .write_companions(names, &image, aovs.as_ref(), &work.view_path, &work.text)
+            .write_companions(names, &image, aovs.as_ref(), &work.view_path, &text)
             .and_then(|()| self.record(k, work, names));
         let record = match written {
             Ok(record) => record,
