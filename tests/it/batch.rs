@@ -911,18 +911,7 @@ fn stop_and_resume(signal: &str) {
             .filter(|id| out.join(id).join("job.json").is_file())
             .collect()
     };
-    let start = std::time::Instant::now();
-    while finished(&out).len() < 3 {
-        assert!(
-            child.try_wait().unwrap().is_none(),
-            "the batch ended before it could be killed"
-        );
-        assert!(
-            start.elapsed().as_secs() < 120,
-            "no job finished in 2 minutes"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(5));
-    }
+    crate::common::wait_until(&mut child, "3 finished jobs", || finished(&out).len() >= 3);
     crate::hostile::send(&child, signal);
     let stopped = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&stopped.stderr);
@@ -973,12 +962,7 @@ fn a_job_with_views_resumes_within_the_job() {
     let (whole, out, kill_args, mut child) = whole_then_started(dir.path(), &manifest);
     let kill_args: Vec<&str> = kill_args.iter().map(String::as_str).collect();
     let view = |k: usize| out.join("turn").join(format!("{k:03}.view.json"));
-    let start = std::time::Instant::now();
-    while !view(2).is_file() {
-        assert!(child.try_wait().unwrap().is_none(), "the batch ended first");
-        assert!(start.elapsed().as_secs() < 120, "no view in 2 minutes");
-        std::thread::sleep(std::time::Duration::from_millis(2));
-    }
+    crate::common::wait_until(&mut child, "view 2", || view(2).is_file());
     crate::hostile::send(&child, "KILL");
     child.wait().unwrap();
     let finished: Vec<usize> = (0..12).filter(|&k| view(k).is_file()).collect();

@@ -80,6 +80,24 @@ fn a_signal_during_a_render_keeps_the_previous_output() {
     }
 }
 
+/// A flat square grid of `n` x `n` cells (2n² triangles) in the unit square, as OBJ text.
+fn grid_obj(n: usize) -> String {
+    let mut obj = String::new();
+    for j in 0..=n {
+        for i in 0..=n {
+            obj += &format!("v {} {} 0\n", i as f32 / n as f32, j as f32 / n as f32);
+        }
+    }
+    for j in 0..n {
+        for i in 0..n {
+            let a = j * (n + 1) + i + 1;
+            let (b, c, d) = (a + 1, a + n + 1, a + n + 2);
+            obj += &format!("f {a} {b} {d}\nf {a} {d} {c}\n");
+        }
+    }
+    obj
+}
+
 /// A signal that comes while the model is still loading stops the render as one during the
 /// render does (exit 130, no temporary file, the previous output kept) for a single image and
 /// for views, instead of killing the process beside the output file it had reserved. The
@@ -87,26 +105,8 @@ fn a_signal_during_a_render_keeps_the_previous_output() {
 #[test]
 fn a_signal_during_the_load_leaves_no_temporary_file() {
     let dir = tempfile::tempdir().unwrap();
-    // A 250,000-triangle grid as OBJ text (8 MB): its parse and BVH build take a while.
-    let n = 250;
-    let mut obj = String::with_capacity(9 << 20);
-    for i in 0..=n {
-        for j in 0..=n {
-            obj += &format!(
-                "v {} {} {}\n",
-                i as f32 / n as f32,
-                j as f32 / n as f32,
-                (i * j % 7) as f32 * 1e-3
-            );
-        }
-    }
-    for i in 0..n {
-        for j in 0..n {
-            let a = i * (n + 1) + j + 1;
-            let (b, c, d) = (a + 1, a + n + 1, a + n + 2);
-            obj += &format!("f {a} {b} {d}\nf {a} {d} {c}\n");
-        }
-    }
+    // A 250,000-triangle grid (8 MB of OBJ text): its parse and BVH build take a while.
+    let obj = grid_obj(354);
     let model = dir.path().join("grid.obj");
     std::fs::write(&model, obj).unwrap();
     for (many, signal) in [(false, "TERM"), (true, "TERM"), (false, "INT")] {
@@ -122,23 +122,15 @@ fn a_signal_during_the_load_leaves_no_temporary_file() {
         } else {
             command.args(["-o", s(&image)]);
         }
-        let child = command
+        let mut child = command
             .stderr(std::process::Stdio::piped())
             .spawn()
             .unwrap();
-        let start = std::time::Instant::now();
-        let reserved = || {
+        crate::common::wait_until(&mut child, "a temporary file", || {
             crate::common::file_names(&out)
                 .iter()
                 .any(|n| n.to_string_lossy().starts_with(".meshtracer-"))
-        };
-        while !reserved() {
-            assert!(
-                start.elapsed().as_secs() < 60,
-                "nothing reserved in a minute"
-            );
-            std::thread::sleep(std::time::Duration::from_millis(1));
-        }
+        });
         send(&child, signal);
         let output = child.wait_with_output().unwrap();
         let err = String::from_utf8_lossy(&output.stderr);
@@ -349,20 +341,7 @@ fn a_second_ctrl_c_quits_a_benchmark_at_once() {
 fn a_second_ctrl_c_leaves_no_unpacked_archive() {
     let dir = tempfile::tempdir().unwrap();
     // A 200,000-triangle grid, whose linear scan takes seconds.
-    let n = 316;
-    let mut obj = String::new();
-    for j in 0..=n {
-        for i in 0..=n {
-            obj += &format!("v {} {} 0\n", i as f32 / n as f32, j as f32 / n as f32);
-        }
-    }
-    for j in 0..n {
-        for i in 0..n {
-            let a = j * (n + 1) + i + 1;
-            let (b, c, d) = (a + 1, a + n + 1, a + n + 2);
-            obj += &format!("f {a} {b} {d}\nf {a} {d} {c}\n");
-        }
-    }
+    let obj = grid_obj(316);
     let archive = dir.path().join("grid.zip");
     let mut zip = zip::ZipWriter::new(std::fs::File::create(&archive).unwrap());
     let options = zip::write::SimpleFileOptions::default()

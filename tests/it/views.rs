@@ -794,12 +794,7 @@ fn stop_and_resume_views(signal: &str) {
         .stderr(std::process::Stdio::piped())
         .spawn()
         .unwrap();
-    let start = std::time::Instant::now();
-    while !cut.join("002.view.json").is_file() {
-        assert!(child.try_wait().unwrap().is_none(), "the run ended first");
-        assert!(start.elapsed().as_secs() < 120, "no view in 2 minutes");
-        std::thread::sleep(std::time::Duration::from_millis(2));
-    }
+    crate::common::wait_until(&mut child, "view 2", || cut.join("002.view.json").is_file());
     crate::hostile::send(&child, signal);
     let stopped = child.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&stopped.stderr);

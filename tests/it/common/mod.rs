@@ -8,6 +8,20 @@ pub fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_meshtracer"))
 }
 
+/// Waits, polling, until `ready` holds while `child` still runs: for a test to signal a run
+/// part way (`what` names the moment awaited). Panics if the run ends first or after 2 minutes.
+pub fn wait_until(child: &mut std::process::Child, what: &str, ready: impl Fn() -> bool) {
+    let start = std::time::Instant::now();
+    while !ready() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "the run ended before {what}"
+        );
+        assert!(start.elapsed().as_secs() < 120, "no {what} in 2 minutes");
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+}
+
 /// Render options heavy enough that a test can stop a run of several renders part way: 96x72,
 /// 8 spp, path traced (about 60 ms for the bundled box in a debug build on 2 cores).
 pub const STOPPABLE: [&str; 8] = [
