@@ -114,9 +114,8 @@ pub(super) fn stop_if_cancelled(cancel: &AtomicBool) -> Result<()> {
 }
 
 /// Refuses, in this order, the sampling and image options that are wrong on their own:
-/// `--spp` (1 to `--max-spp`), `--time-limit`, `--exposure`, `--denoise` (for a single image
-/// only), `--yfov`, and `--width`/`--height` (at least 1, and within
-/// `--max-pixels` when both are given).
+/// `--spp` (1 to `--max-spp`), `--time-limit`, `--exposure`, `--yfov`, and
+/// `--width`/`--height` (at least 1, and within `--max-pixels` when both are given).
 fn check_image_options(args: &RenderArgs) -> Result<()> {
     if args.spp() == 0 || args.spp() > args.max_spp {
         bail!(
