@@ -691,11 +691,14 @@ pub fn shard_record_files(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
 }
 
 /// Every record of finished views in `dir`, from [`RENDERED_FILE`] and every shard's
-/// ([`shard_record_files`]): the records of each view, several when the files overlap.
+/// ([`shard_record_files`]): the records of each view, several when the files overlap. An
+/// error names the file that could not be read.
 pub fn read_rendered_in(dir: &Path) -> std::io::Result<ViewRecords> {
     let mut records = ViewRecords::new();
     for path in std::iter::once(dir.join(RENDERED_FILE)).chain(shard_record_files(dir)?) {
-        for (view, record) in read_rendered(&path)? {
+        let read = read_rendered(&path)
+            .map_err(|e| std::io::Error::new(e.kind(), format!("{}: {e}", path.display())))?;
+        for (view, record) in read {
             records.entry(view).or_default().push(record);
         }
     }

@@ -910,6 +910,15 @@ fn resume_renders_again_what_changed_and_refuses_what_it_cannot_keep() {
         let out = run(&[&args[..], &["--resume"], extra].concat(), false);
         assert!(crate::common::stderr(&out).contains(words), "{extra:?}");
     }
+    // A record that cannot be read is an error naming it, not a run that starts over.
+    let record = whole.join("rendered.jsonl");
+    std::fs::remove_file(&record).unwrap();
+    std::fs::create_dir(&record).unwrap();
+    let out = run(&[&args[..], &["--resume"]].concat(), false);
+    let err = crate::common::stderr(&out);
+    assert!(err.contains(&format!("{}: ", s(&record))), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    std::fs::remove_dir(&record).unwrap();
     let single = dir.path().join("one.png");
     let out = run(
         &["render", s(&cornell()), "-o", s(&single), "--resume"],

@@ -704,9 +704,8 @@ impl RecordLog {
         let path = run.dir.join(rendered_file(run.shard));
         let mut records = std::collections::BTreeMap::new();
         if run.args.resume {
-            let earlier = read_rendered_in(run.dir).with_context(|| {
-                format!("--resume: cannot read the records of {}", run.dir.display())
-            })?;
+            let earlier = read_rendered_in(run.dir)
+                .context("--resume: cannot read the record of the finished views")?;
             let mine = run.views();
             for &k in &mine {
                 let Some(candidates) = earlier.get(&k) else {
