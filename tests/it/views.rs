@@ -835,6 +835,16 @@ fn stop_and_resume_views(signal: &str) {
         12 - finished,
         "{err}"
     );
+    let summary = format!(
+        "; {} view{} of ",
+        12 - finished,
+        if finished == 11 { "" } else { "s" }
+    );
+    assert!(err.contains(&summary), "{summary}: {err}");
+    assert!(
+        err.contains(&format!(" s a view, {finished} kept from an earlier run)")),
+        "{err}"
+    );
     assert_same_run(dir.path(), "cut", "whole");
 }
 
@@ -857,6 +867,14 @@ fn resume_renders_again_what_changed_and_refuses_what_it_cannot_keep() {
     let (whole, args) = whole_run(dir.path());
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let expected = tree(&whole);
+
+    // Nothing changed: every view is kept, and the summary says so instead of a rate of no rays.
+    let err = crate::common::stderr(&run(&[&args[..], &["--resume"]].concat(), true));
+    assert!(
+        err.contains("; no view rendered (12 kept from an earlier run); "),
+        "{err}"
+    );
+    assert_eq!(tree(&whole), expected);
 
     std::fs::write(whole.join("001.png"), b"not the image").unwrap();
     std::fs::remove_file(whole.join("d/002.exr")).unwrap();

@@ -308,6 +308,18 @@ pub(crate) fn preset_label(
     }
 }
 
+/// The samples a pixel, for a summary line: "12.3 spp (adaptive to noise 0.1, at most 32)" when
+/// the adaptive sampler chose how many (`samples` over `pixels` is their mean), else "16 spp".
+pub(crate) fn spp_label(spp: u32, noise: Option<f32>, samples: u64, pixels: u64) -> String {
+    match noise {
+        Some(target) => format!(
+            "{:.1} spp (adaptive to noise {target}, at most {spp})",
+            samples as f64 / pixels.max(1) as f64
+        ),
+        None => format!("{spp} spp"),
+    }
+}
+
 /// Runs one command.
 pub fn run(command: Command) -> Result<()> {
     match command {

@@ -728,14 +728,12 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
         ),
         None => String::new(),
     };
-    let spp = match done.settings.noise {
-        Some(target) => format!(
-            "{:.1} spp (adaptive to noise {target}, at most {})",
-            stats.samples as f64 / (f64::from(width) * f64::from(height)).max(1.0),
-            done.settings.spp
-        ),
-        None => format!("{} spp", done.settings.spp),
-    };
+    let spp = super::spp_label(
+        done.settings.spp,
+        done.settings.noise,
+        stats.samples,
+        u64::from(width) * u64::from(height),
+    );
     eprintln!(
         "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {spp} rendered in {:.3} s ({:.0} samples/s{}){denoise_note}, peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {threads} threads -> {}",
         // The file drawn: the model given, or the one inside the archive or folder given.

@@ -1243,19 +1243,32 @@ impl Summary {
             0 => String::new(),
             n => format!(", {n} kept from an earlier run"),
         };
+        let pixels = u64::from(self.width) * u64::from(self.height);
+        let work = match rendered {
+            // Everything was kept (`--resume`): no rays, no rate to report.
+            0 => format!("no view rendered ({} kept from an earlier run)", self.kept),
+            n => format!(
+                "{n} view{} of {}x{} at {} rendered in {render_seconds:.3} s ({:.3} s a view{kept}): {} rays, {:.2} Mrays/s on {} threads",
+                if n == 1 { "" } else { "s" },
+                self.width,
+                self.height,
+                super::spp_label(
+                    args.spp(),
+                    args.noise(),
+                    self.totals.samples,
+                    pixels * n as u64
+                ),
+                render_seconds / n as f64,
+                self.totals.rays(),
+                self.totals.mrays_per_second(),
+                self.threads,
+            ),
+        };
         eprintln!(
-            "{}: {} triangles, loaded once in {:.1} ms, {structure}; {rendered} views of {}x{} at {} spp rendered in {:.3} s ({:.3} s a view{kept}): {} rays, {:.2} Mrays/s on {} threads; {:.3} s in all -> {}",
+            "{}: {} triangles, loaded once in {:.1} ms, {structure}; {work}; {:.3} s in all -> {}",
             args.model.display(),
             self.triangles,
             self.load_time.as_secs_f64() * 1e3,
-            self.width,
-            self.height,
-            args.spp(),
-            render_seconds,
-            render_seconds / rendered.max(1) as f64,
-            self.totals.rays(),
-            self.totals.mrays_per_second(),
-            self.threads,
             wall.as_secs_f64(),
             args.output
                 .join(match shard(args) {
