@@ -80,18 +80,32 @@ pub struct JobLock {
     beating: Option<(mpsc::Sender<()>, std::thread::JoinHandle<()>)>,
 }
 
+/// Told when a held lock's renewal fails (the lock file and why), once for each run of
+/// failures: while renewals fail, a batch on another host may take the job over after the
+/// [`LEASE`] and render it beside this one.
+pub type RenewalFailed = Box<dyn Fn(&Path, &std::io::Error) + Send>;
+
 impl JobLock {
-    fn new(path: &Path, every: Duration) -> JobLock {
+    fn new(path: &Path, every: Duration, failed: RenewalFailed) -> JobLock {
         let (stop, stopped) = mpsc::channel::<()>();
         let file = path.to_path_buf();
         let beat = move || {
+            let mut failing = false;
             while let Err(mpsc::RecvTimeoutError::Timeout) = stopped.recv_timeout(every) {
                 // A failed renewal is retried at the next beat; only six in a row would let a
                 // waiting batch take the lock over.
-                let _ = std::fs::File::options()
+                let renewed = std::fs::File::options()
                     .write(true)
                     .open(&file)
                     .and_then(|f| f.set_modified(SystemTime::now()));
+                match renewed {
+                    Ok(()) => failing = false,
+                    Err(e) if !failing => {
+                        failing = true;
+                        failed(&file, &e);
+                    }
+                    Err(_) => {}
+                }
             }
         };
         let beating = std::thread::Builder::new()
@@ -175,8 +189,13 @@ pub enum Acquired {
 /// (its holder dead, or, with a `watch`, another host's lock gone a lease unrenewed) is moved
 /// aside under a name of this process's own before it is removed, so that two processes
 /// finding it stale at once never remove a fresh lock.
-pub fn acquire(job_dir: &Path, watch: Option<&mut Watch>) -> std::io::Result<Acquired> {
-    acquire_beating(job_dir, watch, HEARTBEAT)
+/// While the lock is held, `failed` is told of renewals that fail.
+pub fn acquire(
+    job_dir: &Path,
+    watch: Option<&mut Watch>,
+    failed: RenewalFailed,
+) -> std::io::Result<Acquired> {
+    acquire_beating(job_dir, watch, HEARTBEAT, failed)
 }
 
 /// [`acquire`], the lock renewed `every` so often.
@@ -184,6 +203,7 @@ fn acquire_beating(
     job_dir: &Path,
     watch: Option<&mut Watch>,
     every: Duration,
+    failed: RenewalFailed,
 ) -> std::io::Result<Acquired> {
     let me = Holder::this_process();
     let path = job_dir.join(LOCK_FILE);
@@ -193,7 +213,7 @@ fn acquire_beating(
     let result = take(&path, &own, watch);
     let _ = std::fs::remove_file(&own);
     Ok(match result? {
-        Taken::Held => Acquired::Held(JobLock::new(&path, every)),
+        Taken::Held => Acquired::Held(JobLock::new(&path, every, failed)),
         Taken::Busy(holder) => Acquired::Busy(holder),
     })
 }
@@ -256,16 +276,58 @@ fn read_holder(path: &Path) -> std::io::Result<Option<Holder>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    fn quiet(_: &Path, _: &std::io::Error) {}
+
+    /// A renewal that fails is reported once for each run of failures, with the lock file.
+    #[test]
+    fn a_failing_renewal_is_reported_once_a_run() {
+        static REPORTS: AtomicUsize = AtomicUsize::new(0);
+        fn count(path: &Path, e: &std::io::Error) {
+            assert!(path.ends_with(LOCK_FILE), "{}", path.display());
+            assert_eq!(e.kind(), std::io::ErrorKind::NotFound);
+            REPORTS.fetch_add(1, Ordering::SeqCst);
+        }
+        let dir = tempfile::tempdir().unwrap();
+        let every = Duration::from_millis(10);
+        let Acquired::Held(lock) =
+            acquire_beating(dir.path(), None, every, Box::new(count)).unwrap()
+        else {
+            panic!("a free lock is taken");
+        };
+        let path = dir.path().join(LOCK_FILE);
+        let wait_for = |n: usize| {
+            let start = Instant::now();
+            while REPORTS.load(Ordering::SeqCst) < n {
+                assert!(start.elapsed() < Duration::from_secs(10), "reported");
+                std::thread::sleep(every);
+            }
+        };
+        // Gone from under its holder (removed by hand, or its NFS server lost): renewing it
+        // fails at every beat, and is said once.
+        let text = std::fs::read(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        wait_for(1);
+        std::thread::sleep(every * 10);
+        assert_eq!(REPORTS.load(Ordering::SeqCst), 1, "once a run of failures");
+        // Back, then gone again: a new run of failures, said again.
+        std::fs::write(&path, &text).unwrap();
+        std::thread::sleep(every * 10);
+        std::fs::remove_file(&path).unwrap();
+        wait_for(2);
+        drop(lock);
+    }
 
     /// One holder at a time; dropping the lock frees it; a lock of a dead process on this
     /// host is taken over, one of another host is not.
     #[test]
     fn one_holder_at_a_time_and_stale_locks_are_taken_over() {
         let dir = tempfile::tempdir().unwrap();
-        let Acquired::Held(lock) = acquire(dir.path(), None).unwrap() else {
+        let Acquired::Held(lock) = acquire(dir.path(), None, Box::new(quiet)).unwrap() else {
             panic!("a free lock is taken");
         };
-        match acquire(dir.path(), None).unwrap() {
+        match acquire(dir.path(), None, Box::new(quiet)).unwrap() {
             Acquired::Busy(holder) => assert_eq!(holder, Holder::this_process()),
             Acquired::Held(_) => panic!("held twice"),
         }
@@ -285,7 +347,7 @@ mod tests {
         };
         write(&dead);
         assert_eq!(dead.is_alive(), Some(false));
-        let Acquired::Held(lock) = acquire(dir.path(), None).unwrap() else {
+        let Acquired::Held(lock) = acquire(dir.path(), None, Box::new(quiet)).unwrap() else {
             panic!("a stale lock is taken over");
         };
         drop(lock);
@@ -294,7 +356,9 @@ mod tests {
             host: format!("{}-elsewhere", host_name()),
         };
         write(&elsewhere);
-        assert!(matches!(acquire(dir.path(), None).unwrap(), Acquired::Busy(h) if h == elsewhere));
+        assert!(
+            matches!(acquire(dir.path(), None, Box::new(quiet)).unwrap(), Acquired::Busy(h) if h == elsewhere)
+        );
         let names: Vec<_> = std::fs::read_dir(dir.path())
             .unwrap()
             .map(|e| e.unwrap().file_name())
@@ -320,13 +384,14 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let holder = lock_of_another_host(dir.path());
         let mut watch = Watch::with_lease(Duration::from_millis(300));
-        let busy = |watch: Option<&mut Watch>| matches!(acquire(dir.path(), watch).unwrap(), Acquired::Busy(h) if h == holder);
+        let busy = |watch: Option<&mut Watch>| matches!(acquire(dir.path(), watch, Box::new(quiet)).unwrap(), Acquired::Busy(h) if h == holder);
         assert!(busy(Some(&mut watch)), "the lease starts when first seen");
         std::thread::sleep(Duration::from_millis(100));
         assert!(busy(Some(&mut watch)), "within the lease");
         std::thread::sleep(Duration::from_millis(300));
         assert!(busy(None), "without a watch it counts as live");
-        let Acquired::Held(lock) = acquire(dir.path(), Some(&mut watch)).unwrap() else {
+        let Acquired::Held(lock) = acquire(dir.path(), Some(&mut watch), Box::new(quiet)).unwrap()
+        else {
             panic!("a lapsed lock is taken over");
         };
         let text = std::fs::read_to_string(dir.path().join(LOCK_FILE)).unwrap();
@@ -364,7 +429,7 @@ mod tests {
         let mut watch = Watch::with_lease(Duration::from_millis(300));
         let start = Instant::now();
         while start.elapsed() < Duration::from_millis(900) {
-            let acquired = acquire(dir.path(), Some(&mut watch)).unwrap();
+            let acquired = acquire(dir.path(), Some(&mut watch), Box::new(quiet)).unwrap();
             assert!(
                 matches!(acquired, Acquired::Busy(_)),
                 "a renewed lock is live"
@@ -376,7 +441,7 @@ mod tests {
 
         std::fs::remove_file(&path).unwrap();
         let Acquired::Held(lock) =
-            acquire_beating(dir.path(), None, Duration::from_millis(20)).unwrap()
+            acquire_beating(dir.path(), None, Duration::from_millis(20), Box::new(quiet)).unwrap()
         else {
             panic!("a free lock is taken");
         };

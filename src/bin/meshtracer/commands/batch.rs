@@ -293,7 +293,7 @@ fn run_job(
     }
     // Held until this function returns, whatever it returns.
     let (after, watch) = after.unzip();
-    let _lock = match lock::acquire(&job_dir, watch) {
+    let _lock = match lock::acquire(&job_dir, watch, progress.renewal_failed()) {
         Ok(Acquired::Held(lock)) => lock,
         Ok(Acquired::Busy(holder)) => return Outcome::Busy(holder),
         Err(e) => return fail(format!("job '{}': cannot lock its folder: {e}", job.id)),
@@ -897,6 +897,20 @@ impl Progress {
                 lock::LEASE.as_secs()
             );
         });
+    }
+
+    /// What a job's lock says when renewing it fails: a warning, even with `--quiet`, since
+    /// a batch on another host may then render the job beside this one.
+    fn renewal_failed(&self) -> lock::RenewalFailed {
+        let multi = self.multi.clone();
+        Box::new(move |path, e| {
+            multi.suspend(|| {
+                eprintln!(
+                    "warning: cannot renew the job lock {} ({e}); until it is renewed, another batch may take the job over and render it beside this one",
+                    path.display(),
+                );
+            });
+        })
     }
 
     /// `k` jobs were recorded before this one: one line, with the ETA of the rest at the
