@@ -171,3 +171,58 @@ fn a_closed_pipe_ends_a_command_quietly() {
         assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
     }
 }
+
+/// A comparison stopped by SIGTERM part way exits 130 and writes nothing: neither the images
+/// asked for nor a temporary file. (Should the host finish the comparison before the signal,
+/// both images are whole; either way nothing half-written is left.)
+#[test]
+fn a_comparison_stopped_by_a_signal_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.png");
+    let b = dir.path().join("b.png");
+    // Large enough that the metrics take a second or more (FLIP at 2500x2500).
+    let side = 2500;
+    write(
+        &a,
+        &image::RgbaImage::from_fn(side, side, |x, y| {
+            image::Rgba([(x % 256) as u8, (y % 256) as u8, 60, 255])
+        }),
+    );
+    write(
+        &b,
+        &image::RgbaImage::from_fn(side, side, |x, y| {
+            image::Rgba([(y % 256) as u8, (x % 256) as u8, 60, 255])
+        }),
+    );
+    let diff = dir.path().join("diff.png");
+    let strip = dir.path().join("strip.png");
+    let child = crate::common::bin()
+        .args(["compare", s(&a), s(&b), "--diff-out", s(&diff)])
+        .args(["--side-by-side", s(&strip)])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(300));
+    crate::hostile::send(&child, "TERM");
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    match out.status.code() {
+        Some(130) => {
+            assert!(err.contains("interrupted; no output written"), "{err}");
+            assert_eq!(names, ["a.png", "b.png"], "{err}");
+        }
+        Some(0) => {
+            assert_eq!(names, ["a.png", "b.png", "diff.png", "strip.png"]);
+            for path in [&diff, &strip] {
+                image::open(path).unwrap();
+            }
+        }
+        _ => panic!("{}: {err}", out.status),
+    }
+}

@@ -962,6 +962,9 @@ impl Progress {
 
 /// Joins the results of every shard of a batch into `DIR/results.jsonl`.
 pub(super) fn merge_command(args: &BatchMergeArgs) -> Result<()> {
+    // A signal before results.jsonl is written stops with none written (the shards' files
+    // are only read); once the writing starts, it is finished.
+    let cancel = super::interrupt_flag();
     let dir = args.dir.as_path();
     let mut by_count: BTreeMap<usize, BTreeMap<usize, PathBuf>> = BTreeMap::new();
     let listing =
@@ -1017,7 +1020,9 @@ pub(super) fn merge_command(args: &BatchMergeArgs) -> Result<()> {
         }
     }
     let results = dir.join(RESULTS_FILE);
-    meshtracer::output::write_atomic(&results, results_jsonl(&records).as_bytes())?;
+    let text = results_jsonl(&records);
+    super::render::stop_if_cancelled(&cancel)?;
+    meshtracer::output::write_atomic(&results, text.as_bytes())?;
     if !args.quiet {
         let count_of = |status| records.iter().filter(|r| r.status == status).count();
         eprintln!(

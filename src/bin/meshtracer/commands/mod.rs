@@ -703,12 +703,16 @@ fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
             .to_array()
             .map(|v| v as u8)
     });
+    // A signal before the images are written stops the comparison with no file written;
+    // once the writing starts, both are written.
+    let cancel = interrupt_flag();
     let (metrics, a, b, heat) = compare_files(&args.a, &args.b, background, args.tonemap)?;
+    let mut encoded = Vec::new();
     if let Some(path) = &args.diff_out {
         let mut png = Vec::new();
         heat.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
             .context("encoding the heatmap")?;
-        meshtracer::output::write_atomic(path, &png)?;
+        encoded.push((path, png));
     }
     if let Some(path) = &args.side_by_side {
         let name = |p: &std::path::Path| {
@@ -727,6 +731,10 @@ fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
         strip
             .write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
             .context("encoding the side-by-side image")?;
+        encoded.push((path, png));
+    }
+    render::stop_if_cancelled(&cancel)?;
+    for (path, png) in encoded {
         meshtracer::output::write_atomic(path, &png)?;
     }
     if args.json {

@@ -134,6 +134,9 @@ pub(super) fn write_sidecar(
 
 /// `meshtracer merge -o OUT TILE...`.
 pub(super) fn merge_command(args: &MergeArgs) -> Result<()> {
+    // A signal stops the merge between tiles, before any file is written; once the writing
+    // starts, every file asked for is written.
+    let cancel = super::interrupt_flag();
     let tiles: Vec<(PathBuf, TileFile)> = args
         .tiles
         .iter()
@@ -183,6 +186,7 @@ pub(super) fn merge_command(args: &MergeArgs) -> Result<()> {
             (None, _) => {}
         }
     }
+    let mut encoded = Vec::new();
     for (kind, out) in jobs {
         let mut whole: Option<Raster> = None;
         let mut first_layout = String::new();
@@ -215,11 +219,15 @@ pub(super) fn merge_command(args: &MergeArgs) -> Result<()> {
                 );
             }
             whole.paste(&part, region.x, region.y)?;
+            super::render::stop_if_cancelled(&cancel)?;
         }
         if let Some(whole) = whole {
-            let bytes = whole.encode(out)?;
-            meshtracer::output::write_atomic(out, &bytes)?;
+            encoded.push((out, whole.encode(out)?));
         }
+    }
+    super::render::stop_if_cancelled(&cancel)?;
+    for (out, bytes) in encoded {
+        meshtracer::output::write_atomic(out, &bytes)?;
     }
     if !args.quiet {
         eprintln!(
