@@ -74,6 +74,7 @@ impl Scene {
             pose: None,
             load_steps: Vec::new(),
             archive: None,
+            inputs: Vec::new(),
         }
     }
 

@@ -121,6 +121,7 @@ impl Scene {
         }
         scene.source = outside(&scene.source);
         scene.archive = Some(archive);
+        scene.inputs.clear();
         scene.load_steps.splice(0..0, steps.list().iter().cloned());
         Ok(scene)
     }
@@ -252,6 +253,32 @@ impl Scene {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A scene lists the files its model refers to, once each: an OBJ its material library,
+    /// a glTF its buffer and image files; a self-contained glTF none.
+    #[test]
+    fn a_scene_lists_the_files_its_model_refers_to() {
+        let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets");
+        let obj = Scene::load(assets.join("shapes.obj")).expect("the bundled OBJ loads");
+        assert_eq!(obj.inputs, [assets.join("shapes.mtl")]);
+        let gltf = Scene::load(assets.join("cornell-box.gltf")).expect("the bundled scene loads");
+        assert!(gltf.inputs.is_empty(), "{:?}", gltf.inputs);
+        let Some(samples) = std::env::var_os("MESHTRACER_SAMPLES") else {
+            eprintln!("SKIPPED the glTF half of a_scene_lists_the_files_its_model_refers_to: set MESHTRACER_SAMPLES");
+            return;
+        };
+        let folder = Path::new(&samples).join("BoxTextured/glTF");
+        let textured = Scene::load(folder.join("BoxTextured.gltf")).expect("BoxTextured loads");
+        assert_eq!(
+            textured.inputs,
+            [
+                folder.join("BoxTextured0.bin"),
+                folder.join("CesiumLogoFlat.png")
+            ]
+        );
+        let glb = Path::new(&samples).join("BoxTextured/glTF-Binary/BoxTextured.glb");
+        assert!(Scene::load(glb).expect("the GLB loads").inputs.is_empty());
+    }
 
     /// Every cross-reference the renderer indexes by is checked: a triangle's material, a
     /// material's texture and a texture's image, each one past the end is refused by name.

@@ -59,4 +59,9 @@ pub struct Scene {
     /// For a model loaded from a zip archive, the folder it was unpacked into, kept while the
     /// scene lives (its textures are read after the load).
     pub archive: Option<super::archive::Archive>,
+    /// The files the model refers to besides itself (a glTF's buffers and images, an OBJ's
+    /// material libraries and textures), each once, in the order the load met them, missing
+    /// ones included; empty for a model from a zip archive, whose own bytes hold them. What
+    /// a record of a render must hash to know the render's inputs are unchanged.
+    pub inputs: Vec<PathBuf>,
 }

@@ -138,6 +138,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         pose: None,
         load_steps: steps.list().to_vec(),
         archive: None,
+        inputs: access.resolved(),
     })
 }
 

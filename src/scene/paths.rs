@@ -18,6 +18,9 @@ pub struct FileAccess {
     pub allow_external: bool,
     /// Largest file read, in bytes.
     pub max_bytes: u64,
+    /// Every path [`FileAccess::resolve`] gave, shared by the clones: the files the model
+    /// refers to.
+    resolved: std::sync::Arc<std::sync::Mutex<Vec<PathBuf>>>,
 }
 
 impl FileAccess {
@@ -33,7 +36,20 @@ impl FileAccess {
             base,
             allow_external,
             max_bytes,
+            resolved: Default::default(),
         }
+    }
+
+    /// The files resolved so far (buffers, images, material libraries), each once, in the
+    /// order first resolved: what the model refers to besides itself.
+    pub fn resolved(&self) -> Vec<PathBuf> {
+        let resolved = self.resolved.lock().unwrap_or_else(|e| e.into_inner());
+        let mut seen = std::collections::HashSet::new();
+        resolved
+            .iter()
+            .filter(|p| seen.insert(*p))
+            .cloned()
+            .collect()
     }
 
     /// Resolves `uri` (percent-decoded, relative to the model's folder) to a path, refusing one
@@ -82,6 +98,10 @@ impl FileAccess {
                 ));
             }
         }
+        self.resolved
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(path.clone());
         Ok(path)
     }
 

@@ -123,6 +123,7 @@ pub fn scene_from_soup(soup: TriangleSoup, name: &str) -> Scene {
         warnings: Vec::new(),
         load_steps: Vec::new(),
         archive: None,
+        inputs: Vec::new(),
     }
 }
 

@@ -196,6 +196,7 @@ pub(crate) fn load(
             steps.list().to_vec()
         },
         archive: None,
+        inputs: access.resolved(),
     };
     Ok((scene, nothing_to_draw.is_some()))
 }
