@@ -689,6 +689,81 @@ pub struct OutputRecord {
     pub sha256: String,
 }
 
+/// A file a job's model refers to (a buffer, a texture, a material library), as it was when
+/// the job was rendered: `--resume` redoes a job one of whose inputs changed, which the
+/// fingerprint (the model file's own bytes) does not see.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct InputRecord {
+    /// Path relative to the model's folder (to the model itself when it is a folder), `/`
+    /// between folders; absolute for a file outside it (`--allow-external-files`).
+    pub path: String,
+    /// SHA-256 of the file's bytes, lower-case hex; `missing` for a file that was not there
+    /// (a texture drawn without), `unreadable (why)` for one that could not be read.
+    pub sha256: String,
+}
+
+/// The folder a model's inputs are recorded relative to: the model's own folder, or the model
+/// when it is a folder (an unzipped download, whose model file may sit below it).
+fn input_base(model: &Path) -> PathBuf {
+    if model.is_dir() {
+        return model.to_path_buf();
+    }
+    match model.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+/// What a file's bytes are now, for an [`InputRecord`].
+fn input_hash(path: &Path) -> String {
+    match sha256_file(path) {
+        Ok(hash) => hash,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => "missing".to_string(),
+        Err(e) => format!("unreadable ({e})"),
+    }
+}
+
+/// The records of the files `inputs` (a loaded scene's [`inputs`]) of the model at `model`.
+///
+/// [`inputs`]: crate::scene::Scene::inputs
+pub fn input_records(model: &Path, inputs: &[PathBuf]) -> Vec<InputRecord> {
+    let base = input_base(model);
+    inputs
+        .iter()
+        .map(|file| {
+            let path = match file.strip_prefix(&base) {
+                Ok(inside) => inside
+                    .components()
+                    .map(|c| c.as_os_str().to_string_lossy().into_owned())
+                    .collect::<Vec<_>>()
+                    .join("/"),
+                Err(_) => file.to_string_lossy().into_owned(),
+            };
+            InputRecord {
+                path,
+                sha256: input_hash(file),
+            }
+        })
+        .collect()
+}
+
+/// Checks that each of `inputs` of the model at `model` is as recorded; the error names the
+/// first that changed.
+pub fn verify_inputs(model: &Path, inputs: &[InputRecord]) -> Result<(), String> {
+    let base = input_base(model);
+    for input in inputs {
+        let now = input_hash(&base.join(&input.path));
+        if now != input.sha256 {
+            return Err(match (input.sha256.as_str(), now.as_str()) {
+                ("missing", _) => format!("{} appeared since the job was rendered", input.path),
+                (_, "missing") => format!("{} is gone since the job was rendered", input.path),
+                _ => format!("{} changed since the job was rendered", input.path),
+            });
+        }
+    }
+    Ok(())
+}
+
 /// A job's line in the results file, and its `job.json`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct JobRecord {
@@ -710,6 +785,10 @@ pub struct JobRecord {
     /// extension approximated), as `render` prints them; absent in records of older runs.
     #[serde(default)]
     pub warnings: Vec<String>,
+    /// The files the model refers to, as they were when it was rendered; absent in records
+    /// of older runs (and empty for a model that holds everything, a GLB or a zip).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub inputs: Vec<InputRecord>,
     /// SHA-256 of what the job was asked to do (meshtracer's version, the options, the model
     /// file's hash); `--resume` redoes a job whose fingerprint changed.
     pub fingerprint: Option<String>,
@@ -730,6 +809,7 @@ impl JobRecord {
             },
             outputs: Vec::new(),
             warnings: Vec::new(),
+            inputs: Vec::new(),
             fingerprint: None,
         }
     }
@@ -948,6 +1028,49 @@ mod tests {
 
     use super::*;
 
+    /// Inputs are recorded relative to the model's folder (or the model, when it is a
+    /// folder) and verified against the files as they are now, naming the first that differs.
+    #[test]
+    fn inputs_are_recorded_beside_the_model_and_their_changes_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let model = dir.path().join("m.gltf");
+        std::fs::write(&model, "{}").unwrap();
+        std::fs::create_dir(dir.path().join("tex")).unwrap();
+        let (bin, png) = (dir.path().join("m.bin"), dir.path().join("tex/a.png"));
+        std::fs::write(&bin, b"bytes").unwrap();
+        std::fs::write(&png, b"pixels").unwrap();
+        let gone = dir.path().join("gone.png");
+        let records = input_records(&model, &[bin.clone(), png.clone(), gone.clone()]);
+        let paths: Vec<&str> = records.iter().map(|r| r.path.as_str()).collect();
+        assert_eq!(paths, ["m.bin", "tex/a.png", "gone.png"]);
+        assert_eq!(records[0].sha256, sha256_hex(b"bytes"));
+        assert_eq!(records[2].sha256, "missing");
+        assert_eq!(verify_inputs(&model, &records), Ok(()));
+        // The same files seen through the folder as the model (an unzipped download).
+        assert_eq!(
+            input_records(dir.path(), std::slice::from_ref(&png))[0].path,
+            "tex/a.png"
+        );
+
+        std::fs::write(&png, b"other pixels").unwrap();
+        assert_eq!(
+            verify_inputs(&model, &records),
+            Err("tex/a.png changed since the job was rendered".to_string())
+        );
+        std::fs::write(&png, b"pixels").unwrap();
+        std::fs::write(&gone, b"new").unwrap();
+        assert_eq!(
+            verify_inputs(&model, &records),
+            Err("gone.png appeared since the job was rendered".to_string())
+        );
+        std::fs::remove_file(&gone).unwrap();
+        std::fs::remove_file(&bin).unwrap();
+        assert_eq!(
+            verify_inputs(&model, &records),
+            Err("m.bin is gone since the job was rendered".to_string())
+        );
+    }
+
     #[test]
     fn fnv1a64_matches_the_reference_vectors() {
         // From the FNV reference test suite (Landon Curt Noll's fnv_test.c).
@@ -1157,6 +1280,7 @@ not json
             seconds: Timings::default(),
             outputs: Vec::new(),
             warnings: Vec::new(),
+            inputs: Vec::new(),
             fingerprint: None,
         };
         let a = vec![

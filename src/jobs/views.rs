@@ -641,7 +641,9 @@ impl RenderedView {
             return Err(format!("the record is of view {}", self.view));
         }
         if self.fingerprint != fingerprint {
-            return Err("the options, the model or meshtracer changed".into());
+            return Err(
+                "the options, the model (or a file it refers to) or meshtracer changed".into(),
+            );
         }
         let recorded: Vec<&str> = self.files.iter().map(|f| f.path.as_str()).collect();
         if recorded != names {

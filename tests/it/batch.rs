@@ -716,6 +716,51 @@ fn resume_redoes_only_unfinished_or_damaged_jobs() {
     assert_eq!(records(&out.join("results.jsonl")).len(), 9);
 }
 
+/// `--resume` redoes a job whose model refers to a file that changed since (an OBJ's material
+/// library here), which the fingerprint, made from the model file's own bytes, does not see;
+/// a model that refers to nothing records no inputs and stays skipped.
+#[test]
+fn resume_redoes_a_job_whose_material_library_changed() {
+    let dir = tempfile::tempdir().unwrap();
+    let models = dir.path().join("models");
+    std::fs::create_dir(&models).unwrap();
+    for name in ["shapes.obj", "shapes.mtl", "cornell-box.gltf"] {
+        std::fs::copy(root().join("assets").join(name), models.join(name)).unwrap();
+    }
+    let out = dir.path().join("out");
+    batch(&models, &out, &[], &[], true);
+    let first = by_id(&records(&out.join("results.jsonl")));
+    let mtl = models.join("shapes.mtl");
+    let inputs = &first["shapes"]["inputs"];
+    assert_eq!(inputs[0]["path"], "shapes.mtl", "{inputs}");
+    assert_eq!(inputs.as_array().unwrap().len(), 1, "{inputs}");
+    let hash = meshtracer::jobs::batch::sha256_file(&mtl).unwrap();
+    assert_eq!(inputs[0]["sha256"], hash.as_str());
+    assert!(
+        first["cornell-box"].get("inputs").is_none(),
+        "an embedded buffer is no input"
+    );
+
+    batch(&models, &out, &["--resume"], &[], true);
+    let resumed = by_id(&records(&out.join("results.jsonl")));
+    assert_eq!(resumed["shapes"]["status"], "skipped");
+    assert_eq!(resumed["cornell-box"]["status"], "skipped");
+
+    crate::common::recolour_mtl(&mtl);
+    let image = out.join("shapes/image.png");
+    let before = std::fs::read(&image).unwrap();
+    batch(&models, &out, &["--resume"], &[], true);
+    let redone = by_id(&records(&out.join("results.jsonl")));
+    assert_eq!(redone["shapes"]["status"], "ok");
+    assert_eq!(redone["cornell-box"]["status"], "skipped");
+    assert_ne!(
+        std::fs::read(&image).unwrap(),
+        before,
+        "drawn with the new colour"
+    );
+    assert_ne!(redone["shapes"]["inputs"][0]["sha256"], hash.as_str());
+}
+
 /// Reads `key: value` from a YAML or sbatch text (first match).
 fn setting<'a>(text: &'a str, key: &str) -> &'a str {
     text.lines()

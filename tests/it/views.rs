@@ -915,8 +915,10 @@ fn resume_renders_again_what_changed_and_refuses_what_it_cannot_keep() {
         "{err}"
     );
     assert_eq!(
-        err.matches("rendered again: the options, the model or meshtracer changed")
-            .count(),
+        err.matches(
+            "rendered again: the options, the model (or a file it refers to) or meshtracer changed"
+        )
+        .count(),
         12,
         "{err}"
     );
@@ -1098,4 +1100,43 @@ fn the_slurm_views_example_covers_every_view() {
     assert_eq!(records, max - min + 1, "one record a task");
     render(&out, &["--resume"]);
     assert_eq!(tree(&out), tree(&whole));
+}
+
+/// A view's fingerprint holds the files the model refers to: after an OBJ's material library
+/// changes, `--resume` renders every view again, in the new colour.
+#[test]
+fn resume_renders_again_the_views_of_a_model_whose_material_library_changed() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["shapes.obj", "shapes.mtl"] {
+        std::fs::copy(root().join("assets").join(name), dir.path().join(name)).unwrap();
+    }
+    let model = dir.path().join("shapes.obj");
+    let out = dir.path().join("views");
+    let mut args = vec![
+        "render",
+        s(&model),
+        "--turntable",
+        "2",
+        "-o",
+        s(&out),
+        "--resume",
+    ];
+    args.extend(["--width", "32", "--height", "24", "--spp", "1"]);
+    run(&args, true);
+    let err = crate::common::stderr(&run(&args, true));
+    assert!(err.contains("no view rendered (2 kept"), "{err}");
+    let before = std::fs::read(out.join("000.png")).unwrap();
+
+    let mtl = dir.path().join("shapes.mtl");
+    crate::common::recolour_mtl(&mtl);
+    let err = crate::common::stderr(&run(&args, true));
+    assert_eq!(
+        err.matches(
+            "rendered again: the options, the model (or a file it refers to) or meshtracer changed"
+        )
+        .count(),
+        2,
+        "{err}"
+    );
+    assert_ne!(std::fs::read(out.join("000.png")).unwrap(), before);
 }

@@ -122,6 +122,21 @@ pub fn read_rgba(path: &Path) -> (u32, u32, Vec<[f32; 4]>) {
     (w, h, img.pixels().map(|p| p.0).collect())
 }
 
+/// Rewrites every diffuse colour (`Kd`) of the MTL file at `path` to green: a material
+/// library changed after a render.
+pub fn recolour_mtl(path: &Path) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let recoloured: String = text
+        .lines()
+        .map(|l| match l.starts_with("Kd ") {
+            true => "Kd 0.1 0.9 0.1\n".to_string(),
+            false => format!("{l}\n"),
+        })
+        .collect();
+    assert_ne!(recoloured, text, "{} has a Kd", path.display());
+    std::fs::write(path, recoloured).unwrap();
+}
+
 /// Writes a glTF JSON document with one embedded buffer built from `bin` as `dir/name`, and
 /// returns its path.
 pub fn write_gltf(dir: &Path, name: &str, mut json: serde_json::Value, bin: &[u8]) -> PathBuf {

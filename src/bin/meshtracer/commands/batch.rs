@@ -22,9 +22,9 @@ use super::{
 use crate::cli::{BatchArgs, BatchMergeArgs, LoadArgs, RenderArgs};
 use anyhow::{anyhow, bail, Context, Result};
 use meshtracer::jobs::batch::{
-    check_output_name, output_key, read_manifest, read_results, results_jsonl, sha256_file, Entry,
-    FingerprintRecord, Job, JobRecord, OutputRecord, Shard, Status, Timings, JOB_FILE,
-    RESULTS_FILE,
+    check_output_name, input_records, output_key, read_manifest, read_results, results_jsonl,
+    sha256_file, verify_inputs, Entry, FingerprintRecord, Job, JobRecord, OutputRecord, Shard,
+    Status, Timings, JOB_FILE, RESULTS_FILE,
 };
 use meshtracer::jobs::lock::{self, Acquired, Holder};
 use meshtracer::output::sheet::ContactSheet;
@@ -311,7 +311,7 @@ fn run_job(
     let mut note =
         after.map(|h| format!("taken over from the batch of {h}, which left no record of it"));
     if args.render.resume {
-        match finished_record(&record_path, &fingerprint, dir) {
+        match finished_record(&record_path, &fingerprint, &job.model, dir) {
             Ok(Some(mut record)) => {
                 record.status = Status::Skipped;
                 return Outcome::Done(
@@ -350,7 +350,7 @@ fn run_job(
             job.model.display()
         ))
     });
-    let mut record = match rendered.and_then(|report| finished(entry, dir, &report)) {
+    let mut record = match rendered.and_then(|report| finished(entry, &job.model, dir, &report)) {
         Ok(record) => record,
         Err(e) => {
             if interrupt_flag().load(Ordering::SeqCst) {
@@ -410,8 +410,9 @@ fn output_folders(args: &RenderArgs, job_dir: &Path) -> Vec<PathBuf> {
     folders
 }
 
-/// The record of a finished render: its timings and every output with its hash.
-fn finished(entry: &Entry, dir: &Path, report: &RenderReport) -> Result<JobRecord> {
+/// The record of a finished render of the model at `model`: its timings, every output with
+/// its hash and the model's inputs with theirs.
+fn finished(entry: &Entry, model: &Path, dir: &Path, report: &RenderReport) -> Result<JobRecord> {
     let mut outputs = Vec::with_capacity(report.outputs.len());
     for path in &report.outputs {
         let relative = path.strip_prefix(dir).unwrap_or(path);
@@ -437,6 +438,7 @@ fn finished(entry: &Entry, dir: &Path, report: &RenderReport) -> Result<JobRecor
         },
         outputs,
         warnings: report.warnings.clone(),
+        inputs: input_records(model, &report.inputs),
         fingerprint: None,
     })
 }
@@ -468,11 +470,13 @@ fn record_of_other_batch(
 }
 
 /// The record of an earlier run of this job when it may be skipped: it finished (ok) with the
-/// same fingerprint and every output still has its recorded hash. `Ok(None)` when there is
+/// same fingerprint, the files the model refers to are as they were, and every output still
+/// has its recorded hash. `Ok(None)` when there is
 /// no record; `Err` says why an existing record does not count.
 fn finished_record(
     record_path: &Path,
     fingerprint: &str,
+    model: &Path,
     dir: &Path,
 ) -> Result<Option<JobRecord>, String> {
     let text = match std::fs::read_to_string(record_path) {
@@ -488,6 +492,7 @@ fn finished_record(
     if record.fingerprint.as_deref() != Some(fingerprint) {
         return Err("the options or the model changed".into());
     }
+    verify_inputs(model, &record.inputs)?;
     record.verify(dir)?;
     Ok(Some(record))
 }

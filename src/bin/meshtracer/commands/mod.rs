@@ -578,6 +578,8 @@ pub(crate) struct RenderReport {
     pub outputs: Vec<std::path::PathBuf>,
     /// The warnings of the load and the texture decoding (printed unless `--quiet`).
     pub warnings: Vec<String>,
+    /// The files the model refers to ([`meshtracer::scene::Scene::inputs`]).
+    pub inputs: Vec<std::path::PathBuf>,
 }
 
 /// The process's Ctrl-C flag, shared by every render of the process (a batch runs many) and by

@@ -568,6 +568,7 @@ impl Finished {
             render: self.rendered.stats.time,
             outputs: outputs.flatten().cloned().collect(),
             warnings: self.rendered.warnings,
+            inputs: self.rendered.prepared.scene.inputs.clone(),
         }
     }
 }

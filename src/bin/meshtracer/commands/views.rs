@@ -18,7 +18,7 @@ use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use meshtracer::accel::AccelKind;
 use meshtracer::camera::{auto_camera, View};
-use meshtracer::jobs::batch::{sha256_file, sha256_hex, OutputRecord, Shard};
+use meshtracer::jobs::batch::{input_records, sha256_file, sha256_hex, OutputRecord, Shard};
 use meshtracer::jobs::views::{
     azimuth_degrees, elevation_degrees, in_shard, plan_cameras, read_rendered_in, read_views_file,
     rendered_file, shard_record_files, ExplicitView, NamePattern, PlanOptions, RenderedView,
@@ -316,6 +316,7 @@ pub(super) fn render_views(
         render: summary.totals.time,
         outputs: written(args, dir, &plan.names, extra_outputs),
         warnings,
+        inputs: summary.inputs,
     })
 }
 
@@ -606,7 +607,7 @@ fn render_all(
         environment: &lit.environment,
         cancel,
         count: cameras.len(),
-        model_sha256: sha256_file(&args.model).unwrap_or_else(|e| format!("unreadable ({e})")),
+        model_sha256: model_digest(&args.model, &prepared.scene.inputs),
         shard: shard(args),
     };
     let (frames, totals, kept) = render_each(&run, plan, extras, on_view)?;
@@ -622,8 +623,21 @@ fn render_all(
         height,
         totals,
         threads: plan.threads,
+        inputs: prepared.scene.inputs.clone(),
     };
     Ok((summary, frames, warnings))
+}
+
+/// The SHA-256 of the model file at `model`, followed by each of its `inputs` (the files it
+/// refers to) with theirs: what a view's fingerprint holds of the model, so that `--resume`
+/// renders again the views of a model whose textures or buffers changed. A model that refers
+/// to nothing (a GLB, a zip) gives its file's hash alone.
+fn model_digest(model: &Path, inputs: &[PathBuf]) -> String {
+    let mut digest = sha256_file(model).unwrap_or_else(|e| format!("unreadable ({e})"));
+    for input in input_records(model, inputs) {
+        digest.push_str(&format!("\ninput {} {}", input.path, input.sha256));
+    }
+    digest
 }
 
 /// Renders and writes the views of `plan` in order, keeping those an earlier run finished
@@ -977,7 +991,7 @@ struct ViewRun<'a> {
     environment: &'a Option<Arc<Environment>>,
     cancel: &'a AtomicBool,
     count: usize,
-    /// SHA-256 of the model file, part of every view's fingerprint.
+    /// The model file's SHA-256 and its inputs' ([`model_digest`]), part of every view's fingerprint.
     model_sha256: String,
     /// The views to render (`--shard`).
     shard: Shard,
@@ -1223,6 +1237,8 @@ struct Summary {
     height: u32,
     totals: RenderStats,
     threads: usize,
+    /// The files the model refers to.
+    inputs: Vec<PathBuf>,
 }
 
 impl Summary {
