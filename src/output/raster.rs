@@ -40,11 +40,27 @@ pub fn draw_label(
 ) {
     let (width, height) = size;
     let room = width.saturating_sub(2 * LABEL_MARGIN) as usize / 8;
-    let (text, scale) = if label.chars().count() * 2 <= room && height >= 16 {
-        (label.to_string(), 2)
+    let scale = if label.chars().count() * 2 <= room && height >= 16 {
+        2
     } else {
-        (fit_label(label, room), 1)
+        1
     };
+    draw_label_at(img, origin, size, label, color, scale);
+}
+
+/// [`draw_label`] at a given font `scale` (1: 8 pixels a character), cut to "..." and its end
+/// when too long: for labels that must all be drawn at one size, as a contact sheet's are.
+pub fn draw_label_at(
+    img: &mut RgbImage,
+    origin: (i32, i32),
+    size: (u32, u32),
+    label: &str,
+    color: Rgb<u8>,
+    scale: i32,
+) {
+    let (width, height) = size;
+    let room = width.saturating_sub(2 * LABEL_MARGIN) as usize / (8 * scale.max(1) as usize);
+    let text = fit_label(label, room);
     let y = origin.1 + (height as i32 - 8 * scale).max(0) / 2;
     draw_text(img, origin.0 + LABEL_MARGIN as i32, y, &text, scale, color);
 }

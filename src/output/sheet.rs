@@ -8,7 +8,7 @@
 //! resized to fit its box with a Lanczos-3 filter, centred when its aspect differs.
 
 use crate::output::raster::composite;
-use crate::output::raster::{draw_label, fill_rect, line};
+use crate::output::raster::{draw_label_at, fill_rect, line};
 use image::{imageops::FilterType, Rgb, RgbImage, RgbaImage};
 
 /// Border around and between cells, pixels.
@@ -16,6 +16,10 @@ pub const PADDING: u32 = 4;
 /// Height of the label strip under each thumbnail: a double-size 8x8 glyph and 2 px above and
 /// below it.
 pub const LABEL_HEIGHT: u32 = 20;
+
+/// The cell width from which a sheet's labels are drawn at twice the font's size (16 pixels a
+/// character, 29 characters a label).
+const LARGE_LABEL_CELL_WIDTH: u32 = 480;
 /// Cell width when none is given, pixels: a 36-view turntable's 6x6 sheet is 1564 pixels wide.
 pub const DEFAULT_CELL_WIDTH: u32 = 256;
 /// Widest cell accepted: a full-size 4K render.
@@ -211,14 +215,23 @@ impl ContactSheet {
         self.label(index, label, FAILED_INK);
     }
 
+    /// Every label of a sheet at one size, set by the cell's width (a label drawn larger
+    /// because it happened to be short stood out from its neighbours): double from
+    /// [`LARGE_LABEL_CELL_WIDTH`] up.
     fn label(&mut self, index: usize, label: &str, color: Rgb<u8>) {
         let (x, y) = self.layout.label_origin(index);
-        draw_label(
+        let width = self.layout.cell_width;
+        draw_label_at(
             &mut self.image,
             (x as i32, y as i32),
-            (self.layout.cell_width, LABEL_HEIGHT),
+            (width, LABEL_HEIGHT),
             label,
             color,
+            if width >= LARGE_LABEL_CELL_WIDTH {
+                2
+            } else {
+                1
+            },
         );
     }
 
@@ -357,6 +370,40 @@ mod tests {
         ] {
             let e = SheetLayout::new(count, columns, width, (4, 3)).unwrap_err();
             assert!(e.contains(words), "{e}");
+        }
+    }
+
+    /// A sheet's labels are all drawn at one size, set by the cell width: a short label is
+    /// not drawn larger than its neighbours.
+    #[test]
+    fn every_label_of_a_sheet_has_one_size() {
+        // The rows of cell `index`'s label strip that hold ink.
+        let inked_rows = |sheet: &ContactSheet, index: usize| {
+            let (x, y) = sheet.layout().label_origin(index);
+            let width = sheet.layout().cell_width;
+            (y..y + LABEL_HEIGHT)
+                .filter(|&row| (x..x + width).any(|col| *sheet.image().get_pixel(col, row) == INK))
+                .count()
+        };
+        for (cell_width, font_rows) in [(256, 8), (LARGE_LABEL_CELL_WIDTH, 16)] {
+            let layout = SheetLayout::new(2, None, cell_width, (4, 3)).unwrap();
+            let mut sheet = ContactSheet::new(layout);
+            let view = RgbaImage::from_pixel(4, 3, image::Rgba([0, 0, 0, 0]));
+            sheet.place(0, &view, "Box/glTF/Box");
+            sheet.place(
+                1,
+                &view,
+                "MetalRoughSpheresNoTextures/glTF-Binary/Spheres.glb",
+            );
+            // Each label holds letters with ascenders and descenders ("B", "y"): the font's rows.
+            for index in [0, 1] {
+                let rows = inked_rows(&sheet, index);
+                assert!(
+                    rows > font_rows / 2 && rows <= font_rows,
+                    "{cell_width}: {rows} rows"
+                );
+            }
+            assert_eq!(inked_rows(&sheet, 0), inked_rows(&sheet, 1), "{cell_width}");
         }
     }
 
