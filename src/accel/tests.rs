@@ -479,6 +479,18 @@ fn packets_find_what_the_linear_scan_finds() {
     let want_blocked: Vec<_> = rays.iter().map(|r| linear.occluded(r)).collect();
     assert!(want_hits.iter().flatten().count() > 8_000);
     assert!(want_blocked.iter().any(|&b| !b));
+    // Both of the AVX2 packet test's paths are taken: packets of one octant (the node's
+    // planes shared) and of mixed directions.
+    let octants = |packet: &[Ray]| {
+        let node_rays: Vec<_> = packet.iter().map(traverse::NodeRay::new).collect();
+        traverse::one_octant(&node_rays)
+    };
+    let shared = rays.chunks(traverse::PACKET).filter(|p| octants(p)).count();
+    assert!(shared > 100, "{shared} packets of one octant");
+    assert!(
+        shared * 2 < rays.len() / traverse::PACKET,
+        "{shared}: mixed ones too"
+    );
     for pair in [false, true] {
         let bvh = Accel::build_pairing(&soup, &materials, AccelKind::Bvh, BvhPreset::Medium, pair);
         let mut hits = vec![None; rays.len()];

@@ -122,6 +122,43 @@ pub(super) trait NodeTest: Copy {
     fn pair(self, a: &PreparedTriangle, b: &PreparedTriangle, ray: &Ray) -> (f32, f32) {
         (a.intersect_t(ray), b.intersect_t(ray))
     }
+
+    /// [`NodeTest::entries`] of `node` for each ray of `waiting` (bit r for `node_rays[r]`),
+    /// each ray's entry distances into `enter[r]`: row r of an 8x8 bit matrix (byte r) holds
+    /// the children ray r enters; and the children any of them enters. `one_octant`: every
+    /// ray's direction has the same signs.
+    #[inline(always)]
+    fn packet_rows(
+        self,
+        node: &CwBvhNode,
+        node_rays: &[NodeRay; PACKET],
+        waiting: u32,
+        enter: &mut [[f32; 8]; PACKET],
+        _one_octant: bool,
+    ) -> (u64, u32) {
+        rows_ray_by_ray(self, node, node_rays, waiting, enter)
+    }
+}
+
+/// [`NodeTest::packet_rows`] as [`NodeTest::entries`] of each ray in turn.
+#[inline(always)]
+fn rows_ray_by_ray<K: NodeTest>(
+    k: K,
+    node: &CwBvhNode,
+    node_rays: &[NodeRay; PACKET],
+    waiting: u32,
+    enter: &mut [[f32; 8]; PACKET],
+) -> (u64, u32) {
+    let (mut rows, mut any) = (0u64, 0u32);
+    let mut bits = waiting;
+    while bits != 0 {
+        let r = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        let entered = k.entries(node, &node_rays[r], &mut enter[r]);
+        rows |= u64::from(entered) << (8 * r);
+        any |= entered;
+    }
+    (rows, any)
 }
 
 /// Four children at a time with glam's `Vec4` (SSE2 on x86-64, scalar elsewhere): the test for
@@ -215,6 +252,24 @@ impl NodeTest for Avx2 {
         // SAFETY: an `Avx2` exists only where the CPU has AVX2, hence AVX (`Avx2::new`).
         unsafe { PreparedTriangle::intersect_t_pair(a, b, ray) }
     }
+
+    #[inline(always)]
+    fn packet_rows(
+        self,
+        node: &CwBvhNode,
+        node_rays: &[NodeRay; PACKET],
+        waiting: u32,
+        enter: &mut [[f32; 8]; PACKET],
+        one_octant: bool,
+    ) -> (u64, u32) {
+        if !one_octant {
+            // Rays of mixed directions (diffuse bounces) each take their own planes: choosing
+            // them ray by ray from shared ones mispredicts.
+            return rows_ray_by_ray(self, node, node_rays, waiting, enter);
+        }
+        // SAFETY: an `Avx2` exists only where the CPU has AVX2 (`Avx2::new`).
+        unsafe { packet_rows_avx2(node, node_rays, waiting, enter) }
+    }
 }
 
 /// [`Avx2`]'s slab test: where the ray enters each child's box and whether it does (all
@@ -231,12 +286,66 @@ unsafe fn slabs_avx2(
     node: &CwBvhNode,
     ray: &NodeRay,
 ) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
+    // SAFETY: the caller's CPU has AVX2 and FMA.
+    unsafe {
+        let planes = planes_avx2(node, ray);
+        slabs_of_planes_avx2(node_head(node), &planes, ray)
+    }
+}
+
+/// The first 16 bytes of `node`: its origin `p`, then its three exponent bytes and `imask`.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn node_head(node: &CwBvhNode) -> std::arch::x86_64::__m128 {
+    // SAFETY: SSE is part of x86-64; the node is 80 bytes; the load is unaligned.
+    unsafe { std::arch::x86_64::_mm_loadu_ps((node as *const CwBvhNode).cast::<f32>()) }
+}
+
+/// The eight children's planes `ray` enters and leaves by, as floats: near x, far x, near y,
+/// far y, near z, far z.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn planes_avx2(node: &CwBvhNode, ray: &NodeRay) -> [std::arch::x86_64::__m256; 6] {
     use std::arch::x86_64::*;
     let base = (node as *const CwBvhNode).cast::<u8>();
-    // `NodeRay::in_grid` from one load of the node's first 16 bytes (p, then the three
-    // exponent bytes and imask): the same operations on the same values.
-    // SAFETY: the node is 80 bytes; the load is unaligned.
-    let head = unsafe { _mm_loadu_ps(base.cast::<f32>()) };
+    // Eight plane bytes at `at` as eight floats.
+    let planes = |at: usize| {
+        // SAFETY: `at` is one of `NodeRay`'s plane offsets, eight bytes inside the node (the
+        // layout is asserted above); the load is unaligned.
+        _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(unsafe {
+            _mm_loadl_epi64(base.add(at).cast::<__m128i>())
+        }))
+    };
+    [
+        planes(ray.near[0]),
+        planes(ray.far[0]),
+        planes(ray.near[1]),
+        planes(ray.far[1]),
+        planes(ray.near[2]),
+        planes(ray.far[2]),
+    ]
+}
+
+/// The slab test of `ray` on a node's `planes` ([`planes_avx2`] of the ray, or of another ray
+/// of its octant) and `head` ([`node_head`]): where the ray enters each child's box and
+/// whether it does (all lanes set).
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+unsafe fn slabs_of_planes_avx2(
+    head: std::arch::x86_64::__m128,
+    planes: &[std::arch::x86_64::__m256; 6],
+    ray: &NodeRay,
+) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
+    use std::arch::x86_64::*;
+    // `NodeRay::in_grid` from the node's head: the same operations on the same values.
     let exponents = _mm_cvtepu8_epi32(_mm_srli_si128::<12>(_mm_castps_si128(head)));
     let extent = _mm_castsi128_ps(_mm_slli_epi32::<23>(exponents));
     let inv: __m128 = ray.inv_direction.into();
@@ -246,23 +355,13 @@ unsafe fn slabs_avx2(
     // Both in both halves, to splat a lane with an in-lane permute.
     let scale = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(scale), scale);
     let offset = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(offset), offset);
-    // Eight plane bytes at `at` as eight floats.
-    macro_rules! planes {
-        ($at:expr) => {
-            // SAFETY: `at` is one of `NodeRay`'s plane offsets, eight bytes inside the node
-            // (the layout is asserted above); the load is unaligned.
-            _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(unsafe {
-                _mm_loadl_epi64(base.add($at).cast::<__m128i>())
-            }))
-        };
-    }
     macro_rules! slab {
         ($axis:expr, $lane:expr) => {{
             let s = _mm256_permute_ps::<$lane>(scale);
             let o = _mm256_permute_ps::<$lane>(offset);
             (
-                _mm256_fmadd_ps(planes!(ray.near[$axis]), s, o),
-                _mm256_fmadd_ps(planes!(ray.far[$axis]), s, o),
+                _mm256_fmadd_ps(planes[2 * $axis], s, o),
+                _mm256_fmadd_ps(planes[2 * $axis + 1], s, o),
             )
         }};
     }
@@ -278,6 +377,41 @@ unsafe fn slabs_avx2(
         _mm256_min_ps(fz, _mm256_set1_ps(ray.tmax)),
     );
     (enter, _mm256_cmp_ps::<_CMP_LE_OQ>(enter, leave))
+}
+
+/// [`Avx2`]'s [`NodeTest::packet_rows`] for rays of one octant: the node's planes converted to
+/// floats once for the packet ([`planes_avx2`] of its first ray), not once for each ray; each
+/// ray's slabs from them are [`slabs_avx2`]'s, bit for bit.
+///
+/// # Safety
+/// The CPU must have AVX2 and FMA, and every ray of `waiting` the planes of the first.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+unsafe fn packet_rows_avx2(
+    node: &CwBvhNode,
+    node_rays: &[NodeRay; PACKET],
+    waiting: u32,
+    enter: &mut [[f32; 8]; PACKET],
+) -> (u64, u32) {
+    use std::arch::x86_64::*;
+    let head = node_head(node);
+    // SAFETY: the caller's CPU has AVX2.
+    let planes = unsafe { planes_avx2(node, &node_rays[waiting.trailing_zeros() as usize]) };
+    let (mut rows, mut any) = (0u64, 0u32);
+    let mut bits = waiting;
+    while bits != 0 {
+        let r = bits.trailing_zeros() as usize;
+        bits &= bits - 1;
+        // SAFETY: the caller's CPU has AVX2 and FMA.
+        let (near, hit) = unsafe { slabs_of_planes_avx2(head, &planes, &node_rays[r]) };
+        // SAFETY: `enter[r]` is eight floats; the store is unaligned.
+        unsafe { _mm256_storeu_ps(enter[r].as_mut_ptr(), near) };
+        let entered = _mm256_movemask_ps(hit) as u32;
+        rows |= u64::from(entered) << (8 * r);
+        any |= entered;
+    }
+    (rows, any)
 }
 
 /// [`Avx2`]'s [`NodeTest::entries`].
@@ -633,6 +767,7 @@ pub(super) fn occluded_packet<K: NodeTest>(
         *node_ray = NodeRay::new(ray);
     }
     // Rays not yet found blocked.
+    let one_octant = one_octant(&node_rays[..rays.len()]);
     let mut open = !(u32::MAX << rays.len());
     let mut entries: Entries<u64> = [MaybeUninit::uninit(); 64];
     let mut stack = Stack::new(&mut entries);
@@ -649,7 +784,7 @@ pub(super) fn occluded_packet<K: NodeTest>(
             continue;
         }
         let node = &bvh.nodes[(next >> 8) as usize];
-        let (columns, any) = packet_entries(k, node, &node_rays, waiting, &mut enter);
+        let (columns, any) = packet_entries(k, node, &node_rays, waiting, &mut enter, one_octant);
         let imask = u32::from(node.imask);
         let leaves = any & !imask;
         prefetch_leaves(node, leaves, &accel.triangles);
@@ -723,6 +858,7 @@ pub(super) fn closest_packet<K: NodeTest>(
     let mut local = [rays[0]; PACKET];
     local[..n].copy_from_slice(&rays[..n]);
     let mut node_rays = local.map(|ray| NodeRay::new(&ray));
+    let one_octant = one_octant(&node_rays[..n]);
     // Per ray: nodes entered beyond this hold nothing nearer (see `closest`).
     let mut cull = local.map(|ray| ordered_bits(ray.tmax + 0.0));
     let mut entries: Entries<Waiting> = [MaybeUninit::uninit(); 64];
@@ -732,7 +868,7 @@ pub(super) fn closest_packet<K: NodeTest>(
     let mut waiting = !(u32::MAX << n);
     loop {
         let node = &bvh.nodes[current as usize];
-        let (columns, any) = packet_entries(k, node, &node_rays, waiting, &mut enter);
+        let (columns, any) = packet_entries(k, node, &node_rays, waiting, &mut enter, one_octant);
         let imask = u32::from(node.imask);
         let leaves = any & !imask;
         prefetch_leaves(node, leaves, &accel.triangles);
@@ -832,6 +968,13 @@ pub(super) fn closest_packet<K: NodeTest>(
     }
 }
 
+/// Whether every ray enters a node's boxes by the same planes (their directions have the same
+/// signs), as the camera rays of neighbouring pixels and the shadow rays toward one light
+/// mostly do.
+pub(super) fn one_octant(node_rays: &[NodeRay]) -> bool {
+    node_rays.iter().all(|r| r.near == node_rays[0].near)
+}
+
 /// The node test of `node` for each ray of `waiting` (bit r for `node_rays[r]`), each ray's
 /// entry distances into `enter[r]`: the rays that enter each child (byte c for child c) and
 /// the children any of them enters. The rays' tests do not depend on one another, so they
@@ -843,18 +986,9 @@ fn packet_entries<K: NodeTest>(
     node_rays: &[NodeRay; PACKET],
     waiting: u32,
     enter: &mut [[f32; 8]; PACKET],
+    one_octant: bool,
 ) -> (u64, u32) {
-    // Row r of an 8x8 bit matrix (byte r): the children ray r enters.
-    let mut rows = 0u64;
-    let mut any = 0u32;
-    let mut bits = waiting;
-    while bits != 0 {
-        let r = bits.trailing_zeros() as usize;
-        bits &= bits - 1;
-        let entered = k.entries(node, &node_rays[r], &mut enter[r]);
-        rows |= u64::from(entered) << (8 * r);
-        any |= entered;
-    }
+    let (rows, any) = k.packet_rows(node, node_rays, waiting, enter, one_octant);
     (transpose_bits(rows), any)
 }
 
