@@ -59,6 +59,18 @@ pub(super) struct NodeRay {
 }
 
 impl NodeRay {
+    /// A ray whose near planes are the min ones and far planes the max ones on every axis
+    /// (one going up all three axes), for [`planes_avx2`] to give a node's min and max planes.
+    #[cfg(target_arch = "x86_64")]
+    const MIN_MAX_PLANES: NodeRay = NodeRay {
+        origin: Vec3A::ZERO,
+        inv_direction: Vec3A::ONE,
+        near: [PLANES, PLANES + 16, PLANES + 32],
+        far: [PLANES + 8, PLANES + 24, PLANES + 40],
+        tmin: 0.0,
+        tmax: 0.0,
+    };
+
     /// The node-test form of `ray`.
     #[inline]
     pub(super) fn new(ray: &Ray) -> NodeRay {
@@ -263,12 +275,11 @@ impl NodeTest for Avx2 {
         one_octant: bool,
     ) -> (u64, u32) {
         if !one_octant {
-            // Rays of mixed directions (diffuse bounces) each take their own planes: choosing
-            // them ray by ray from shared ones mispredicts.
-            return rows_ray_by_ray(self, node, node_rays, waiting, enter);
+            // SAFETY: as below.
+            return unsafe { packet_rows_avx2::<true>(node, node_rays, waiting, enter) };
         }
         // SAFETY: an `Avx2` exists only where the CPU has AVX2 (`Avx2::new`).
-        unsafe { packet_rows_avx2(node, node_rays, waiting, enter) }
+        unsafe { packet_rows_avx2::<false>(node, node_rays, waiting, enter) }
     }
 }
 
@@ -288,8 +299,9 @@ unsafe fn slabs_avx2(
 ) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
     // SAFETY: the caller's CPU has AVX2 and FMA.
     unsafe {
+        let head = node_head(node);
         let planes = planes_avx2(node, ray);
-        slabs_of_planes_avx2(node_head(node), &planes, ray)
+        slabs_of_planes_avx2::<false>(head, grid_step(head), planes, ray)
     }
 }
 
@@ -299,6 +311,20 @@ unsafe fn slabs_avx2(
 fn node_head(node: &CwBvhNode) -> std::arch::x86_64::__m128 {
     // SAFETY: SSE is part of x86-64; the node is 80 bytes; the load is unaligned.
     unsafe { std::arch::x86_64::_mm_loadu_ps((node as *const CwBvhNode).cast::<f32>()) }
+}
+
+/// A node's grid step per axis from its head ([`node_head`]): 2^(e - 127), the exponent byte
+/// shifted into a float's exponent.
+///
+/// # Safety
+/// The CPU must have AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn grid_step(head: std::arch::x86_64::__m128) -> std::arch::x86_64::__m128 {
+    use std::arch::x86_64::*;
+    let exponents = _mm_cvtepu8_epi32(_mm_srli_si128::<12>(_mm_castps_si128(head)));
+    _mm_castsi128_ps(_mm_slli_epi32::<23>(exponents))
 }
 
 /// The eight children's planes `ray` enters and leaves by, as floats: near x, far x, near y,
@@ -332,22 +358,26 @@ unsafe fn planes_avx2(node: &CwBvhNode, ray: &NodeRay) -> [std::arch::x86_64::__
 
 /// The slab test of `ray` on a node's `planes` ([`planes_avx2`] of the ray, or of another ray
 /// of its octant) and `head` ([`node_head`]): where the ray enters each child's box and
-/// whether it does (all lanes set).
+/// whether it does (all lanes set). `MIN_MAX`: the planes are the min and max ones
+/// ([`NodeRay::MIN_MAX_PLANES`]), whatever the ray's octant; the near and far distances are
+/// then the lesser and the greater of each pair's, which are the same values (rounding is
+/// monotonic, so with a positive scale the min plane's distance is never above the max
+/// plane's, and with a negative one never below).
 ///
 /// # Safety
 /// The CPU must have AVX2 and FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[inline]
-unsafe fn slabs_of_planes_avx2(
+unsafe fn slabs_of_planes_avx2<const MIN_MAX: bool>(
     head: std::arch::x86_64::__m128,
-    planes: &[std::arch::x86_64::__m256; 6],
+    extent: std::arch::x86_64::__m128,
+    planes: [std::arch::x86_64::__m256; 6],
     ray: &NodeRay,
 ) -> (std::arch::x86_64::__m256, std::arch::x86_64::__m256) {
     use std::arch::x86_64::*;
-    // `NodeRay::in_grid` from the node's head: the same operations on the same values.
-    let exponents = _mm_cvtepu8_epi32(_mm_srli_si128::<12>(_mm_castps_si128(head)));
-    let extent = _mm_castsi128_ps(_mm_slli_epi32::<23>(exponents));
+    // `NodeRay::in_grid` from the node's head and grid step ([`grid_step`]): the same
+    // operations on the same values.
     let inv: __m128 = ray.inv_direction.into();
     let origin: __m128 = ray.origin.into();
     let scale = _mm_mul_ps(extent, inv);
@@ -359,10 +389,13 @@ unsafe fn slabs_of_planes_avx2(
         ($axis:expr, $lane:expr) => {{
             let s = _mm256_permute_ps::<$lane>(scale);
             let o = _mm256_permute_ps::<$lane>(offset);
-            (
-                _mm256_fmadd_ps(planes[2 * $axis], s, o),
-                _mm256_fmadd_ps(planes[2 * $axis + 1], s, o),
-            )
+            let near = _mm256_fmadd_ps(planes[2 * $axis], s, o);
+            let far = _mm256_fmadd_ps(planes[2 * $axis + 1], s, o);
+            if MIN_MAX {
+                (_mm256_min_ps(near, far), _mm256_max_ps(near, far))
+            } else {
+                (near, far)
+            }
         }};
     }
     let (nx, fx) = slab!(0, 0b00_00_00_00);
@@ -379,16 +412,20 @@ unsafe fn slabs_of_planes_avx2(
     (enter, _mm256_cmp_ps::<_CMP_LE_OQ>(enter, leave))
 }
 
-/// [`Avx2`]'s [`NodeTest::packet_rows`] for rays of one octant: the node's planes converted to
-/// floats once for the packet ([`planes_avx2`] of its first ray), not once for each ray; each
-/// ray's slabs from them are [`slabs_avx2`]'s, bit for bit.
+/// [`Avx2`]'s [`NodeTest::packet_rows`]: the node's planes converted to floats once for the
+/// packet, not once for each ray. For rays of one octant (not `MIXED`) they are the planes its
+/// first ray enters and leaves by ([`planes_avx2`]); for rays of several (`MIXED`) the min and
+/// max planes, each ray's slab the lesser and the greater of their distances (choosing planes
+/// ray by ray would mispredict). Either way each ray's slabs are [`slabs_avx2`]'s, bit for
+/// bit ([`slabs_of_planes_avx2`]).
 ///
 /// # Safety
-/// The CPU must have AVX2 and FMA, and every ray of `waiting` the planes of the first.
+/// The CPU must have AVX2 and FMA; unless `MIXED`, every ray of `waiting` must enter by the
+/// planes of the first.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[inline]
-unsafe fn packet_rows_avx2(
+unsafe fn packet_rows_avx2<const MIXED: bool>(
     node: &CwBvhNode,
     node_rays: &[NodeRay; PACKET],
     waiting: u32,
@@ -397,14 +434,24 @@ unsafe fn packet_rows_avx2(
     use std::arch::x86_64::*;
     let head = node_head(node);
     // SAFETY: the caller's CPU has AVX2.
-    let planes = unsafe { planes_avx2(node, &node_rays[waiting.trailing_zeros() as usize]) };
+    let extent = unsafe { grid_step(head) };
+    let first = &node_rays[waiting.trailing_zeros() as usize];
+    // SAFETY: the caller's CPU has AVX2.
+    let planes = unsafe {
+        if MIXED {
+            planes_avx2(node, &NodeRay::MIN_MAX_PLANES)
+        } else {
+            planes_avx2(node, first)
+        }
+    };
     let (mut rows, mut any) = (0u64, 0u32);
     let mut bits = waiting;
     while bits != 0 {
         let r = bits.trailing_zeros() as usize;
         bits &= bits - 1;
         // SAFETY: the caller's CPU has AVX2 and FMA.
-        let (near, hit) = unsafe { slabs_of_planes_avx2(head, &planes, &node_rays[r]) };
+        let (near, hit) =
+            unsafe { slabs_of_planes_avx2::<MIXED>(head, extent, planes, &node_rays[r]) };
         // SAFETY: `enter[r]` is eight floats; the store is unaligned.
         unsafe { _mm256_storeu_ps(enter[r].as_mut_ptr(), near) };
         let entered = _mm256_movemask_ps(hit) as u32;
@@ -1111,6 +1158,17 @@ mod tests {
             }
             assert_eq!(stack.pop(), None);
         }
+    }
+
+    /// The min and max planes' pseudo-ray enters by the planes a ray going up every axis
+    /// enters by, and leaves by those it leaves by.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn the_min_max_planes_are_those_of_a_ray_going_up() {
+        let ray = Ray::new(Vec3A::ZERO.into(), glam::Vec3::ONE.normalize(), 0.0, 1.0);
+        let up = NodeRay::new(&ray);
+        assert_eq!(up.near, NodeRay::MIN_MAX_PLANES.near);
+        assert_eq!(up.far, NodeRay::MIN_MAX_PLANES.far);
     }
 
     /// Bit (r, c) of the transpose is bit (c, r) of the matrix, for every bit alone and for
