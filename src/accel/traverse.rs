@@ -274,12 +274,15 @@ impl NodeTest for Avx2 {
         enter: &mut [[f32; 8]; PACKET],
         one_octant: bool,
     ) -> (u64, u32) {
-        if !one_octant {
-            // SAFETY: as below.
-            return unsafe { packet_rows_avx2::<true>(node, node_rays, waiting, enter) };
+        // SAFETY: an `Avx2` exists only where the CPU has AVX2 and FMA (`Avx2::new`); the
+        // shared planes of one octant are used only when every ray has them.
+        unsafe {
+            if one_octant {
+                packet_rows_avx2::<false>(node, node_rays, waiting, enter)
+            } else {
+                packet_rows_avx2::<true>(node, node_rays, waiting, enter)
+            }
         }
-        // SAFETY: an `Avx2` exists only where the CPU has AVX2 (`Avx2::new`).
-        unsafe { packet_rows_avx2::<false>(node, node_rays, waiting, enter) }
     }
 }
 

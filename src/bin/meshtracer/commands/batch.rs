@@ -471,8 +471,8 @@ fn record_of_other_batch(
 
 /// The record of an earlier run of this job when it may be skipped: it finished (ok) with the
 /// same fingerprint, the files the model refers to are as they were, and every output still
-/// has its recorded hash. `Ok(None)` when there is
-/// no record; `Err` says why an existing record does not count.
+/// has its recorded hash. `Ok(None)` when there is no record; `Err` says why an existing
+/// record does not count.
 fn finished_record(
     record_path: &Path,
     fingerprint: &str,

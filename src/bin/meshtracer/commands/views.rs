@@ -991,7 +991,8 @@ struct ViewRun<'a> {
     environment: &'a Option<Arc<Environment>>,
     cancel: &'a AtomicBool,
     count: usize,
-    /// The model file's SHA-256 and its inputs' ([`model_digest`]), part of every view's fingerprint.
+    /// The model file's SHA-256 and its inputs' ([`model_digest`]), part of every view's
+    /// fingerprint.
     model_sha256: String,
     /// The views to render (`--shard`).
     shard: Shard,
