@@ -747,6 +747,19 @@ pub fn input_records(model: &Path, inputs: &[PathBuf]) -> Vec<InputRecord> {
         .collect()
 }
 
+/// The SHA-256 of the model file at `model`, followed by each of its `inputs` (the files it
+/// refers to) with theirs: what a view's fingerprint and a tile's hold of the model, so that
+/// `--resume` renders again the views of a model whose textures or buffers changed and `merge`
+/// refuses tiles rendered before and after such a change. A model that refers to nothing (a
+/// GLB, a zip) gives its file's hash alone.
+pub fn model_digest(model: &Path, inputs: &[PathBuf]) -> String {
+    let mut digest = sha256_file(model).unwrap_or_else(|e| format!("unreadable ({e})"));
+    for input in input_records(model, inputs) {
+        digest.push_str(&format!("\ninput {} {}", input.path, input.sha256));
+    }
+    digest
+}
+
 /// Checks that each of `inputs` of the model at `model` is as recorded; the error names the
 /// first that changed.
 pub fn verify_inputs(model: &Path, inputs: &[InputRecord]) -> Result<(), String> {

@@ -248,7 +248,8 @@ pub fn check_cover(tiles: &[(PathBuf, TileFile)]) -> Result<ImageSize, TileError
         }
         if tile.render != first.render {
             return Err(differ(
-                "render settings (model, camera, lights, spp, seed, shading or AOV scale)",
+                "render settings (model or a file it refers to, camera, lights, spp, seed, \
+                 shading or AOV scale)",
             ));
         }
         let kinds = |t: &TileFile| -> Vec<(String, String)> {

@@ -183,6 +183,36 @@ fn missing_overlapping_and_mismatched_tiles_are_refused() {
 }
 
 #[test]
+fn tiles_of_a_model_whose_mtl_changed_between_them_are_refused() {
+    // Same triangles and bounds, another colour: only the model's files tell the tiles apart.
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for name in ["shapes.obj", "shapes.mtl"] {
+        std::fs::copy(root().join("assets").join(name), d.join(name)).unwrap();
+    }
+    let model = d.join("shapes.obj");
+    let tile = |i: u32| {
+        let out = d.join(format!("half-{i}.png"));
+        render(&model, &out, &[], &["--tile", &format!("{i}/2")]);
+        s(&out).to_string()
+    };
+    let first = tile(0);
+    let second = tile(1);
+    // Unchanged, the halves join.
+    let whole = d.join("whole.png");
+    run(&["merge", "-q", "-o", s(&whole), &first, &second], true);
+    std::fs::remove_file(&whole).unwrap();
+    crate::common::recolour_mtl(&d.join("shapes.mtl"));
+    let recoloured = tile(1);
+    merge_fails(
+        d,
+        &[&first, &recoloured],
+        &[],
+        "model or a file it refers to",
+    );
+}
+
+#[test]
 fn bad_tile_options_are_refused_before_rendering() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("t.png");

@@ -4,6 +4,7 @@
 
 use crate::cli::{MergeArgs, RenderArgs};
 use anyhow::{bail, Context, Result};
+use meshtracer::jobs::batch::model_digest;
 use meshtracer::jobs::tiles::{
     check_cover, extension, fingerprint, Raster, TileFile, TILE_FILE_VERSION,
 };
@@ -80,6 +81,18 @@ pub(super) fn render_fingerprint(
     ))
 }
 
+/// A tile's fingerprint: the render's ([`render_fingerprint`]) and the model's bytes with
+/// those of every file it refers to ([`model_digest`]), so that tiles rendered before and after
+/// an edit of the model, a texture or an `.mtl` do not join, where the triangle count and
+/// bounds alone would let them. (A view's fingerprint holds the digest apart.)
+fn tile_fingerprint(args: &RenderArgs, settings: &RenderSettings, scene: &Scene) -> String {
+    fingerprint(&format!(
+        "{}\nmodel {}",
+        render_fingerprint(args, settings, scene),
+        model_digest(&args.model, &scene.inputs)
+    ))
+}
+
 /// A path as the sidecar in `dir` records it: relative to `dir` when the file is inside it,
 /// else absolute.
 fn relative_to(file: &Path, dir: &Path) -> PathBuf {
@@ -124,7 +137,7 @@ pub(super) fn write_sidecar(
         },
         region,
         tile: args.tile,
-        render: render_fingerprint(args, settings, scene),
+        render: tile_fingerprint(args, settings, scene),
         outputs,
     };
     let text = serde_json::to_string_pretty(&file)?;

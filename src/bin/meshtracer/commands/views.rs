@@ -18,7 +18,7 @@ use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use meshtracer::accel::AccelKind;
 use meshtracer::camera::{auto_camera, View};
-use meshtracer::jobs::batch::{input_records, sha256_file, sha256_hex, OutputRecord, Shard};
+use meshtracer::jobs::batch::{model_digest, sha256_file, sha256_hex, OutputRecord, Shard};
 use meshtracer::jobs::views::{
     azimuth_degrees, elevation_degrees, in_shard, plan_cameras, read_rendered_in, read_views_file,
     rendered_file, shard_record_files, ExplicitView, NamePattern, PlanOptions, RenderedView,
@@ -626,18 +626,6 @@ fn render_all(
         inputs: prepared.scene.inputs.clone(),
     };
     Ok((summary, frames, warnings))
-}
-
-/// The SHA-256 of the model file at `model`, followed by each of its `inputs` (the files it
-/// refers to) with theirs: what a view's fingerprint holds of the model, so that `--resume`
-/// renders again the views of a model whose textures or buffers changed. A model that refers
-/// to nothing (a GLB, a zip) gives its file's hash alone.
-fn model_digest(model: &Path, inputs: &[PathBuf]) -> String {
-    let mut digest = sha256_file(model).unwrap_or_else(|e| format!("unreadable ({e})"));
-    for input in input_records(model, inputs) {
-        digest.push_str(&format!("\ninput {} {}", input.path, input.sha256));
-    }
-    digest
 }
 
 /// Renders and writes the views of `plan` in order, keeping those an earlier run finished
