@@ -57,6 +57,26 @@ pub enum SaveError {
     /// The file exists and clobbering was refused.
     #[error("{}: already exists (--no-clobber)", .0.display())]
     Exists(PathBuf),
+    /// Two options name one file: the second would replace the first.
+    #[error("{}: named by both {first} and {second}: give each output its own file", path.display())]
+    Twice {
+        /// The output path, as the second option gives it.
+        path: PathBuf,
+        /// The option that names it first.
+        first: String,
+        /// The option that names it again.
+        second: String,
+    },
+    /// An output is a file the run reads.
+    #[error("{}: {option} would overwrite {input}: write it elsewhere", path.display())]
+    Overwrites {
+        /// The output path.
+        path: PathBuf,
+        /// The option that names the output.
+        option: String,
+        /// What the file is to the run ("the model this run renders", "the --env panorama").
+        input: String,
+    },
     /// Encoding failed.
     #[error("{}: encoding failed: {error}", path.display())]
     Encode {
@@ -273,6 +293,78 @@ impl PendingOutput {
     }
 }
 
+/// A file a run writes or reads, with what names it: an option (`-o`, `--depth-out`) for an
+/// output, a description ("the model") for an input.
+pub type NamedPath<'a> = (&'a str, &'a Path);
+
+/// Refuses, before any work, outputs that could not be written whole or that would destroy
+/// something: two outputs that are one file ([`SaveError::Twice`]), an output that is one of
+/// the run's `inputs` ([`SaveError::Overwrites`]), and, as [`PendingFile::reserve`] does, an
+/// existing output under `no_clobber`, an output that is a folder, or one whose folder is
+/// missing or cannot take a file. Nothing is left behind.
+pub fn check_destinations(
+    outputs: &[NamedPath],
+    inputs: &[NamedPath],
+    no_clobber: bool,
+) -> Result<(), SaveError> {
+    check_not_inputs(outputs, inputs)?;
+    for (i, &(second, path)) in outputs.iter().enumerate() {
+        if let Some(&(first, _)) = outputs[..i].iter().find(|(_, p)| same_file(p, path)) {
+            return Err(SaveError::Twice {
+                path: path.to_path_buf(),
+                first: first.to_string(),
+                second: second.to_string(),
+            });
+        }
+    }
+    for &(_, path) in outputs {
+        // Reserved and dropped: the temporary file is removed at once.
+        drop(PendingFile::reserve(path, no_clobber)?);
+    }
+    Ok(())
+}
+
+/// Refuses an output that is one of `inputs` (see [`check_destinations`]); for inputs known
+/// only once the model is loaded, its buffers, textures and `.mtl`.
+pub fn check_not_inputs(outputs: &[NamedPath], inputs: &[NamedPath]) -> Result<(), SaveError> {
+    for &(option, path) in outputs {
+        let target = entry(path);
+        // An output replaces its folder's entry (a rename): the input's own entry, or the
+        // file a symbolic link of the input leads to.
+        let is_input = |input: &Path| {
+            entry(input) == target || input.canonicalize().is_ok_and(|c| c == target)
+        };
+        if let Some(&(input, _)) = inputs.iter().find(|(_, p)| is_input(p)) {
+            return Err(SaveError::Overwrites {
+                path: path.to_path_buf(),
+                option: option.to_string(),
+                input: input.to_string(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Whether two outputs are one file: the same entry of the same folder once the folder is
+/// resolved (`out.png`, `./out.png` and `sub/../out.png` are one). An output is written by a
+/// rename over its entry, so two links to one file are two outputs.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    entry(a) == entry(b)
+}
+
+/// The folder entry `path` names: its folder made canonical where it exists, then its name
+/// (not followed if it is a symbolic link).
+fn entry(path: &Path) -> PathBuf {
+    let folder = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    match (folder.canonicalize(), path.file_name()) {
+        (Ok(folder), Some(name)) => folder.join(name),
+        _ => path.canonicalize().unwrap_or_else(|_| path.to_path_buf()),
+    }
+}
+
 /// A temporary file in `dir`, renamed over the output once complete. It is created with the
 /// permissions any new file gets (0666 less the umask: 0644 usually), not tempfile's private
 /// 0600, since it becomes the user's output (an image served or shared must be readable).
@@ -383,6 +475,41 @@ impl Image {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An output is refused where its rename would replace an input's entry or the file an
+    /// input's link leads to, and allowed where it replaces only a link to the input.
+    #[cfg(unix)]
+    #[test]
+    fn an_output_is_an_input_when_writing_it_would_replace_the_input() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let model = d.join("m.gltf");
+        std::fs::write(&model, b"{}").unwrap();
+        std::os::unix::fs::symlink(&model, d.join("link.gltf")).unwrap();
+        let inputs = |p: &Path| check_not_inputs(&[("-o", p)], &[("the model", &model)]).is_err();
+        assert!(inputs(&model));
+        assert!(inputs(&d.join(".").join("m.gltf")));
+        assert!(
+            !inputs(&d.join("link.gltf")),
+            "the rename replaces the link, not the model"
+        );
+        let via_link = check_not_inputs(
+            &[("-o", model.as_path())],
+            &[("the model", &d.join("link.gltf"))],
+        );
+        assert!(via_link.is_err(), "the link's file would be replaced");
+        std::fs::create_dir(d.join("sub")).unwrap();
+        assert!(same_file(&d.join("new.png"), &d.join("sub/../new.png")));
+        assert!(!same_file(&d.join("a.png"), &d.join("b.png")));
+        // Nothing is left behind by a check that passes.
+        let out = d.join("out.png");
+        check_destinations(&[("-o", out.as_path())], &[("the model", &model)], true).unwrap();
+        assert_eq!(
+            std::fs::read_dir(d).unwrap().count(),
+            3,
+            "m.gltf, link.gltf, sub"
+        );
+    }
 
     /// An EXR is the same bytes every time (many scan-line blocks, compressed in parallel) and
     /// reads back to exactly the floats written; a wrong pixel count is an error.

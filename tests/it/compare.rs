@@ -97,6 +97,41 @@ fn compare_images_must_be_named_png() {
     }
 }
 
+/// The heatmap and the strip may not replace an image compared, nor each other.
+#[test]
+fn compare_outputs_may_not_replace_its_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a.png"), dir.path().join("b.png"));
+    write(&a, &image::RgbaImage::new(8, 8));
+    write(
+        &b,
+        &image::RgbaImage::from_pixel(8, 8, image::Rgba([9, 9, 9, 255])),
+    );
+    let before = std::fs::read(&a).unwrap();
+    let out = dir.path().join("d.png");
+    for (options, needle) in [
+        (
+            vec!["--diff-out", s(&a)],
+            "--diff-out would overwrite the first image compared",
+        ),
+        (
+            vec!["--side-by-side", s(&b)],
+            "would overwrite the second image compared",
+        ),
+        (
+            vec!["--diff-out", s(&out), "--side-by-side", s(&out)],
+            "named by both --diff-out and --side-by-side",
+        ),
+    ] {
+        let mut args = vec!["compare", s(&a), s(&b)];
+        args.extend(options);
+        let err = crate::common::stderr(&run(&args, false));
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+    assert_eq!(std::fs::read(&a).unwrap(), before);
+    assert!(!out.exists());
+}
+
 #[test]
 fn a_render_compared_with_itself_across_accelerators_is_perfect() {
     let dir = tempfile::tempdir().unwrap();

@@ -908,6 +908,127 @@ fn a_failed_render_keeps_the_existing_output() {
     assert_eq!(names.len(), 2, "no temporary files left: {names:?}");
 }
 
+/// Every file in `dir` with its bytes, to check that a refused run changed nothing.
+fn snapshot(dir: &Path) -> Vec<(std::ffi::OsString, Vec<u8>)> {
+    let mut names = crate::common::file_names(dir);
+    names.sort();
+    names
+        .into_iter()
+        .filter(|name| dir.join(name).is_file())
+        .map(|name| {
+            let bytes = std::fs::read(dir.join(&name)).unwrap();
+            (name, bytes)
+        })
+        .collect()
+}
+
+#[test]
+fn outputs_that_would_destroy_an_input_or_each_other_are_refused_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let model = d.join("m.gltf");
+    std::fs::copy(cornell(), &model).unwrap();
+    // A model read by its content, whatever its extension.
+    let as_png = d.join("model.png");
+    std::fs::copy(cornell(), &as_png).unwrap();
+    std::fs::write(d.join("old.png"), b"previous image").unwrap();
+    std::fs::write(d.join("old-depth.png"), b"previous depth").unwrap();
+    std::fs::create_dir(d.join("folder.png")).unwrap();
+    let before = snapshot(d);
+    let p = |name: &str| s(&d.join(name)).to_string();
+    let small = ["--width", "16", "--height", "12", "--spp", "1"];
+    for (extra, needle) in [
+        (
+            vec!["-o", &p("m.gltf")],
+            "-o would overwrite the model this run renders",
+        ),
+        (
+            vec!["-o", &p("model.png")],
+            "-o would overwrite the model this run renders",
+        ),
+        (
+            vec!["-o", &p("x.png"), "--view-out", &p("m.gltf")],
+            "--view-out would overwrite the model",
+        ),
+        (
+            vec!["-o", &p("old.png"), "--depth-out", &p("old.png")],
+            "named by both -o and --depth-out",
+        ),
+        (
+            vec![
+                "-o",
+                &p("x.png"),
+                "--mask-out",
+                &p("a.png"),
+                "--normal-out",
+                &p("./a.png"),
+            ],
+            "named by both --normal-out and --mask-out",
+        ),
+        // A side output that cannot be written stops the run before the image is replaced.
+        (
+            vec!["-o", &p("old.png"), "--depth-out", &p("no/d.png")],
+            "no folder",
+        ),
+        (
+            vec!["-o", &p("old.png"), "--mask-out", &p("folder.png")],
+            "is a directory",
+        ),
+        (
+            vec![
+                "-o",
+                &p("x.png"),
+                "--depth-out",
+                &p("old-depth.png"),
+                "--no-clobber",
+            ],
+            "old-depth.png: already exists (--no-clobber)",
+        ),
+    ] {
+        let model = if extra[1].ends_with("model.png") {
+            &as_png
+        } else {
+            &model
+        };
+        let mut args = vec!["render", s(model)];
+        args.extend(extra.iter().copied());
+        args.extend(small);
+        let output = run(&args, false);
+        assert_eq!(output.status.code(), Some(1), "{args:?}");
+        let err = crate::common::stderr(&output);
+        assert!(
+            err.contains(needle),
+            "{args:?}: expected '{needle}' in: {err}"
+        );
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(snapshot(d) == before, "{args:?} changed the folder");
+    }
+    // The outputs of a textured model may not replace its textures, found once it is loaded.
+    if let Some(samples) = samples("outputs_that_would_destroy_an_input") {
+        let textured = d.join("bt");
+        std::fs::create_dir(&textured).unwrap();
+        for name in ["BoxTextured.gltf", "BoxTextured0.bin", "CesiumLogoFlat.png"] {
+            std::fs::copy(
+                samples.join("BoxTextured/glTF").join(name),
+                textured.join(name),
+            )
+            .unwrap();
+        }
+        let logo = textured.join("CesiumLogoFlat.png");
+        let gltf = textured.join("BoxTextured.gltf");
+        let logo_bytes = std::fs::read(&logo).unwrap();
+        let mut args = vec!["render", s(&gltf), "-o", s(&logo)];
+        args.extend(small);
+        let output = run(&args, false);
+        let err = crate::common::stderr(&output);
+        assert!(
+            err.contains("-o would overwrite a file the model refers to"),
+            "{err}"
+        );
+        assert_eq!(std::fs::read(&logo).unwrap(), logo_bytes);
+    }
+}
+
 #[test]
 fn the_summary_reports_what_the_render_did() {
     let dir = tempfile::tempdir().unwrap();

@@ -176,6 +176,12 @@ fn missing_overlapping_and_mismatched_tiles_are_refused() {
         &[],
         "cannot read the tile's sidecar",
     );
+    // The merged image may not replace a tile.
+    let tile_bytes = std::fs::read(t[0]).unwrap();
+    let output = run(&["merge", "-o", t[0], t[0], t[1], t[2], t[3]], false);
+    let err = stderr(&output);
+    assert!(err.contains("-o would overwrite a tile's file"), "{err}");
+    assert_eq!(std::fs::read(t[0]).unwrap(), tile_bytes);
     // A tile whose image was replaced by one of another size.
     let resized = image::RgbaImage::new(48, 9);
     resized.save(d.join("band-3.png")).unwrap();

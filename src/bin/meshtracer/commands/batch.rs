@@ -742,8 +742,13 @@ fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArg
     let view = given(&o.view, &args.view_out, "--view-out")?;
     let env_out = given(&None, &args.env_out, "--env-out")?;
     let stats = given(&None, &args.stats, "--stats")?;
+    // A single view's image has a name even when none is given.
+    let image_name = match (&image, views) {
+        (None, false) => Some(DEFAULT_IMAGE.to_string()),
+        _ => image.clone(),
+    };
     let names = [
-        ("image", image.as_ref()),
+        ("image", image_name.as_ref()),
         ("depth", depth.as_ref()),
         ("normal", normal.as_ref()),
         ("mask", mask.as_ref()),

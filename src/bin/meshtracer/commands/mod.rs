@@ -708,6 +708,18 @@ fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
     // A signal before the images are written stops the comparison with no file written;
     // once the writing starts, both are written.
     let cancel = interrupt_flag();
+    let outputs: Vec<_> = [
+        ("--diff-out", &args.diff_out),
+        ("--side-by-side", &args.side_by_side),
+    ]
+    .into_iter()
+    .filter_map(|(option, path)| path.as_deref().map(|p| (option, p)))
+    .collect();
+    let inputs = [
+        ("the first image compared", args.a.as_path()),
+        ("the second image compared", args.b.as_path()),
+    ];
+    meshtracer::output::check_destinations(&outputs, &inputs, false)?;
     let (metrics, a, b, heat) = compare_files(&args.a, &args.b, background, args.tonemap)?;
     let mut encoded = Vec::new();
     if let Some(path) = &args.diff_out {

@@ -69,11 +69,19 @@ pub(super) fn render_model(
     if args.contact_sheet.is_some() {
         bail!("--contact-sheet lays out many views: add --views SPEC or --turntable N (or give it to batch, for a cell per job)");
     }
+    let outputs = single_view_outputs(args);
+    meshtracer::output::check_destinations(&outputs, &run_inputs(args), args.no_clobber)?;
     let output = PendingOutput::reserve(&args.output, args.no_clobber)?;
     let (threads, pool) = worker_pool(args.threads)?;
 
     let mut phases = Phases::default();
     let (scene, load_time) = load_model(args, &mut phases)?;
+    let referred: Vec<_> = scene
+        .inputs
+        .iter()
+        .map(|p| ("a file the model refers to", p.as_path()))
+        .collect();
+    meshtracer::output::check_not_inputs(&outputs, &referred)?;
     stop_if_cancelled(&cancel)?;
     let shot = choose_view(args, &scene, view_file.as_ref())?;
     let view = View::from_camera(&shot.camera, shot.width, shot.height);
@@ -102,6 +110,31 @@ pub(super) fn render_model(
     }
     on_view(1, 1);
     Ok(done.report(args))
+}
+
+/// Every file a single-view render writes, with the option that names it: the image, then
+/// [`RenderArgs::side_outputs`].
+fn single_view_outputs(args: &RenderArgs) -> Vec<(&'static str, &Path)> {
+    std::iter::once(("-o", args.output.as_path()))
+        .chain(
+            args.side_outputs()
+                .into_iter()
+                .filter_map(|(option, path)| path.map(|p| (option, p.as_path()))),
+        )
+        .collect()
+}
+
+/// The files a render reads that its command line names: the model, the `--env` panorama
+/// and the `--view` file (an output must not be one of them).
+pub(super) fn run_inputs(args: &RenderArgs) -> Vec<(&'static str, &Path)> {
+    let mut inputs = vec![("the model this run renders", args.model.as_path())];
+    if let Some(env) = &args.env {
+        inputs.push(("the --env panorama", env.as_path()));
+    }
+    if let Some(view) = &args.view {
+        inputs.push(("the --view file", view.as_path()));
+    }
+    inputs
 }
 
 /// Stops a run whose Ctrl-C (or SIGTERM, SIGHUP) came during the load, before the BVH build

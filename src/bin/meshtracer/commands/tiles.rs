@@ -199,6 +199,28 @@ pub(super) fn merge_command(args: &MergeArgs) -> Result<()> {
             (None, _) => {}
         }
     }
+    // No output may be one of the tiles' files, nor two outputs one file.
+    let tile_files: Vec<PathBuf> = tiles
+        .iter()
+        .flat_map(|(sidecar, tile)| {
+            let files = tile
+                .outputs
+                .keys()
+                .filter_map(|k| tile.output_path(sidecar, k));
+            files
+                .chain(std::iter::once(sidecar.clone()))
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let inputs: Vec<_> = tile_files
+        .iter()
+        .map(|p| ("a tile's file", p.as_path()))
+        .collect();
+    let outputs: Vec<_> = asked
+        .iter()
+        .filter_map(|&(_, out, option)| out.map(|p| (option, p.as_path())))
+        .collect();
+    meshtracer::output::check_destinations(&outputs, &inputs, args.no_clobber)?;
     let mut encoded = Vec::new();
     for (kind, out) in jobs {
         let mut whole: Option<Raster> = None;
