@@ -29,6 +29,16 @@ fn assert_close(got: [f64; 3], expected: [f64; 3], what: &str) {
     }
 }
 
+/// Adds `node` to the document and to its first scene's roots.
+fn add_root_node(json: &mut Value, node: Value) {
+    let index = json["nodes"].as_array().unwrap().len();
+    json["nodes"].as_array_mut().unwrap().push(node);
+    json["scenes"][0]["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!(index));
+}
+
 /// The warnings of an `info --json`.
 fn warnings(info: &Value) -> Vec<String> {
     info["warnings"]
@@ -341,12 +351,7 @@ fn out_of_range_lights_are_corrected() {
         "extensions": {"KHR_lights_punctual": {"light": light}}})
     };
     for (light, z) in [(0, 1.0), (0, 2.0), (1, 1.0), (2, 1.0), (3, 1.0)] {
-        let index = json["nodes"].as_array().unwrap().len();
-        json["nodes"].as_array_mut().unwrap().push(lit(light, z));
-        json["scenes"][0]["nodes"]
-            .as_array_mut()
-            .unwrap()
-            .push(json!(index));
+        add_root_node(&mut json, lit(light, z));
     }
     let info = info(dir.path(), json, &bin);
     assert_eq!(
@@ -381,6 +386,58 @@ fn out_of_range_lights_are_corrected() {
         "{inner} {outer}"
     );
     assert_eq!(cones(&lights[4]), (0.2f32 as f64, 0.3f32 as f64));
+}
+
+/// Cameras outside the specification's ranges would render an empty or mirrored picture and
+/// write a view file `--view` refuses: each is skipped with a warning that says why, and a
+/// valid one beside them is kept.
+#[test]
+fn cameras_outside_the_specified_ranges_are_skipped_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut json, bin) = unit_quad();
+    let perspective = |yfov: f64, znear: f64, zfar: Option<f64>| {
+        let mut p = json!({"yfov": yfov, "znear": znear});
+        if let Some(far) = zfar {
+            p["zfar"] = json!(far);
+        }
+        json!({"type": "perspective", "perspective": p})
+    };
+    let orthographic = |xmag: f64, ymag: f64| json!({"type": "orthographic", "orthographic": {"xmag": xmag, "ymag": ymag, "znear": 0.0, "zfar": 10.0}});
+    json["cameras"] = json!([
+        perspective(0.0, 0.1, None),
+        perspective(4.0, 0.1, None),
+        perspective(0.8, 0.0, None),
+        perspective(0.8, 1.0, Some(0.5)),
+        orthographic(0.0, 1.0),
+        orthographic(1.0, -1.0),
+        perspective(0.8, 0.1, Some(100.0)),
+    ]);
+    // unit_quad's camera node (node 1) takes the valid camera, new nodes 2-7 the others.
+    json["nodes"][1]["camera"] = json!(6);
+    for camera in 0..6 {
+        add_root_node(
+            &mut json,
+            json!({"camera": camera, "translation": [0.0, 0.0, 3.0]}),
+        );
+    }
+    let info = info(dir.path(), json, &bin);
+    assert_eq!(
+        warnings(&info),
+        [
+            "camera on node 2 skipped: yfov 0 is not in (0, π) radians",
+            "camera on node 3 skipped: yfov 4 is not in (0, π) radians",
+            "camera on node 4 skipped: znear 0 is out of range",
+            "camera on node 5 skipped: zfar 0.5 is not beyond znear 1",
+            "camera on node 6 skipped: xmag 0 is zero or not finite",
+            "camera on node 7 skipped: ymag -1 is not above 0",
+        ]
+    );
+    assert_eq!(
+        info["cameras"].as_array().unwrap().len(),
+        1,
+        "{}",
+        info["cameras"]
+    );
 }
 
 /// Normals of length 2 are reported, naming the primitive and the accessor.

@@ -191,11 +191,10 @@ impl<'a> Importer<'a> {
         let name = node.name().map(str::to_string);
         if let Some(camera) = node.camera() {
             match place_camera(&camera, world, name.clone()) {
-                Some(c) => self.cameras.push(c),
-                None => self.warnings.push(format!(
-                    "camera on node {} skipped: its transform is not finite or is singular",
-                    node.index()
-                )),
+                Ok(c) => self.cameras.push(c),
+                Err(why) => self
+                    .warnings
+                    .push(format!("camera on node {} skipped: {why}", node.index())),
             }
         }
         if !visible {
@@ -517,7 +516,20 @@ fn visible_by_itself(node: &gltf::Node) -> bool {
         != Some(false)
 }
 
-fn place_camera(camera: &gltf::Camera, world: Mat4, node_name: Option<String>) -> Option<Camera> {
+/// The camera of a node at `world`, or why it cannot be used: a transform that is not finite
+/// or is singular, or a projection outside glTF 2.0 §5.12-5.14's ranges (`yfov` in (0, π)
+/// radians, `xmag` not zero, `ymag` above 0, `znear` above 0 for a perspective camera and not
+/// below 0 for an orthographic one, `zfar` beyond `znear`), which would render an empty or
+/// mirrored image and write a view file that `--view` refuses.
+fn place_camera(
+    camera: &gltf::Camera,
+    world: Mat4,
+    node_name: Option<String>,
+) -> Result<Camera, String> {
+    let problem = projection_problem(camera);
+    if let Some(problem) = problem {
+        return Err(problem);
+    }
     let projection = match camera.projection() {
         gltf::camera::Projection::Perspective(p) => Projection::Perspective {
             yfov: p.yfov(),
@@ -537,6 +549,49 @@ fn place_camera(camera: &gltf::Camera, world: Mat4, node_name: Option<String>) -
         projection,
         camera.name().map(str::to_string).or(node_name),
     )
+    .ok_or_else(|| "its transform is not finite or is singular".to_string())
+}
+
+/// What in `camera`'s projection is outside the specification's ranges (see
+/// [`place_camera`]), in words; `None` when nothing is.
+fn projection_problem(camera: &gltf::Camera) -> Option<String> {
+    let positive = |x: f32| x > 0.0 && x.is_finite();
+    let (znear, zfar, near_ok) = match camera.projection() {
+        gltf::camera::Projection::Perspective(p) => {
+            let yfov = p.yfov();
+            if !(positive(yfov) && yfov < std::f32::consts::PI) {
+                return Some(format!("yfov {yfov} is not in (0, π) radians"));
+            }
+            if let Some(aspect) = p.aspect_ratio().filter(|a| !positive(*a)) {
+                return Some(format!("aspectRatio {aspect} is not above 0"));
+            }
+            (p.znear(), p.zfar(), positive(p.znear()))
+        }
+        gltf::camera::Projection::Orthographic(o) => {
+            // A negative `xmag` only mirrors the image (the specification advises against
+            // it); the height `ymag` must be above 0, as a view file's.
+            if o.xmag() == 0.0 || !o.xmag().is_finite() {
+                return Some(format!("xmag {} is zero or not finite", o.xmag()));
+            }
+            if !positive(o.ymag()) {
+                return Some(format!("ymag {} is not above 0", o.ymag()));
+            }
+            (
+                o.znear(),
+                Some(o.zfar()),
+                o.znear() >= 0.0 && o.znear().is_finite(),
+            )
+        }
+    };
+    if !near_ok {
+        return Some(format!("znear {znear} is out of range"));
+    }
+    match zfar {
+        Some(far) if far.is_nan() || far <= znear => {
+            Some(format!("zfar {far} is not beyond znear {znear}"))
+        }
+        _ => None,
+    }
 }
 
 /// KHR_lights_punctual's ranges: `color` in [0, 1] per channel (a negative one would take light
