@@ -1,7 +1,8 @@
 //! Writing AOVs (depth, normals, coverage mask, instance segmentation), by file extension.
 //!
 //! - Depth: `.exr` (float, depth in R, G and B), `.npy` (float32, H x W) or `.png` (16-bit grey,
-//!   value = depth / scale, rounded and clamped to 65535; the scale is `--depth-scale`, metres
+//!   value = depth / scale, rounded and clamped to 65535, which the render warns of
+//!   ([`depth_png_loss`]); the scale is `--depth-scale`, metres
 //!   per unit, 0.001 by default: millimetres). 0 means nothing was hit, as in pyrender.
 //! - Normals: `.exr` / `.npy` (float xyz, H x W x 3) or `.png` (8-bit, (n + 1)/2).
 //! - Mask: `.png` (8-bit coverage, 255 = fully covered) or `.npy` (float32).
@@ -57,6 +58,55 @@ where
 fn exr_rgba(width: u32, height: u32, rgba: Vec<f32>) -> Vec<u8> {
     // Encoding an in-memory buffer of the right size into a Vec cannot fail.
     crate::output::exr_rgba(width, height, &rgba).unwrap_or_default()
+}
+
+/// The largest value a 16-bit PNG holds: depths beyond this many `--depth-scale` units and
+/// segmentation ids above it are written as it.
+const PNG_MAX: f32 = 65535.0;
+
+/// What a 16-bit PNG depth file at `path` loses, in words naming it: the pixels farther than
+/// 65535 units of `scale`, written as 65535. `None` for other formats or when every depth fits.
+pub fn depth_png_loss(path: &Path, depth: &[f32], scale: f32) -> Option<String> {
+    if extension(path) != "png" {
+        return None;
+    }
+    let beyond = depth
+        .iter()
+        .filter(|&&d| (d / scale).round() > PNG_MAX)
+        .count();
+    (beyond > 0).then(|| {
+        format!(
+            "{}: {} farther than a 16-bit PNG holds at --depth-scale {scale} ({} scene units), written as 65535; raise --depth-scale, or write .exr or .npy",
+            path.display(),
+            pixels_are(beyond),
+            PNG_MAX * scale
+        )
+    })
+}
+
+/// What a 16-bit PNG segmentation file at `path` loses, in words naming it: the pixels of
+/// instances whose id is above 65535, written as 65535. `None` for `.npy` or when every id
+/// fits.
+pub fn segmentation_png_loss(path: &Path, ids: &[u32]) -> Option<String> {
+    if extension(path) != "png" {
+        return None;
+    }
+    let beyond = ids.iter().filter(|&&id| id > u32::from(u16::MAX)).count();
+    (beyond > 0).then(|| {
+        format!(
+            "{}: {} of mesh instances whose id is above 65535, the most a 16-bit PNG holds, written as 65535; write .npy for every id",
+            path.display(),
+            pixels_are(beyond)
+        )
+    })
+}
+
+/// "1 pixel is" or "N pixels are".
+fn pixels_are(n: usize) -> String {
+    match n {
+        1 => "1 pixel is".to_string(),
+        n => format!("{n} pixels are"),
+    }
 }
 
 /// Writes camera-space depth.
@@ -183,4 +233,32 @@ pub fn write_segmentation(
         _ => return Err(unknown(path, "npy, png")),
     };
     write_atomic(path, &bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A PNG's loss is counted where rounding would pass 65535, and only for PNGs.
+    #[test]
+    fn png_losses_count_the_pixels_beyond_sixteen_bits() {
+        let png = Path::new("d.png");
+        // At millimetres, 65.5354 m rounds to 65535 and fits; 65.5356 m does not.
+        let depth = [0.0, 1.0, 65.5354, 65.5356, 1e9];
+        let loss = depth_png_loss(png, &depth, 0.001).unwrap();
+        assert!(loss.starts_with("d.png: 2 pixels are farther"), "{loss}");
+        // At metres only the 1e9 fits no more.
+        let loss = depth_png_loss(png, &depth, 1.0).unwrap();
+        assert!(loss.starts_with("d.png: 1 pixel is farther"), "{loss}");
+        assert!(depth_png_loss(png, &depth[..3], 0.001).is_none());
+        assert!(depth_png_loss(Path::new("d.exr"), &depth, 0.001).is_none());
+        let ids = [0, 65535, 65536, 70000];
+        let loss = segmentation_png_loss(Path::new("s.png"), &ids).unwrap();
+        assert!(
+            loss.starts_with("s.png: 2 pixels are of mesh instances"),
+            "{loss}"
+        );
+        assert!(segmentation_png_loss(Path::new("s.png"), &ids[..2]).is_none());
+        assert!(segmentation_png_loss(Path::new("s.npy"), &ids).is_none());
+    }
 }

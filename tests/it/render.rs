@@ -1029,6 +1029,47 @@ fn outputs_that_would_destroy_an_input_or_each_other_are_refused_before_any_work
     }
 }
 
+/// A depth PNG seen from beyond its 16-bit range says so, and still writes the file.
+#[test]
+fn a_depth_png_beyond_its_range_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = cornell();
+    let (out, depth) = (dir.path().join("far.png"), dir.path().join("far-depth.png"));
+    let args = [
+        "render",
+        s(&model),
+        "-o",
+        s(&out),
+        "--depth-out",
+        s(&depth),
+        "--look-from",
+        "0,1,100",
+        "--look-at",
+        "0,1,0",
+        "--yfov",
+        "5",
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "--spp",
+        "1",
+        "-q",
+    ];
+    let err = crate::common::stderr(&run(&args, true));
+    assert!(err.contains("far-depth.png: "), "{err}");
+    assert!(
+        err.contains("farther than a 16-bit PNG holds at --depth-scale 0.001"),
+        "{err}"
+    );
+    assert!(depth.exists());
+    // In metres the same view fits, and nothing is said.
+    let mut metres = args.to_vec();
+    metres.extend(["--depth-scale", "1"]);
+    let err = crate::common::stderr(&run(&metres, true));
+    assert!(!err.contains("16-bit"), "{err}");
+}
+
 #[test]
 fn the_summary_reports_what_the_render_did() {
     let dir = tempfile::tempdir().unwrap();

@@ -186,6 +186,26 @@ pub(crate) fn render_load_options(args: &RenderArgs) -> LoadOptions {
     }
 }
 
+/// Warns (unless `--no-warnings`) of what the 16-bit PNG files of `aovs` at `depth` and
+/// `segmentation` lose: depths beyond the PNG's range, instance ids above 65535.
+pub(crate) fn warn_png_losses(
+    args: &RenderArgs,
+    depth: Option<&Path>,
+    segmentation: Option<&Path>,
+    aovs: &meshtracer::render::Aovs,
+) {
+    use meshtracer::output::aov::{depth_png_loss, segmentation_png_loss};
+    let losses = [
+        depth.and_then(|p| depth_png_loss(p, &aovs.depth, args.depth_scale)),
+        segmentation.and_then(|p| segmentation_png_loss(p, &aovs.instance)),
+    ];
+    for loss in losses.into_iter().flatten() {
+        if !args.no_warnings {
+            eprintln!("warning: {loss}");
+        }
+    }
+}
+
 /// Prints the loaded model's warnings unless `--no-warnings` (`--quiet` does not hide a
 /// warning about the picture), and the pose it is drawn in unless `--quiet` (shared by single-
 /// and multi-view renders).

@@ -651,6 +651,12 @@ fn write_aovs(args: &RenderArgs, image: &Image, aovs: Option<&Aovs>) -> Result<(
         if let Some(p) = &args.segmentation_out {
             meshtracer::output::aov::write_segmentation(p, image.width, image.height, &a.instance)?;
         }
+        super::warn_png_losses(
+            args,
+            args.depth_out.as_deref(),
+            args.segmentation_out.as_deref(),
+            a,
+        );
     }
     if let Some(p) = &args.mask_out {
         let coverage: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();

@@ -1202,6 +1202,9 @@ impl ViewRun<'_> {
                     &a.instance,
                 )?;
             }
+            let depth = names.depth.as_ref().map(|n| dir.join(n));
+            let segmentation = names.segmentation.as_ref().map(|n| dir.join(n));
+            super::warn_png_losses(args, depth.as_deref(), segmentation.as_deref(), a);
         }
         if let Some(name) = &names.mask {
             let coverage: Vec<f32> = image.pixels.iter().map(|p| p.w).collect();
