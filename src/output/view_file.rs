@@ -259,7 +259,8 @@ impl ViewFile {
             camera: ViewCamera {
                 kind: kind.into(),
                 position: camera.position.to_array(),
-                look_at: (camera.position + camera.forward).to_array(),
+                look_at: (camera.position + camera.forward * look_at_reach(camera.position))
+                    .to_array(),
                 up: camera.up.to_array(),
                 forward: Some(camera.forward.to_array()),
                 yfov,
@@ -390,8 +391,10 @@ impl ViewCamera {
             .try_normalize()
             .ok_or_else(|| err("look_at equals position"))?;
         // `look_at` holds the direction only to the rounding of coordinates as large as the
-        // position's: a unit in the last place of each, over a distance of one.
-        let look_at_rounding = 4.0 * f32::EPSILON * position.abs().max_element();
+        // position's and its own: a unit in the last place of each, over their distance.
+        let look_at = Vec3::from(c.look_at);
+        let look_at_rounding = 4.0 * f32::EPSILON * position.abs().max(look_at.abs()).max_element()
+            / (look_at - position).length();
         let forward = exact_or(
             c.forward.map(Vec3::from),
             aimed,
@@ -430,6 +433,18 @@ impl ViewCamera {
             up,
             projection,
         })
+    }
+}
+
+/// How far ahead of `position` a view file's `look_at` is written: one unit, as always, for
+/// a camera within 65536 of the origin; as far as its largest coordinate beyond, so that
+/// `look_at` still differs from the position in f32 (at 1e10 a unit step rounds away).
+fn look_at_reach(position: Vec3) -> f32 {
+    let far = position.abs().max_element();
+    if far < 65536.0 {
+        1.0
+    } else {
+        far
     }
 }
 
@@ -550,6 +565,11 @@ mod tests {
                 max: Vec3::new(1.0 + t, 2.9, 0.5 + t * 0.11),
             };
             cameras.push(crate::camera::auto_camera(&bounds, &[], 4.0 / 3.0));
+            // Far from the origin, where a unit step ahead rounds away in f32.
+            cameras.push(Camera {
+                position: Vec3::new(1e10, t * 1e7, -3e9),
+                ..cameras[cameras.len() - 2].clone()
+            });
         }
         let light = |direction: Vec3| Light {
             name: None,
