@@ -860,6 +860,30 @@ fn bad_options_are_refused_before_any_work() {
         ],
         "X,Y,Z",
     );
+    // A camera the options cannot make, refused before loading (as a views file's entry is).
+    for (camera, needle) in [
+        (vec!["--up", "0,0,0"], "must not be zero"),
+        (
+            vec!["--look-from", "0,1,5", "--look-at", "0,1,5"],
+            "are the same point (0,1,5)",
+        ),
+        (
+            vec![
+                "--look-from",
+                "0,1,5",
+                "--look-at",
+                "0,1,0",
+                "--up",
+                "0,0,-2",
+            ],
+            "--up 0,0,-2: along the view",
+        ),
+    ] {
+        let x = out("x.png");
+        let mut args = vec!["render", "no-such-model.gltf", "-o", s(&x)];
+        args.extend(camera);
+        refuse(&args, needle);
+    }
     // The sampling and encoding options: a fraction above 0, a radiance above 0, a known name.
     let png = out("x.png");
     for (option, value, needle) in [

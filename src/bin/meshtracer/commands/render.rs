@@ -175,6 +175,33 @@ fn check_image_options(args: &RenderArgs) -> Result<()> {
     } else if args.width == Some(0) || args.height == Some(0) {
         bail!("image width and height must be at least 1");
     }
+    check_camera_options(args)
+}
+
+/// Refuses a camera the options cannot make, as a views file's entry is refused: a zero
+/// `--up`, a `--look-from` at its `--look-at`, an `--up` along the view between them. (With
+/// the default up, a view straight down or up takes +Z as up instead.)
+fn check_camera_options(args: &RenderArgs) -> Result<()> {
+    let text = |v: glam::Vec3| format!("{},{},{}", v.x, v.y, v.z);
+    if let Some(up) = args.up.filter(|u| *u == glam::Vec3::ZERO) {
+        bail!("--up {}: the up vector must not be zero", text(up));
+    }
+    if let (Some(from), Some(at)) = (args.look_from, args.look_at) {
+        let Some(view) = (at - from).try_normalize() else {
+            bail!(
+                "--look-from and --look-at are the same point ({}): the camera needs a direction",
+                text(from)
+            );
+        };
+        if let Some(up) = args.up {
+            if up.normalize().cross(view).length() < 1e-6 {
+                bail!(
+                    "--up {}: along the view from --look-from to --look-at; give an up vector across it",
+                    text(up)
+                );
+            }
+        }
+    }
     Ok(())
 }
 
