@@ -56,7 +56,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         options.allow_external_files,
         options.limits.max_file_bytes,
     );
-    let (models, mtl_materials) = parse(path, text, &access)?;
+    let (models, mtl_materials, mtl_warnings) = parse(path, text, &access, options.strict)?;
     steps.mark("parse");
 
     let MtlMaterials {
@@ -101,7 +101,8 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     if uses_default {
         materials.push(obj_default_material());
     }
-    let mut warnings: Vec<String> = mtl_materials.iter().flat_map(mtl_out_of_range).collect();
+    let mut warnings = mtl_warnings;
+    warnings.extend(mtl_materials.iter().flat_map(mtl_out_of_range));
     warnings.extend(image_warnings);
     warnings.extend(builder.dropped_warning());
     if lone_material_fallback {
@@ -170,15 +171,30 @@ fn checked_text(bytes: &[u8]) -> Result<&str, LoadErrorKind> {
     Ok(text)
 }
 
+/// What [`parse`] reads: the models, the MTL materials, a warning for each unusable library.
+type Parsed = (Vec<tobj::Model>, Vec<tobj::Material>, Vec<String>);
+
 /// Parses the OBJ text with tobj (fan-triangulated), reading the MTL libraries it names through
-/// `access`: the models, and the MTL materials (none without a library).
-fn parse(
-    path: &Path,
-    text: &str,
-    access: &FileAccess,
-) -> Result<(Vec<tobj::Model>, Vec<tobj::Material>), LoadError> {
+/// `access`: the models, the MTL materials (none without a library) and a warning for each
+/// library that is missing or cannot be read or parsed (its faces take the grey default, as
+/// a missing texture is drawn without; `strict` makes it an error). A library outside the
+/// model's folder (or a FIFO, or one past the file size limit) is refused as a texture is.
+fn parse(path: &Path, text: &str, access: &FileAccess, strict: bool) -> Result<Parsed, LoadError> {
     let err = |kind| LoadError::new(path, kind);
     let mtl_error: RefCell<Option<LoadError>> = RefCell::new(None);
+    let unread: RefCell<Vec<String>> = RefCell::new(Vec::new());
+    // A library that cannot be used: a warning, or with `strict` the error.
+    let skip = |mtl: String, problem: String| {
+        if strict {
+            let problem = format!("{problem} (--strict refuses a missing MTL)");
+            let mut first = mtl_error.borrow_mut();
+            first.get_or_insert_with(|| err(LoadErrorKind::Mtl { mtl, problem }));
+        } else {
+            unread.borrow_mut().push(format!(
+                "MTL '{mtl}': {problem}; the faces using its materials get a grey default"
+            ));
+        }
+    };
     let load_options = tobj::LoadOptions {
         triangulate: true,
         single_index: false,
@@ -196,17 +212,20 @@ fn parse(
                 .and_then(|p| access.read(&p).map(|b| (p, b)));
             match read {
                 Ok((_, bytes)) => tobj::load_mtl_buf(&mut &bytes[..]).inspect_err(|e| {
-                    *mtl_error.borrow_mut() = Some(err(LoadErrorKind::Mtl {
-                        mtl: name.clone(),
-                        problem: format!("{e}"),
-                    }));
+                    skip(name.clone(), format!("cannot parse it: {e}"));
                 }),
                 Err(e) => {
-                    let problem = match e.kind {
-                        LoadErrorKind::Io(io) => format!("cannot read it: {io}"),
-                        other => other.to_string(),
-                    };
-                    *mtl_error.borrow_mut() = Some(err(LoadErrorKind::Mtl { mtl: name, problem }));
+                    match e.kind {
+                        LoadErrorKind::Io(io) => skip(name, format!("cannot read it: {io}")),
+                        LoadErrorKind::IsDirectory => skip(name, "it is a folder".into()),
+                        other => {
+                            let problem = other.to_string();
+                            let mut first = mtl_error.borrow_mut();
+                            first.get_or_insert_with(|| {
+                                err(LoadErrorKind::Mtl { mtl: name, problem })
+                            });
+                        }
+                    }
                     Err(tobj::LoadError::OpenFileFailed)
                 }
             }
@@ -215,7 +234,8 @@ fn parse(
     if let Some(e) = mtl_error.into_inner() {
         return Err(e);
     }
-    Ok((models, materials.unwrap_or_default()))
+    // tobj returns the error of a library only when no other one gave a material.
+    Ok((models, materials.unwrap_or_default(), unread.into_inner()))
 }
 
 /// The MTL materials mapped onto ours (see the module docs), with the textures and images
@@ -816,6 +836,48 @@ mod tests {
                 "{text:?}: {problem}"
             );
         }
+    }
+
+    /// A missing material library is a warning naming it, its faces grey; `--strict` refuses
+    /// it, and a library outside the model's folder is refused either way.
+    #[test]
+    fn a_missing_mtl_is_a_warning_unless_strict() {
+        let dir = tempfile::tempdir().unwrap();
+        let model = dir.path().join("m").join("nomtl.obj");
+        std::fs::create_dir(dir.path().join("m")).unwrap();
+        std::fs::write(dir.path().join("outside.mtl"), "newmtl a\nKd 1 0 0\n").unwrap();
+        let text =
+            |mtl: &str| format!("mtllib {mtl}\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+        let lenient = LoadOptions::default();
+        let scene = load(&model, text("gone.mtl").as_bytes(), &lenient).unwrap();
+        assert_eq!(scene.materials.len(), 1);
+        assert_eq!(
+            scene.materials[0].base_color,
+            obj_default_material().base_color
+        );
+        assert!(
+            scene
+                .warnings
+                .iter()
+                .any(|w| w.starts_with("MTL 'gone.mtl': cannot read it")),
+            "{:?}",
+            scene.warnings
+        );
+        let strict = LoadOptions {
+            strict: true,
+            ..LoadOptions::default()
+        };
+        let refused = load(&model, text("gone.mtl").as_bytes(), &strict).unwrap_err();
+        assert!(
+            matches!(&refused.kind, LoadErrorKind::Mtl { mtl, problem }
+                if mtl == "gone.mtl" && problem.contains("--strict")),
+            "{refused}"
+        );
+        let outside = load(&model, text("../outside.mtl").as_bytes(), &lenient).unwrap_err();
+        assert!(
+            matches!(&outside.kind, LoadErrorKind::Mtl { problem, .. } if problem.contains("outside")),
+            "{outside}"
+        );
     }
 
     /// Every glass `illum` refracts with `Ni` (water: 1.33) and is tinted by `Tf`, not `Kd`;

@@ -42,8 +42,9 @@ pub struct LoadOptions {
     pub limits: LoadLimits,
     /// Allow URIs that are absolute or escape the model's folder (`--allow-external-files`).
     pub allow_external_files: bool,
-    /// Refuse the file when an image cannot be used (`--strict`), instead of drawing the
-    /// materials that use it with their factors and a warning.
+    /// Refuse the file when an image, or an OBJ's material library, cannot be used
+    /// (`--strict`), instead of drawing the materials that use it with their factors (the
+    /// faces of a missing library with a grey default) and a warning.
     pub strict: bool,
     /// The `KHR_materials_variants` variant to draw, by name (`--variant`); `None` draws each
     /// primitive's default material.

@@ -858,6 +858,10 @@ const TEXTURE_CASES: &[&str] = &[
     "OBJ with a missing texture",
 ];
 
+/// The case whose only fault is a missing material library: an error under `--strict`, a
+/// warning otherwise (`a_missing_mtl_renders_grey_with_a_warning_and_strict_refuses_it`).
+const MISSING_MTL_CASE: &str = "OBJ with a missing MTL";
+
 fn strict() -> LoadOptions {
     LoadOptions {
         strict: true,
@@ -936,7 +940,7 @@ fn the_binary_exits_non_zero_with_one_message_naming_the_file() {
         write_case(dir.path(), &case);
         let model = dir.path().join(&case.model);
         let output = dir.path().join("out.png");
-        let out = if TEXTURE_CASES.contains(&case.name) {
+        let out = if TEXTURE_CASES.contains(&case.name) || case.name == MISSING_MTL_CASE {
             let args = ["render", "--strict", "-q", "--width", "8", "--height", "8"];
             let mut args = args.to_vec();
             args.extend([crate::common::s(&model), "-o", crate::common::s(&output)]);
@@ -1181,15 +1185,62 @@ fn a_missing_png_renders_with_a_warning_and_strict_refuses_it() {
         "{centre:?}"
     );
 
-    std::fs::remove_file(&output).unwrap();
+    strict_refuses(render, &output, "missing.png");
+}
+
+/// `render(&["--strict"], false)` (after a render without it wrote `output`) exits 1 naming
+/// `missing` and `--strict`, and leaves no output file.
+fn strict_refuses(
+    render: impl Fn(&[&str], bool) -> std::process::Output,
+    output: &Path,
+    missing: &str,
+) {
+    std::fs::remove_file(output).unwrap();
     let out = render(&["--strict"], false);
     let err = crate::common::stderr(&out);
     assert_eq!(out.status.code(), Some(1), "{err}");
-    assert!(
-        err.contains("missing.png") && err.contains("--strict"),
-        "{err}"
-    );
+    assert!(err.contains(missing) && err.contains("--strict"), "{err}");
     assert!(!output.exists(), "--strict leaves no output file");
+}
+
+/// Many downloaded OBJs lack their .mtl: the model renders with the grey default material and
+/// one warning naming the OBJ and the library, as a missing texture does; `--strict` refuses
+/// it and writes nothing.
+#[test]
+fn a_missing_mtl_renders_grey_with_a_warning_and_strict_refuses_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("nomtl.obj");
+    std::fs::write(
+        &model,
+        "mtllib nothere.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    let output = dir.path().join("o.png");
+    let render = |extra: &[&str], ok: bool| {
+        let mut args = vec!["render", crate::common::s(&model), "-o"];
+        args.extend([crate::common::s(&output), "--width", "16", "--height", "16"]);
+        args.extend(["--look-from", "0.3,0.3,2", "--look-at", "0.3,0.3,0"]);
+        args.extend(["--integrator", "direct"]);
+        args.extend(extra);
+        crate::common::run(&args, ok)
+    };
+    let out = render(&[], true);
+    let err = crate::common::stderr(&out);
+    let warnings: Vec<&str> = err.lines().filter(|l| l.contains("nothere.mtl")).collect();
+    assert_eq!(warnings.len(), 1, "one warning: {err}");
+    assert!(
+        warnings[0].starts_with(&format!("warning: {}: MTL 'nothere.mtl'", model.display())),
+        "names the OBJ and the MTL: {err}"
+    );
+    // Drawn with the grey default: the centre pixel is lit and neutral.
+    let (w, h, pixels) = crate::common::read_rgba(&output);
+    let centre = pixels[(h / 2 * w + w / 2) as usize];
+    assert!(
+        centre[3] == 1.0 && centre[0] > 0.05 && (centre[0] - centre[2]).abs() < 1e-3,
+        "{centre:?}"
+    );
+
+    strict_refuses(render, &output, "nothere.mtl");
 }
 
 /// An image whose header reads but whose data does not decode fails later, when textures are

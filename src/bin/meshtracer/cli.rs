@@ -487,8 +487,9 @@ pub struct RenderArgs {
     /// in its results).
     #[arg(long)]
     pub no_warnings: bool,
-    /// Refuse the model when a texture image is missing or cannot be decoded, instead of
-    /// drawing its materials with their factors and a warning.
+    /// Refuse the model when a texture image or an OBJ's .mtl is missing or cannot be read,
+    /// instead of drawing its materials with their factors (a missing .mtl's faces grey) and
+    /// a warning.
     #[arg(long)]
     pub strict: bool,
     /// Draw this KHR_materials_variants variant (by name; `info` lists them).
