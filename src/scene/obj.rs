@@ -201,11 +201,11 @@ fn parse(path: &Path, text: &str, access: &FileAccess, strict: bool) -> Result<P
         ignore_points: true,
         ignore_lines: true,
     };
-    let text = carry_materials_across_objects(text);
+    let carried = carry_materials_across_objects(text);
     // A byte slice is already a `BufRead`: a `BufReader` around it would copy every byte
     // once more into its 8 KiB buffer (4.5% of the Stanford bunny's load in `perf`).
     let (models, materials) =
-        tobj::load_obj_buf(&mut text.as_bytes(), &load_options, |mtl_path: &Path| {
+        tobj::load_obj_buf(&mut carried.as_bytes(), &load_options, |mtl_path: &Path| {
             let name = mtl_path.to_string_lossy().into_owned();
             let read = access
                 .resolve("mtllib", &name)
@@ -230,7 +230,9 @@ fn parse(path: &Path, text: &str, access: &FileAccess, strict: bool) -> Result<P
                 }
             }
         })
-        .map_err(|e| err(obj_error(e)))?;
+        .map_err(|e| {
+            err(locate_face_error(text, &e).map_or_else(|| obj_error(e), LoadErrorKind::Obj))
+        })?;
     if let Some(e) = mtl_error.into_inner() {
         return Err(e);
     }
@@ -625,6 +627,75 @@ fn obj_error(e: tobj::LoadError) -> LoadErrorKind {
     LoadErrorKind::Obj(what.to_string())
 }
 
+/// tobj's face errors say neither line nor index: this finds the face again in `text` (only on
+/// that error path) and says both, numbering lines from 1 as [`check_face_indices`] does. For
+/// `FaceParseError` the first face part that is not a number (or a fourth `/` part); for an
+/// index out of bounds the first absolute index past what the whole file holds (tobj resolves
+/// them after the last line; zero and relative indices were refused by `check_face_indices`).
+/// `None` for other errors, or when no face matches (then tobj's own words are used).
+fn locate_face_error(text: &str, error: &tobj::LoadError) -> Option<String> {
+    use tobj::LoadError as E;
+    const WHAT: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+    let slot = match error {
+        E::FaceParseError => None,
+        E::FaceVertexOutOfBounds | E::FaceColorOutOfBounds => Some(0),
+        E::FaceTexCoordOutOfBounds => Some(1),
+        E::FaceNormalOutOfBounds => Some(2),
+        _ => return None,
+    };
+    let mut count = [0u64; 3];
+    if slot.is_some() {
+        for line in text.lines() {
+            match line.split_whitespace().next() {
+                Some("v") => count[0] += 1,
+                Some("vt") => count[1] += 1,
+                Some("vn") => count[2] += 1,
+                _ => {}
+            }
+        }
+    }
+    text.lines().enumerate().find_map(|(index, line)| {
+        let mut words = line.split_whitespace();
+        let keyword = words.next()?;
+        // tobj parses `l` lines as faces too (and drops them later), but resolves only faces.
+        if !(keyword == "f" || keyword == "l" && slot.is_none()) {
+            return None;
+        }
+        let number = index + 1;
+        words.find_map(|word| {
+            let parts: Vec<&str> = word.split('/').collect();
+            match slot {
+                None => {
+                    let bad = parts.len() > 3
+                        || parts
+                            .iter()
+                            .any(|p| !p.is_empty() && p.parse::<isize>().is_err());
+                    bad.then(|| {
+                        format!(
+                            "line {number}: bad face ('{keyword}' line): '{word}' is not an index \
+                             (v, v/vt, v//vn or v/vt/vn, each a whole number)"
+                        )
+                    })
+                }
+                Some(k) => {
+                    let part = parts.get(k)?;
+                    let past = part
+                        .parse::<i64>()
+                        .ok()
+                        .filter(|&i| i > 0 && i as u64 > count[k]);
+                    past.map(|_| {
+                        format!(
+                            "line {number}: face index {part} refers to a {} that does not exist \
+                             (the file has {})",
+                            WHAT[k], count[k]
+                        )
+                    })
+                }
+            }
+        })
+    })
+}
+
 /// Grey, rough, double-sided: what an OBJ face without a material looks like.
 fn obj_default_material() -> Material {
     Material {
@@ -878,6 +949,50 @@ mod tests {
             matches!(&outside.kind, LoadErrorKind::Mtl { problem, .. } if problem.contains("outside")),
             "{outside}"
         );
+    }
+
+    /// Face errors tobj reports without a position get their line and index: an index past
+    /// the file's vertices, texture coordinates or normals, and a part that is not a number.
+    #[test]
+    fn face_errors_from_tobj_name_their_line() {
+        let tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+        for (body, expected) in [
+            (
+                "f 1 2 4\n",
+                "line 4: face index 4 refers to a vertex that does not exist (the file has 3)",
+            ),
+            (
+                "f 1 2 3\n# two\nf 1 2 3 7\n",
+                "line 6: face index 7 refers to a vertex",
+            ),
+            (
+                "vt 0 0\nf 1/1 2/1 3/2\n",
+                "line 5: face index 2 refers to a texture coordinate",
+            ),
+            (
+                "vn 0 0 1\nf 1//1 2//1 3//5\n",
+                "line 5: face index 5 refers to a normal",
+            ),
+            (
+                "f a b c\n",
+                "line 4: bad face ('f' line): 'a' is not an index",
+            ),
+            (
+                "f 1 2 3\r\nf 1 2/x 3\r\n",
+                "line 5: bad face ('f' line): '2/x' is not an index",
+            ),
+            (
+                "f 1/1/1/1 2 3\n",
+                "line 4: bad face ('f' line): '1/1/1/1' is not an index",
+            ),
+        ] {
+            let text = format!("{tri}{body}");
+            let e = load(Path::new("m.obj"), text.as_bytes(), &LoadOptions::default()).unwrap_err();
+            assert!(
+                matches!(&e.kind, LoadErrorKind::Obj(m) if m.starts_with(expected)),
+                "{body:?}: {e}"
+            );
+        }
     }
 
     /// Every glass `illum` refracts with `Ni` (water: 1.33) and is tinted by `Tf`, not `Kd`;

@@ -632,7 +632,7 @@ fn cases() -> Vec<Case> {
             "OBJ index past the vertices",
             b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n",
             vec![],
-            |k| matches!(k, K::Obj(m) if m.contains("does not exist")),
+            |k| matches!(k, K::Obj(m) if m.starts_with("line 4: face index 9") && m.contains("does not exist")),
         ),
         obj_case(
             "OBJ index zero",
@@ -670,7 +670,7 @@ fn cases() -> Vec<Case> {
             "OBJ normal index past the normals",
             b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//5\n",
             vec![],
-            |k| matches!(k, K::Obj(m) if m.contains("does not exist")),
+            |k| matches!(k, K::Obj(m) if m.starts_with("line 5: face index 5 refers to a normal")),
         ),
         obj_case(
             "OBJ with a missing MTL",
@@ -689,6 +689,12 @@ fn cases() -> Vec<Case> {
             b"mtllib m.mtl\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
             vec![("m.mtl".into(), b"newmtl a\nmap_Kd gone.png\n".to_vec())],
             |k| matches!(k, K::Image { problem, .. } if problem.contains("gone.png")),
+        ),
+        obj_case(
+            "OBJ face index that is not a number",
+            b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf a b c\n",
+            vec![],
+            |k| matches!(k, K::Obj(m) if m.starts_with("line 4: bad face")),
         ),
         obj_case(
             "OBJ that is not UTF-8",
