@@ -8,7 +8,9 @@
 //!   (`nv-flip`, at its default 67 pixels per degree); its per-pixel map is the difference image.
 //! - RMSE and the largest absolute difference, with channels in [0, 1].
 //! - Coverage IoU: pixels covered in both over pixels covered in either, where covered means
-//!   alpha above zero, or a colour different from `background` for images without alpha.
+//!   alpha above zero, or a colour different from `background` (black unless given) for
+//!   images without alpha: a JPEG that `render` wrote over its background is compared with a
+//!   PNG of the same render by its silhouette, not as if it covered the whole frame.
 
 use crate::color::ViewTransform;
 use crate::output::raster::{composite, draw_label, fill_rect};
@@ -108,19 +110,24 @@ pub fn read(path: &Path, view: ViewTransform) -> Result<RgbaImage, CompareError>
     Ok(img.to_rgba8())
 }
 
-fn covered(img: &RgbaImage, background: Option<[u8; 3]>) -> Vec<bool> {
+/// Which pixels of `img` are covered: alpha above zero, or for an image without alpha (every
+/// pixel opaque) a colour other than `background`.
+fn covered(img: &RgbaImage, background: [u8; 3]) -> Vec<bool> {
     let has_alpha = img.pixels().any(|p| p.0[3] < 255);
     img.pixels()
-        .map(|p| match (has_alpha, background) {
-            (true, _) => p.0[3] > 0,
-            (false, Some(bg)) => [p.0[0], p.0[1], p.0[2]] != bg,
-            (false, None) => true,
+        .map(|p| {
+            if has_alpha {
+                p.0[3] > 0
+            } else {
+                [p.0[0], p.0[1], p.0[2]] != background
+            }
         })
         .collect()
 }
 
-/// Compares `a` (the reference) with `b`. `background` is the linear-free sRGB byte colour
-/// both are composited over (black when `None`), and tells covered pixels of opaque images.
+/// Compares `a` (the reference) with `b`. `background` is the sRGB byte colour both are
+/// composited over and that marks the uncovered pixels of opaque images: black when `None`,
+/// exactly as `Some([0, 0, 0])`.
 pub fn compare(a: &RgbaImage, b: &RgbaImage, background: Option<[u8; 3]>) -> (Metrics, RgbImage) {
     let bg = background.unwrap_or([0, 0, 0]);
     let (ca, cb) = (composite(a, bg), composite(b, bg));
@@ -148,7 +155,7 @@ pub fn compare(a: &RgbaImage, b: &RgbaImage, background: Option<[u8; 3]>) -> (Me
     let heat = error_map.apply_color_lut(&nv_flip::magma_lut());
     let heatmap = RgbImage::from_raw(a.width(), a.height(), heat.to_vec())
         .unwrap_or_else(|| RgbImage::new(a.width(), a.height()));
-    let (ma, mb) = (covered(a, background), covered(b, background));
+    let (ma, mb) = (covered(a, bg), covered(b, bg));
     let both = ma.iter().zip(&mb).filter(|(x, y)| **x && **y).count();
     let either = ma.iter().zip(&mb).filter(|(x, y)| **x || **y).count();
     let coverage_iou = if either == 0 {
@@ -259,6 +266,24 @@ mod tests {
                 assert_eq!(out.get_pixel(x, y).0, [255, 255, 255], "({x},{y})");
             }
         }
+    }
+
+    /// An opaque image (a JPEG) is covered where it differs from the background, black when
+    /// none is given, exactly as when black is given: the default `--help` states.
+    #[test]
+    fn the_default_background_is_black_for_coverage_too() {
+        let png = disc(64, 48, 15.0, [200, 100, 50]);
+        let mut jpeg = png.clone();
+        for p in jpeg.pixels_mut() {
+            p.0[3] = 255;
+        }
+        let (default, _) = compare(&png, &jpeg, None);
+        let (black, _) = compare(&png, &jpeg, Some([0, 0, 0]));
+        assert_eq!(default, black);
+        assert_eq!(default.coverage_iou, 1.0);
+        // Over another colour, the opaque image's black surround counts as covered.
+        let (white, _) = compare(&png, &jpeg, Some([255, 255, 255]));
+        assert!(white.coverage_iou < 0.5, "{}", white.coverage_iou);
     }
 
     #[test]

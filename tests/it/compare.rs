@@ -132,6 +132,34 @@ fn compare_outputs_may_not_replace_its_inputs() {
     assert!(!out.exists());
 }
 
+/// A PNG (with alpha) against a JPEG of the same render (no alpha, over black): the default
+/// background is black for coverage as `--help` says, so leaving it out gives the metrics of
+/// `--background 0,0,0`, and the JPEG is covered by its silhouette, not the whole frame.
+#[test]
+fn the_default_background_is_the_black_one_typed_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = crate::common::root().join("assets/cornell-box.gltf");
+    let (png, jpg) = (dir.path().join("fmt.png"), dir.path().join("fmt.jpg"));
+    for out in [&png, &jpg] {
+        let size = ["--width", "64", "--height", "48", "--spp", "1", "-q"];
+        run(
+            &[&["render", s(&model), "-o", s(out)][..], &size].concat(),
+            true,
+        );
+    }
+    let metrics = |extra: &[&str]| {
+        let out = run(
+            &[&["compare", s(&png), s(&jpg), "--json"][..], extra].concat(),
+            true,
+        );
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+    };
+    let (default, black) = (metrics(&[]), metrics(&["--background", "0,0,0"]));
+    assert_eq!(default, black);
+    let iou = default["coverage_iou"].as_f64().unwrap();
+    assert!(iou > 0.85, "coverage IoU {iou}");
+}
+
 #[test]
 fn a_render_compared_with_itself_across_accelerators_is_perfect() {
     let dir = tempfile::tempdir().unwrap();

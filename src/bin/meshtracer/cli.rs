@@ -739,7 +739,8 @@ pub struct CompareArgs {
     #[arg(long, value_name = "FILE")]
     pub side_by_side: Option<PathBuf>,
     /// Composite both over this sRGB colour (0-255 or 0-1 components, R,G,B) before comparing;
-    /// for images without alpha it also marks uncovered pixels [default: black].
+    /// in an image without alpha (a JPEG) the pixels of exactly this colour are the uncovered
+    /// ones for coverage IoU [default: black, the same as giving 0,0,0].
     #[arg(long, value_name = "R,G,B", value_parser = parse_vec3)]
     pub background: Option<Vec3>,
     /// View transform for EXR and HDR inputs (linear radiance), as `render --tonemap` encodes
