@@ -81,6 +81,28 @@ fn images_of_different_sizes_are_an_error_not_a_resample() {
     assert!(crate::common::stderr(&missing).contains("nope.png"));
 }
 
+/// A NaN bound compares false with every metric, so the gate could never fail: NaN, infinite
+/// and negative bounds are refused with one line naming the option and the value.
+#[test]
+fn thresholds_that_can_never_fail_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.png");
+    write(&a, &image::RgbaImage::new(8, 8));
+    for (option, bound) in [
+        ("--fail-above", "flip=nan"),
+        ("--fail-above", "rmse=inf"),
+        ("--fail-above", "max_abs=-0.5"),
+        ("--fail-below", "psnr=nan"),
+    ] {
+        let out = run(&["compare", s(&a), s(&a), option, bound], false);
+        let err = crate::common::stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{bound}: {err}");
+        let first = err.lines().next().unwrap_or_default();
+        assert!(first.contains(option) && first.contains(bound), "{err}");
+        assert!(out.stdout.is_empty(), "{bound}: no metrics printed");
+    }
+}
+
 /// The heatmap and the strip are PNGs: another extension is refused before any work (it was
 /// written as a PNG under that name).
 #[test]

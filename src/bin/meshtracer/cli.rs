@@ -773,7 +773,9 @@ fn parse_clamp(s: &str) -> Result<f32, String> {
     }
 }
 
-/// Parses `METRIC=VALUE`.
+/// Parses `METRIC=VALUE`: a finite value the metric can take on one side (0 or more, SSIM -1 or
+/// more). NaN compares false with everything, so a NaN bound would never fail the gate; an
+/// infinite one or one below the metric's range never fails or always does.
 pub fn parse_threshold(s: &str) -> Result<(String, f64), String> {
     let (metric, value) = s
         .split_once('=')
@@ -784,10 +786,17 @@ pub fn parse_threshold(s: &str) -> Result<(String, f64), String> {
             "unknown metric '{metric}' (psnr, ssim, flip, rmse, max_abs, coverage_iou)"
         ));
     }
-    let value: f64 = value
-        .trim()
+    let text = value.trim();
+    let value: f64 = text
         .parse()
-        .map_err(|_| format!("'{value}' is not a number"))?;
+        .map_err(|_| format!("'{text}' is not a number"))?;
+    if !value.is_finite() {
+        return Err(format!("'{text}' is not a finite number"));
+    }
+    let least = if metric == "ssim" { -1.0 } else { 0.0 };
+    if value < least {
+        return Err(format!("'{text}': {metric} is never below {least}"));
+    }
     Ok((metric, value))
 }
 
@@ -872,6 +881,24 @@ mod tests {
     fn cli_definition_is_consistent() {
         use clap::CommandFactory;
         Cli::command().debug_assert();
+    }
+
+    /// A bound the gate could never cross (NaN, infinite, below the metric's range) is refused.
+    #[test]
+    fn thresholds_are_finite_and_in_range() {
+        assert_eq!(parse_threshold("flip=0.1"), Ok(("flip".into(), 0.1)));
+        assert_eq!(parse_threshold("ssim=-0.5"), Ok(("ssim".into(), -0.5)));
+        assert_eq!(parse_threshold("PSNR = 30"), Ok(("psnr".into(), 30.0)));
+        for bad in [
+            "flip=nan",
+            "rmse=NaN",
+            "psnr=inf",
+            "max_abs=-inf",
+            "flip=-0.1",
+            "ssim=-2",
+        ] {
+            assert!(parse_threshold(bad).is_err(), "{bad}");
+        }
     }
 
     #[test]
