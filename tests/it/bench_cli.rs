@@ -152,6 +152,21 @@ fn bench_sets_the_path_tracer_against_the_bvh() {
     assert!(!err.contains("building and tracing"), "{err}");
 }
 
+/// `--runs 0` would time nothing (it used to run once without a word): refused with one line
+/// naming the option, before anything is measured.
+#[test]
+fn bench_refuses_zero_runs() {
+    let out = run(
+        &["bench", "--sizes=1000", "--side", "8", "--runs", "0", "-q"],
+        false,
+    );
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("--runs 0"), "{err}");
+    assert!(out.stdout.is_empty(), "nothing measured: {err}");
+}
+
 /// The comparison `scripts/bench/peers.py` makes: three ray kinds in one run as JSON, one
 /// thread, per-thread throughput, and the exported arrays: the triangles and, per kind, as
 /// many rays as the row says were traced, with a hit file of one entry a ray. An export with

@@ -650,7 +650,7 @@ pub struct BenchArgs {
     /// Camera rays per image side (side² primary rays per run).
     #[arg(long, default_value_t = 512)]
     pub side: u32,
-    /// Timed runs per measurement (the median is reported).
+    /// Timed runs per measurement, 1 or more (the median is reported).
     #[arg(long, default_value_t = 3)]
     pub runs: usize,
     /// Triangle tests the linear scan may spend per measurement (it traces a subset of the rays

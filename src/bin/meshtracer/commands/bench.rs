@@ -23,7 +23,7 @@ pub(super) fn bench_command(args: &BenchArgs) -> Result<()> {
     let options = BenchOptions {
         kind: args.rays[0],
         side: args.side,
-        runs: args.runs.max(1),
+        runs: args.runs,
         linear_budget: args.linear_budget,
         preset: args.bvh_preset,
         packets: args.packets,
@@ -95,6 +95,9 @@ fn check_bench_options(args: &BenchArgs) -> Result<()> {
         if args.rays.len() != 1 {
             bail!("--plot draws one ray kind: give --rays one kind");
         }
+    }
+    if args.runs == 0 {
+        bail!("--runs 0: at least one timed run is needed (the median of the runs is reported)");
     }
     if args.side == 0 || args.side > 8192 {
         bail!("--side {}: must be between 1 and 8192", args.side);
