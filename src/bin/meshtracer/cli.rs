@@ -52,12 +52,13 @@ value_enum!(PreviewMode {
 });
 value_enum!(BvhPreset {
     Auto => "auto": "Chosen by the work at hand: `very-fast` for few rays per triangle, `medium` otherwise",
-    Fastest => "fastest": "`BvhBuildParams::fastest_build`",
-    VeryFast => "very-fast": "`BvhBuildParams::very_fast_build`",
-    Fast => "fast": "`BvhBuildParams::fast_build`",
-    Medium => "medium": "`BvhBuildParams::medium_build`",
-    Slow => "slow": "`BvhBuildParams::slow_build` (spatial pre-splits)",
-    VerySlow => "very-slow": "`BvhBuildParams::very_slow_build`",
+    // obvhs's `BvhBuildParams::{fastest,very_fast,fast,medium,slow,very_slow}_build`.
+    Fastest => "fastest": "Quickest build, one triangle a leaf and no refinement; the slowest to trace",
+    VeryFast => "very-fast": "Quick build with a little refinement",
+    Fast => "fast": "A wider search for neighbours to pair and more refinement",
+    Medium => "medium": "About Embree's build time, with faster tracing",
+    Slow => "slow": "Large triangles split spatially and a thorough search: a slower build, faster tracing",
+    VerySlow => "very-slow": "Spatial splits and every node refined: the slowest build",
 });
 value_enum!(ShadingModel {
     Pbr => "pbr": "The glTF 2.0 metallic-roughness BRDF (Appendix B)",
@@ -185,15 +186,15 @@ pub struct RenderArgs {
     /// Samples per pixel, exactly: 1 shoots through pixel centres; N > 1 takes
     /// Owen-scrambled Sobol samples (powers of two stratify best) [default: the path tracer samples each
     /// pixel adaptively, up to 32, until its noise is under --noise (1.0 when denoised, as the
-    /// default render is, else 0.1); the direct integrator takes 4]. Read it through
-    /// [`RenderArgs::spp`].
+    /// default render is, else 0.1); the direct integrator takes 4].
+    // Read it through `RenderArgs::spp`, which applies the default.
     #[arg(long = "spp", value_name = "N")]
     pub spp_given: Option<u32>,
     /// Adaptive sampling: each pixel stops once the standard error of its luminance is at most
     /// this fraction of it (of 0.05 in dark pixels), checked every 4 samples (every 2 when
     /// the image is denoised, as the default render is); --spp is then
-    /// the cap (e.g. --noise 0.02 --spp 1024). Read it
-    /// through [`RenderArgs::noise`].
+    /// the cap (e.g. --noise 0.02 --spp 1024).
+    // Read it through `RenderArgs::noise`, which applies the default.
     #[arg(long = "noise", value_name = "FRACTION", value_parser = parse_noise)]
     pub noise_given: Option<f32>,
     /// Render for about this many seconds instead of a fixed --spp: one sample per pixel is
@@ -210,7 +211,7 @@ pub struct RenderArgs {
     /// or --turntable each view is denoised as a single image; not with --tile or --crop.
     /// [default: on for the default render (the path tracer without --spp, --noise or
     /// --time-limit, one whole image), whose noise target is then 1.0; off otherwise].
-    /// Read it through [`RenderArgs::denoises`].
+    // Read it through `RenderArgs::denoises`, which applies the default.
     #[arg(long, conflicts_with_all = ["tile", "crop", "no_denoise"])]
     pub denoise: bool,
     /// Do not denoise the default render: it then samples to --noise 0.1 instead of 1.0.
@@ -916,6 +917,29 @@ mod help_tests {
     use super::Cli;
     use clap::CommandFactory;
     use meshtracer::defaults;
+
+    /// `--help` is for users: no doc comment written for rustdoc (an intra-doc link, a path
+    /// into the code) leaks into any command's help.
+    #[test]
+    fn no_help_shows_rustdoc_links_or_code_paths() {
+        let mut cli = Cli::command();
+        let mut helps = vec![("meshtracer".to_string(), cli.render_long_help().to_string())];
+        for sub in cli.get_subcommands_mut() {
+            helps.push((
+                sub.get_name().to_string(),
+                sub.render_long_help().to_string(),
+            ));
+        }
+        assert!(helps.len() > 5, "every subcommand");
+        for (name, help) in helps {
+            for leak in ["[`", "Self::", "Args::", "::"] {
+                assert!(
+                    !help.contains(leak),
+                    "{name} --help shows {leak:?}:\n{help}"
+                );
+            }
+        }
+    }
 
     /// The defaults `--help` states in prose are the ones [`meshtracer::defaults`] names.
     #[test]
