@@ -257,9 +257,10 @@ pub struct RenderArgs {
         conflicts_with_all = ["views", "view", "camera", "look_from", "up", "time_limit", "stats"]
     )]
     pub turntable: Option<u32>,
-    /// With --turntable: also write the frames as an animated GIF that loops forever (256
-    /// colours a frame; transparent where less than half covered, unless --background).
-    #[arg(long, value_name = "FILE.gif", requires = "turntable")]
+    /// With --turntable (or --views: the views in order): also write the frames as an animated
+    /// GIF that loops forever (256 colours a frame; transparent where less than half covered,
+    /// unless --background).
+    #[arg(long, value_name = "FILE.gif", requires = "many_views")]
     pub gif: Option<PathBuf>,
     /// With --gif: frames per second, at most 50 (GIF delays are whole hundredths of a
     /// second) [default: a full turn in 4 s, e.g. 9 fps for 36 frames].
