@@ -108,6 +108,21 @@ fn an_archive_without_exactly_one_model_is_refused() {
         // there.
         assert!(!std::env::temp_dir().join("up.mtl").exists());
     }
+    // A model whose buffer the zip lacks: named as the file names it, inside the archive, not
+    // by the temporary folder it was unpacked into.
+    let gltf = serde_json::json!({"asset": {"version": "2.0"},
+        "buffers": [{"uri": "mesh.bin", "byteLength": 36}]});
+    let archive = dir.path().join("nobin.zip");
+    write_zip(&archive, &[("m.gltf", gltf.to_string().into_bytes())]);
+    let err = stderr(&run(
+        &["render", s(&archive), "-o", s(&out_png), "-q"],
+        false,
+    ));
+    assert!(
+        err.contains("nobin.zip/m.gltf: buffer 0: cannot read 'mesh.bin'"),
+        "{err}"
+    );
+    assert!(!err.contains("meshtracer-zip-"), "{err}");
 }
 
 #[test]

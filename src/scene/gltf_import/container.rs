@@ -469,7 +469,10 @@ pub(super) fn load_buffers<'a>(
                         .map_err(|e| {
                             model_err(LoadErrorKind::Buffer {
                                 buffer: index,
-                                problem: format!("cannot read '{}': {}", file.display(), e.kind),
+                                // The URI as the file gives it, beside the model the error
+                                // names: a zip's model is read from a temporary folder whose
+                                // path means nothing to the user (and is gone by then).
+                                problem: format!("cannot read '{uri}': {}", e.kind),
                             })
                         })?,
                 )
