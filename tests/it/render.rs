@@ -892,6 +892,12 @@ fn bad_options_are_refused_before_any_work() {
         ("--clamp-indirect", "0", "not a radiance above 0"),
         ("--clamp-indirect", "inf", "not a radiance above 0"),
         ("--tonemap", "sepia", "khronos-pbr-neutral"),
+        ("--yfov", "-10", "--yfov -10: must be between 0 and 180"),
+        (
+            "--ambient",
+            "-0.1",
+            "--ambient -0.1,-0.1,-0.1: must be 0 or more",
+        ),
     ] {
         refuse(&["render", s(&model), "-o", s(&png), option, value], needle);
     }

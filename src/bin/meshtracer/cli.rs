@@ -234,7 +234,8 @@ pub struct RenderArgs {
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
     pub up: Option<Vec3>,
     /// Vertical field of view in degrees [default: 45, or the file camera's].
-    #[arg(long, value_name = "DEG")]
+    // A negative value is taken as the value, so that its range check names it.
+    #[arg(long, value_name = "DEG", allow_hyphen_values = true)]
     pub yfov: Option<f32>,
     /// Render many views after one load and one BVH build, into the folder -o names:
     /// orbit:N (a circle around the model), sphere:N (spread evenly over a sphere), random:N
@@ -380,7 +381,12 @@ pub struct RenderArgs {
     pub background: Option<Vec3>,
     /// Ambient radiance factor (R,G,B or one value) [default: 0.08 with the default rig,
     /// 0.03 with the file's lights].
-    #[arg(long, value_name = "R,G,B", value_parser = parse_vec3_or_scalar)]
+    #[arg(
+        long,
+        value_name = "R,G,B",
+        value_parser = parse_vec3_or_scalar,
+        allow_hyphen_values = true
+    )]
     pub ambient: Option<Vec3>,
     /// Shading model: the glTF metallic-roughness BRDF, or classic Blinn-Phong.
     #[arg(long, value_parser = choice::<ShadingModel>(), default_value = "pbr")]
@@ -746,8 +752,9 @@ pub struct CompareArgs {
     #[arg(long, value_name = "R,G,B", value_parser = parse_vec3)]
     pub background: Option<Vec3>,
     /// View transform for EXR and HDR inputs (linear radiance), as `render --tonemap` encodes
-    /// a PNG; 8-bit inputs are compared as they are.
-    #[arg(long, value_parser = choice::<ViewTransform>(), default_value = "standard")]
+    /// a PNG; 8-bit inputs are compared as they are [default: khronos-pbr-neutral, render's
+    /// default, so an EXR and a PNG of one default render compare as the same picture].
+    #[arg(long, value_parser = choice::<ViewTransform>(), default_value = "khronos-pbr-neutral")]
     pub tonemap: ViewTransform,
     /// Exit with status 1 when an error metric exceeds a value: flip, rmse or max_abs
     /// (e.g. --fail-above flip=0.1); may be repeated.

@@ -148,7 +148,8 @@ pub(super) fn stop_if_cancelled(cancel: &AtomicBool) -> Result<()> {
 
 /// Refuses, in this order, the sampling and image options that are wrong on their own:
 /// `--spp` (1 to `--max-spp`), `--time-limit`, `--exposure`, `--yfov`, and
-/// `--width`/`--height` (at least 1, and within `--max-pixels` when both are given).
+/// `--width`/`--height` (at least 1, and within `--max-pixels` when both are given); then the
+/// camera options ([`check_camera_options`]).
 fn check_image_options(args: &RenderArgs) -> Result<()> {
     if args.spp() == 0 || args.spp() > args.max_spp {
         bail!(
@@ -217,9 +218,9 @@ fn read_view_file(args: &RenderArgs) -> Result<Option<ViewFile>> {
 }
 
 /// Refuses, in this order: an AOV file whose format cannot hold it, `--depth-scale`, the
-/// environment options without the path tracer, `--env-intensity`, `--env-rotation`,
-/// `--bounces`, an `--env-out` that is not `.hdr`, a `--stats` that is not `.json`, and a tile
-/// the merge could not join exactly ([`tiles::check_render`]).
+/// environment options without the path tracer, `--env-intensity`, `--env-rotation`, a
+/// negative `--ambient`, `--bounces`, an `--env-out` that is not `.hdr`, a `--stats` that is
+/// not `.json`, and a tile the merge could not join exactly ([`tiles::check_render`]).
 fn check_output_and_lighting_options(args: &RenderArgs) -> Result<()> {
     for (path, allowed) in [
         (&args.depth_out, &["exr", "npy", "png"][..]),
@@ -243,6 +244,14 @@ fn check_output_and_lighting_options(args: &RenderArgs) -> Result<()> {
     }
     if !args.env_rotation.is_finite() {
         bail!("--env-rotation must be a finite number of degrees");
+    }
+    if let Some(a) = args.ambient.filter(|a| a.min_element() < 0.0) {
+        bail!(
+            "--ambient {},{},{}: must be 0 or more (a negative radiance would take light away)",
+            a.x,
+            a.y,
+            a.z
+        );
     }
     if args.bounces > MAX_BOUNCES {
         bail!("--bounces {}: at most {MAX_BOUNCES}", args.bounces);
