@@ -52,11 +52,13 @@ const OPAQUE_FROM_ALPHA: u8 = 128;
 
 /// Checks an `--fps` value: positive, finite, at most [`MAX_FPS`].
 pub fn check_fps(fps: f32) -> Result<(), String> {
-    if fps > 0.0 && fps <= MAX_FPS {
+    // A GIF frame's delay is a 16-bit count of hundredths: 655.35 s at most.
+    let min_fps = 100.0 / f32::from(u16::MAX);
+    if fps >= min_fps && fps <= MAX_FPS {
         Ok(())
     } else {
         Err(format!(
-            "--fps {fps}: must be more than 0 and at most {MAX_FPS} (GIF delays are whole hundredths of a second)"
+            "--fps {fps}: must be between {min_fps:.4} and {MAX_FPS} (a GIF frame lasts a whole number of hundredths of a second, at most 655.35 s)"
         ))
     }
 }
@@ -283,7 +285,8 @@ mod tests {
         assert_eq!(frame_delay_centiseconds(36, Some(50.0)), 2);
         assert_eq!(frame_delay_centiseconds(36, Some(0.001)), u16::MAX);
         assert!(check_fps(24.0).is_ok() && check_fps(50.0).is_ok());
-        for bad in [0.0, -1.0, 51.0, f32::NAN, f32::INFINITY] {
+        assert!(check_fps(0.0016).is_ok());
+        for bad in [0.0, 0.001, -1.0, 51.0, f32::NAN, f32::INFINITY] {
             assert!(check_fps(bad).unwrap_err().contains("--fps"), "{bad}");
         }
     }

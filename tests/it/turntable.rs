@@ -551,11 +551,15 @@ fn bad_turntable_and_sheet_options_are_refused() {
         ),
         (
             vec!["--turntable", "3", "--gif", s(&gif), "--fps", "0"],
-            "--fps 0: must be more than 0 and at most 50",
+            "--fps 0: must be between 0.0015 and 50",
         ),
         (
             vec!["--turntable", "3", "--gif", s(&gif), "--fps", "100"],
             "--fps 100",
+        ),
+        (
+            vec!["--turntable", "3", "--gif", s(&gif), "--fps", "0.001"],
+            "at most 655.35 s",
         ),
         (vec!["--turntable", "3", "--fps", "10"], "--gif"),
         (

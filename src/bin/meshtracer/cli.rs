@@ -263,8 +263,8 @@ pub struct RenderArgs {
     /// unless --background).
     #[arg(long, value_name = "FILE.gif", requires = "many_views")]
     pub gif: Option<PathBuf>,
-    /// With --gif: frames per second, at most 50 (GIF delays are whole hundredths of a
-    /// second) [default: a full turn in 4 s, e.g. 9 fps for 36 frames].
+    /// With --gif: frames per second, 0.0015 to 50 (GIF delays are whole hundredths of a
+    /// second, at most 655.35 s) [default: a full turn in 4 s, e.g. 9 fps for 36 frames].
     #[arg(long, value_name = "FPS", requires = "gif")]
     pub fps: Option<f32>,
     /// With --views orbit:N or --turntable: elevation of the circle above the target, in
