@@ -1204,9 +1204,26 @@ fn the_view_round_trips() {
             "{name}"
         );
     }
+    // The view file sets the size: --width is ignored, and the render says so.
+    let view = dir.path().join("cornell.json");
+    let resized = dir.path().join("resized.png");
+    let model = cornell();
+    let args = [
+        "render",
+        s(&model),
+        "-o",
+        s(&resized),
+        "--view",
+        s(&view),
+        "--width",
+        "40",
+    ];
+    let err = crate::common::stderr(&run(&[&args[..], &["--spp", "1", "-q"]].concat(), true));
+    assert!(err.contains("--width and --height are ignored"), "{err}");
+    assert!(err.contains("sets the image size (96x"), "{err}");
+    assert_eq!(image::image_dimensions(&resized).unwrap().0, 96);
     // A hand-edited view with nonsense values is refused with the file named, or rendered
     // without NaN leaking into the image.
-    let view = dir.path().join("cornell.json");
     let mut v: serde_json::Value = serde_json::from_slice(&std::fs::read(&view).unwrap()).unwrap();
     v["lights"][0]["range"] = json!(-1.0);
     // An up vector along the view direction leaves the camera's roll undefined.

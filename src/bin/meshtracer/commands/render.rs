@@ -207,13 +207,22 @@ fn check_camera_options(args: &RenderArgs) -> Result<()> {
 }
 
 /// The `--view` file, read and its image size refused over the limits as `--width` and
-/// `--height` are; `None` without `--view`.
+/// `--height` are (which it overrides, with a warning when they are given); `None` without
+/// `--view`.
 fn read_view_file(args: &RenderArgs) -> Result<Option<ViewFile>> {
     let Some(path) = &args.view else {
         return Ok(None);
     };
     let view_file = ViewFile::read(path)?;
     check_size(args, view_file.image.width, view_file.image.height)?;
+    if (args.width.is_some() || args.height.is_some()) && !args.no_warnings {
+        eprintln!(
+            "warning: --width and --height are ignored: {} sets the image size ({}x{})",
+            path.display(),
+            view_file.image.width,
+            view_file.image.height
+        );
+    }
     Ok(Some(view_file))
 }
 
