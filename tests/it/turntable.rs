@@ -636,6 +636,7 @@ fn bad_turntable_and_sheet_options_are_refused() {
             assert_eq!(text.lines().count(), 1, "{extra:?}: one line\n{text}");
         }
         assert!(!gif.exists(), "{extra:?}: no GIF written");
+        assert!(!out.exists(), "{extra:?}: no -o folder left");
     }
     // No view was rendered and nothing temporary is left by any refusal.
     let leftovers: Vec<_> = walk(d)

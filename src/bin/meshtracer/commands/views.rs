@@ -256,8 +256,6 @@ pub(super) fn render_views(
     on_view: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<RenderReport> {
     let run_start = Instant::now();
-    // Installed by the caller before anything was reserved (the process has one flag).
-    let cancel = interrupt_flag();
     // Everything that can be refused without the model is refused before loading it.
     let (spec, explicit) = read_spec(spec_text)?;
     check_orbit_options(args, &spec)?;
@@ -269,6 +267,33 @@ pub(super) fn render_views(
         _ => spec.count(),
     };
     remove_leftovers_of_a_killed_run(args, dir)?;
+    // A run that fails leaves no empty folder it made for -o (from the outermost one that
+    // did not exist); a folder holding a finished view is kept.
+    let made = dir
+        .ancestors()
+        .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+        .last()
+        .map(Path::to_path_buf);
+    let run = (spec, explicit.as_slice(), known_count, run_start);
+    render_views_into(args, run, env_file, on_view).inspect_err(|_| {
+        if let Some(made) = &made {
+            remove_empty_folders(made);
+        }
+    })
+}
+
+/// [`render_views`] once the options are checked: reserves the outputs, loads the model and
+/// renders the views of `spec` (`explicit`: a views file's), `known_count` of them when the
+/// spec alone tells, for a run that started at `run_start`.
+fn render_views_into(
+    args: &RenderArgs,
+    (spec, explicit, known_count, run_start): (ViewSpec, &[ExplicitView], Option<usize>, Instant),
+    env_file: Option<Environment>,
+    on_view: &(dyn Fn(usize, usize) + Sync),
+) -> Result<RenderReport> {
+    // Installed by `render_model` before anything was reserved (the process has one flag).
+    let cancel = interrupt_flag();
+    let dir = args.output.as_path();
     let mut outputs = Outputs::reserve(args, dir, known_count)?;
     let (threads, pool) = worker_pool(args.threads)?;
 
@@ -279,7 +304,7 @@ pub(super) fn render_views(
     super::report_load(args, &scene);
 
     let (width, height) = views_size(args, &spec, &scene)?;
-    let cameras = view_cameras(args, &spec, &explicit, &scene, width, height)?;
+    let cameras = view_cameras(args, &spec, explicit, &scene, width, height)?;
     let names = outputs.names(args, dir, cameras.len(), (width, height))?;
     let plan = Plan {
         width,
@@ -443,6 +468,19 @@ fn check_output_folder(dir: &Path) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Removes `dir` and the folders below it if they hold no file.
+fn remove_empty_folders(dir: &Path) {
+    if let Ok(entries) = std::fs::read_dir(dir) {
+        for entry in entries.flatten() {
+            if entry.file_type().is_ok_and(|t| t.is_dir()) {
+                remove_empty_folders(&entry.path());
+            }
+        }
+    }
+    // Fails, and keeps the folder, when anything is left in it.
+    let _ = std::fs::remove_dir(dir);
 }
 
 /// The files of a run, planned and reserved before the model loads, so that a clashing or
