@@ -506,7 +506,12 @@ fn read_with_image(path: &Path) -> Result<(usize, usize, Vec<Vec3>), String> {
     reader.limits(limits);
     let image = reader
         .decode()
-        .map_err(|e| format!("cannot decode the panorama: {e}"))?
+        .map_err(|e| {
+            format!(
+                "cannot decode the panorama: {}",
+                crate::scene::image_error_text(&e)
+            )
+        })?
         .into_rgb32f();
     Ok(sized_texels(&image))
 }

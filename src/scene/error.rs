@@ -339,6 +339,23 @@ thread_local! {
     static CATCHING: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
 }
 
+/// An `image` crate error in words for the user: a format it does not read and a file that
+/// ends early said plainly (the crate's own texts are "The file extension `.\"gltf\"` was
+/// not recognized as an image format" and "failed to fill whole buffer"), anything else as
+/// the crate says it.
+pub fn image_error_text(error: &image::ImageError) -> String {
+    use image::error::{ImageError, UnsupportedErrorKind};
+    match error {
+        ImageError::Unsupported(u) if matches!(u.kind(), UnsupportedErrorKind::Format(_)) => {
+            "not an image in a format meshtracer reads".to_string()
+        }
+        ImageError::IoError(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => {
+            "the file ends early (empty or cut short)".to_string()
+        }
+        other => other.to_string(),
+    }
+}
+
 /// Runs `f` on this thread and returns what it returns, or the message of a panic inside it.
 /// The panic hook stays silent for that panic (the caller makes it one error or warning among
 /// its own); panics elsewhere, and on other threads, still reach the hook there was. For
@@ -365,7 +382,7 @@ pub fn catch_quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
 
 #[cfg(test)]
 mod panic_tests {
-    use super::{catch_quietly, panic_message};
+    use super::{catch_quietly, image_error_text, panic_message};
 
     #[test]
     fn a_panic_caught_quietly_is_its_message() {
@@ -391,5 +408,20 @@ mod panic_tests {
         assert_eq!(panic_message(formatted.as_ref()), "bad 7");
         assert_eq!(panic_message(plain.as_ref()), "plain");
         assert_eq!(panic_message(other.as_ref()), "unknown panic");
+    }
+
+    /// The image crate's texts for an unknown format and a short file are said plainly.
+    #[test]
+    fn image_errors_are_said_plainly() {
+        let unknown = image::load_from_memory(b"{\"asset\": {}}").unwrap_err();
+        assert_eq!(
+            image_error_text(&unknown),
+            "not an image in a format meshtracer reads"
+        );
+        let short = image::ImageError::IoError(std::io::ErrorKind::UnexpectedEof.into());
+        assert_eq!(
+            image_error_text(&short),
+            "the file ends early (empty or cut short)"
+        );
     }
 }

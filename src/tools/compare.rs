@@ -86,7 +86,9 @@ pub fn read(path: &Path, view: ViewTransform) -> Result<RgbaImage, CompareError>
             let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
             crate::scene::decode_exr(std::io::BufReader::new(file), crate::scene::MAX_EXR_TEXELS)
         } else {
-            reader.decode().map_err(|e| e.to_string())
+            reader
+                .decode()
+                .map_err(|e| crate::scene::image_error_text(&e))
         }
     });
     let img = decoded
