@@ -45,7 +45,7 @@ pub enum LoadErrorKind {
     #[error("{0}")]
     Io(#[source] std::io::Error),
     /// A directory was given where a file was expected.
-    #[error("is a directory, not a model file")]
+    #[error("is a folder, not a file")]
     IsDirectory,
     /// Something other than a regular file (a FIFO, a device, a socket) where a file was
     /// expected: refused before it is opened, since reading one may never end (a FIFO) or
@@ -190,6 +190,17 @@ pub enum LoadErrorKind {
         /// Image index.
         image: usize,
         /// What is wrong.
+        problem: String,
+    },
+    /// A URI that names no file: an empty one, or one naming a FIFO or a device (refused
+    /// before it is opened, as [`LoadErrorKind::NotARegularFile`] is).
+    #[error("{what} URI '{uri}' {problem}")]
+    BadUri {
+        /// The referencing object (`buffer 0`, `image 2`).
+        what: String,
+        /// The URI as the file gives it.
+        uri: String,
+        /// What is wrong with it.
         problem: String,
     },
     /// A URI points outside the model's folder.

@@ -56,6 +56,19 @@ impl FileAccess {
     /// that leaves the folder. `what` names the referencing object in errors (`buffer 0`).
     pub fn resolve(&self, what: &str, uri: &str) -> Result<PathBuf, LoadError> {
         let decoded = percent_decode(uri);
+        let bad = |problem: String| {
+            LoadError::new(
+                &self.model,
+                LoadErrorKind::BadUri {
+                    what: what.to_string(),
+                    uri: uri.to_string(),
+                    problem,
+                },
+            )
+        };
+        if decoded.is_empty() {
+            return Err(bad("is empty: it names no file".to_string()));
+        }
         let external = || {
             LoadError::new(
                 &self.model,
@@ -92,10 +105,10 @@ impl FileAccess {
         // and the decoders open image files by path). A missing file is reported by the read.
         if let Ok(meta) = std::fs::metadata(&path) {
             if let Some(kind) = irregular_kind(&meta) {
-                return Err(LoadError::new(
-                    &path,
-                    LoadErrorKind::NotARegularFile { kind },
-                ));
+                return Err(bad(format!(
+                    "names {kind} ('{}'), not a regular file",
+                    path.display()
+                )));
             }
         }
         self.resolved

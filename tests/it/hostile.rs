@@ -481,6 +481,11 @@ fn fifos_and_devices_are_refused_before_they_are_read() {
     let (code, err) = run_bounded(&["render", s(&model), "-o", s(&out), "-q"]);
     assert_eq!(code, Some(1), "{err}");
     assert!(err.contains("tri.bin") && err.contains("a FIFO"), "{err}");
+    // Named as the model refers to it: the model, then the buffer and its URI.
+    assert!(
+        err.contains("buffer-fifo.gltf: buffer 0 URI 'tri.bin' names a FIFO"),
+        "{err}"
+    );
 
     let image = dir.path().join("texture.png");
     fifo(&image);
@@ -499,6 +504,24 @@ fn fifos_and_devices_are_refused_before_they_are_read() {
         err.contains("texture.png") && err.contains("a FIFO"),
         "{err}"
     );
+    // An empty URI and a folder where an image should be are said to be what they are.
+    for (uri, needle) in [
+        ("", "image 0 URI '' is empty: it names no file"),
+        ("folder.png", "folder.png' is a folder, not a file"),
+    ] {
+        std::fs::create_dir_all(dir.path().join("folder.png")).unwrap();
+        let (json, bin) = crate::common::quads_gltf(
+            &[(crate::common::square(0.5, 0.0), 0)],
+            serde_json::json!({
+                "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+                "textures": [{"source": 0}],
+                "images": [{"uri": uri}]
+            }),
+        );
+        let model = crate::common::write_gltf(dir.path(), "odd-uri.gltf", json, &bin);
+        let (_, err) = run_bounded(&["render", s(&model), "-o", s(&out), "-q", "--strict"]);
+        assert!(err.contains(needle), "{uri:?}: {err}");
+    }
 
     // A batch naming the FIFO as a job's model: that job fails, the other is rendered.
     let (json, bin) = crate::common::quads_gltf(

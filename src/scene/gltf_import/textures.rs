@@ -185,6 +185,9 @@ pub(super) fn images(
             },
         };
         let checked = match &source.path {
+            Some(path) if path.is_dir() => {
+                Err(format!("'{}' is a folder, not a file", path.display()))
+            }
             Some(path) if !path.is_file() => Err(format!("file '{}' not found", path.display())),
             _ => check_image_header(&source, options.limits.max_image_pixels),
         };
