@@ -290,13 +290,24 @@ pub fn near_plane(eye: Vec3, centre: Vec3, radius: f32) -> f32 {
     }
 }
 
+/// How far from the view a camera's up vector must be (the sine of the angle between them)
+/// to be used: nearer, its part across the view is mostly rounding (an orbit's pole, where
+/// `cos 90°` is 4e-8 in f32), and normalised it is not at right angles to the view.
+pub const MIN_UP_SINE: f32 = 1e-3;
+
+/// `hint`'s part at right angles to the unit `forward`, normalised; `None` when `hint` is
+/// within [`MIN_UP_SINE`] of the view.
+pub fn across_view(forward: Vec3, hint: Vec3) -> Option<Vec3> {
+    let across = hint - forward * hint.dot(forward);
+    (across.length() > MIN_UP_SINE * hint.length()).then(|| across.normalize())
+}
+
 /// A perspective camera at `from` looking at `at` with `up`; near and far planes bracket a
 /// sphere of `radius` at `distance`.
 pub fn look_at(from: Vec3, at: Vec3, up: Vec3, yfov: f32, distance: f32, radius: f32) -> Camera {
     let forward = (at - from).try_normalize().unwrap_or(Vec3::NEG_Z);
-    let up = (up - forward * up.dot(forward))
-        .try_normalize()
-        .or_else(|| (Vec3::Z - forward * forward.z).try_normalize())
+    let up = across_view(forward, up)
+        .or_else(|| across_view(forward, Vec3::Z))
         .unwrap_or(Vec3::Y);
     Camera {
         name: Some("auto".into()),
@@ -315,6 +326,25 @@ pub fn look_at(from: Vec3, at: Vec3, up: Vec3, yfov: f32, distance: f32, radius:
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// At an orbit's pole the view is along +Y but for rounding (cos 90° is 4e-8 in f32): the
+    /// camera's up is still at right angles to it, not the normalised rounding.
+    #[test]
+    fn a_camera_at_the_pole_has_an_orthonormal_basis() {
+        for elevation in [90.0f32, -90.0, 89.99, 0.0] {
+            let e = elevation.to_radians();
+            for azimuth in [0.0f32, 0.3, 2.0] {
+                let direction =
+                    Vec3::new(e.cos() * azimuth.sin(), e.sin(), e.cos() * azimuth.cos());
+                let camera = look_at(direction * 5.0, Vec3::ZERO, Vec3::Y, 0.8, 5.0, 1.0);
+                let (f, u) = (camera.forward, camera.up);
+                assert!(f.dot(u).abs() < 1e-6, "{elevation} {azimuth}: {f} {u}");
+                assert!((u.length() - 1.0).abs() < 1e-6, "{elevation}: {u}");
+            }
+        }
+        assert!(across_view(Vec3::NEG_Y, Vec3::new(1e-5, 1.0, 0.0)).is_none());
+        assert_eq!(across_view(Vec3::NEG_Z, Vec3::Y), Some(Vec3::Y));
+    }
 
     /// A model a micrometre across is framed like a metre-sized one (the fit once clamped the
     /// radius to 1e-6, so a 1e-4-scale model filled a quarter of the frame).

@@ -195,7 +195,7 @@ fn check_camera_options(args: &RenderArgs) -> Result<()> {
             );
         };
         if let Some(up) = args.up {
-            if up.normalize().cross(view).length() < 1e-6 {
+            if meshtracer::camera::across_view(view, up).is_none() {
                 bail!(
                     "--up {}: along the view from --look-from to --look-at; give an up vector across it",
                     text(up)
