@@ -16,6 +16,9 @@ use std::sync::{Arc, Mutex};
 /// A zip's local file header signature, its first bytes.
 const MAGIC: &[u8; 4] = b"PK\x03\x04";
 
+/// The first bytes of an empty zip archive: its end-of-central-directory record alone.
+const EMPTY_MAGIC: &[u8; 4] = b"PK\x05\x06";
+
 /// Most entries an archive may hold: a model's download has a few dozen.
 const MAX_ENTRIES: usize = 100_000;
 
@@ -77,7 +80,7 @@ pub(super) fn is_zip(path: &Path) -> bool {
     let mut head = [0u8; 4];
     std::fs::File::open(path)
         .and_then(|mut f| f.read_exact(&mut head))
-        .is_ok_and(|()| &head == MAGIC)
+        .is_ok_and(|()| &head == MAGIC || &head == EMPTY_MAGIC)
 }
 
 /// Unpacks the zip archive at `path` into a new temporary folder, at most `max_bytes` of it,

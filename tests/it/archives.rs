@@ -88,6 +88,12 @@ fn an_archive_without_exactly_one_model_is_refused() {
             vec![("readme.txt", b"x".to_vec())],
             "zip archive: holds no .gltf, .glb or .obj file",
         ),
+        // An empty archive starts with its end record, not an entry's header.
+        (
+            "empty.zip",
+            vec![],
+            "zip archive: holds no .gltf, .glb or .obj file",
+        ),
         (
             "escape.zip",
             vec![("m.obj", b"v 0 0 0".to_vec()), ("../up.mtl", b"x".to_vec())],
