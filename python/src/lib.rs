@@ -35,7 +35,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::collections::HashMap;
 use std::path::PathBuf;
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 
 pyo3::create_exception!(
     meshtracer,
@@ -62,6 +62,8 @@ struct PyScene {
     /// `--strict`: also refuse an image that cannot be decoded when preparing.
     strict: bool,
     state: Mutex<State>,
+    /// Notified when a preparation ends (`State::Preparing` left).
+    ready: Condvar,
     /// The warnings of the texture decoding (first render), after the load's.
     prepare_warnings: Mutex<Vec<String>>,
     /// How views of the cameras added from Python are made, where not as a file's camera's
@@ -92,31 +94,44 @@ struct EnvironmentKey {
     intensity: f32,
 }
 
-/// A scene before and after its first render.
+/// A scene before, during and after its first render.
 enum State {
     Loaded(Box<meshtracer::Scene>),
+    /// A render is preparing the scene (moved into the preparation), the state's lock and
+    /// the GIL released; every other call waits for it on `PyScene::ready`, the GIL released.
+    Preparing,
     Prepared(Arc<Prepared>),
-    /// Only while a preparation is under way (the scene moved into it); a preparation that
-    /// failed leaves it, and the scene must be loaded again.
-    Empty,
+    /// The preparation failed with this message; the scene must be loaded again.
+    Failed(String),
 }
+
+/// How often a call waiting for another thread's preparation checks for Ctrl-C.
+const WAIT_POLL: std::time::Duration = std::time::Duration::from_millis(100);
 
 impl PyScene {
     /// The prepared scene, preparing it now for about `rays` rays if no render has yet (the BVH
-    /// preset `auto` picks for that work, as `render --bvh-preset auto` does).
+    /// preset `auto` picks for that work, as `render --bvh-preset auto` does). The lock on the
+    /// state is held only to read and write it, never while preparing: the preparation runs
+    /// with the GIL released, and a call from another thread meanwhile (a render, `info()`,
+    /// `add_light`, ...) waits for it with the GIL released too and then uses it, so the scene
+    /// is prepared once however many threads render it.
     fn prepared(&self, py: Python<'_>, rays: f64) -> PyResult<Arc<Prepared>> {
-        let mut state = self.lock()?;
-        let scene = match std::mem::replace(&mut *state, State::Empty) {
-            State::Prepared(p) => {
-                *state = State::Prepared(Arc::clone(&p));
-                return Ok(p);
-            }
-            State::Loaded(scene) => scene,
-            State::Empty => {
-                return Err(Error::new_err(format!(
-                    "{}: an earlier preparation of this scene failed: load it again",
-                    self.path.display()
-                )))
+        let scene = {
+            let mut state = self.settled(py)?;
+            match std::mem::replace(&mut *state, State::Preparing) {
+                State::Loaded(scene) => scene,
+                State::Prepared(p) => {
+                    *state = State::Prepared(Arc::clone(&p));
+                    return Ok(p);
+                }
+                other => {
+                    let error = match &other {
+                        State::Failed(message) => self.failed_earlier(message),
+                        _ => Error::new_err("internal error: the scene is being prepared"),
+                    };
+                    *state = other;
+                    return Err(error);
+                }
             }
         };
         let options = PrepareOptions {
@@ -126,63 +141,121 @@ impl PyScene {
             strict: self.strict,
         };
         let mut warnings = Vec::new();
-        let prepared = py
-            .detach(|| Prepared::new(*scene, &options, &mut warnings))
-            .map_err(cli_error)?;
-        let prepared = Arc::new(prepared);
-        *state = State::Prepared(Arc::clone(&prepared));
+        // A panic must not leave the state `Preparing`: the waiting calls would wait forever.
+        let outcome = py.detach(|| {
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                Prepared::new(*scene, &options, &mut warnings)
+            }))
+        });
+        let result = match outcome {
+            Ok(prepared) => prepared
+                .map(Arc::new)
+                .map_err(|e| format!("{:#}", anyhow::Error::from(e))),
+            Err(panic) => Err(format!(
+                "{}: internal error while preparing the scene (please report it): {}",
+                self.path.display(),
+                meshtracer::scene::panic_message(panic.as_ref())
+            )),
+        };
         if let Ok(mut kept) = self.prepare_warnings.lock() {
             kept.extend(warnings);
         }
-        Ok(prepared)
+        let mut state = self.state.lock().unwrap_or_else(|p| p.into_inner());
+        *state = match &result {
+            Ok(p) => State::Prepared(Arc::clone(p)),
+            Err(message) => State::Failed(message.clone()),
+        };
+        drop(state);
+        self.ready.notify_all();
+        result.map_err(Error::new_err)
     }
 
-    fn lock(&self) -> PyResult<std::sync::MutexGuard<'_, State>> {
+    fn lock(&self) -> PyResult<MutexGuard<'_, State>> {
         self.state
             .lock()
             .map_err(|_| Error::new_err("the scene was poisoned by a panic in an earlier call"))
     }
 
+    /// The state once no preparation is under way, waiting for one (on another thread) to
+    /// end with the GIL released: the preparing thread needs the GIL back to finish its call.
+    /// The lock is taken with the GIL held only where no holder waits for the GIL: nothing
+    /// done under it calls Python.
+    fn settled(&self, py: Python<'_>) -> PyResult<MutexGuard<'_, State>> {
+        loop {
+            let state = self.lock()?;
+            if !matches!(*state, State::Preparing) {
+                return Ok(state);
+            }
+            drop(state);
+            py.detach(|| {
+                if let Ok(state) = self.state.lock() {
+                    let preparing = |s: &mut State| matches!(s, State::Preparing);
+                    drop(self.ready.wait_timeout_while(state, WAIT_POLL, preparing));
+                }
+            });
+            py.check_signals()?;
+        }
+    }
+
     /// Runs `f` on the scene as loaded (or as prepared).
-    fn with_scene<T>(&self, f: impl FnOnce(&meshtracer::Scene) -> T) -> PyResult<T> {
-        match &*self.lock()? {
+    fn with_scene<T>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&meshtracer::Scene) -> T,
+    ) -> PyResult<T> {
+        match &*self.settled(py)? {
             State::Loaded(scene) => Ok(f(scene)),
             State::Prepared(p) => Ok(f(&p.scene)),
-            State::Empty => Err(self.failed_earlier()),
+            State::Failed(message) => Err(self.failed_earlier(message)),
+            State::Preparing => Err(Error::new_err(
+                "internal error: the scene is being prepared",
+            )),
         }
     }
 
     /// Runs `f` on the scene to change it: a prepared scene goes back to its loaded form (the
     /// next render prepares it again, BVH and all).
-    fn with_scene_mut<T>(&self, f: impl FnOnce(&mut meshtracer::Scene) -> T) -> PyResult<T> {
-        let mut state = self.lock()?;
+    fn with_scene_mut<T>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&mut meshtracer::Scene) -> T,
+    ) -> PyResult<T> {
+        let mut state = self.settled(py)?;
         if let State::Prepared(p) = &*state {
             let scene = p.scene.clone();
             *state = State::Loaded(Box::new(scene));
         }
         match &mut *state {
             State::Loaded(scene) => Ok(f(scene)),
-            _ => Err(self.failed_earlier()),
+            State::Failed(message) => Err(self.failed_earlier(message)),
+            _ => Err(Error::new_err(
+                "internal error: the scene is being prepared",
+            )),
         }
     }
 
     /// Runs `f` on the scene to change only its cameras or lights, which its preparation does
     /// not depend on: a prepared scene stays prepared unless a render still holds it.
-    fn with_views_mut<T>(&self, f: impl FnOnce(&mut meshtracer::Scene) -> T) -> PyResult<T> {
+    fn with_views_mut<T>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&mut meshtracer::Scene) -> T,
+    ) -> PyResult<T> {
         {
-            let mut state = self.lock()?;
+            let mut state = self.settled(py)?;
             if let State::Prepared(p) = &mut *state {
                 if let Some(p) = Arc::get_mut(p) {
                     return Ok(f(&mut p.scene));
                 }
             }
         }
-        self.with_scene_mut(f)
+        self.with_scene_mut(py, f)
     }
 
-    fn failed_earlier(&self) -> PyErr {
+    /// The error of every call after a preparation that failed with `message`.
+    fn failed_earlier(&self, message: &str) -> PyErr {
         Error::new_err(format!(
-            "{}: an earlier preparation of this scene failed: load it again",
+            "{}: an earlier preparation of this scene failed: load it again ({message})",
             self.path.display()
         ))
     }
@@ -192,6 +265,7 @@ impl PyScene {
             path,
             strict,
             state: Mutex::new(State::Loaded(Box::new(scene))),
+            ready: Condvar::new(),
             prepare_warnings: Mutex::new(Vec::new()),
             lenses: Mutex::new(HashMap::new()),
             environment: Mutex::new(None),
@@ -233,8 +307,14 @@ impl PyScene {
 
     /// The view of camera `camera` (default the first; else the automatic camera framing the
     /// bounds) for a `width` x `height` image, with its intrinsics or stretch if it was added with them.
-    fn view(&self, camera: Option<usize>, width: u32, height: u32) -> PyResult<View> {
-        let chosen = self.with_scene(|scene| -> PyResult<Camera> {
+    fn view(
+        &self,
+        py: Python<'_>,
+        camera: Option<usize>,
+        width: u32,
+        height: u32,
+    ) -> PyResult<View> {
+        let chosen = self.with_scene(py, |scene| -> PyResult<Camera> {
             let file_camera = match camera {
                 Some(i) => Some(scene.cameras.get(i).ok_or_else(|| {
                     Error::new_err(format!(
@@ -276,7 +356,13 @@ impl PyScene {
 
     /// The settings of one view: `view` lit as [`setup::lighting`] decides, the rig (when the
     /// scene has no lights) placed for `rig_view`.
-    fn settings(&self, view: View, rig_view: &View, o: &RenderOptions) -> PyResult<RenderSettings> {
+    fn settings(
+        &self,
+        py: Python<'_>,
+        view: View,
+        rig_view: &View,
+        o: &RenderOptions,
+    ) -> PyResult<RenderSettings> {
         let denoised = o.denoises();
         let (spp, noise) = setup::sampling(o.integrator, o.spp, o.noise, false, denoised);
         // As the CLI: the count checked is the one the render takes, the adaptive default's
@@ -292,8 +378,9 @@ impl PyScene {
         lighting_options.environment = self.environment(o)?;
         lighting_options.studio_rotation_degrees = o.env_rotation;
         lighting_options.studio_intensity = o.env_intensity;
-        let lit = self
-            .with_scene(|scene| setup::lighting(&scene.lights, None, rig_view, lighting_options))?;
+        let lit = self.with_scene(py, |scene| {
+            setup::lighting(&scene.lights, None, rig_view, lighting_options)
+        })?;
         Ok(RenderSettings {
             view,
             spp,
@@ -520,7 +607,7 @@ fn arrays<'py>(
 impl PyScene {
     /// What `meshtracer info --json` prints about the model, as a dict.
     fn info<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let text = self.with_scene(|s| s.info_json().to_string())?;
+        let text = self.with_scene(py, |s| s.info_json().to_string())?;
         py.import("json")?.call_method1("loads", (text,))
     }
 
@@ -533,8 +620,8 @@ impl PyScene {
     /// The warnings of the load and, once rendered, of the texture decoding: what the CLI
     /// prints as `warning: FILE: ...`.
     #[getter]
-    fn warnings(&self) -> PyResult<Vec<String>> {
-        let mut all = self.with_scene(|s| s.warnings.clone())?;
+    fn warnings(&self, py: Python<'_>) -> PyResult<Vec<String>> {
+        let mut all = self.with_scene(py, |s| s.warnings.clone())?;
         if let Ok(kept) = self.prepare_warnings.lock() {
             all.extend(kept.iter().cloned());
         }
@@ -554,6 +641,7 @@ impl PyScene {
     #[allow(clippy::too_many_arguments)]
     fn _add_mesh(
         &self,
+        py: Python<'_>,
         positions: PyReadonlyArray2<'_, f32>,
         indices: PyReadonlyArray2<'_, u32>,
         normals: Option<PyReadonlyArray2<'_, f32>>,
@@ -586,15 +674,17 @@ impl PyScene {
         };
         let material = build::material(material.as_ref())?;
         let pose = build::pose(pose);
-        self.with_scene_mut(|scene| scene.add_mesh(&mesh, material, pose, name))?
+        self.with_scene_mut(py, |scene| scene.add_mesh(&mesh, material, pose, name))?
             .map_err(|e| Error::new_err(format!("{}: {e}", self.path.display())))
     }
 
     /// Adds a texture from a C-contiguous uint8 H x W x 4 array (RGBA, rows from the top) that
     /// the Python side converted; see `meshtracer.Scene.add_texture` in `__init__.py`.
     #[pyo3(signature = (pixels, wrap_s, wrap_t, mag_filter, min_filter, name=None))]
+    #[allow(clippy::too_many_arguments)]
     fn _add_texture(
         &self,
+        py: Python<'_>,
         pixels: PyReadonlyArray3<'_, u8>,
         wrap_s: &str,
         wrap_t: &str,
@@ -620,8 +710,10 @@ impl PyScene {
             .map_err(|_| Error::new_err("texture: not a contiguous array"))?
             .to_vec();
         let sampler = build::sampler(wrap_s, wrap_t, mag_filter, min_filter)?;
-        self.with_scene_mut(|scene| scene.add_texture(width, height, rgba, sampler, name))?
-            .map_err(|e| Error::new_err(format!("{}: {e}", self.path.display())))
+        self.with_scene_mut(py, |scene| {
+            scene.add_texture(width, height, rgba, sampler, name)
+        })?
+        .map_err(|e| Error::new_err(format!("{}: {e}", self.path.display())))
     }
 
     /// Adds a camera; see `meshtracer.Scene.add_camera` in `__init__.py`.
@@ -630,6 +722,7 @@ impl PyScene {
     #[allow(clippy::too_many_arguments)]
     fn add_camera(
         &self,
+        py: Python<'_>,
         pose: [f32; 16],
         yfov: Option<f32>,
         aspect_ratio: Option<f32>,
@@ -707,7 +800,7 @@ impl PyScene {
         };
         let camera = Camera::from_pose(build::pose(Some(pose)), projection, name)
             .ok_or_else(|| Error::new_err("camera pose: not finite, or it collapses -Z or +Y"))?;
-        let index = self.with_views_mut(|scene| {
+        let index = self.with_views_mut(py, |scene| {
             scene.cameras.push(camera);
             scene.cameras.len() - 1
         })?;
@@ -725,6 +818,7 @@ impl PyScene {
     #[allow(clippy::too_many_arguments)]
     fn add_light(
         &self,
+        py: Python<'_>,
         kind: &str,
         pose: [f32; 16],
         color: [f32; 3],
@@ -753,15 +847,15 @@ impl PyScene {
                 "light: intensity {intensity} must be a finite number of at least 0, and the pose finite"
             ))
         })?;
-        self.with_views_mut(|scene| {
+        self.with_views_mut(py, |scene| {
             scene.lights.push(light);
             scene.lights.len() - 1
         })
     }
 
     /// Removes every camera (the file's too); the scene stays prepared.
-    fn clear_cameras(&self) -> PyResult<()> {
-        self.with_views_mut(|scene| scene.cameras.clear())?;
+    fn clear_cameras(&self, py: Python<'_>) -> PyResult<()> {
+        self.with_views_mut(py, |scene| scene.cameras.clear())?;
         if let Ok(mut map) = self.lenses.lock() {
             map.clear();
         }
@@ -770,8 +864,8 @@ impl PyScene {
 
     /// Removes every light (the file's too); the scene stays prepared. Without lights it is
     /// lit as a file without lights is (the default rig, unless `default_lights=False`).
-    fn clear_lights(&self) -> PyResult<()> {
-        self.with_views_mut(|scene| scene.lights.clear())
+    fn clear_lights(&self, py: Python<'_>) -> PyResult<()> {
+        self.with_views_mut(py, |scene| scene.lights.clear())
     }
 
     /// Renders one view; see `meshtracer.Scene.render` in `__init__.py` for the arguments.
@@ -787,8 +881,8 @@ impl PyScene {
     ) -> PyResult<Bound<'py, PyDict>> {
         let o = RenderOptions::from_kwargs(options)?.resolved(true);
         check_size(width, height, o.max_pixels)?;
-        let view = self.view(camera, width, height)?;
-        let settings = self.settings(view.clone(), &view, &o)?;
+        let view = self.view(py, camera, width, height)?;
+        let settings = self.settings(py, view.clone(), &view, &o)?;
         let mut out = self.render_settings(py, &[settings], &o, progress.as_ref())?;
         out.pop()
             .ok_or_else(|| Error::new_err("internal error: no view was rendered"))
@@ -840,7 +934,7 @@ impl PyScene {
         };
         let aspect = width as f32 / height as f32;
         let (cameras, front) = self
-            .with_scene(|scene| {
+            .with_scene(py, |scene| {
                 plan_cameras(&parsed, &explicit, scene, aspect, &options)
                     .map(|c| (c, auto_camera(&scene.bounds, &scene.soup.positions, aspect)))
             })?
@@ -860,7 +954,7 @@ impl PyScene {
                     true => self.with_lens(i, c, view)?,
                     false => view,
                 };
-                self.settings(view, &front, &o)
+                self.settings(py, view, &front, &o)
             })
             .collect::<PyResult<_>>()?;
         let out = self.render_settings(py, &views, &o, progress.as_ref())?;
@@ -880,8 +974,8 @@ impl PyScene {
         Ok(out)
     }
 
-    fn __repr__(&self) -> PyResult<String> {
-        let triangles = self.with_scene(|s| s.soup.len())?;
+    fn __repr__(&self, py: Python<'_>) -> PyResult<String> {
+        let triangles = self.with_scene(py, |s| s.soup.len())?;
         Ok(format!(
             "meshtracer.Scene('{}', {triangles} triangles)",
             self.path.display()

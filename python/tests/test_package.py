@@ -275,3 +275,123 @@ def test_render_releases_the_gil():
     thread.join()
     assert timing["render"] > 0.05, "the render is too short to tell"
     assert longest < 0.5 * timing["render"], (longest, timing["render"])
+
+
+# Threads ------------------------------------------------------------------------------------
+
+def run_in_threads(calls, timeout=60.0):
+    """Runs each of `calls` on a daemon thread of its own, all at once; returns their results
+    (an exception raised is returned as it is). Fails if any is still running after `timeout`
+    seconds: a deadlock fails this test instead of hanging the suite."""
+    results = [None] * len(calls)
+
+    def run(i, call):
+        try:
+            results[i] = call()
+        except Exception as e:  # returned, for the test to look at
+            results[i] = e
+
+    threads = [threading.Thread(target=run, args=(i, c), daemon=True) for i, c in enumerate(calls)]
+    for t in threads:
+        t.start()
+    deadline = time.monotonic() + timeout
+    for t in threads:
+        t.join(max(0.0, deadline - time.monotonic()))
+    assert not any(t.is_alive() for t in threads), f"still running after {timeout} s: a deadlock"
+    return results
+
+
+def grid_scene(n):
+    """A wavy grid of 2·n² triangles from arrays: its preparation takes long enough (a BVH of
+    320000 triangles at n = 400) for other threads to call while it runs."""
+    u, v = np.meshgrid(np.linspace(-1, 1, n + 1), np.linspace(-1, 1, n + 1))
+    positions = np.stack([u, v, 0.1 * np.sin(7 * u) * np.cos(5 * v)], axis=-1).reshape(-1, 3)
+    corner = (np.arange(n)[None, :] + (n + 1) * np.arange(n)[:, None]).ravel()
+    indices = np.concatenate([np.stack([corner, corner + 1, corner + n + 2], 1),
+                              np.stack([corner, corner + n + 2, corner + n + 1], 1)])
+    scene = meshtracer.Scene.from_arrays(positions, indices)
+    scene.add_camera(np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 3], [0, 0, 0, 1]]), yfov=0.8)
+    return scene
+
+
+def test_threads_rendering_one_scene_share_its_one_preparation():
+    """Two renders and the scene's other calls from other threads while the first render
+    prepares the scene: all finish (the preparation once held the scene's lock while it
+    waited for the GIL, and the interpreter froze), and the renders are one picture."""
+    scene = grid_scene(400)
+    render = lambda: scene.render(64, 48, spp=1, integrator="direct", seed=3)  # noqa: E731
+    results = run_in_threads([render, render, scene.info, lambda: repr(scene),
+                              lambda: scene.warnings, render])
+    renders = [results[i] for i in (0, 1, 5)]
+    for r in results:
+        assert not isinstance(r, Exception), r
+    for r in renders[1:]:
+        assert np.array_equal(r["color"], renders[0]["color"])
+    assert results[2] == scene.info()
+
+
+def broken_texture_gltf(folder):
+    """A glTF of one textured triangle whose PNG ends after its header: the load (which reads
+    the header) takes it, the preparation cannot decode it."""
+    import base64
+    import io
+    import struct
+
+    from PIL import Image
+
+    data = struct.pack("<9f6f3H", 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 1, 0, 1, 2) + b"\0\0"
+    gltf = {
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1},
+                                    "indices": 2, "material": 0}]}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+        "textures": [{"source": 0}], "images": [{"uri": "broken.png"}],
+        "buffers": [{"byteLength": len(data), "uri": "data:application/octet-stream;base64,"
+                     + base64.b64encode(data).decode()}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
+                        {"buffer": 0, "byteOffset": 36, "byteLength": 24},
+                        {"buffer": 0, "byteOffset": 60, "byteLength": 6}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 0]},
+                      {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"},
+                      {"bufferView": 2, "componentType": 5123, "count": 3, "type": "SCALAR"}],
+    }
+    png = io.BytesIO()
+    Image.fromarray(np.arange(64 * 64 * 3, dtype=np.uint8).reshape(64, 64, 3)).save(png, "PNG")
+    (folder / "broken.png").write_bytes(png.getvalue()[:60])
+    path = folder / "broken.gltf"
+    path.write_text(json.dumps(gltf))
+    return path
+
+
+def test_threads_waiting_for_a_failed_preparation_get_its_error(tmp_path):
+    """A strict load of a file whose texture cannot be decoded: its preparation fails. Every
+    thread that rendered meanwhile gets an error with the preparation's message, none hangs,
+    and later calls say the scene must be loaded again."""
+    path = broken_texture_gltf(tmp_path)
+    scene = meshtracer.load(path, strict=True)
+    render = lambda: scene.render(16, 16, spp=1, integrator="direct")  # noqa: E731
+    results = run_in_threads([render, render, render])
+    assert all(isinstance(r, meshtracer.Error) for r in results), results
+    first = min((str(r) for r in results), key=len)
+    assert "broken.png" in first
+    for r in results:
+        assert first in str(r)
+    with pytest.raises(meshtracer.Error, match="an earlier preparation of this scene failed: load it again"):
+        scene.render(16, 16, spp=1)
+
+
+def test_threads_prepare_a_scene_once():
+    """The texture's warning of the non-strict load appears once however many threads
+    rendered the scene at the same time: it was prepared once."""
+    import tempfile
+    from pathlib import Path
+
+    with tempfile.TemporaryDirectory() as folder:
+        scene = meshtracer.load(broken_texture_gltf(Path(folder)))
+        render = lambda: scene.render(16, 16, spp=1, integrator="direct")  # noqa: E731
+        results = run_in_threads([render] * 4)
+    assert not any(isinstance(r, Exception) for r in results), results
+    assert len([w for w in scene.warnings if "broken.png" in w]) == 1, scene.warnings
+
