@@ -30,7 +30,7 @@ use meshtracer::scene::{Camera, Light, LoadOptions, MeshArrays, PoseOptions, Pro
 use meshtracer::setup::{self, LightingOptions};
 use meshtracer::shading::ShadingModel;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
-use pyo3::exceptions::PyException;
+use pyo3::exceptions::{PyException, PyMemoryError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::collections::HashMap;
@@ -423,6 +423,7 @@ impl PyScene {
                 )
             })
             .sum();
+        check_memory(views, o)?;
         let prepared = self.prepared(py, rays)?;
         let rendered = progress::run_cancellable(py, progress, |cancel, report| {
             let count = views.len() as u64;
@@ -563,6 +564,61 @@ fn check_size(width: u32, height: u32, max_pixels: u64) -> PyResult<()> {
         )));
     }
     Ok(())
+}
+
+/// Bytes a pixel of each view holds until the call returns: the film (RGBA and variance, 20),
+/// the AOVs (depth, normal, instance: 20) and the arrays handed to Python (colour 16, mask,
+/// srgb8, normal).
+fn bytes_kept_per_pixel(settings: &RenderSettings, o: &RenderOptions) -> u64 {
+    let aovs = if settings.aovs { 20 } else { 0 };
+    let mask = if o.wants("mask") { 4 } else { 0 };
+    let srgb8 = if o.srgb8 { 8 } else { 0 };
+    let normal = if o.wants("normal") { 12 } else { 0 };
+    20 + aovs + 16 + mask + srgb8 + normal
+}
+
+/// Bytes a pixel of one view needs while it is rendered and denoised, besides what it keeps:
+/// the denoiser's guides (albedo, normal, depth, visibility, emission: 44) and its planes.
+const DENOISE_BYTES_PER_PIXEL: u64 = 44 + 96;
+
+/// Refuses, with a `MemoryError` naming the image size and the bytes, renders whose film,
+/// AOVs and arrays could not be allocated (the library allocates them infallibly: a failed
+/// allocation would abort the Python process). The estimate is reserved and freed at once
+/// (`Vec::try_reserve_exact`: the pages are never touched), so the system's own refusal
+/// decides, as it would for the render's allocations.
+fn check_memory(views: &[RenderSettings], o: &RenderOptions) -> PyResult<()> {
+    let mut bytes = 0u64;
+    let mut transient = 0u64;
+    for settings in views {
+        let pixels = u64::from(settings.view.width) * u64::from(settings.view.height);
+        let kept = pixels.saturating_mul(bytes_kept_per_pixel(settings, o));
+        bytes = bytes.saturating_add(kept);
+        if o.denoises() {
+            transient = transient.max(pixels.saturating_mul(DENOISE_BYTES_PER_PIXEL));
+        }
+    }
+    let bytes = bytes.saturating_add(transient);
+    let reserved = usize::try_from(bytes)
+        .ok()
+        .is_some_and(|n| Vec::<u8>::new().try_reserve_exact(n).is_ok());
+    if reserved {
+        return Ok(());
+    }
+    let size = match views {
+        [one] => format!("image size {}x{}", one.view.width, one.view.height),
+        [first, ..] => format!(
+            "{} views of {}x{}",
+            views.len(),
+            first.view.width,
+            first.view.height
+        ),
+        [] => "no view".to_string(),
+    };
+    Err(PyMemoryError::new_err(format!(
+        "{size}: the film, AOVs and arrays need about {:.1} GiB ({bytes} bytes), which cannot \
+         be allocated",
+        bytes as f64 / f64::from(1u32 << 30)
+    )))
 }
 
 /// The arrays of one rendered view (docs/python.md has the table).

@@ -395,3 +395,14 @@ def test_threads_prepare_a_scene_once():
     assert not any(isinstance(r, Exception) for r in results), results
     assert len([w for w in scene.warnings if "broken.png" in w]) == 1, scene.warnings
 
+
+def test_a_render_too_large_for_memory_raises_memory_error_naming_its_size():
+    """Over a raised max_pixels, a film that cannot be allocated is a MemoryError naming the
+    size (it was an abort of the Python process: "memory allocation of ... bytes failed")."""
+    scene = meshtracer.load(CORNELL)
+    with pytest.raises(MemoryError, match=r"image size 200000x200000: .* GiB"):
+        scene.render(200000, 200000, spp=1, max_pixels=2**62)
+    with pytest.raises(MemoryError, match=r"3 views of 200000x100000"):
+        scene.render_views("orbit:3", 200000, 100000, spp=1, max_pixels=2**62)
+    assert scene.render(8, 8, spp=1)["color"].shape == (8, 8, 4)
+
