@@ -549,6 +549,49 @@ impl RenderOptions {
     }
 }
 
+/// Refuses the view options `render --views` refuses (its `check_image_options` and
+/// `check_orbit_options`), with the CLI's messages naming the Python arguments.
+fn check_plan_options(spec: &ViewSpec, options: &PlanOptions) -> PyResult<()> {
+    let refuse = |message: String| Err(Error::new_err(message));
+    if let Some(yfov) = options.yfov_degrees.filter(|y| !(*y > 0.0 && *y < 180.0)) {
+        return refuse(format!("yfov {yfov}: must be between 0 and 180 degrees"));
+    }
+    if let Some(at) = options.look_at.filter(|v| !v.is_finite()) {
+        return refuse(format!(
+            "look_at [{}, {}, {}]: must be three finite numbers",
+            at.x, at.y, at.z
+        ));
+    }
+    if let Some(e) = options
+        .orbit_elevation
+        .filter(|e| !(-90.0..=90.0).contains(e))
+    {
+        return refuse(format!(
+            "orbit_elevation {e}: must be between -90 and 90 degrees"
+        ));
+    }
+    if let Some(r) = options
+        .orbit_radius
+        .filter(|r| !(*r > 0.0 && r.is_finite()))
+    {
+        return refuse(format!("orbit_radius {r}: must be a positive distance"));
+    }
+    if let Some(a) = options.orbit_azimuth {
+        if !a.is_finite() {
+            return refuse(format!(
+                "orbit_azimuth {a}: must be a finite number of degrees"
+            ));
+        }
+        if !matches!(spec, ViewSpec::Orbit(_)) {
+            return refuse(
+                "orbit_azimuth: only orbits (render_views(\"orbit:N\", ...)) have a starting azimuth"
+                    .to_string(),
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Refuses a size the CLI refuses.
 fn check_size(width: u32, height: u32, max_pixels: u64) -> PyResult<()> {
     if width == 0 || height == 0 {
@@ -988,6 +1031,7 @@ impl PyScene {
             orbit_elevation,
             seed: o.seed,
         };
+        check_plan_options(&parsed, &options)?;
         let aspect = width as f32 / height as f32;
         let (cameras, front) = self
             .with_scene(py, |scene| {

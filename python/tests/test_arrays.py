@@ -529,6 +529,23 @@ def test_denoised_views_are_the_clis(cli, tmp_path):
             np.testing.assert_array_equal(view["srgb8"], np.asarray(image.convert("RGBA")))
 
 
+@pytest.mark.parametrize("spec, options, message", [
+    ("orbit:2", {"yfov": float("nan")}, "yfov NaN: must be between 0 and 180 degrees"),
+    ("orbit:2", {"yfov": 0}, "yfov 0: must be between 0 and 180 degrees"),
+    ("orbit:2", {"yfov": -10}, "yfov -10: must be between 0 and 180 degrees"),
+    ("orbit:2", {"orbit_radius": -1}, "orbit_radius -1: must be a positive distance"),
+    ("orbit:2", {"orbit_radius": float("nan")}, "orbit_radius NaN: must be a positive distance"),
+    ("orbit:2", {"look_at": [float("nan"), 0, 0]}, "look_at [NaN, 0, 0]: must be three finite numbers"),
+    ("orbit:2", {"orbit_elevation": 1000}, "orbit_elevation 1000: must be between -90 and 90 degrees"),
+    ("orbit:2", {"orbit_azimuth": float("inf")}, "orbit_azimuth inf: must be a finite number of degrees"),
+    ("sphere:2", {"orbit_azimuth": 10}, "orbit_azimuth: only orbits"),
+])
+def test_bad_orbit_options_are_refused_as_the_cli_refuses_them(spec, options, message):
+    with pytest.raises(meshtracer.Error) as caught:
+        quad_scene().render_views(spec, 8, 8, spp=1, **options)
+    assert message in str(caught.value)
+
+
 def test_bad_view_specs_raise_the_clis_message():
     scene = meshtracer.load(CORNELL)
     with pytest.raises(meshtracer.Error, match="--views orbit:0: the number of views must be at least 1"):
