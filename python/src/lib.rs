@@ -1112,7 +1112,8 @@ impl RenderOptions {
             let key: String = key.extract()?;
             let bad = |e: PyErr| Error::new_err(format!("{key}: {e}"));
             match key.as_str() {
-                "spp" => o.spp = Some(value.extract().map_err(bad)?),
+                // None: the CLI's default sampling, as when `spp` is not given.
+                "spp" => o.spp = value.extract().map_err(bad)?,
                 "integrator" => {
                     o.integrator = match value.extract::<String>().map_err(bad)?.as_str() {
                         "direct" => IntegratorKind::Direct,

@@ -406,3 +406,10 @@ def test_a_render_too_large_for_memory_raises_memory_error_naming_its_size():
         scene.render_views("orbit:3", 200000, 100000, spp=1, max_pixels=2**62)
     assert scene.render(8, 8, spp=1)["color"].shape == (8, 8, 4)
 
+
+def test_spp_none_is_the_default_sampling():
+    scene = meshtracer.load(CORNELL)
+    given = scene.render(32, 24, spp=None)
+    default = scene.render(32, 24)
+    assert np.array_equal(given["color"], default["color"])
+    assert given["stats"]["denoise_seconds"] is not None, "the default render is denoised"
