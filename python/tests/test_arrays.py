@@ -182,6 +182,13 @@ def test_the_scene_says_what_it_holds():
     (lambda: quad_scene().add_light("point", np.eye(4), intensity=float("nan")),
      "light: intensity NaN must be a finite number of at least 0"),
     (lambda: quad_scene().render(8, 8, camera=3), "--camera 3: the file has 0 camera(s)"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, colors=np.full((4, 3), 2.0)),
+     "<arrays>: mesh 0: colors: row 0: 2 must be from 0 to 1"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES,
+                                          colors=[[1, 1, 1], [1, 1, 1], [0, -0.5, 0], [1, 1, 1]]),
+     "<arrays>: mesh 0: colors: row 2: -0.5 must be from 0 to 1"),
+    (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, colors=np.full((4, 4), np.inf)),
+     "<arrays>: mesh 0: colors: row 0 is not finite (NaN or infinite)"),
 ])
 def test_bad_arrays_and_parts_raise_errors_naming_them(call, message):
     with pytest.raises(meshtracer.Error) as caught:

@@ -83,10 +83,11 @@ impl Scene {
     /// index (segmentation ids are this + 1).
     ///
     /// Refuses, naming the mesh and the array: no positions or no triangles, an attribute whose
-    /// length differs from the positions', a NaN or infinite value, an index past the last
-    /// vertex, a pose that is not finite or is singular, a material factor out of its glTF
-    /// range, or more triangles than [`MAX_TRIANGLES`] in the scene. Triangles of zero area
-    /// are dropped with a warning in [`Scene::warnings`], as the importers drop them.
+    /// length differs from the positions', a NaN or infinite value, a colour outside [0, 1],
+    /// an index past the last vertex, a pose that is not finite or is singular, a material
+    /// factor out of its glTF range, or more triangles than [`MAX_TRIANGLES`] in the scene.
+    /// Triangles of zero area are dropped with a warning in [`Scene::warnings`], as the
+    /// importers drop them.
     pub fn add_mesh(
         &mut self,
         mesh: &MeshArrays,
@@ -324,6 +325,17 @@ fn check_arrays(mesh: &MeshArrays) -> Result<(), (&'static str, String)> {
         if let Some(row) = values.and_then(|v| first_not_finite(v, width)) {
             return Err((part, format!("row {row} is not finite (NaN or infinite)")));
         }
+    }
+    // Colours multiply the base colour, which is refused outside [0, 1] too (§5.22).
+    let colors = mesh
+        .colors
+        .map_or(&[][..], bytemuck::cast_slice::<Vec4, f32>);
+    if let Some((i, v)) = colors
+        .iter()
+        .enumerate()
+        .find(|(_, v)| !(0.0..=1.0).contains(*v))
+    {
+        return Err(("colors", format!("row {}: {v} must be from 0 to 1", i / 4)));
     }
     if let Some((t, &v)) = mesh.indices.iter().enumerate().find_map(|(t, tri)| {
         tri.iter()
