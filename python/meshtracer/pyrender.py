@@ -155,6 +155,51 @@ def _add_primitive(target, primitive, world, flags, name, textures):
     return added
 
 
+def _digest(hasher, value):
+    """Feeds ``value`` (an array, a number, a string, None, or a sequence of them) to
+    ``hasher``: arrays by their bytes, dtype and shape."""
+    if value is None:
+        hasher.update(b"\0")
+    elif isinstance(value, np.ndarray):
+        hasher.update(f"{value.dtype}{value.shape}".encode())
+        hasher.update(np.ascontiguousarray(value).data)
+    elif isinstance(value, (list, tuple)):
+        for item in value:
+            _digest(hasher, item)
+    else:
+        hasher.update(repr(value).encode())
+
+
+# What of a pyrender material the picture depends on, besides its textures.
+_MATERIAL_FACTORS = ("baseColorFactor", "metallicFactor", "roughnessFactor", "emissiveFactor",
+                     "alphaMode", "alphaCutoff", "doubleSided", "smooth", "diffuseFactor",
+                     "glossinessFactor")
+
+
+def _fingerprint(mesh):
+    """A digest of what ``_add_primitive`` reads of ``mesh``: every primitive's arrays, its
+    material's factors and its textures' images and samplers (BLAKE2 at about 1 GB/s: a
+    fraction of what building the scene again costs)."""
+    import hashlib
+
+    hasher = hashlib.blake2b(digest_size=16)
+    for p in mesh.primitives:
+        _digest(hasher, [p.mode, p.positions, p.indices, p.normals, p.texcoord_0, p.color_0,
+                         p.poses])
+        material = p.material
+        _digest(hasher, [type(material).__name__]
+                + [getattr(material, f, None) for f in _MATERIAL_FACTORS])
+        for slot in _TEXTURES.values():
+            texture = getattr(material, slot, None)
+            if texture is None:
+                _digest(hasher, None)
+                continue
+            sampler = texture.sampler
+            _digest(hasher, [np.asarray(texture.source), texture.source_channels, sampler.wrapS,
+                             sampler.wrapT, sampler.magFilter, sampler.minFilter])
+    return hasher.digest()
+
+
 def _camera_options(camera, width, height):
     """``meshtracer.Scene.add_camera``'s projection arguments for a pyrender camera."""
     import pyrender
@@ -222,24 +267,28 @@ class OffscreenRenderer:
         self._built_key = None
 
     def _scene_for(self, scene, flags):
-        """The meshtracer scene of ``scene``'s meshes, built again only when they changed."""
-        nodes = sorted(scene.mesh_nodes, key=id)
+        """The meshtracer scene of ``scene``'s visible meshes, built again only when they
+        changed: the key holds the nodes, their poses and a fingerprint of each primitive's
+        arrays and material, so that editing a material or vertex data in place is seen."""
+        nodes = [n for n in sorted(scene.mesh_nodes, key=id)
+                 if getattr(n.mesh, "is_visible", True)]
         key = (int(flags & (RenderFlags.SKIP_CULL_FACES | RenderFlags.FLAT)),
-               tuple((id(n), id(n.mesh), scene.get_pose(n).tobytes()) for n in nodes))
+               tuple((id(n), id(n.mesh), scene.get_pose(n).tobytes(), _fingerprint(n.mesh))
+                     for n in nodes))
         if self._built is not None and key == self._built_key:
             return self._built, self._instances
-        built = None
+        built = Scene.empty("<pyrender scene>")
         instances = {}
         textures = {}
         for node in nodes:
             world = scene.get_pose(node)
             for primitive in node.mesh.primitives:
                 name = node.name or node.mesh.name
-                if built is None:
-                    built = Scene.empty("<pyrender scene>")
                 for index in _add_primitive(built, primitive, world, flags, name, textures):
                     instances[index] = node
-        if built is None:
+        if not instances and nodes:
+            # Meshes of points and lines alone (hidden meshes draw nothing, as in pyrender: the
+            # picture is the background).
             raise Error("the pyrender scene has no mesh with triangles: nothing to draw")
         self._built, self._built_key, self._instances = built, key, instances
         return built, instances

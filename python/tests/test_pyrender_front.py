@@ -167,3 +167,53 @@ def test_textures_land_where_pyrender_puts_them():
     middle = size // 2
     assert color[size // 4, middle - 1].tolist() == [255, 0, 0]
     assert color[size // 4, middle].tolist() == [0, 255, 0]
+
+
+def test_hidden_meshes_are_not_drawn():
+    """`Mesh.is_visible = False` draws nothing, as pyrender: the depth sees only the other
+    mesh, and with every mesh hidden the picture is the background."""
+    scene = build_scene(pyrender.PerspectiveCamera(yfov=np.pi / 3.0))
+    renderer = front.OffscreenRenderer(64, 48, spp=1)
+    both = renderer.render(scene, flags=front.RenderFlags.DEPTH_ONLY)
+    sphere, box = sorted(scene.mesh_nodes, key=lambda n: len(n.mesh.primitives[0].positions),
+                         reverse=True)
+    sphere.mesh.is_visible = False
+    box_only = renderer.render(scene, flags=front.RenderFlags.DEPTH_ONLY)
+    assert 0 < (box_only > 0).sum() < (both > 0).sum()
+    box.mesh.is_visible = False
+    color, depth = renderer.render(scene)
+    assert not (depth > 0).any() and not color.any()
+
+
+def test_a_material_or_vertex_edit_between_renders_is_drawn():
+    """The scene kept between renders is built again when a material factor or a vertex
+    array changed in place (its key once held only ids and poses), and reused otherwise,
+    which is faster than building it again."""
+    import time
+
+    scene = build_scene(pyrender.PerspectiveCamera(yfov=np.pi / 3.0))
+    renderer = front.OffscreenRenderer(64, 48, spp=1)
+    flat = front.RenderFlags.FLAT
+    sphere = max(scene.mesh_nodes, key=lambda n: len(n.mesh.primitives[0].positions))
+    red, _ = renderer.render(scene, flags=flat)
+    sphere.mesh.primitives[0].material.baseColorFactor = np.array([0.2, 0.2, 0.9, 1.0])
+    blue, _ = renderer.render(scene, flags=flat)
+    changed = np.any(red != blue, axis=-1)
+    assert changed.sum() > 100
+    assert (blue[changed][:, 2] > blue[changed][:, 0]).all()
+    before = renderer.render(scene, flags=front.RenderFlags.DEPTH_ONLY)
+    sphere.mesh.primitives[0].positions[:] *= 0.5  # in place: the same array object
+    after = renderer.render(scene, flags=front.RenderFlags.DEPTH_ONLY)
+    assert (after > 0).sum() < (before > 0).sum()
+
+    def seconds(rebuild):
+        start = time.perf_counter()
+        for _ in range(3):
+            if rebuild:
+                renderer._built = None
+            renderer.render(scene, flags=front.RenderFlags.DEPTH_ONLY)
+        return time.perf_counter() - start
+
+    kept, rebuilt = seconds(False), seconds(True)
+    print(f"3 renders: {kept:.3f} s with the kept scene, {rebuilt:.3f} s built each time")
+    assert kept < rebuilt
