@@ -647,6 +647,19 @@ fn bad_turntable_and_sheet_options_are_refused() {
         })
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+/// A GIF given as -o, a batch's contact sheet that is not a PNG and a batch turntable are
+/// refused with what to do instead.
+#[test]
+fn misplaced_gif_and_batch_sheet_options_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (out, gif, model) = (d.join("out"), d.join("spin.gif"), shapes());
+    let jpg = s(&d.join("sheet.jpg")).to_string();
+    let models = d.join("models");
+    std::fs::create_dir(&models).unwrap();
+    std::fs::copy(&model, models.join("a.obj")).unwrap();
     let result = run(
         &["render", s(&model), "--turntable", "4", "-o", s(&gif), "-q"],
         false,
