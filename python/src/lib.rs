@@ -933,6 +933,12 @@ impl PyScene {
                 "light color {color:?}: must be finite numbers of at least 0"
             )));
         }
+        // KHR_lights_punctual: a range, when given, is above 0 (None is no range window).
+        if let Some(r) = range.filter(|r| r.is_nan() || *r <= 0.0) {
+            return Err(Error::new_err(format!(
+                "light range {r}: must be above 0 (or None for no range)"
+            )));
+        }
         let light = Light::from_pose(
             kind,
             Vec3::from(color),
