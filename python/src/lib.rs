@@ -105,6 +105,12 @@ enum State {
     Failed(String),
 }
 
+/// The error of a call that finds the scene still `Preparing` after waiting for it: cannot
+/// happen ([`PyScene::settled`] waits), reported rather than panicking.
+fn still_preparing() -> PyErr {
+    Error::new_err("internal error: the scene is being prepared")
+}
+
 /// How often a call waiting for another thread's preparation checks for Ctrl-C.
 const WAIT_POLL: std::time::Duration = std::time::Duration::from_millis(100);
 
@@ -127,7 +133,7 @@ impl PyScene {
                 other => {
                     let error = match &other {
                         State::Failed(message) => self.failed_earlier(message),
-                        _ => Error::new_err("internal error: the scene is being prepared"),
+                        _ => still_preparing(),
                     };
                     *state = other;
                     return Err(error);
@@ -207,9 +213,7 @@ impl PyScene {
             State::Loaded(scene) => Ok(f(scene)),
             State::Prepared(p) => Ok(f(&p.scene)),
             State::Failed(message) => Err(self.failed_earlier(message)),
-            State::Preparing => Err(Error::new_err(
-                "internal error: the scene is being prepared",
-            )),
+            State::Preparing => Err(still_preparing()),
         }
     }
 
@@ -228,9 +232,7 @@ impl PyScene {
         match &mut *state {
             State::Loaded(scene) => Ok(f(scene)),
             State::Failed(message) => Err(self.failed_earlier(message)),
-            _ => Err(Error::new_err(
-                "internal error: the scene is being prepared",
-            )),
+            _ => Err(still_preparing()),
         }
     }
 
