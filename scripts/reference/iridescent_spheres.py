@@ -21,7 +21,12 @@ def sphere(n_lat=48, n_lon=96):
     for i in range(n_lat):
         for j in range(n_lon):
             a = i * (n_lon + 1) + j; b = a + n_lon + 1
-            idx += [a, a + 1, b, a + 1, b + 1, b]
+            # At the poles one triangle of each quad has two corners on the pole: leave it out
+            # (the renderer would drop it as degenerate, with a warning).
+            if i > 0:
+                idx += [a, a + 1, b]
+            if i < n_lat - 1:
+                idx += [a + 1, b + 1, b]
     return pos, nor, idx
 
 pos, nor, idx = sphere()
