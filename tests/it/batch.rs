@@ -1127,3 +1127,28 @@ fn a_failed_auxiliary_output_leaves_none_of_the_jobs_files() {
     assert!(!out.join("blocked/image.png").exists());
     assert!(out.join("fine/image.png").is_file() && out.join("fine/depth.npy").is_file());
 }
+
+/// batch-merge with shards missing names each, and the command line that runs the one missing
+/// (the shard itself, not a placeholder), or the form for several.
+#[test]
+fn merge_names_missing_shards() {
+    let dir = tempfile::tempdir().unwrap();
+    let models = models_folder(dir.path(), false);
+    let out = dir.path().join("out");
+    batch(&models, &out, &["--shard", "0/2"], &[], true);
+    let stderr = String::from_utf8_lossy(&merge(&out, false).stderr).into_owned();
+    assert!(
+        stderr.contains("shard 1/2 has no results file yet")
+            && stderr.contains("run it with --shard 1/2 --resume"),
+        "{stderr}"
+    );
+
+    let out = dir.path().join("out3");
+    batch(&models, &out, &["--shard", "1/3"], &[], true);
+    let stderr = String::from_utf8_lossy(&merge(&out, false).stderr).into_owned();
+    assert!(
+        stderr.contains("shards 0/3, 2/3 have no results files yet")
+            && stderr.contains("run each with --shard I/3 --resume"),
+        "{stderr}"
+    );
+}

@@ -1007,12 +1007,17 @@ pub(super) fn merge_command(args: &BatchMergeArgs) -> Result<()> {
         .filter(|i| !files.contains_key(i))
         .map(|i| format!("{i}/{count}"))
         .collect();
-    if !missing.is_empty() {
-        bail!(
-            "{}: shard {} of {count} has no results file yet (still running, killed or failed to start): run it with --shard I/{count} --resume, then merge again",
+    match missing.as_slice() {
+        [] => {}
+        [one] => bail!(
+            "{}: shard {one} has no results file yet (still running, killed or failed to start): run it with --shard {one} --resume, then merge again",
+            dir.display()
+        ),
+        several => bail!(
+            "{}: shards {} have no results files yet (still running, killed or failed to start): run each with --shard I/{count} --resume, then merge again",
             dir.display(),
-            missing.join(", ")
-        );
+            several.join(", ")
+        ),
     }
     let mut records = Vec::new();
     let mut seen = HashSet::new();
