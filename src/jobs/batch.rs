@@ -321,7 +321,11 @@ pub struct Entry {
     pub id: Option<String>,
     /// The model path as given.
     pub model: Option<String>,
-    /// The job, or why there is none.
+    /// Where the manifest gives the job, for its errors (`jobs.jsonl line 3`); `None` for a
+    /// model found in a folder, whose own path says where.
+    pub origin: Option<String>,
+    /// The job, or why there is none (without the [`origin`](Entry::origin), which
+    /// [`JobRecord::failed`] puts in front).
     pub job: Result<Job, String>,
 }
 
@@ -453,6 +457,7 @@ fn read_folder(root: &Path) -> Result<Vec<Entry>, ManifestError> {
                     key: id.clone(),
                     id: Some(id),
                     model: Some(text),
+                    origin: None,
                     job,
                 },
             )
@@ -475,8 +480,6 @@ fn read_jsonl(bytes: &[u8], path: &Path, folder: &Path) -> Vec<Entry> {
     let bytes = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes);
     let mut entries = Vec::new();
     for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
-        let line_number = n + 1;
-        let at = |problem: String| format!("{} line {line_number}: {problem}", path.display());
         let text = String::from_utf8_lossy(raw);
         let text = text.trim();
         if text.is_empty() {
@@ -503,16 +506,13 @@ fn read_jsonl(bytes: &[u8], path: &Path, folder: &Path) -> Vec<Entry> {
             serde_json::from_value::<ManifestLine>(v).map_err(|e| e.to_string())
         });
         let (id, job) = match line {
-            Err(e) => (given_id, Err(at(e))),
+            Err(e) => (given_id, Err(e)),
             Ok(line) => {
                 let id = match &line.id {
                     Some(id) => check_job_id(id).map(|()| id.clone()),
                     None => id_from_model(&line.model),
                 };
-                let job = id
-                    .clone()
-                    .map_err(at)
-                    .and_then(|id| job_of_line(line, id, folder).map_err(at));
+                let job = id.clone().and_then(|id| job_of_line(line, id, folder));
                 (given_id.or(id.ok()), job)
             }
         };
@@ -520,6 +520,7 @@ fn read_jsonl(bytes: &[u8], path: &Path, folder: &Path) -> Vec<Entry> {
             key: id.clone().unwrap_or_else(|| text.to_string()),
             id,
             model,
+            origin: Some(format!("{} line {}", path.display(), n + 1)),
             job,
         });
     }
@@ -808,8 +809,13 @@ pub struct JobRecord {
 }
 
 impl JobRecord {
-    /// A job that failed before producing anything.
+    /// A job that failed before producing anything; the error starts with where the manifest
+    /// gives the job, when it is a line of a file.
     pub fn failed(entry: &Entry, error: String, total: f64) -> JobRecord {
+        let error = match &entry.origin {
+            Some(origin) => format!("{origin}: {error}"),
+            None => error,
+        };
         JobRecord {
             id: entry.id.clone(),
             model: entry.model.clone(),
@@ -1231,7 +1237,7 @@ not json
             (a.id.as_str(), a.model.as_path()),
             ("a", Path::new("m/a.glb"))
         );
-        assert!(entries[1].job.as_ref().unwrap_err().contains("line 2"));
+        assert_eq!(entries[1].origin.as_deref(), Some("m/jobs.jsonl line 2"));
         assert_eq!(entries[1].id, None);
         assert_eq!(entries[1].key, "not json");
         assert!(entries[2]

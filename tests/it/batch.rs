@@ -449,6 +449,45 @@ fn a_jsonl_batch_refuses_bad_lines_and_escaping_names_and_writes_only_inside_dir
     );
 }
 
+/// A job that fails only when it runs (a missing model, an animation the model lacks) is
+/// named by its manifest line, in the batch's error and in its record, as a line that is not
+/// a job is: with many jobs of one model, the model alone does not say which line to fix.
+#[test]
+fn a_jsonl_job_failing_when_it_runs_names_its_manifest_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let lines = [
+        r#"{"model": "cornell-box.gltf"}"#,
+        r#"{"id": "missing", "model": "nowhere.gltf"}"#,
+        r#"{"id": "unposed", "model": "cornell-box.gltf", "animation": "Walk"}"#,
+    ]
+    .map(String::from);
+    let manifest = jsonl_manifest(dir.path(), "jobs.jsonl", &lines);
+    let out = dir.path().join("out");
+    let run = batch(&manifest, &out, &[], &[], false);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    let error = stderr
+        .lines()
+        .find(|l| l.contains("2 of 3 jobs failed"))
+        .unwrap_or_else(|| panic!("one message for the failures:\n{stderr}"));
+    for expected in [
+        "jobs.jsonl line 2: ",
+        "nowhere.gltf",
+        "jobs.jsonl line 3: ",
+        "Walk",
+    ] {
+        assert!(error.contains(expected), "{expected}: {error}");
+    }
+    let jobs = by_id(&records(&out.join("results.jsonl")));
+    assert_eq!(jobs["cornell-box"]["status"], "ok");
+    for (id, line) in [("missing", "line 2: "), ("unposed", "line 3: ")] {
+        let recorded = jobs[id]["error"].as_str().unwrap();
+        assert!(
+            recorded.contains(&format!("jobs.jsonl {line}")),
+            "{recorded}"
+        );
+    }
+}
+
 /// Issue 15's whole-collection run: a JSONL batch over every model file in the shared samples
 /// (MESHTRACER_SAMPLES: glTF, GLB and OBJ, the encoded, animated and variant ones included)
 /// plus a broken file records exactly one failed job, naming the file, and renders every
