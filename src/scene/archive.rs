@@ -147,8 +147,17 @@ fn the_model<R: std::io::Read + std::io::Seek>(
     zip: &mut zip::ZipArchive<R>,
     max_bytes: u64,
 ) -> Result<PathBuf, LoadErrorKind> {
-    let models = models_in(zip, max_bytes)?;
-    one_model(models, "unzip it and render one").map_err(LoadErrorKind::Archive)
+    let found = models_in(zip, max_bytes)?;
+    if let ([], [name, rest @ ..]) = (found.models.as_slice(), found.refused.as_slice()) {
+        let more = match rest.len() {
+            0 => String::new(),
+            n => format!(" (and {n} more model entries like it)"),
+        };
+        return Err(LoadErrorKind::Archive(format!(
+            "its model entry '{name}' is refused: its path leaves the archive (absolute, or through '..'){more}"
+        )));
+    }
+    one_model(found.models, "unzip it and render one").map_err(LoadErrorKind::Archive)
 }
 
 /// Whether the file at `path` is a zip archive whose entries name at least one model file
@@ -169,7 +178,16 @@ pub fn holds_a_model(path: &Path) -> bool {
         .ok()
         .filter(|zip| zip.len() <= MAX_ENTRIES)
         .and_then(|mut zip| models_in(&mut zip, u64::MAX).ok())
-        .is_some_and(|models| !models.is_empty())
+        .is_some_and(|found| !found.models.is_empty())
+}
+
+/// The model files among an archive's entries.
+struct FoundModels {
+    /// Those inside the archive's folder, relative to it.
+    models: Vec<PathBuf>,
+    /// The names of those whose path leaves it (`../m.gltf`, `/m.glb`), which are never
+    /// unpacked: without them, an archive holding only such a model would seem to hold none.
+    refused: Vec<String>,
 }
 
 /// The model files among the archive's entries; an error if they declare more than
@@ -177,8 +195,11 @@ pub fn holds_a_model(path: &Path) -> bool {
 fn models_in<R: std::io::Read + std::io::Seek>(
     zip: &mut zip::ZipArchive<R>,
     max_bytes: u64,
-) -> Result<Vec<PathBuf>, LoadErrorKind> {
-    let mut models = Vec::new();
+) -> Result<FoundModels, LoadErrorKind> {
+    let mut found = FoundModels {
+        models: Vec::new(),
+        refused: Vec::new(),
+    };
     let mut declared = 0u64;
     for i in 0..zip.len() {
         let entry = zip
@@ -193,14 +214,16 @@ fn models_in<R: std::io::Read + std::io::Seek>(
         if entry.is_dir() || entry.is_symlink() {
             continue;
         }
-        let Some(relative) = inside(entry.name()) else {
+        let name = Path::new(entry.name());
+        if !is_model(name) || skipped(name) {
             continue;
-        };
-        if is_model(&relative) && !skipped(&relative) {
-            models.push(relative);
+        }
+        match inside(entry.name()) {
+            Some(relative) => found.models.push(relative),
+            None => found.refused.push(entry.name().to_string()),
         }
     }
-    Ok(models)
+    Ok(found)
 }
 
 /// Whether `path` names a model file by its extension ([`MODEL_EXTENSIONS`]).
@@ -344,7 +367,7 @@ mod tests {
 
     #[test]
     fn hostile_and_ambiguous_archives_are_refused() {
-        let cases: [(Entries, &str); 4] = [
+        let cases: [(Entries, &str); 5] = [
             (
                 &[("a.glb", b"x"), ("b.obj", b"x")],
                 "holds 2 models ('a.glb', 'b.obj')",
@@ -353,6 +376,10 @@ mod tests {
             (
                 &[("m.gltf", b"{}"), ("../escape.bin", b"x")],
                 "entry '../escape.bin' would be written outside",
+            ),
+            (
+                &[("../evil.gltf", b"{}"), ("readme.txt", b"x")],
+                "its model entry '../evil.gltf' is refused: its path leaves the archive",
             ),
             (
                 &[("m.gltf", &[b'{'; 4096])],

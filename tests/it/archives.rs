@@ -94,6 +94,18 @@ fn an_archive_without_exactly_one_model_is_refused() {
             vec![],
             "zip archive: holds no .gltf, .glb or .obj file",
         ),
+        // The only model would be unpacked outside the archive's folder: refused as that, not
+        // as an archive without a model.
+        (
+            "up.zip",
+            vec![("../evil.gltf", b"{}".to_vec()), ("evil.bin", b"x".to_vec())],
+            "zip archive: its model entry '../evil.gltf' is refused: its path leaves the archive (absolute, or through '..')",
+        ),
+        (
+            "root.zip",
+            vec![("/tmp/evil.glb", b"x".to_vec())],
+            "zip archive: its model entry '/tmp/evil.glb' is refused: its path leaves the archive (absolute, or through '..')",
+        ),
         (
             "escape.zip",
             vec![("m.obj", b"v 0 0 0".to_vec()), ("../up.mtl", b"x".to_vec())],
