@@ -206,6 +206,23 @@ fn default_depth_scale() -> f32 {
     0.001
 }
 
+/// A key of a JSON document as a path from the top: `camera.yfvo`, `lights[1].colour`
+/// (serde_ignored's own form writes `Option` levels as `?`).
+fn key_path(key: &serde_ignored::Path) -> String {
+    use serde_ignored::Path;
+    match key {
+        Path::Root => String::new(),
+        Path::Seq { parent, index } => format!("{}[{index}]", key_path(parent)),
+        Path::Map { parent, key } => match key_path(parent) {
+            above if above.is_empty() => key.clone(),
+            above => format!("{above}.{key}"),
+        },
+        Path::Some { parent }
+        | Path::NewtypeStruct { parent }
+        | Path::NewtypeVariant { parent } => key_path(parent),
+    }
+}
+
 /// One id of the segmentation AOV.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SegmentId {
@@ -284,23 +301,38 @@ impl ViewFile {
         }
     }
 
-    /// Reads and checks a view file.
-    pub fn read(path: &Path) -> Result<ViewFile, ViewError> {
+    /// Reads and checks a view file, with the keys it holds that no view file has
+    /// ([`ViewFile::parse`]).
+    pub fn read(path: &Path) -> Result<(ViewFile, Vec<String>), ViewError> {
         let text = std::fs::read_to_string(path).map_err(|e| ViewError {
             path: path.display().to_string(),
             problem: e.to_string(),
         })?;
-        ViewFile::from_json(&text, path)
+        ViewFile::parse(&text, path)
     }
 
-    /// Parses and checks the text of a view file; `path` names it in errors.
+    /// Parses and checks the text of a view file; `path` names it in errors. Keys that no view
+    /// file has are ignored ([`ViewFile::parse`] lists them).
     pub fn from_json(text: &str, path: &Path) -> Result<ViewFile, ViewError> {
+        ViewFile::parse(text, path).map(|(view, _)| view)
+    }
+
+    /// Parses and checks the text of a view file (`path` names it in errors), and lists the
+    /// keys that no view file has, in file order, as paths from the top (`camera.yfvo`,
+    /// `lights[1].colour`): a misspelt key would otherwise be dropped unseen, and the render
+    /// made without it. Inside an environment's `source` (a tagged enum, which serde reads
+    /// through a buffer of its own) unknown keys are not seen.
+    pub fn parse(text: &str, path: &Path) -> Result<(ViewFile, Vec<String>), ViewError> {
         let err = |problem: String| ViewError {
             path: path.display().to_string(),
             problem,
         };
+        let mut unknown = Vec::new();
+        let mut json = serde_json::Deserializer::from_str(text);
         let view: ViewFile =
-            serde_json::from_str(text).map_err(|e| err(format!("not a meshtracer view: {e}")))?;
+            serde_ignored::deserialize(&mut json, |key| unknown.push(key_path(&key)))
+                .and_then(|view| json.end().map(|()| view))
+                .map_err(|e| err(format!("not a meshtracer view: {e}")))?;
         if view.meshtracer_view != VIEW_VERSION {
             return Err(err(format!(
                 "view version {} (this meshtracer reads {VIEW_VERSION})",
@@ -340,7 +372,7 @@ impl ViewFile {
         if view.bounces.is_some_and(|b| b > MAX_VIEW_BOUNCES) {
             return Err(err(format!("bounces: at most {MAX_VIEW_BOUNCES}")));
         }
-        Ok(view)
+        Ok((view, unknown))
     }
 
     /// The camera this view describes.
@@ -535,6 +567,31 @@ mod tests {
     use super::*;
     use crate::scene::Bounds;
 
+    /// The automatic camera of a 2 m cube at the origin, for a 4:3 image.
+    fn framing_camera() -> Camera {
+        let bounds = Bounds {
+            min: Vec3::splat(-1.0),
+            max: Vec3::splat(1.0),
+        };
+        crate::camera::auto_camera(&bounds, &[], 4.0 / 3.0)
+    }
+
+    /// A spot light at the origin shining down -Z, its cones 0.2 and 0.4 rad.
+    fn spot_light() -> Light {
+        Light {
+            name: None,
+            kind: LightKind::Spot {
+                inner_cone_angle: 0.2,
+                outer_cone_angle: 0.4,
+            },
+            color: Vec3::ONE,
+            intensity: 2.0,
+            range: None,
+            position: Vec3::ZERO,
+            direction: Vec3::NEG_Z,
+        }
+    }
+
     /// A camera written to a view file and read back is the same camera, bit for bit: from
     /// quaternion rotations (as TRS nodes and matrices give) and from the automatic camera,
     /// over many directions; so are the lights' directions. A file without `forward` (written
@@ -607,24 +664,8 @@ mod tests {
     /// and spot cones outside 0 <= inner < outer <= π/2 included.
     #[test]
     fn edited_views_are_refused_naming_the_file_and_the_fault() {
-        let bounds = Bounds {
-            min: Vec3::splat(-1.0),
-            max: Vec3::splat(1.0),
-        };
-        let camera = crate::camera::auto_camera(&bounds, &[], 4.0 / 3.0);
-        let spot = Light {
-            name: None,
-            kind: LightKind::Spot {
-                inner_cone_angle: 0.2,
-                outer_cone_angle: 0.4,
-            },
-            color: Vec3::ONE,
-            intensity: 2.0,
-            range: None,
-            position: Vec3::ZERO,
-            direction: Vec3::NEG_Z,
-        };
-        let view = ViewFile::new(&camera, 64, 48, &[spot], Vec3::ZERO, true);
+        let camera = framing_camera();
+        let view = ViewFile::new(&camera, 64, 48, &[spot_light()], Vec3::ZERO, true);
         let path = Path::new("edited.json");
         assert!(ViewFile::from_json(&view.to_json(), path).is_ok());
         let refusal = |edit: &dyn Fn(&mut ViewFile)| {
@@ -655,15 +696,71 @@ mod tests {
         }
     }
 
+    /// Every key the writer writes, each optional record included, reads back as known; keys
+    /// no view file has (misspelt ones, at any depth) are listed as paths, in file order, and
+    /// the view is read as without them.
+    #[test]
+    fn keys_no_view_file_has_are_listed_with_their_place() {
+        let camera = framing_camera();
+        let spot = Light {
+            name: Some("key".into()),
+            range: Some(5.0),
+            ..spot_light()
+        };
+        let mut full = ViewFile::new(&camera, 64, 48, &[spot], Vec3::ZERO, false);
+        full.segmentation = vec![SegmentId {
+            id: 1,
+            node: Some(0),
+            mesh: 0,
+            name: Some("walls".into()),
+        }];
+        full.integrator = IntegratorKind::Path;
+        full.bounces = Some(4);
+        full.clamp_indirect = Some(10.0);
+        full.environment = Some(ViewEnvironment {
+            source: EnvironmentSource::Uniform { radiance: [1.0; 3] },
+            rotation_degrees: 30.0,
+            intensity: 2.0,
+            visible: true,
+            panorama: Some("env.hdr".into()),
+        });
+        full.denoise = Some(ViewDenoise {
+            denoiser: "meshtracer".into(),
+            version: "0.1.0".into(),
+            filter: "atrous".into(),
+            hdr: true,
+            guides: vec!["albedo".into()],
+            guide_samples_per_pixel: 4,
+            clean_aux: true,
+        });
+        full.display = Some(ViewDisplay::new(0.5, crate::color::ViewTransform::Standard));
+        let path = Path::new("view.json");
+        let (read, unknown) = ViewFile::parse(&full.to_json(), path).unwrap();
+        assert_eq!((read, unknown), (full.clone(), Vec::<String>::new()));
+
+        let mut edited: serde_json::Value = serde_json::from_str(&full.to_json()).unwrap();
+        edited["exposur"] = 1.into();
+        edited["camera"]["yfvo"] = 0.5.into();
+        edited["lights"][0]["colour"] = serde_json::json!([1, 0, 0]);
+        edited["environment"]["rotaton"] = 90.into();
+        let (read, unknown) = ViewFile::parse(&edited.to_string(), path).unwrap();
+        assert_eq!(read, full);
+        assert_eq!(
+            unknown,
+            [
+                "camera.yfvo",
+                "environment.rotaton",
+                "exposur",
+                "lights[0].colour"
+            ]
+        );
+    }
+
     /// A denoised view's record survives writing and reading; a view file without one (every
     /// file written before `--denoise`) reads as not denoised.
     #[test]
     fn the_denoise_record_round_trips_and_is_optional() {
-        let bounds = Bounds {
-            min: Vec3::splat(-1.0),
-            max: Vec3::splat(1.0),
-        };
-        let camera = crate::camera::auto_camera(&bounds, &[], 4.0 / 3.0);
+        let camera = framing_camera();
         let plain = ViewFile::new(&camera, 64, 48, &[], Vec3::splat(0.1), true);
         let path = Path::new("view.json");
         let read = ViewFile::from_json(&plain.to_json(), path).unwrap();

@@ -1247,6 +1247,65 @@ fn the_view_round_trips() {
     }
 }
 
+/// A view file as `--view-out` writes it (path tracer, studio environment, denoise record,
+/// segmentation table) reads back without a warning; one with a misspelt key (`yfvo`) renders
+/// with a warning naming the file and the key, and under `--strict` is refused, nothing
+/// written.
+#[test]
+fn a_view_file_key_no_view_has_is_warned_of_and_refused_under_strict() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = crate::common::root().join("assets/shapes.obj");
+    let (view, out) = (dir.path().join("view.json"), dir.path().join("out.png"));
+    let segmentation = dir.path().join("segmentation.png");
+    let written = [
+        "--width",
+        "32",
+        "--height",
+        "24",
+        "--denoise",
+        "--segmentation-out",
+        s(&segmentation),
+        "--view-out",
+        s(&view),
+    ];
+    let render = |extra: &[&str], ok: bool| {
+        let args = [
+            &["render", s(&model), "-o", s(&out), "--spp", "1"][..],
+            extra,
+        ]
+        .concat();
+        crate::common::stderr(&run(&args, ok))
+    };
+    render(&written, true);
+    let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&view).unwrap()).unwrap();
+    for key in ["environment", "denoise", "segmentation", "display"] {
+        assert!(!v[key].is_null(), "the view file has no {key}: {v}");
+    }
+    let err = render(&["--view", s(&view), "--strict"], true);
+    assert!(!err.contains("warning"), "{err}");
+
+    let mut typo = v.clone();
+    typo["camera"]["yfvo"] = json!(0.5);
+    let misspelt = dir.path().join("misspelt.json");
+    std::fs::write(&misspelt, serde_json::to_vec(&typo).unwrap()).unwrap();
+    std::fs::remove_file(&out).unwrap();
+    let err = render(&["--view", s(&misspelt)], true);
+    let expected = format!(
+        "warning: {}: unknown key 'camera.yfvo' (misspelt?): ignored",
+        misspelt.display()
+    );
+    assert!(err.contains(&expected), "{err}");
+    assert!(out.exists());
+    std::fs::remove_file(&out).unwrap();
+    let err = render(&["--view", s(&misspelt), "--strict"], false);
+    let expected = format!(
+        "error: {}: unknown key 'camera.yfvo' (misspelt?): --strict refuses the file",
+        misspelt.display()
+    );
+    assert!(err.contains(&expected), "{err}");
+    assert!(!out.exists(), "nothing written");
+}
+
 /// The AOVs of the bundled scene: instance ids match the view's table, normals and depth are
 /// set exactly where the mask is, and depth is distance along the view axis.
 #[test]

@@ -497,7 +497,7 @@ pub struct RenderArgs {
     pub no_warnings: bool,
     /// Refuse the model when a texture image or an OBJ's .mtl is missing or cannot be read,
     /// instead of drawing its materials with their factors (a missing .mtl's faces grey) and
-    /// a warning.
+    /// a warning; and refuse a --view file with keys no view file has (a warning otherwise).
     #[arg(long)]
     pub strict: bool,
     /// Draw this KHR_materials_variants variant (by name; `info` lists them).

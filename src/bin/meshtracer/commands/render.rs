@@ -208,12 +208,28 @@ fn check_camera_options(args: &RenderArgs) -> Result<()> {
 
 /// The `--view` file, read and its image size refused over the limits as `--width` and
 /// `--height` are (which it overrides, with a warning when they are given); `None` without
-/// `--view`.
+/// `--view`. Keys no view file has (a typo: `yfvo`) are named in a warning, and refused
+/// under `--strict`.
 fn read_view_file(args: &RenderArgs) -> Result<Option<ViewFile>> {
     let Some(path) = &args.view else {
         return Ok(None);
     };
-    let view_file = ViewFile::read(path)?;
+    let (view_file, unknown) = ViewFile::read(path)?;
+    if !unknown.is_empty() {
+        let keys: Vec<String> = unknown.iter().map(|k| format!("'{k}'")).collect();
+        let what = format!(
+            "{}: unknown key{} {} (misspelt?)",
+            path.display(),
+            if keys.len() == 1 { "" } else { "s" },
+            keys.join(", ")
+        );
+        if args.strict {
+            bail!("{what}: --strict refuses the file");
+        }
+        if !args.no_warnings {
+            eprintln!("warning: {what}: ignored");
+        }
+    }
     check_size(args, view_file.image.width, view_file.image.height)?;
     if (args.width.is_some() || args.height.is_some()) && !args.no_warnings {
         eprintln!(
