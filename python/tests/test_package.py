@@ -5,9 +5,15 @@ and through the `meshtracer render` binary, and wants the same bytes: both run t
 one pipeline (load, lighting, prepare, render), so any difference is a bug in the binding.
 """
 
+import faulthandler
+import functools
 import json
+import os
+import subprocess
+import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -279,10 +285,48 @@ def test_render_releases_the_gil():
 
 # Threads ------------------------------------------------------------------------------------
 
+# Set in the interpreter that `in_own_interpreter` starts: the test runs there, not again.
+CHILD_VARIABLE = "MESHTRACER_TEST_IN_CHILD"
+
+
+def in_own_interpreter(timeout):
+    """Runs the decorated test (it takes no fixtures) in a Python of its own, which fails it
+    after `timeout` seconds: a thread that waits while it holds the GIL (the deadlock these
+    tests guard against) freezes every thread of its interpreter, the one that would time it
+    out included (`Thread.join(timeout)` needs the GIL to return), so only another process can.
+    In the child, faulthandler's watchdog (a C thread, without the GIL) prints every thread's
+    stack and exits; the parent's own limit is for a child that does not even get that far."""
+    def decorate(test):
+        @functools.wraps(test)
+        def run():
+            if os.environ.get(CHILD_VARIABLE):
+                faulthandler.dump_traceback_later(timeout, exit=True)
+                try:
+                    return test()
+                finally:
+                    faulthandler.cancel_dump_traceback_later()
+            code = f"import test_package; test_package.{test.__name__}()"
+            env = dict(os.environ, **{CHILD_VARIABLE: "1"})
+            try:
+                child = subprocess.run([sys.executable, "-c", code], cwd=Path(__file__).parent,
+                                       env=env, capture_output=True, text=True,
+                                       timeout=timeout + 30)
+            except subprocess.TimeoutExpired as e:
+                pytest.fail(f"{test.__name__}: still running after {timeout + 30} s and killed "
+                            f"(a deadlock?)\n{e.stderr or ''}")
+            if child.returncode != 0:
+                frozen = "Timeout (" in child.stderr
+                why = f"still running after {timeout} s: a deadlock" if frozen else "failed"
+                pytest.fail(f"{test.__name__} {why}\n{child.stdout}{child.stderr}")
+        return run
+    return decorate
+
+
 def run_in_threads(calls, timeout=60.0):
     """Runs each of `calls` on a daemon thread of its own, all at once; returns their results
     (an exception raised is returned as it is). Fails if any is still running after `timeout`
-    seconds: a deadlock fails this test instead of hanging the suite."""
+    seconds, a thread that waits with the GIL released; one that waits holding the GIL freezes
+    this one too, which `in_own_interpreter` is for."""
     results = [None] * len(calls)
 
     def run(i, call):
@@ -314,6 +358,7 @@ def grid_scene(n):
     return scene
 
 
+@in_own_interpreter(timeout=90.0)
 def test_threads_rendering_one_scene_share_its_one_preparation():
     """Two renders and the scene's other calls from other threads while the first render
     prepares the scene: all finish (the preparation once held the scene's lock while it
@@ -365,14 +410,17 @@ def broken_texture_gltf(folder):
     return path
 
 
-def test_threads_waiting_for_a_failed_preparation_get_its_error(tmp_path):
+@in_own_interpreter(timeout=90.0)
+def test_threads_waiting_for_a_failed_preparation_get_its_error():
     """A strict load of a file whose texture cannot be decoded: its preparation fails. Every
     thread that rendered meanwhile gets an error with the preparation's message, none hangs,
     and later calls say the scene must be loaded again."""
-    path = broken_texture_gltf(tmp_path)
-    scene = meshtracer.load(path, strict=True)
-    render = lambda: scene.render(16, 16, spp=1, integrator="direct")  # noqa: E731
-    results = run_in_threads([render, render, render])
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as folder:
+        scene = meshtracer.load(broken_texture_gltf(Path(folder)), strict=True)
+        render = lambda: scene.render(16, 16, spp=1, integrator="direct")  # noqa: E731
+        results = run_in_threads([render, render, render])
     assert all(isinstance(r, meshtracer.Error) for r in results), results
     first = min((str(r) for r in results), key=len)
     assert "broken.png" in first
@@ -382,11 +430,11 @@ def test_threads_waiting_for_a_failed_preparation_get_its_error(tmp_path):
         scene.render(16, 16, spp=1)
 
 
+@in_own_interpreter(timeout=90.0)
 def test_threads_prepare_a_scene_once():
     """The texture's warning of the non-strict load appears once however many threads
     rendered the scene at the same time: it was prepared once."""
     import tempfile
-    from pathlib import Path
 
     with tempfile.TemporaryDirectory() as folder:
         scene = meshtracer.load(broken_texture_gltf(Path(folder)))
