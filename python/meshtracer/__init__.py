@@ -50,14 +50,19 @@ env_intensity=1.0, env_visible=False, progress=None)``
 ``Error``
     Raised when a model cannot be loaded or rendered; its message is exactly what the CLI
     prints after ``meshtracer: error:``, naming the file and the part.
+
+``MissingFileError``
+    The ``Error`` raised when the model file or the ``env`` panorama does not exist. It is
+    also a ``FileNotFoundError``, so ``except FileNotFoundError`` and ``except OSError`` catch
+    it as well as ``except meshtracer.Error``.
 """
 
 import numpy as _np
 
-from ._meshtracer import Error, Scene
+from ._meshtracer import Error, MissingFileError, Scene
 from ._meshtracer import load as _load
 
-__all__ = ["Error", "Scene", "load"]
+__all__ = ["Error", "MissingFileError", "Scene", "load"]
 
 
 def load(path, *, animation=None, time=None, variant=None, strict=False,

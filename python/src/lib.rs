@@ -26,13 +26,16 @@ use meshtracer::output::dataset::{camera_to_world, Intrinsics};
 use meshtracer::output::view_file::MAX_VIEW_BOUNCES;
 use meshtracer::prepare::{PrepareOptions, Prepared};
 use meshtracer::render::{render, Region, RenderSettings};
-use meshtracer::scene::{Camera, Light, LoadOptions, MeshArrays, PoseOptions, Projection};
+use meshtracer::scene::{
+    Camera, Light, LoadError, LoadErrorKind, LoadOptions, MeshArrays, PoseOptions, Projection,
+};
 use meshtracer::setup::{self, LightingOptions};
 use meshtracer::shading::ShadingModel;
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyException, PyMemoryError};
+use pyo3::exceptions::{PyException, PyFileNotFoundError, PyMemoryError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyDict, PyType};
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
@@ -44,10 +47,51 @@ pyo3::create_exception!(
     "A model that cannot be loaded or rendered: the message is the one the meshtracer CLI prints after `meshtracer: error: `."
 );
 
-/// `error` as the CLI prints it: anyhow's alternate form, the error and its sources joined by
-/// ": " (`main.rs` prints `meshtracer: error: {e:#}`).
-fn cli_error(error: impl Into<anyhow::Error>) -> PyErr {
-    Error::new_err(format!("{:#}", error.into()))
+/// `meshtracer.MissingFileError`, made when the module is imported. Its bases are `Error` and
+/// the built-in `FileNotFoundError`, so that both `except meshtracer.Error` and `except
+/// FileNotFoundError` (or `OSError`) catch a missing file. `create_exception!` takes one base,
+/// so the class is made as Python makes one: `type(name, bases, namespace)`.
+static MISSING_FILE_ERROR: PyOnceLock<Py<PyType>> = PyOnceLock::new();
+
+/// The class [`MISSING_FILE_ERROR`] holds, made by the first call (the module's import).
+fn missing_file_error_type(py: Python<'_>) -> PyResult<&Bound<'_, PyType>> {
+    let made = MISSING_FILE_ERROR.get_or_try_init(py, || -> PyResult<Py<PyType>> {
+        let namespace = PyDict::new(py);
+        namespace.set_item("__module__", "meshtracer")?;
+        namespace.set_item(
+            "__doc__",
+            "A file to read does not exist (the model, or the panorama of `env`): both a \
+             meshtracer.Error, with the CLI's message, and a FileNotFoundError.",
+        )?;
+        let bases = (py.get_type::<Error>(), py.get_type::<PyFileNotFoundError>());
+        let class = py
+            .get_type::<PyType>()
+            .call1(("MissingFileError", bases, namespace))?;
+        Ok(class.cast_into::<PyType>()?.unbind())
+    })?;
+    Ok(made.bind(py))
+}
+
+/// `message` as a [`MISSING_FILE_ERROR`] when `missing` (the file it names does not exist),
+/// else as an `Error`.
+fn file_error(py: Python<'_>, message: String, missing: bool) -> PyErr {
+    if !missing {
+        return Error::new_err(message);
+    }
+    match missing_file_error_type(py) {
+        Ok(class) => PyErr::from_type(class.clone(), message),
+        Err(e) => e,
+    }
+}
+
+/// A load error as the CLI prints it (anyhow's alternate form, the error and its sources
+/// joined by ": ", as `main.rs` prints `meshtracer: error: {e:#}`), a [`MISSING_FILE_ERROR`]
+/// when the file it names (the model itself: a missing buffer or texture is an error of the
+/// model's, with a message of its own) does not exist.
+fn load_error(py: Python<'_>, error: LoadError) -> PyErr {
+    let missing =
+        matches!(&error.kind, LoadErrorKind::Io(e) if e.kind() == std::io::ErrorKind::NotFound);
+    file_error(py, format!("{:#}", anyhow::Error::from(error)), missing)
 }
 
 /// The arrays a render can return besides colour.
@@ -278,11 +322,13 @@ impl PyScene {
     /// CLI's `--env` is; `None` without one. Loaded once and kept while the file (its length
     /// and modification time) and the transform stay the same: rendering many frames lit by
     /// one large EXR reads it once.
-    fn environment(&self, o: &RenderOptions) -> PyResult<Option<Arc<Environment>>> {
+    fn environment(&self, py: Python<'_>, o: &RenderOptions) -> PyResult<Option<Arc<Environment>>> {
         let Some(path) = &o.env else {
             return Ok(None);
         };
-        let meta = std::fs::metadata(path).ok();
+        let meta = std::fs::metadata(path);
+        let missing = matches!(&meta, Err(e) if e.kind() == std::io::ErrorKind::NotFound);
+        let meta = meta.ok();
         let key = EnvironmentKey {
             path: path.clone(),
             modified: meta.as_ref().and_then(|m| m.modified().ok()),
@@ -300,7 +346,7 @@ impl PyScene {
             }
         }
         let env = Environment::load(path)
-            .map_err(|e| Error::new_err(e.to_string()))?
+            .map_err(|e| file_error(py, e.to_string(), missing))?
             .with_transform(o.env_rotation, o.env_intensity);
         let env = Arc::new(env);
         *kept = Some((key, Arc::clone(&env)));
@@ -377,7 +423,7 @@ impl PyScene {
         }
         let mut lighting_options = LightingOptions::new(o.integrator);
         lighting_options.no_default_lights = !o.default_lights;
-        lighting_options.environment = self.environment(o)?;
+        lighting_options.environment = self.environment(py, o)?;
         lighting_options.studio_rotation_degrees = o.env_rotation;
         lighting_options.studio_intensity = o.env_intensity;
         let lit = self.with_scene(py, |scene| {
@@ -1250,7 +1296,7 @@ fn load(
         }))
     });
     let scene = match loaded {
-        Ok(result) => result.map_err(cli_error)?,
+        Ok(result) => result.map_err(|e| load_error(py, e))?,
         Err(panic) => {
             let what = meshtracer::scene::panic_message(panic.as_ref());
             return Err(Error::new_err(format!(
@@ -1265,6 +1311,7 @@ fn load(
 #[pymodule]
 fn _meshtracer(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("Error", m.py().get_type::<Error>())?;
+    m.add("MissingFileError", missing_file_error_type(m.py())?)?;
     m.add_class::<PyScene>()?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
     Ok(())

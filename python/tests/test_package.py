@@ -52,6 +52,29 @@ def test_missing_file_raises_error_naming_the_file(cli, tmp_path):
     assert str(caught.value) == cli_error_message(cli("info", missing, check=False))
 
 
+def test_a_missing_file_is_also_a_file_not_found_error(tmp_path):
+    """A missing model, or panorama, is caught by `except FileNotFoundError` (and `OSError`) as
+    well as by `except meshtracer.Error`, with the same message; a file that exists but is
+    broken is not a FileNotFoundError."""
+    missing = tmp_path / "no-such-model.gltf"
+    with pytest.raises(FileNotFoundError) as caught:
+        meshtracer.load(missing)
+    error = caught.value
+    assert isinstance(error, meshtracer.Error) and isinstance(error, OSError)
+    assert type(error) is meshtracer.MissingFileError
+    assert str(error).startswith(f"{missing}: "), str(error)
+    scene = meshtracer.load(CORNELL)
+    panorama = tmp_path / "no-such-sky.hdr"
+    with pytest.raises(FileNotFoundError, match="no-such-sky.hdr") as caught:
+        scene.render(8, 8, spp=1, env=panorama)
+    assert isinstance(caught.value, meshtracer.Error)
+    broken = tmp_path / "broken.gltf"
+    broken.write_text("{")
+    with pytest.raises(meshtracer.Error) as caught:
+        meshtracer.load(broken)
+    assert not isinstance(caught.value, OSError)
+
+
 def test_broken_gltf_raises_the_clis_message(cli, tmp_path):
     broken = tmp_path / "broken.gltf"
     broken.write_text('{"asset": {"version": "2.0"}, "meshes": [')
