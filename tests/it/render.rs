@@ -1890,6 +1890,81 @@ fn a_crop_or_an_explicit_sampling_is_not_denoised_by_default() {
     }
 }
 
+/// The scene of [`direct_lanes_together_give_each_lanes_own_radiance`], prepared, with its
+/// direct integrator: a white ground, an occluder above it (BLEND or opaque) and an unlit
+/// patch, under a directional and a point light; and its 24 x 24 grid of rays down from z = 5
+/// over [-3.5, 3.5]², slightly tilted: the ground's edge (x or y = ±3) falls between grid
+/// columns, some rays miss.
+fn direct_lanes_scene(
+    dir: &Path,
+    blend: bool,
+) -> (
+    meshtracer::prepare::Prepared,
+    meshtracer::integrator::Direct,
+    Vec<meshtracer::geometry::Ray>,
+) {
+    use glam::Vec3;
+    use meshtracer::geometry::Ray;
+    use meshtracer::integrator::Direct;
+    use meshtracer::light::PunctualLight;
+    use meshtracer::prepare::{PrepareOptions, Prepared};
+    let occluder = if blend {
+        json!({"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.2, 0.2, 0.5]}, "alphaMode": "BLEND"})
+    } else {
+        json!({"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.2, 0.2, 1.0]}})
+    };
+    let unlit = json!({"pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.7, 0.3, 1.0]},
+        "extensions": {"KHR_materials_unlit": {}}});
+    let patch = square(0.5, 0.5).map(|[x, y, z]| [x - 2.0, y + 2.0, z]);
+    let extra = json!({
+        "materials": [white(true), occluder, unlit],
+        "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_unlit"],
+        "extensions": {"KHR_lights_punctual": {"lights": [
+            {"type": "directional", "intensity": 2.0},
+            {"type": "point", "intensity": 30.0, "color": [1.0, 0.8, 0.6]}
+        ]}},
+        "nodes": [
+            {"rotation": glam::Quat::from_rotation_arc(Vec3::NEG_Z, Vec3::new(1.0, 0.3, -1.0).normalize()).to_array(),
+             "extensions": {"KHR_lights_punctual": {"light": 0}}},
+            {"translation": [-1.0, 1.5, 2.5], "extensions": {"KHR_lights_punctual": {"light": 1}}}
+        ]
+    });
+    let (json, bin) = quads_gltf(
+        &[(square(3.0, 0.0), 0), (square(0.5, 1.0), 1), (patch, 2)],
+        extra,
+    );
+    let model = write_gltf(dir, &format!("lanes-{blend}.gltf"), json, &bin);
+    let scene = meshtracer::Scene::load(&model).unwrap();
+    let prepared = Prepared::new(scene, &PrepareOptions::default(), &mut Vec::new()).unwrap();
+    assert_eq!(prepared.any_alpha(), blend);
+    let direct = Direct {
+        lights: prepared
+            .scene
+            .lights
+            .iter()
+            .map(PunctualLight::new)
+            .collect(),
+        ambient: Vec3::splat(0.05),
+        shading: Default::default(),
+    };
+    assert_eq!(direct.lights.len(), 2);
+    let rays: Vec<Ray> = (0..24 * 24)
+        .map(|i| {
+            let (x, y) = (
+                (i % 24) as f32 / 23.0 * 7.0 - 3.5,
+                (i / 24) as f32 / 23.0 * 7.0 - 3.5,
+            );
+            Ray::new(
+                Vec3::new(x, y, 5.0),
+                Vec3::new(0.01, -0.02, -1.0).normalize(),
+                0.0,
+                f32::INFINITY,
+            )
+        })
+        .collect();
+    (prepared, direct, rays)
+}
+
 /// The direct integrator's samples taken eight at a time (`radiance_many`, which traces each
 /// light's shadow rays from all of them as one packet) give what each gives alone, bit for
 /// bit, with the same first hits and ray counts: on a ground with an occluder above it and an
@@ -1901,68 +1976,11 @@ fn a_crop_or_an_explicit_sampling_is_not_denoised_by_default() {
 fn direct_lanes_together_give_each_lanes_own_radiance() {
     use glam::Vec3;
     use meshtracer::geometry::Ray;
-    use meshtracer::integrator::{CameraRay, Direct, Integrator, Lane, RayCounts};
-    use meshtracer::light::PunctualLight;
-    use meshtracer::prepare::{PrepareOptions, Prepared};
+    use meshtracer::integrator::{CameraRay, Integrator, Lane, RayCounts};
     use meshtracer::sampling::Sampler;
     let dir = tempfile::tempdir().unwrap();
     for blend in [false, true] {
-        let occluder = if blend {
-            json!({"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.2, 0.2, 0.5]}, "alphaMode": "BLEND"})
-        } else {
-            json!({"pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.2, 0.2, 1.0]}})
-        };
-        let unlit = json!({"pbrMetallicRoughness": {"baseColorFactor": [0.1, 0.7, 0.3, 1.0]},
-            "extensions": {"KHR_materials_unlit": {}}});
-        let patch = square(0.5, 0.5).map(|[x, y, z]| [x - 2.0, y + 2.0, z]);
-        let extra = json!({
-            "materials": [white(true), occluder, unlit],
-            "extensionsUsed": ["KHR_lights_punctual", "KHR_materials_unlit"],
-            "extensions": {"KHR_lights_punctual": {"lights": [
-                {"type": "directional", "intensity": 2.0},
-                {"type": "point", "intensity": 30.0, "color": [1.0, 0.8, 0.6]}
-            ]}},
-            "nodes": [
-                {"rotation": glam::Quat::from_rotation_arc(Vec3::NEG_Z, Vec3::new(1.0, 0.3, -1.0).normalize()).to_array(),
-                 "extensions": {"KHR_lights_punctual": {"light": 0}}},
-                {"translation": [-1.0, 1.5, 2.5], "extensions": {"KHR_lights_punctual": {"light": 1}}}
-            ]
-        });
-        let (json, bin) = quads_gltf(
-            &[(square(3.0, 0.0), 0), (square(0.5, 1.0), 1), (patch, 2)],
-            extra,
-        );
-        let model = write_gltf(dir.path(), &format!("lanes-{blend}.gltf"), json, &bin);
-        let scene = meshtracer::Scene::load(&model).unwrap();
-        let prepared = Prepared::new(scene, &PrepareOptions::default(), &mut Vec::new()).unwrap();
-        assert_eq!(prepared.any_alpha(), blend);
-        let direct = Direct {
-            lights: prepared
-                .scene
-                .lights
-                .iter()
-                .map(PunctualLight::new)
-                .collect(),
-            ambient: Vec3::splat(0.05),
-            shading: Default::default(),
-        };
-        assert_eq!(direct.lights.len(), 2);
-        // A 24 x 24 grid of rays down from z = 5 over [-3.5, 3.5]², slightly tilted: the
-        // ground's edge (x or y = ±3) falls between grid columns, some rays miss.
-        let rays: Vec<Ray> = (0..24 * 24)
-            .map(|i| {
-                let (x, y) = (
-                    (i % 24) as f32 / 23.0 * 7.0 - 3.5,
-                    (i / 24) as f32 / 23.0 * 7.0 - 3.5,
-                );
-                Ray::new(
-                    Vec3::new(x, y, 5.0),
-                    Vec3::new(0.01, -0.02, -1.0).normalize(),
-                    0.0,
-                    f32::INFINITY,
-                )
-            })
-            .collect();
+        let (prepared, direct, rays) = direct_lanes_scene(dir.path(), blend);
         let (mut shadows_alone, mut shadows_together) = (0, 0);
         let (mut misses, mut unlit_hits) = (0, 0);
         for (packet, chunk) in rays.chunks(8).enumerate() {
