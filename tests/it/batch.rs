@@ -28,7 +28,7 @@ const SCHEDULER_VARS: [&str; 8] = [
 
 /// The binary with no scheduler variables but `env`.
 fn command(program: &str, args: &[&str], env: &[(&str, &str)]) -> Command {
-    let mut cmd = Command::new(program);
+    let mut cmd = crate::common::program(program);
     cmd.args(args);
     for var in SCHEDULER_VARS {
         cmd.env_remove(var);

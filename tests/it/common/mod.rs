@@ -3,9 +3,33 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-/// The compiled `meshtracer` binary.
+/// The compiled `meshtracer` binary ([`program`]).
 pub fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_meshtracer"))
+    program(env!("CARGO_BIN_EXE_meshtracer"))
+}
+
+/// A command that starts with SIGINT, SIGTERM and SIGHUP at their default dispositions,
+/// whatever the test runner's are. meshtracer keeps ignoring a signal it was started ignoring
+/// (as `nohup`, and a shell starting a background job, ask), so under a runner started in the
+/// background (SIGINT ignored) every Ctrl-C test would wait for a render that never stops. A
+/// test that wants a signal ignored sets it in its own `pre_exec`, which runs after this one.
+pub fn program(path: impl AsRef<std::ffi::OsStr>) -> Command {
+    let mut command = Command::new(path);
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::CommandExt;
+        // SAFETY: between fork and exec the closure only calls signal(2), which is
+        // async-signal-safe.
+        unsafe {
+            command.pre_exec(|| {
+                for signal in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+                    libc::signal(signal, libc::SIG_DFL);
+                }
+                Ok(())
+            });
+        }
+    }
+    command
 }
 
 /// Waits, polling, until `ready` holds while `child` still runs: for a test to signal a run
