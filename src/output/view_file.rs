@@ -323,16 +323,24 @@ impl ViewFile {
     /// made without it. Inside an environment's `source` (a tagged enum, which serde reads
     /// through a buffer of its own) unknown keys are not seen.
     pub fn parse(text: &str, path: &Path) -> Result<(ViewFile, Vec<String>), ViewError> {
-        let err = |problem: String| ViewError {
-            path: path.display().to_string(),
-            problem,
-        };
         let mut unknown = Vec::new();
         let mut json = serde_json::Deserializer::from_str(text);
-        let view: ViewFile =
-            serde_ignored::deserialize(&mut json, |key| unknown.push(key_path(&key)))
-                .and_then(|view| json.end().map(|()| view))
-                .map_err(|e| err(format!("not a meshtracer view: {e}")))?;
+        let view = serde_ignored::deserialize(&mut json, |key| unknown.push(key_path(&key)))
+            .and_then(|view| json.end().map(|()| view));
+        // A refusal names the unknown keys too: a misspelt key ("yfvo") is often why the
+        // field the refusal is about is missing.
+        let err = |problem: String| ViewError {
+            path: path.display().to_string(),
+            problem: match unknown.as_slice() {
+                [] => problem,
+                keys => format!(
+                    "{problem} (unknown key{} '{}': misspelt?)",
+                    if keys.len() == 1 { "" } else { "s" },
+                    keys.join("', '")
+                ),
+            },
+        };
+        let view: ViewFile = view.map_err(|e| err(format!("not a meshtracer view: {e}")))?;
         if view.meshtracer_view != VIEW_VERSION {
             return Err(err(format!(
                 "view version {} (this meshtracer reads {VIEW_VERSION})",
@@ -753,6 +761,18 @@ mod tests {
                 "exposur",
                 "lights[0].colour"
             ]
+        );
+
+        // The key misspelt in place of a required one: the refusal names it.
+        let mut misspelt: serde_json::Value = serde_json::from_str(&full.to_json()).unwrap();
+        let yfov = misspelt["camera"]["yfov"].take();
+        misspelt["camera"]["yfvo"] = yfov;
+        misspelt["camera"].as_object_mut().unwrap().remove("yfov");
+        let refusal = ViewFile::parse(&misspelt.to_string(), path).unwrap_err();
+        assert!(
+            refusal.problem.contains("yfov") && refusal.problem.contains("'camera.yfvo'"),
+            "{}",
+            refusal.problem
         );
     }
 
