@@ -306,7 +306,7 @@ fn settings_line(
     partial: Option<&str>,
 ) -> String {
     format!(
-        "{} rays ({} primary rays per run, shadow/diffuse rays from their hits, {}), median of {} runs, {threads} threads, obvhs preset {:?}, linear scan budget {} triangle tests{}; CPU: {}{}",
+        "{} rays ({} primary rays per run, shadow/diffuse rays from their hits, {}), median of {} runs, {}, obvhs preset {:?}, linear scan budget {} triangle tests{}; CPU: {}{}",
         kind_names(args).join(", "),
         u64::from(args.side) * u64::from(args.side),
         if args.packets {
@@ -315,6 +315,7 @@ fn settings_line(
             "one at a time"
         },
         options.runs,
+        super::threads_label(threads),
         args.bvh_preset,
         args.linear_budget,
         if args.double_sided {

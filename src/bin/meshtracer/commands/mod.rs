@@ -328,6 +328,14 @@ pub(crate) fn preset_label(
     }
 }
 
+/// `1 thread`, `2 threads`: a report's thread count with its noun.
+pub(crate) fn threads_label(threads: usize) -> String {
+    match threads {
+        1 => "1 thread".to_string(),
+        n => format!("{n} threads"),
+    }
+}
+
 /// The samples a pixel, for a summary line: "12.3 spp (adaptive to noise 0.1, at most 32)" when
 /// the adaptive sampler chose how many (`samples` over `pixels` is their mean), else "16 spp".
 pub(crate) fn spp_label(spp: u32, noise: Option<f32>, samples: u64, pixels: u64) -> String {

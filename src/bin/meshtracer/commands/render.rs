@@ -836,7 +836,7 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
         u64::from(width) * u64::from(height),
     );
     eprintln!(
-        "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {spp} rendered in {:.3} s ({:.0} samples/s{}){denoise_note}, peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {threads} threads -> {}",
+        "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {spp} rendered in {:.3} s ({:.0} samples/s{}){denoise_note}, peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {} -> {}",
         // The file drawn: the model given, or the one inside the archive or folder given.
         scene.source.display(),
         scene.soup.len(),
@@ -858,6 +858,7 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
             String::new()
         },
         stats.mrays_per_second(),
+        super::threads_label(threads),
         args.output.display()
     );
 }

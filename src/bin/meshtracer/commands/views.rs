@@ -1294,7 +1294,7 @@ impl Summary {
             // Everything was kept (`--resume`): no rays, no rate to report.
             0 => format!("no view rendered ({} kept from an earlier run)", self.kept),
             n => format!(
-                "{n} view{} of {}x{} at {} rendered in {render_seconds:.3} s ({:.3} s a view{kept}): {} rays, {:.2} Mrays/s on {} threads",
+                "{n} view{} of {}x{} at {} rendered in {render_seconds:.3} s ({:.3} s a view{kept}): {} rays, {:.2} Mrays/s on {}",
                 if n == 1 { "" } else { "s" },
                 self.width,
                 self.height,
@@ -1307,7 +1307,7 @@ impl Summary {
                 render_seconds / n as f64,
                 self.totals.rays(),
                 self.totals.mrays_per_second(),
-                self.threads,
+                super::threads_label(self.threads),
             ),
         };
         eprintln!(
