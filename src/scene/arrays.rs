@@ -627,7 +627,7 @@ mod tests {
         assert_eq!(scene.soup.len(), 1);
         assert_eq!(
             scene.warnings,
-            ["mesh 0: dropped 1 degenerate (zero-area) triangles"]
+            ["mesh 0: dropped 1 degenerate (zero-area) triangle"]
         );
     }
 

@@ -397,24 +397,24 @@ impl SoupBuilder {
 
     /// A warning line for what was dropped, if anything was.
     pub fn dropped_warning(&self) -> Option<String> {
+        let s = |n: usize| if n == 1 { "" } else { "s" };
         let mut parts = Vec::new();
         if self.degenerate > 0 {
-            parts.push(format!(
-                "{} degenerate (zero-area) triangles",
-                self.degenerate
-            ));
+            let n = self.degenerate;
+            parts.push(format!("{n} degenerate (zero-area) triangle{}", s(n)));
         }
         if self.out_of_scale > 0 {
+            let n = self.out_of_scale;
             parts.push(format!(
-                "{} triangles too small or too large for single precision (edges under about \
+                "{n} triangle{} too small or too large for single precision (edges under about \
                  1e-9 or over about 1e9 units; scale the model)",
-                self.out_of_scale
+                s(n)
             ));
         }
         if self.non_finite > 0 {
             let n = self.non_finite;
             parts.push(if parts.is_empty() {
-                format!("{n} triangles with NaN or infinite coordinates")
+                format!("{n} triangle{} with NaN or infinite coordinates", s(n))
             } else {
                 format!("{n} with NaN or infinite coordinates")
             });
@@ -507,7 +507,7 @@ mod tests {
         assert_eq!(
             b.dropped_warning().as_deref(),
             Some(
-                "dropped 1 degenerate (zero-area) triangles and 2 triangles too small or too \
+                "dropped 1 degenerate (zero-area) triangle and 2 triangles too small or too \
                  large for single precision (edges under about 1e-9 or over about 1e9 units; \
                  scale the model) and 2 with NaN or infinite coordinates"
             )
