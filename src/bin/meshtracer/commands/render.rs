@@ -799,6 +799,17 @@ fn write_stats(
 }
 
 /// Prints the one summary line of a single-view render on standard error: the load, the
+/// The summary's textures: "no textures", or their decoded size (MB, or KB under one MB) and
+/// decoding time.
+fn textures_label(bytes: usize, time: Duration) -> String {
+    let ms = time.as_secs_f64() * 1e3;
+    match bytes {
+        0 => "no textures".to_string(),
+        b if b < 1 << 20 => format!("{} KB of textures in {ms:.1} ms", b.div_ceil(1 << 10)),
+        b => format!("{} MB of textures in {ms:.1} ms", b >> 20),
+    }
+}
+
 /// textures, the acceleration structure, the render and its rays, the denoiser, peak memory.
 fn print_summary(args: &RenderArgs, done: &Finished) {
     let Rendered {
@@ -836,13 +847,12 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
         u64::from(width) * u64::from(height),
     );
     eprintln!(
-        "{}: {} triangles, loaded in {:.1} ms, {} MB of textures in {:.1} ms, {structure}, {width}x{height} at {spp} rendered in {:.3} s ({:.0} samples/s{}){denoise_note}, peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {} -> {}",
+        "{}: {} triangles, loaded in {:.1} ms, {}, {structure}, {width}x{height} at {spp} rendered in {:.3} s ({:.0} samples/s{}){denoise_note}, peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {} -> {}",
         // The file drawn: the model given, or the one inside the archive or folder given.
         scene.source.display(),
         scene.soup.len(),
         done.load_time.as_secs_f64() * 1e3,
-        prepared.textures.bytes >> 20,
-        texture_time.as_secs_f64() * 1e3,
+        textures_label(prepared.textures.bytes, *texture_time),
         stats.time.as_secs_f64(),
         stats.samples_per_second(),
         stats
