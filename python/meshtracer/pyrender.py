@@ -244,6 +244,17 @@ def _light_options(light):
                 "SpotLight")
 
 
+def _seg_colour(value):
+    """A ``seg_node_map`` value as pyrender draws it: an RGB triple (a fourth value ignored) or
+    one number repeated, 0-255, rounded to 8 bits as its framebuffer does."""
+    colour = np.asarray(value, np.float64).ravel()
+    if colour.size == 1:
+        colour = np.repeat(colour, 3)
+    if colour.size < 3:
+        raise Error(f"seg_node_map colour {value!r}: give an RGB triple or one number")
+    return np.clip(np.round(colour[:3]), 0, 255).astype(np.uint8)
+
+
 class OffscreenRenderer:
     """pyrender's ``OffscreenRenderer`` with meshtracer behind it.
 
@@ -266,12 +277,13 @@ class OffscreenRenderer:
         self._built = None
         self._built_key = None
 
-    def _scene_for(self, scene, flags):
-        """The meshtracer scene of ``scene``'s visible meshes, built again only when they
-        changed: the key holds the nodes, their poses and a fingerprint of each primitive's
-        arrays and material, so that editing a material or vertex data in place is seen."""
+    def _scene_for(self, scene, flags, only=None):
+        """The meshtracer scene of ``scene``'s visible meshes (of those in ``only`` alone, if
+        given), built again only when they changed: the key holds the nodes, their poses and a
+        fingerprint of each primitive's arrays and material, so that editing a material or
+        vertex data in place is seen."""
         nodes = [n for n in sorted(scene.mesh_nodes, key=id)
-                 if getattr(n.mesh, "is_visible", True)]
+                 if getattr(n.mesh, "is_visible", True) and (only is None or n in only)]
         key = (int(flags & (RenderFlags.SKIP_CULL_FACES | RenderFlags.FLAT)),
                tuple((id(n), id(n.mesh), scene.get_pose(n).tobytes(), _fingerprint(n.mesh))
                      for n in nodes))
@@ -299,8 +311,10 @@ class OffscreenRenderer:
         Returns ``(color, depth)``: color uint8 H x W x 3 (x 4 with ``RGBA``), the
         8-bit sRGB picture over ``scene.bg_color``; depth float32 H x W, camera-space z (distance
         along the view axis) in metres, 0 where nothing was hit. With ``DEPTH_ONLY`` only the
-        depth. With ``SEG`` the colour is each mesh node's colour from ``seg_node_map`` (black
-        for the background and unmapped nodes), as pyrender's.
+        depth. With ``SEG`` the colour is each mesh node's colour from ``seg_node_map`` (an RGB
+        triple, or one number for a grey) over black, and, as in pyrender, nodes missing from
+        the map are not drawn at all: they neither show nor hide what is behind them, and the
+        depth leaves them out too.
         """
         flags = RenderFlags(int(flags))
         for flag, why in _REFUSED.items():
@@ -309,7 +323,14 @@ class OffscreenRenderer:
         if scene.main_camera_node is None:
             raise Error("the pyrender scene has no camera (pyrender needs one too)")
         width, height = self.viewport_width, self.viewport_height
-        built, instances = self._scene_for(scene, flags)
+        seg = bool(flags & RenderFlags.SEG)
+        if seg:
+            # pyrender draws the mapped nodes alone (`_forward_pass` skips the others).
+            only = {n for n in scene.mesh_nodes if seg_node_map and n in seg_node_map}
+            if not only:
+                return (np.zeros((height, width, 3), np.uint8),
+                        np.zeros((height, width), np.float32))
+        built, instances = self._scene_for(scene, flags, only if seg else None)
         camera_node = scene.main_camera_node
         built.clear_cameras()
         built.add_camera(scene.get_pose(camera_node),
@@ -320,7 +341,6 @@ class OffscreenRenderer:
             built.add_light(kind, scene.get_pose(node), **options)
 
         depth_only = bool(flags & RenderFlags.DEPTH_ONLY)
-        seg = bool(flags & RenderFlags.SEG)
         aovs = ("depth", "segmentation") if seg else ("depth",)
         out = built.render(width, height, camera=0, spp=1 if depth_only or seg else self.spp,
                            integrator=self.integrator, seed=self.seed, aovs=aovs,
@@ -334,8 +354,7 @@ class OffscreenRenderer:
             color = np.zeros((height, width, 3), np.uint8)
             ids = out["segmentation"]
             for index, node in instances.items():
-                if seg_node_map is not None and node in seg_node_map:
-                    color[ids == index + 1] = np.asarray(seg_node_map[node], np.uint8)[:3]
+                color[ids == index + 1] = _seg_colour(seg_node_map[node])
             return color, depth
         rgba = out["srgb8"].astype(np.float32)
         alpha = rgba[..., 3:4] / 255.0

@@ -169,6 +169,41 @@ def test_textures_land_where_pyrender_puts_them():
     assert color[size // 4, middle].tolist() == [0, 255, 0]
 
 
+def test_seg_draws_the_mapped_nodes_alone_as_pyrender():
+    """With ``SEG``, pyrender draws only the nodes in ``seg_node_map`` (an unmapped node in
+    front hides nothing, and the depth leaves it out), a number standing for its grey: the
+    front's masks and depth agree with pyrender's, and with an empty map both are empty."""
+    scene = build_scene(pyrender.PerspectiveCamera(yfov=np.pi / 3.0))
+    sphere, box = sorted(scene.mesh_nodes, key=lambda n: len(n.mesh.primitives[0].positions),
+                         reverse=True)
+    # The box in front of the sphere, half hiding it.
+    scene.set_pose(box, np.array([[1, 0, 0, -0.3], [0, 1, 0, 0.1], [0, 0, 1, 0.6],
+                                  [0, 0, 0, 1.0]]))
+    reference = pyrender.OffscreenRenderer(WIDTH, HEIGHT)
+    try:
+        theirs = reference.render(scene, flags=pyrender.RenderFlags.SEG,
+                                  seg_node_map={sphere: 200})
+        all_in = reference.render(scene, flags=pyrender.RenderFlags.SEG,
+                                  seg_node_map={sphere: 200, box: (0, 0, 255)})
+    finally:
+        reference.delete()
+    renderer = front.OffscreenRenderer(WIDTH, HEIGHT)
+    ours = renderer.render(scene, flags=front.RenderFlags.SEG, seg_node_map={sphere: 200})
+    (ref_color, ref_depth), (color, depth) = theirs, ours
+    assert {tuple(c) for c in color.reshape(-1, 3)} == {(0, 0, 0), (200, 200, 200)}
+    mask, ref_mask = color[..., 0] == 200, ref_color[..., 0] == 200
+    iou = (mask & ref_mask).sum() / (mask | ref_mask).sum()
+    assert iou >= 0.99, iou
+    # The depth is the mapped node's alone, in both.
+    assert ((depth > 0) == mask).all()
+    assert ((ref_depth > 0) == ref_mask).mean() > 0.99
+    # The sphere drawn whole: more of it than when the box, mapped too, hides part.
+    hidden = (all_in[0][..., 0] == 200).sum()
+    assert (ours[0][..., 0] == 200).sum() > 1.1 * hidden > 0
+    color, depth = renderer.render(scene, flags=front.RenderFlags.SEG, seg_node_map={})
+    assert not color.any() and not depth.any()
+
+
 def test_hidden_meshes_are_not_drawn():
     """`Mesh.is_visible = False` draws nothing, as pyrender: the depth sees only the other
     mesh, and with every mesh hidden the picture is the background."""
