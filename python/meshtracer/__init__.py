@@ -113,6 +113,16 @@ def _pose(pose):
     array = _np.asarray(pose, dtype=_np.float64)
     if array.shape != (4, 4):
         raise Error(f"pose: shape {array.shape}, expected (4, 4)")
+    # An affine transform's last row is exactly [0, 0, 0, 1]; the renderer applies the upper
+    # three rows alone, so any other row (a projective matrix, or one transposed) would be
+    # dropped without a word. Rounding from float64 products is allowed for.
+    bottom = array[3]
+    if not _np.isfinite(array).all():
+        raise Error("pose: not finite (NaN or infinite entries)")
+    if _np.abs(bottom - [0.0, 0.0, 0.0, 1.0]).max() > 1e-6:
+        row = ", ".join(f"{v:g}" for v in bottom)
+        raise Error(f"pose: last row [{row}], expected [0, 0, 0, 1]: a pose is an affine "
+                    "4x4 world-from-local matrix, rows as NumPy prints it (transposed?)")
     return [float(v) for v in array.ravel()]
 
 
