@@ -14,6 +14,10 @@ pub struct FileAccess {
     pub model: PathBuf,
     /// The folder relative URIs resolve against.
     pub base: PathBuf,
+    /// When the model path is a symbolic link to a file in another folder: that folder, where
+    /// relative URIs resolve when the file is missing beside the link (a model linked into a
+    /// folder of links keeps finding its buffers and textures).
+    target_base: Option<PathBuf>,
     /// Whether absolute URIs and `..` that escape `base` are allowed.
     pub allow_external: bool,
     /// Largest file read, in bytes.
@@ -31,9 +35,16 @@ impl FileAccess {
             .map(Path::to_path_buf)
             .filter(|p| !p.as_os_str().is_empty())
             .unwrap_or_else(|| PathBuf::from("."));
+        let target_base = std::fs::symlink_metadata(model)
+            .ok()
+            .filter(|meta| meta.file_type().is_symlink())
+            .and_then(|_| model.canonicalize().ok())
+            .and_then(|real| real.parent().map(Path::to_path_buf))
+            .filter(|target| base.canonicalize().ok().as_ref() != Some(target));
         Self {
             model: model.to_path_buf(),
             base,
+            target_base,
             allow_external,
             max_bytes,
             resolved: Default::default(),
@@ -79,8 +90,17 @@ impl FileAccess {
             )
         };
         let relative = resolve_relative(&decoded);
+        // The folder the URI resolves in: the model's, or, for a linked model whose file is
+        // not beside the link, the linked file's.
+        let mut base = &self.base;
         let path = match relative {
-            Some(rel) => self.base.join(rel),
+            Some(rel) => match &self.target_base {
+                Some(target) if !self.base.join(&rel).exists() && target.join(&rel).exists() => {
+                    base = target;
+                    target.join(rel)
+                }
+                _ => self.base.join(rel),
+            },
             None if self.allow_external => {
                 let p = decoded.strip_prefix("file://").unwrap_or(&decoded);
                 let p = Path::new(p);
@@ -95,7 +115,7 @@ impl FileAccess {
         if !self.allow_external {
             // Symlinks: compare canonical forms when the file exists. A missing file is reported
             // by the read that follows.
-            if let (Ok(real), Ok(base)) = (path.canonicalize(), self.base.canonicalize()) {
+            if let (Ok(real), Ok(base)) = (path.canonicalize(), base.canonicalize()) {
                 if !real.starts_with(&base) {
                     return Err(external());
                 }

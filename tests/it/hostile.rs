@@ -12,21 +12,10 @@ fn a_symlink_out_of_the_model_folder_is_refused() {
     std::fs::create_dir_all(&outside).unwrap();
     std::fs::create_dir_all(&model_dir).unwrap();
     // A real triangle buffer, kept outside; the model folder only has a link to it.
-    let mut bin = crate::common::f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
-    bin.extend([0u8; 4]);
-    std::fs::write(outside.join("secret.bin"), &bin).unwrap();
+    write_triangle_buffer(&outside.join("secret.bin"));
     std::os::unix::fs::symlink(outside.join("secret.bin"), model_dir.join("tri.bin")).unwrap();
-    let json = serde_json::json!({
-        "asset": {"version": "2.0"},
-        "scenes": [{"nodes": [0]}],
-        "nodes": [{"mesh": 0}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
-        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]}],
-        "bufferViews": [{"buffer": 0, "byteLength": 36}],
-        "buffers": [{"byteLength": 36, "uri": "tri.bin"}]
-    });
     let model = model_dir.join("model.gltf");
-    std::fs::write(&model, serde_json::to_vec(&json).unwrap()).unwrap();
+    write_triangle_model(&model, "tri.bin");
     let err = Scene::load(&model).expect_err("the link leaves the folder");
     assert!(
         matches!(err.kind, LoadErrorKind::ExternalFile { .. }),
@@ -36,6 +25,60 @@ fn a_symlink_out_of_the_model_folder_is_refused() {
     assert!(crate::common::stderr(&out).contains("--allow-external-files"));
     // The user can allow it.
     run(&["info", s(&model), "--allow-external-files"], true);
+}
+
+/// One triangle's 36 bytes of positions (and four of padding).
+fn write_triangle_buffer(path: &std::path::Path) {
+    let mut bin = crate::common::f32_bytes(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]);
+    bin.extend([0u8; 4]);
+    std::fs::write(path, &bin).unwrap();
+}
+
+/// A glTF of one triangle whose positions are in the buffer at `uri`.
+fn write_triangle_model(path: &std::path::Path, uri: &str) {
+    let json = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}],
+        "buffers": [{"byteLength": 36, "uri": uri}]
+    });
+    std::fs::write(path, serde_json::to_vec(&json).unwrap()).unwrap();
+}
+
+/// A model linked into another folder (`ln -s ~/downloads/box/box.gltf models/`) finds its
+/// buffer beside the linked file when the link's folder has none; a file beside the link comes
+/// first; and the linked file's folder confines URIs as the model's own folder does.
+#[test]
+fn a_linked_model_reads_its_files_beside_the_linked_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (real, links) = (dir.path().join("real"), dir.path().join("links"));
+    std::fs::create_dir_all(&real).unwrap();
+    std::fs::create_dir_all(&links).unwrap();
+    write_triangle_buffer(&real.join("tri.bin"));
+    write_triangle_model(&real.join("model.gltf"), "tri.bin");
+    let link = links.join("model.gltf");
+    std::os::unix::fs::symlink(real.join("model.gltf"), &link).unwrap();
+    let scene = Scene::load(&link).expect("the buffer beside the linked file");
+    assert_eq!(scene.soup.len(), 1);
+    run(&["info", s(&link)], true);
+
+    // A buffer beside the link is the one read: here a short one, refused for its length.
+    std::fs::write(links.join("tri.bin"), [0u8; 8]).unwrap();
+    let err = Scene::load(&link).expect_err("the link's own folder comes first");
+    assert!(err.to_string().contains("found 8"), "{err}");
+    std::fs::remove_file(links.join("tri.bin")).unwrap();
+
+    // Climbing out of the linked file's folder stays refused.
+    write_triangle_buffer(&dir.path().join("secret.bin"));
+    write_triangle_model(&real.join("model.gltf"), "../secret.bin");
+    let err = Scene::load(&link).expect_err("`..` leaves the folder");
+    assert!(
+        matches!(err.kind, LoadErrorKind::ExternalFile { .. }),
+        "{err}"
+    );
 }
 
 /// Ctrl-C (SIGINT), and the signals a scheduler or a closed terminal sends (SIGTERM: a Slurm
