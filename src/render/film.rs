@@ -44,4 +44,40 @@ impl Image {
     pub fn get(&self, x: u32, y: u32) -> Vec4 {
         self.pixels[(y * self.width + x) as usize]
     }
+
+    /// Copies `part`'s pixels and variances (not its guides nor its sample count) with its
+    /// top-left corner at column `x`, row `y`. `part` must fit inside this image there.
+    pub fn paste(&mut self, part: &Image, x: u32, y: u32) {
+        paste_rows(&mut self.pixels, self.width, &part.pixels, part.width, x, y);
+        paste_rows(
+            &mut self.variance,
+            self.width,
+            &part.variance,
+            part.width,
+            x,
+            y,
+        );
+    }
+}
+
+/// Copies the rows of `part` (`part_width` values a row) into `whole` (`whole_width` values a
+/// row) with `part`'s top-left value at column `x`, row `y`: how a region's buffers join the
+/// whole image's, in the pixel loop's film and in a merge of tiles. Panics (a bug in the
+/// caller) when `part` does not fit.
+pub fn paste_rows<T: Copy>(
+    whole: &mut [T],
+    whole_width: u32,
+    part: &[T],
+    part_width: u32,
+    x: u32,
+    y: u32,
+) {
+    let (whole_width, part_width) = (whole_width as usize, part_width as usize);
+    if part_width == 0 {
+        return;
+    }
+    for (row, chunk) in part.chunks(part_width).enumerate() {
+        let begin = (y as usize + row) * whole_width + x as usize;
+        whole[begin..begin + chunk.len()].copy_from_slice(chunk);
+    }
 }

@@ -288,17 +288,8 @@ pub fn render_region(
         None => settings.spp.max(1),
     };
     let pixel_count = width as usize * height as usize;
-    let guides =
-        (settings.guides && settings.integrator == IntegratorKind::Path).then(|| denoise::Guides {
-            width,
-            height,
-            albedo: vec![Vec3::ZERO; pixel_count],
-            normal: vec![Vec3::ZERO; pixel_count],
-            depth: vec![0.0; pixel_count],
-            visibility: vec![1.0; pixel_count],
-            emission: vec![Vec3::ZERO; pixel_count],
-            samples_per_pixel: image.samples,
-        });
+    let guides = (settings.guides && settings.integrator == IntegratorKind::Path)
+        .then(|| denoise::Guides::new(width, height, true, image.samples));
     let aovs = settings.aovs.then(|| Aovs {
         depth: vec![0.0; pixel_count],
         normal: vec![Vec3::ZERO; pixel_count],
@@ -386,26 +377,29 @@ struct Film {
 impl Film {
     /// Copies `tile`'s pixels, variances, guides and AOVs to their places.
     fn place(&mut self, tile: &Tile) {
-        let width = self.region.width;
-        for (row, chunk) in tile.pixels.chunks(tile.width as usize).enumerate() {
-            let y = tile.y - self.region.y + row as u32;
-            let begin = (y * width + tile.x - self.region.x) as usize;
-            let n = chunk.len();
-            self.image.pixels[begin..begin + n].copy_from_slice(chunk);
-            let at = row * tile.width as usize;
-            self.image.variance[begin..begin + n].copy_from_slice(&tile.variance[at..at + n]);
-            if let (Some(g), Some(t)) = (self.guides.as_mut(), tile.guides.as_ref()) {
-                g.albedo[begin..begin + n].copy_from_slice(&t.albedo[at..at + n]);
-                g.normal[begin..begin + n].copy_from_slice(&t.normal[at..at + n]);
-                g.depth[begin..begin + n].copy_from_slice(&t.depth[at..at + n]);
-                g.visibility[begin..begin + n].copy_from_slice(&t.visibility[at..at + n]);
-                g.emission[begin..begin + n].copy_from_slice(&t.emission[at..at + n]);
-            }
-            if let Some(a) = self.aovs.as_mut() {
-                a.depth[begin..begin + n].copy_from_slice(&tile.aovs.depth[at..at + n]);
-                a.normal[begin..begin + n].copy_from_slice(&tile.aovs.normal[at..at + n]);
-                a.instance[begin..begin + n].copy_from_slice(&tile.aovs.instance[at..at + n]);
-            }
+        use film::paste_rows;
+        let (width, x, y) = (
+            self.region.width,
+            tile.x - self.region.x,
+            tile.y - self.region.y,
+        );
+        let image = &mut self.image;
+        paste_rows(&mut image.pixels, width, &tile.pixels, tile.width, x, y);
+        paste_rows(&mut image.variance, width, &tile.variance, tile.width, x, y);
+        if let (Some(g), Some(t)) = (self.guides.as_mut(), tile.guides.as_ref()) {
+            g.paste(t, x, y);
+        }
+        if let Some(a) = self.aovs.as_mut() {
+            paste_rows(&mut a.depth, width, &tile.aovs.depth, tile.width, x, y);
+            paste_rows(&mut a.normal, width, &tile.aovs.normal, tile.width, x, y);
+            paste_rows(
+                &mut a.instance,
+                width,
+                &tile.aovs.instance,
+                tile.width,
+                x,
+                y,
+            );
         }
     }
 }

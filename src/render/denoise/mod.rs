@@ -78,6 +78,38 @@ pub struct Guides {
     pub samples_per_pixel: u32,
 }
 
+impl Guides {
+    /// Guides of `width` x `height` pixels to be filled: black, every pixel's visibility 1
+    /// and both it and the emission kept when `from_samples` (the path tracer's own guides),
+    /// else neither.
+    pub fn new(width: u32, height: u32, from_samples: bool, samples_per_pixel: u32) -> Guides {
+        let pixels = width as usize * height as usize;
+        let if_sampled = |n: usize| if from_samples { n } else { 0 };
+        Guides {
+            width,
+            height,
+            albedo: vec![Vec3::ZERO; pixels],
+            normal: vec![Vec3::ZERO; pixels],
+            depth: vec![0.0; pixels],
+            visibility: vec![1.0; if_sampled(pixels)],
+            emission: vec![Vec3::ZERO; if_sampled(pixels)],
+            samples_per_pixel,
+        }
+    }
+
+    /// Copies `part`'s guides with its top-left pixel at column `x`, row `y`. `part` must fit
+    /// inside these guides there, and have the visibility and emission these have.
+    pub fn paste(&mut self, part: &Guides, x: u32, y: u32) {
+        use crate::render::film::paste_rows;
+        let (whole, width) = (self.width, part.width);
+        paste_rows(&mut self.albedo, whole, &part.albedo, width, x, y);
+        paste_rows(&mut self.normal, whole, &part.normal, width, x, y);
+        paste_rows(&mut self.depth, whole, &part.depth, width, x, y);
+        paste_rows(&mut self.visibility, whole, &part.visibility, width, x, y);
+        paste_rows(&mut self.emission, whole, &part.emission, width, x, y);
+    }
+}
+
 /// Computes the guide images of the part `region` of the image `settings.view` describes,
 /// matching what [`crate::render::render_region`] renders for the same arguments. Runs on the
 /// current rayon pool.
@@ -362,17 +394,7 @@ mod tests {
     use super::*;
     /// Black guides of `width` x `height`.
     fn blank(width: u32, height: u32) -> Guides {
-        let pixels = (width * height) as usize;
-        Guides {
-            width,
-            height,
-            albedo: vec![Vec3::ZERO; pixels],
-            normal: vec![Vec3::ZERO; pixels],
-            depth: vec![0.0; pixels],
-            visibility: Vec::new(),
-            emission: Vec::new(),
-            samples_per_pixel: 1,
-        }
+        Guides::new(width, height, false, 1)
     }
 
     #[test]
