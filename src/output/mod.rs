@@ -221,76 +221,105 @@ impl PendingOutput {
         view: ViewTransform,
     ) -> Result<(), SaveError> {
         let path = self.path().to_path_buf();
-        let io_err = |source: std::io::Error| SaveError::Unwritable {
-            path: path.clone(),
-            error: source,
-        };
-        let enc_err = |source: image::ImageError| SaveError::Encode {
-            path: path.clone(),
-            error: source,
-        };
         {
             let mut out = BufWriter::new(self.file.file());
-            let (w, h) = (image.width, image.height);
-            match self.format {
-                OutputFormat::Png => {
-                    let bytes = image.to_srgb8(background, view);
-                    image::ImageEncoder::write_image(
-                        image::codecs::png::PngEncoder::new(&mut out),
-                        &bytes,
-                        w,
-                        h,
-                        image::ExtendedColorType::Rgba8,
-                    )
-                    .map_err(enc_err)?;
-                }
-                OutputFormat::Jpeg => {
-                    // JPEG has no alpha: composited over the background (black without one),
-                    // then the opaque alpha dropped.
-                    let rgba = image.to_srgb8(Some(background.unwrap_or(Vec3::ZERO)), view);
-                    let rgb: Vec<u8> = rgba
-                        .chunks_exact(4)
-                        .flat_map(|p| [p[0], p[1], p[2]])
-                        .collect();
-                    image::ImageEncoder::write_image(
-                        image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, JPEG_QUALITY),
-                        &rgb,
-                        w,
-                        h,
-                        image::ExtendedColorType::Rgb8,
-                    )
-                    .map_err(enc_err)?;
-                }
-                OutputFormat::Exr => {
-                    let floats: Vec<f32> = image
-                        .pixels
-                        .iter()
-                        .flat_map(|p| composite(*p, background).to_array())
-                        .collect();
-                    let bytes = exr_rgba(w, h, &floats).map_err(|e| SaveError::Encode {
-                        path: path.clone(),
-                        error: image::ImageError::Encoding(image::error::EncodingError::new(
-                            image::ImageFormat::OpenExr.into(),
-                            e,
-                        )),
-                    })?;
-                    out.write_all(&bytes).map_err(io_err)?;
-                }
-                OutputFormat::Hdr => {
-                    let rgb: Vec<image::Rgb<f32>> = image
-                        .pixels
-                        .iter()
-                        .map(|p| image::Rgb(composite(*p, background).truncate().to_array()))
-                        .collect();
-                    image::codecs::hdr::HdrEncoder::new(&mut out)
-                        .encode(&rgb, w as usize, h as usize)
-                        .map_err(enc_err)?;
-                }
-            }
-            out.flush().map_err(io_err)?;
+            encode_into(&mut out, &path, self.format, image, background, view)?;
+            out.flush()
+                .map_err(|error| SaveError::Unwritable { path, error })?;
         }
         self.file.commit()
     }
+}
+
+/// `image` encoded for `path`'s format ([`OutputFormat::from_path`]) as a render writes it
+/// ([`PendingOutput::commit`]): for a caller that writes several files only once all are
+/// encoded (`merge`).
+pub fn encode_image(
+    path: &Path,
+    image: &Image,
+    background: Option<Vec3>,
+    view: ViewTransform,
+) -> Result<Vec<u8>, SaveError> {
+    let format = OutputFormat::from_path(path)?;
+    let mut bytes = Vec::new();
+    encode_into(&mut bytes, path, format, image, background, view)?;
+    Ok(bytes)
+}
+
+/// Encodes `image` as `format` into `out`; `path` names the output in errors.
+fn encode_into(
+    mut out: impl Write,
+    path: &Path,
+    format: OutputFormat,
+    image: &Image,
+    background: Option<Vec3>,
+    view: ViewTransform,
+) -> Result<(), SaveError> {
+    let io_err = |source: std::io::Error| SaveError::Unwritable {
+        path: path.to_path_buf(),
+        error: source,
+    };
+    let enc_err = |source: image::ImageError| SaveError::Encode {
+        path: path.to_path_buf(),
+        error: source,
+    };
+    let (w, h) = (image.width, image.height);
+    match format {
+        OutputFormat::Png => {
+            let bytes = image.to_srgb8(background, view);
+            image::ImageEncoder::write_image(
+                image::codecs::png::PngEncoder::new(&mut out),
+                &bytes,
+                w,
+                h,
+                image::ExtendedColorType::Rgba8,
+            )
+            .map_err(enc_err)?;
+        }
+        OutputFormat::Jpeg => {
+            // JPEG has no alpha: composited over the background (black without one),
+            // then the opaque alpha dropped.
+            let rgba = image.to_srgb8(Some(background.unwrap_or(Vec3::ZERO)), view);
+            let rgb: Vec<u8> = rgba
+                .chunks_exact(4)
+                .flat_map(|p| [p[0], p[1], p[2]])
+                .collect();
+            image::ImageEncoder::write_image(
+                image::codecs::jpeg::JpegEncoder::new_with_quality(&mut out, JPEG_QUALITY),
+                &rgb,
+                w,
+                h,
+                image::ExtendedColorType::Rgb8,
+            )
+            .map_err(enc_err)?;
+        }
+        OutputFormat::Exr => {
+            let floats: Vec<f32> = image
+                .pixels
+                .iter()
+                .flat_map(|p| composite(*p, background).to_array())
+                .collect();
+            let bytes = exr_rgba(w, h, &floats).map_err(|e| SaveError::Encode {
+                path: path.to_path_buf(),
+                error: image::ImageError::Encoding(image::error::EncodingError::new(
+                    image::ImageFormat::OpenExr.into(),
+                    e,
+                )),
+            })?;
+            out.write_all(&bytes).map_err(io_err)?;
+        }
+        OutputFormat::Hdr => {
+            let rgb: Vec<image::Rgb<f32>> = image
+                .pixels
+                .iter()
+                .map(|p| image::Rgb(composite(*p, background).truncate().to_array()))
+                .collect();
+            image::codecs::hdr::HdrEncoder::new(&mut out)
+                .encode(&rgb, w as usize, h as usize)
+                .map_err(enc_err)?;
+        }
+    }
+    Ok(())
 }
 
 /// A file a run writes or reads, with what names it: an option (`-o`, `--depth-out`) for an
