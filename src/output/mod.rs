@@ -12,6 +12,7 @@
 
 pub mod aov;
 pub mod dataset;
+pub mod denoise_input;
 pub mod npy;
 pub mod preview;
 pub mod raster;

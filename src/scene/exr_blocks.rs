@@ -83,6 +83,17 @@ fn check_exr_blocks(
     Ok(())
 }
 
+/// `read` after [`check_exr_blocks`] passed it, from its start again, for a decoder.
+fn checked<R: std::io::Read + std::io::Seek>(
+    mut read: R,
+    max_texels: usize,
+) -> Result<std::io::BufReader<R>, String> {
+    check_exr_blocks(&mut read, max_texels)?;
+    read.seek(std::io::SeekFrom::Start(0))
+        .map_err(|e| e.to_string())?;
+    Ok(std::io::BufReader::new(read))
+}
+
 /// The most texels [`decode_exr`] reads for `compare` and `merge`: the image crate's default
 /// allocation limit (512 MiB) in RGBA f32, which held them before.
 pub const MAX_EXR_TEXELS: usize = 512 << 20 >> 4;
@@ -97,13 +108,11 @@ pub const MAX_EXR_TEXELS: usize = 512 << 20 >> 4;
 /// an overflow in its B44 decoder); here such a panic reaches the caller, where
 /// [`super::catch_quietly`] makes it an error.
 pub fn decode_exr(
-    mut read: impl std::io::Read + std::io::Seek,
+    read: impl std::io::Read + std::io::Seek,
     max_texels: usize,
 ) -> Result<image::DynamicImage, String> {
     use exr::prelude::{read as read_exr, ReadChannels, ReadLayers};
-    check_exr_blocks(&mut read, max_texels)?;
-    read.seek(std::io::SeekFrom::Start(0))
-        .map_err(|e| e.to_string())?;
+    let read = checked(read, max_texels)?;
     let image = read_exr()
         .no_deep_data()
         .largest_resolution_level()
@@ -123,7 +132,7 @@ pub fn decode_exr(
         .first_valid_layer()
         .all_attributes()
         .non_parallel()
-        .from_buffered(std::io::BufReader::new(read))
+        .from_buffered(read)
         .map_err(|e| format!("cannot decode the OpenEXR image: {e}"))?;
     let display = image.attributes.display_window;
     let (width, height) = (display.size.width(), display.size.height());
@@ -150,6 +159,56 @@ pub fn decode_exr(
         image::DynamicImage::ImageRgb32F(
             image::Rgb32FImage::from_raw(w, h, out).ok_or_else(too_large)?,
         )
+    })
+}
+
+/// The float32 channels of an OpenEXR image ([`decode_exr_channels`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExrChannels {
+    /// Columns of the data window.
+    pub width: usize,
+    /// Rows of the data window.
+    pub height: usize,
+    /// Each channel's name and its samples, row-major, in the file's order (by name).
+    pub channels: Vec<(String, Vec<f32>)>,
+}
+
+/// Decodes an OpenEXR file's first layer channel by channel, at most `max_texels`, as
+/// [`decode_exr`] does (its DWA blocks' counters checked first, on the calling thread): each
+/// channel's name and its samples as f32, row-major over the layer's data window, which must
+/// start at the display window's corner. Channels stored as f16 or u32 are refused (a file
+/// that holds exact float32 data, as a tile's denoise input does, has none).
+pub fn decode_exr_channels(
+    read: impl std::io::Read + std::io::Seek,
+    max_texels: usize,
+) -> Result<ExrChannels, String> {
+    use exr::prelude::{read as read_exr, FlatSamples, ReadChannels, ReadLayers};
+    let read = checked(read, max_texels)?;
+    let image = read_exr()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .non_parallel()
+        .from_buffered(read)
+        .map_err(|e| format!("cannot decode the OpenEXR image: {e}"))?;
+    let layer = image.layer_data;
+    if layer.attributes.layer_position != image.attributes.display_window.position {
+        return Err("its data window does not start at the display window's corner".into());
+    }
+    let mut channels = Vec::new();
+    for channel in layer.channel_data.list {
+        let name = channel.name.to_string();
+        match channel.sample_data {
+            FlatSamples::F32(samples) => channels.push((name, samples)),
+            _ => return Err(format!("channel '{name}' is not 32-bit float")),
+        }
+    }
+    Ok(ExrChannels {
+        width: layer.size.width(),
+        height: layer.size.height(),
+        channels,
     })
 }
 

@@ -34,7 +34,7 @@ pub use archive::{
 pub use arrays::{check_material, ArraysError, MeshArrays};
 pub use builder::{SoupBuilder, TriangleIn, VerticesIn};
 pub use error::{catch_quietly, image_error_text, panic_message, LoadError, LoadErrorKind};
-pub use exr_blocks::{decode_exr, MAX_EXR_TEXELS};
+pub use exr_blocks::{decode_exr, decode_exr_channels, ExrChannels, MAX_EXR_TEXELS};
 pub use image_source::{Encoded, FileRange, ImageSource, SharedBytes};
 pub use material::{
     AlphaMode, AnisotropyLayer, ClearcoatLayer, DiffuseTransmissionLayer, IridescenceLayer,
