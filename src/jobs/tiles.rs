@@ -9,6 +9,13 @@
 //! wrote and a fingerprint of everything that decides a pixel's value, so tiles of different
 //! renders are not joined. The merge decodes each tile's files ([`Raster`]), pastes them and
 //! encodes the whole with the same encoder the render uses, so the bytes match.
+//!
+//! A denoised render cannot denoise a tile alone (the filter reaches 30 pixels across the
+//! tile's edges), so its tiles keep what the denoiser needs instead: the film and guides of
+//! the tile, bit for bit ([`crate::output::denoise_input`], listed as the output
+//! [`DENOISE_INPUT`] and described by [`TileDenoise`]). The film and guides of a pixel depend
+//! on that pixel alone, so the tiles' joined are the whole render's; the merge denoises them
+//! and encodes the image as the render does.
 
 use crate::output::view_file::ImageSize;
 use crate::render::Region;
@@ -18,6 +25,18 @@ use std::path::{Path, PathBuf};
 
 /// The version of the sidecar format.
 pub const TILE_FILE_VERSION: u32 = 1;
+
+/// The version of the sidecar of a denoised render's tile ([`TileFile::denoise`]): a
+/// meshtracer that cannot merge such tiles refuses it by its version.
+pub const DENOISED_TILE_FILE_VERSION: u32 = 2;
+
+/// The output kind of a denoised render's tile that holds the denoiser's input
+/// ([`crate::output::denoise_input`]).
+pub const DENOISE_INPUT: &str = "denoise";
+
+/// What the name of a tile's denoise input adds to its image's name: `tile-0.png` ->
+/// `tile-0.png.denoise.exr`.
+pub const DENOISE_INPUT_SUFFIX: &str = ".denoise.exr";
 
 /// What a sidecar's name adds to its image's name: `tile-0.png` -> `tile-0.png.tile.json`.
 pub const SIDECAR_SUFFIX: &str = ".tile.json";
@@ -145,9 +164,51 @@ pub struct TileFile {
     pub tile: Option<TileIndex>,
     /// Fingerprint of the render ([`fingerprint`]): tiles join only when theirs agree.
     pub render: String,
-    /// The files the tile wrote, by kind ([`OUTPUT_KINDS`]); relative paths are relative to
-    /// the sidecar's folder.
+    /// The files the tile wrote, by kind ([`OUTPUT_KINDS`], and [`DENOISE_INPUT`] for a
+    /// denoised render's tile); relative paths are relative to the sidecar's folder.
     pub outputs: BTreeMap<String, PathBuf>,
+    /// For a tile of a denoised render: how the merge denoises and encodes the whole image.
+    /// Absent otherwise (and in every sidecar of version [`TILE_FILE_VERSION`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub denoise: Option<TileDenoise>,
+}
+
+/// What the merge of a denoised render's tiles needs besides their films and guides: the
+/// counts the denoiser weighs them by and how the render encodes the denoised image.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TileDenoise {
+    /// SHA-256 of the tile's denoise input file as written: a file replaced since is refused.
+    pub sha256: String,
+    /// The fewest samples a pixel of the render took ([`crate::render::Image::samples`]).
+    pub samples: u32,
+    /// Guide rays per pixel ([`crate::render::denoise::Guides::samples_per_pixel`]).
+    pub guide_samples: u32,
+    /// `--background`: the linear colour uncovered pixels are filled with, if any.
+    pub background: Option<[f32; 3]>,
+    /// `--tonemap`, by its name ([`crate::color::ViewTransform::name`]).
+    pub tonemap: String,
+    /// The filter the build that rendered the tile runs ([`crate::render::denoise::Denoiser::id`]):
+    /// the merge runs its own build's, and says so when they differ.
+    pub denoiser: String,
+}
+
+impl TileDenoise {
+    /// Its view transform; an unknown name is refused.
+    pub fn view_transform(&self) -> Result<crate::color::ViewTransform, String> {
+        crate::color::ViewTransform::from_name(&self.tonemap)
+            .ok_or_else(|| format!("unknown tonemap '{}'", self.tonemap))
+    }
+
+    /// What every tile of one render agrees on: all but the file's digest and the build's
+    /// filter (tiles of builds with different filters hold the same film and guides).
+    fn shared(&self) -> TileDenoise {
+        TileDenoise {
+            sha256: String::new(),
+            denoiser: String::new(),
+            ..self.clone()
+        }
+    }
 }
 
 impl TileFile {
@@ -160,6 +221,13 @@ impl TileFile {
             name.push(SIDECAR_SUFFIX);
             PathBuf::from(name)
         }
+    }
+
+    /// Where the tile whose image is `image` keeps its denoise input: `IMAGE.denoise.exr`.
+    pub fn denoise_input_path(image: &Path) -> PathBuf {
+        let mut name = image.as_os_str().to_os_string();
+        name.push(DENOISE_INPUT_SUFFIX);
+        PathBuf::from(name)
     }
 
     /// Reads and checks a sidecar.
@@ -175,11 +243,24 @@ impl TileFile {
         })?;
         let file: TileFile = serde_json::from_str(&text)
             .map_err(|e| bad(format!("not a meshtracer tile sidecar: {e}")))?;
-        if file.meshtracer_tile != TILE_FILE_VERSION {
+        if ![TILE_FILE_VERSION, DENOISED_TILE_FILE_VERSION].contains(&file.meshtracer_tile) {
             return Err(bad(format!(
-                "tile format version {} (this meshtracer reads {TILE_FILE_VERSION})",
+                "tile format version {} (this meshtracer reads {TILE_FILE_VERSION} and {DENOISED_TILE_FILE_VERSION})",
                 file.meshtracer_tile
             )));
+        }
+        let denoised = file.meshtracer_tile == DENOISED_TILE_FILE_VERSION;
+        if denoised != file.denoise.is_some()
+            || denoised != file.outputs.contains_key(DENOISE_INPUT)
+        {
+            return Err(bad(format!(
+                "a sidecar of version {} {} a 'denoise' record and output",
+                file.meshtracer_tile,
+                if denoised { "needs" } else { "has no" }
+            )));
+        }
+        if let Some(denoise) = &file.denoise {
+            denoise.view_transform().map_err(bad)?;
         }
         if !file.region.fits(file.image.width, file.image.height) {
             return Err(bad(format!(
@@ -198,7 +279,7 @@ impl TileFile {
         if let Some(kind) = file
             .outputs
             .keys()
-            .find(|k| !OUTPUT_KINDS.contains(&k.as_str()))
+            .find(|k| !OUTPUT_KINDS.contains(&k.as_str()) && k.as_str() != DENOISE_INPUT)
         {
             return Err(bad(format!("unknown output kind '{kind}'")));
         }
@@ -212,6 +293,46 @@ impl TileFile {
             Some(dir) if path.is_relative() => dir.join(path),
             _ => path.clone(),
         })
+    }
+}
+
+impl TileFile {
+    /// The film and guides of a denoised render's tile ([`crate::output::denoise_input`]),
+    /// checked against this sidecar (read from `sidecar`): the file's SHA-256, its size, the
+    /// guides' channels; the counts set from [`TileDenoise`].
+    pub fn read_denoise_input(
+        &self,
+        sidecar: &Path,
+    ) -> Result<(crate::render::Image, crate::render::denoise::Guides), TileError> {
+        let not_denoised = || TileError::Sidecar {
+            path: sidecar.to_path_buf(),
+            message: "lists no denoise input (the tile of a render that was not denoised)".into(),
+        };
+        let (Some(denoise), Some(path)) = (&self.denoise, self.output_path(sidecar, DENOISE_INPUT))
+        else {
+            return Err(not_denoised());
+        };
+        let bad = |message: String| TileError::Output {
+            path: path.clone(),
+            message,
+        };
+        let bytes = std::fs::read(&path).map_err(|e| {
+            bad(format!(
+                "cannot read the tile's denoise input ({e}); a denoised render's tile keeps it beside its image for merge"
+            ))
+        })?;
+        if crate::jobs::batch::sha256_hex(&bytes) != denoise.sha256 {
+            return Err(bad(format!(
+                "not the denoise input its sidecar {} lists (its SHA-256 differs): replaced after the tile was rendered? Render the tile again",
+                sidecar.display()
+            )));
+        }
+        let (mut image, mut guides) =
+            crate::output::denoise_input::decode(&bytes, self.region.width, self.region.height)
+                .map_err(bad)?;
+        image.samples = denoise.samples;
+        guides.samples_per_pixel = denoise.guide_samples;
+        Ok((image, guides))
     }
 }
 
@@ -260,6 +381,13 @@ pub fn check_cover(tiles: &[(PathBuf, TileFile)]) -> Result<ImageSize, TileError
         };
         if kinds(tile) != kinds(first) {
             return Err(differ("outputs (kinds or formats)"));
+        }
+        if tile.denoise.as_ref().map(TileDenoise::shared)
+            != first.denoise.as_ref().map(TileDenoise::shared)
+        {
+            return Err(differ(
+                "denoising (samples, guide rays, background or tonemap)",
+            ));
         }
     }
     for (i, (path_a, a)) in tiles.iter().enumerate() {
@@ -555,6 +683,46 @@ mod tests {
         let raster = Raster::read(&path).unwrap();
         assert_eq!(raster.size(), (3, 2));
         assert_eq!(raster.encode(Path::new("x.npy")).unwrap(), bytes);
+    }
+
+    /// A sidecar of version 1 (every sidecar before denoised tiles) reads as before; one of
+    /// version 2 needs its denoise record and output, and version 1 may have neither.
+    #[test]
+    fn sidecar_versions_go_with_the_denoise_record() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.png.tile.json");
+        let read = |json: serde_json::Value| {
+            std::fs::write(&path, json.to_string()).unwrap();
+            TileFile::read(&path)
+        };
+        let mut json = serde_json::json!({
+            "meshtracer_tile": 1,
+            "image": {"width": 4, "height": 2},
+            "region": {"x": 0, "y": 0, "width": 4, "height": 1},
+            "tile": {"index": 0, "count": 2},
+            "render": "0123456789abcdef",
+            "outputs": {"image": "t.png"}
+        });
+        assert_eq!(read(json.clone()).unwrap().denoise, None);
+        json["meshtracer_tile"] = 2.into();
+        assert!(read(json.clone())
+            .unwrap_err()
+            .to_string()
+            .contains("needs"));
+        json["outputs"]["denoise"] = "t.png.denoise.exr".into();
+        json["denoise"] = serde_json::json!({
+            "sha256": "00", "samples": 2, "guide_samples": 2, "background": null,
+            "tonemap": "agx", "denoiser": "atrous"
+        });
+        let file = read(json.clone()).unwrap();
+        assert_eq!(file.denoise.unwrap().samples, 2);
+        json["meshtracer_tile"] = 1.into();
+        assert!(read(json.clone())
+            .unwrap_err()
+            .to_string()
+            .contains("has no"));
+        json["meshtracer_tile"] = 3.into();
+        assert!(read(json).unwrap_err().to_string().contains("version 3"));
     }
 
     #[test]

@@ -3,7 +3,8 @@
 //! Cornell box at 4 spp comes out closer to a reference once denoised; an albedo edge
 //! stays sharp (built-in filter); the same bytes every run and for any --threads, with either
 //! integrator, and recorded in the summary and the view file; each view of --views --denoise
-//! denoised as a single render is; refused with tiles.
+//! denoised as a single render is. (Tiles of a denoised render, merged and denoised:
+//! tests/it/tiles.rs.)
 
 use crate::common::{run, s, small_run, stderr};
 use meshtracer::tools::compare::{compare_files, Metrics};
@@ -266,25 +267,6 @@ fn direct_renders_denoise_and_the_view_file_records_it() {
         std::fs::read(&again).expect("written"),
         std::fs::read(&plain).expect("written")
     );
-}
-
-/// A tile cannot be denoised alone (the filter sees across its edges): refused up front.
-#[test]
-fn tiles_are_refused() {
-    let dir = scratch("refused");
-    let model = cornell();
-    for extra in [&["--tile", "0/2"][..], &["--crop", "0,0,8,6"][..]] {
-        let out = dir.join("out.png");
-        let mut args = small_run("render", &model, s(&out), ("16", "12"), "1", &["--denoise"]);
-        args.extend_from_slice(extra);
-        let result = run(&args, false);
-        assert!(
-            stderr(&result).contains("cannot be used with"),
-            "{}",
-            stderr(&result)
-        );
-        assert!(!out.exists());
-    }
 }
 
 /// Each view of a `--denoise` run is a whole image denoised as a single render is: with the

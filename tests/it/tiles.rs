@@ -1,7 +1,8 @@
 //! Tiles (`render --tile I/N`, `--crop X,Y,W,H`) and `merge`, through the real binary: tiles
 //! merged equal the single render byte for byte, the image and every AOV, in every format a
-//! tile can be written in; missing, overlapping and mismatched tiles and bad specs are refused
-//! with one error and exit 1.
+//! tile can be written in; a denoised render's tiles (the default render's) merged and
+//! denoised equal the single denoised render; missing, overlapping and mismatched tiles, a
+//! missing or replaced denoise input and bad specs are refused with one error and exit 1.
 
 use crate::common::{root, run, s, stderr};
 use std::path::{Path, PathBuf};
@@ -36,17 +37,23 @@ fn aov_args(dir: &Path, tag: &str, formats: [&str; 4]) -> Vec<String> {
 /// Renders `model` at W x H, 4 spp (jittered samples, so the per-pixel streams matter), with
 /// the AOVs and `extra` options.
 fn render(model: &Path, out: &Path, aovs: &[String], extra: &[&str]) {
+    let mut options = vec!["--spp", "4"];
+    options.extend_from_slice(extra);
+    render_sized(model, out, (W, H), aovs, &options);
+}
+
+/// Renders `model` at `size` with the AOVs and `extra` options (the render's own sampling
+/// unless they give one).
+fn render_sized(model: &Path, out: &Path, size: (&str, &str), aovs: &[String], extra: &[&str]) {
     let mut args: Vec<&str> = vec![
         "render",
         s(model),
         "-o",
         s(out),
         "--width",
-        W,
+        size.0,
         "--height",
-        H,
-        "--spp",
-        "4",
+        size.1,
         "-q",
     ];
     args.extend(aovs.iter().map(String::as_str));
@@ -59,46 +66,139 @@ fn bytes(path: &Path) -> Vec<u8> {
 }
 
 /// Renders the whole image and `parts` (each the options that cut one tile), merges the tiles
-/// and checks every output equals the single render's, byte for byte.
+/// and checks every output equals the single render's, byte for byte: at W x H and 4 spp.
 fn tiles_equal_whole(model: &Path, image_ext: &str, formats: [&str; 4], parts: &[Vec<&str>]) {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    let whole = d.join(format!("whole.{image_ext}"));
-    render(model, &whole, &aov_args(d, "whole", formats), &[]);
-    let mut tiles = Vec::new();
-    for (i, part) in parts.iter().enumerate() {
-        let tile = d.join(format!("tile-{i}.{image_ext}"));
-        render(
-            model,
-            &tile,
-            &aov_args(d, &format!("tile-{i}"), formats),
-            part,
-        );
+    let render = Render {
+        size: (W, H),
+        options: &["--spp", "4"],
+        denoised: false,
+    };
+    render.tiles_equal_whole(model, image_ext, formats, parts);
+}
+
+/// How the whole image and its tiles are rendered.
+struct Render<'a> {
+    size: (&'a str, &'a str),
+    /// The options besides the size, AOVs and tile.
+    options: &'a [&'a str],
+    /// Whether the render is denoised: its tiles then keep their film and guides for merge.
+    denoised: bool,
+}
+
+impl Render<'_> {
+    /// [`tiles_equal_whole`] for this render.
+    fn tiles_equal_whole(
+        &self,
+        model: &Path,
+        image_ext: &str,
+        formats: [&str; 4],
+        parts: &[Vec<impl AsRef<str> + std::fmt::Debug>],
+    ) {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let whole = d.join(format!("whole.{image_ext}"));
+        let aovs = aov_args(d, "whole", formats);
+        render_sized(model, &whole, self.size, &aovs, self.options);
+        let mut tiles = Vec::new();
+        for (i, part) in parts.iter().enumerate() {
+            let tile = d.join(format!("tile-{i}.{image_ext}"));
+            let mut options = self.options.to_vec();
+            options.extend(part.iter().map(AsRef::as_ref));
+            let aovs = aov_args(d, &format!("tile-{i}"), formats);
+            render_sized(model, &tile, self.size, &aovs, &options);
+            let sidecar = d.join(format!("tile-{i}.{image_ext}.tile.json"));
+            assert!(sidecar.is_file(), "tile {i} has its sidecar");
+            let denoise_input = d.join(format!("tile-{i}.{image_ext}.denoise.exr"));
+            assert_eq!(denoise_input.is_file(), self.denoised, "tile {i}");
+            let listed: serde_json::Value = serde_json::from_slice(&bytes(&sidecar)).unwrap();
+            let version = if self.denoised { 2 } else { 1 };
+            assert_eq!(listed["meshtracer_tile"], version, "tile {i}");
+            assert_eq!(listed["outputs"]["denoise"].is_string(), self.denoised);
+            tiles.push(s(&tile).to_string());
+        }
+        // Tiles hold their part alone.
+        assert!(bytes(&d.join(format!("tile-0.{image_ext}"))).len() < bytes(&whole).len());
+        let merged = d.join(format!("merged.{image_ext}"));
+        let mut args: Vec<String> =
+            vec!["merge".into(), "-o".into(), s(&merged).into(), "-q".into()];
+        args.extend(aov_args(d, "merged", formats));
+        args.extend(tiles);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        run(&args, true);
         assert!(
-            d.join(format!("tile-{i}.{image_ext}.tile.json")).is_file(),
-            "tile {i} has its sidecar"
+            bytes(&merged) == bytes(&whole),
+            "merged image != single render ({:?}, {parts:?})",
+            self.options
         );
-        tiles.push(s(&tile).to_string());
+        for (name, ext) in ["depth", "normal", "mask", "segmentation"]
+            .iter()
+            .zip(formats)
+        {
+            let a = bytes(&d.join(format!("{name}-whole.{ext}")));
+            let b = bytes(&d.join(format!("{name}-merged.{ext}")));
+            assert!(a == b, "merged {name}.{ext} != single render's");
+        }
     }
-    // Tiles hold their part alone.
-    assert!(bytes(&d.join(format!("tile-0.{image_ext}"))).len() < bytes(&whole).len());
-    let merged = d.join(format!("merged.{image_ext}"));
-    let mut args: Vec<String> = vec!["merge".into(), "-o".into(), s(&merged).into(), "-q".into()];
-    args.extend(aov_args(d, "merged", formats));
-    args.extend(tiles);
-    let args: Vec<&str> = args.iter().map(String::as_str).collect();
-    run(&args, true);
-    assert!(
-        bytes(&merged) == bytes(&whole),
-        "merged image != single render"
-    );
-    for (name, ext) in ["depth", "normal", "mask", "segmentation"]
+}
+
+/// `--tile I/N` for every I.
+fn bands(count: u32) -> Vec<Vec<String>> {
+    (0..count)
+        .map(|i| vec!["--tile".to_string(), format!("{i}/{count}")])
+        .collect()
+}
+
+/// The default render (no --spp) at 64 x 48, denoised.
+const DEFAULT_RENDER: Render = Render {
+    size: ("64", "48"),
+    options: &[],
+    denoised: true,
+};
+
+/// The default render (no --spp) is denoised: its tiles keep their film and guides, and merge
+/// denoises the whole, into the single default render byte for byte, image and AOVs, whether
+/// cut into 2 or 3 bands.
+#[test]
+fn default_render_bands_merge_into_the_denoised_single_render() {
+    for count in [2, 3] {
+        DEFAULT_RENDER.tiles_equal_whole(
+            &cornell(),
+            "png",
+            ["png", "exr", "png", "npy"],
+            &bands(count),
+        );
+    }
+}
+
+/// As the bands: crops of uneven size, given in no particular order, into an EXR.
+#[test]
+fn default_render_crops_merge_into_the_denoised_single_render() {
+    let parts: Vec<Vec<&str>> = ["40,0,24,20", "0,20,64,28", "0,0,40,20"]
         .iter()
-        .zip(formats)
-    {
-        let a = bytes(&d.join(format!("{name}-whole.{ext}")));
-        let b = bytes(&d.join(format!("{name}-merged.{ext}")));
-        assert!(a == b, "merged {name}.{ext} != single render's");
+        .map(|c| vec!["--crop", *c])
+        .collect();
+    DEFAULT_RENDER.tiles_equal_whole(&shapes(), "exr", ["npy", "npy", "png", "png"], &parts);
+}
+
+/// `--denoise` with `--spp` denoises the tiles' merge the same way, the direct integrator's
+/// traced guides too; `--no-denoise` tiles of the default sampling are merged as before
+/// (pasted, no denoise input) into the `--no-denoise` single render.
+#[test]
+fn denoised_and_undenoised_tiles_merge_into_their_single_renders() {
+    for (options, denoised) in [
+        (
+            &["--spp", "4", "--denoise", "--integrator", "direct"][..],
+            true,
+        ),
+        (&["--spp", "2", "--denoise"][..], true),
+        (&["--no-denoise"][..], false),
+    ] {
+        let render = Render {
+            size: ("64", "48"),
+            options,
+            denoised,
+        };
+        render.tiles_equal_whole(&cornell(), "png", ["png", "png", "png", "png"], &bands(2));
     }
 }
 
@@ -186,6 +286,47 @@ fn missing_overlapping_and_mismatched_tiles_are_refused() {
     let resized = image::RgbaImage::new(48, 9);
     resized.save(d.join("band-3.png")).unwrap();
     merge_fails(d, &t, &[], "but its sidecar");
+}
+
+/// A denoised render's tile whose denoise input is missing or was replaced is refused, as is
+/// a merge of denoised and undenoised tiles of one render.
+#[test]
+fn a_missing_or_replaced_denoise_input_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let half = |i: u32, extra: &[&str]| {
+        let out = d.join(format!("half-{i}{}.png", extra.len()));
+        let spec = format!("{i}/2");
+        let mut options = vec!["--tile", spec.as_str()];
+        options.extend_from_slice(extra);
+        render_sized(&cornell(), &out, ("64", "48"), &[], &options);
+        s(&out).to_string()
+    };
+    let (first, second) = (half(0, &[]), half(1, &[]));
+    let plain = half(1, &["--no-denoise"]);
+    merge_fails(d, &[&first, &plain], &[], "different render");
+    let input = |tile: &str| PathBuf::from(format!("{tile}.denoise.exr"));
+    std::fs::rename(input(&second), d.join("aside.exr")).unwrap();
+    merge_fails(
+        d,
+        &[&first, &second],
+        &[],
+        "cannot read the tile's denoise input",
+    );
+    std::fs::copy(input(&first), input(&second)).unwrap();
+    merge_fails(d, &[&first, &second], &[], "its SHA-256 differs");
+    std::fs::rename(d.join("aside.exr"), input(&second)).unwrap();
+    run(
+        &[
+            "merge",
+            "-q",
+            "-o",
+            s(&d.join("whole.png")),
+            &first,
+            &second,
+        ],
+        true,
+    );
 }
 
 #[test]

@@ -108,8 +108,9 @@ pub enum Command {
     /// coverage IoU; optionally a FLIP heatmap and an A | B | heatmap strip.
     Compare(CompareArgs),
     /// Join tiles rendered with `render --tile I/N` or `--crop` (and, the same way, their
-    /// AOVs) into the whole image, identical to a single render's; refuses tiles that are
-    /// missing, overlap or come from different renders.
+    /// AOVs) into the whole image, identical to a single render's (denoised, from the tiles'
+    /// OUT.denoise.exr, when the render is); refuses tiles that are missing, overlap or come
+    /// from different renders.
     #[command(visible_alias = "merge-tiles")]
     Merge(MergeArgs),
 }
@@ -208,11 +209,12 @@ pub struct RenderArgs {
     /// with either integrator: the built-in edge-avoiding à-trous filter, or Intel
     /// Open Image Denoise's RT filter in builds made with `--features denoise`
     /// (docs/denoising.md); the view file, --stats and the summary say which. With --views
-    /// or --turntable each view is denoised as a single image; not with --tile or --crop.
+    /// or --turntable each view is denoised as a single image; a --tile or --crop keeps the
+    /// film and guides beside its image (OUT.denoise.exr) and `merge` denoises the whole.
     /// [default: on for the default render (the path tracer without --spp, --noise or
-    /// --time-limit, one whole image), whose noise target is then 1.0; off otherwise].
+    /// --time-limit, one image or its tiles), whose noise target is then 1.0; off otherwise].
     // Read it through `RenderArgs::denoises`, which applies the default.
-    #[arg(long, conflicts_with_all = ["tile", "crop", "no_denoise"])]
+    #[arg(long, conflicts_with = "no_denoise")]
     pub denoise: bool,
     /// Do not denoise the default render: it then samples to --noise 0.1 instead of 1.0.
     #[arg(long)]
@@ -320,6 +322,8 @@ pub struct RenderArgs {
     /// Render only tile I of N (counted from 0): the image cut into N bands of whole rows.
     /// The outputs (image and AOVs) hold the tile alone, with a sidecar OUT.tile.json saying
     /// where it belongs; `meshtracer merge` joins the tiles into the single render's image.
+    /// A denoised render's tile (the default render's) keeps its film and guides in
+    /// OUT.denoise.exr, and its image is not denoised: merge denoises the whole.
     #[arg(
         long,
         value_name = "I/N",
@@ -546,11 +550,9 @@ impl RenderArgs {
                     self.time_limit.is_some(),
                     // Views are denoised when asked: a denoiser's residual blotches differ
                     // from view to view, which multi-view reconstruction does not average out
-                    // as it does zero-mean noise.
-                    self.views.is_none()
-                        && self.turntable.is_none()
-                        && self.tile.is_none()
-                        && self.crop.is_none(),
+                    // as it does zero-mean noise. A tile is part of one image: `merge`
+                    // denoises the whole, as the single render is.
+                    self.views.is_none() && self.turntable.is_none(),
                 ))
     }
 

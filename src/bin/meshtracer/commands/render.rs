@@ -20,7 +20,7 @@ use meshtracer::light::environment::Environment;
 use meshtracer::output::view_file::ViewFile;
 use meshtracer::output::PendingOutput;
 use meshtracer::prepare::Prepared;
-use meshtracer::render::denoise::{Denoised, Denoiser};
+use meshtracer::render::denoise::{Denoised, Denoiser, Guides};
 use meshtracer::render::{render, render_region, Aovs, Image, Region, RenderSettings, RenderStats};
 use meshtracer::scene::{Camera, Light, Projection, Scene};
 use meshtracer::setup::{lighting, Lighting, RecordedLighting};
@@ -70,6 +70,7 @@ pub(super) fn render_model(
         bail!("--contact-sheet lays out many views: add --views SPEC or --turntable N (or give it to batch, for a cell per job)");
     }
     let outputs = single_view_outputs(args);
+    let outputs: Vec<_> = outputs.iter().map(|(o, p)| (*o, p.as_path())).collect();
     meshtracer::output::check_destinations(&outputs, &run_inputs(args), args.no_clobber)?;
     let output = PendingOutput::reserve(&args.output, args.no_clobber)?;
     let (threads, pool) = worker_pool(args.threads)?;
@@ -113,14 +114,16 @@ pub(super) fn render_model(
 }
 
 /// Every file a single-view render writes, with the option that names it: the image, then
-/// [`RenderArgs::side_outputs`].
-fn single_view_outputs(args: &RenderArgs) -> Vec<(&'static str, &Path)> {
-    std::iter::once(("-o", args.output.as_path()))
+/// [`RenderArgs::side_outputs`], then a denoised render's tile's denoise input
+/// ([`tiles::denoise_input`]).
+fn single_view_outputs(args: &RenderArgs) -> Vec<(&'static str, std::path::PathBuf)> {
+    std::iter::once(("-o", args.output.clone()))
         .chain(
             args.side_outputs()
                 .into_iter()
-                .filter_map(|(option, path)| path.map(|p| (option, p.as_path()))),
+                .filter_map(|(option, path)| path.map(|p| (option, p.clone()))),
         )
+        .chain(tiles::denoise_input(args))
         .collect()
 }
 
@@ -484,8 +487,11 @@ struct Rendered {
     stats: RenderStats,
     /// The AOVs, when [`RenderSettings::aovs`] asked for them.
     aovs: Option<Aovs>,
-    /// What `--denoise` did, when asked.
+    /// What `--denoise` did, when asked (for a whole image).
     denoised: Option<Denoising>,
+    /// A denoised render's tile: the guides of its pixels, kept with its film for `merge`,
+    /// which denoises the whole image.
+    denoise_guides: Option<Guides>,
 }
 
 /// What `--denoise` did.
@@ -537,18 +543,27 @@ fn prepare_and_render(
     bar.finish_and_clear();
     phases.mark("render", render_start);
     let (mut image, stats, aovs) = result?;
-    let denoised = if args.denoises() {
-        Some(denoise_image(
+    let (mut denoised, mut denoise_guides) = (None, None);
+    if args.denoises() && tiles::tiled(args) {
+        // A tile is not denoised alone: the filter reaches across its edges.
+        let guide_start = Instant::now();
+        denoise_guides = Some(denoise_guides_of(
+            &prepared,
+            settings,
+            shot.region,
+            &mut image,
+        ));
+        phases.mark("denoise guides", guide_start);
+    } else if args.denoises() {
+        denoised = Some(denoise_image(
             &prepared,
             settings,
             shot.region,
             &mut image,
             cancel,
             phases,
-        )?)
-    } else {
-        None
-    };
+        )?);
+    }
     Ok(Rendered {
         prepared,
         warnings,
@@ -558,6 +573,7 @@ fn prepare_and_render(
         stats,
         aovs,
         denoised,
+        denoise_guides,
     })
 }
 
@@ -614,12 +630,7 @@ pub(super) fn denoise_image(
     phases: &mut Phases,
 ) -> Result<Denoising> {
     let guide_start = Instant::now();
-    // The path tracer averaged the guides over each pixel's own samples; the direct
-    // integrator's are traced here.
-    let guides = match image.guides.take() {
-        Some(guides) => guides,
-        None => meshtracer::render::denoise::guides(prepared, settings, region),
-    };
+    let guides = denoise_guides_of(prepared, settings, region, image);
     phases.mark("denoise guides", guide_start);
     let denoise_start = Instant::now();
     let guide_samples = guides.samples_per_pixel;
@@ -633,6 +644,20 @@ pub(super) fn denoise_image(
         guide_samples,
         time: guide_start.elapsed(),
     })
+}
+
+/// The denoiser's guides of `image`, the rendered `region`: the path tracer averaged them over
+/// each pixel's own samples (taken out of `image`); the direct integrator's are traced here.
+fn denoise_guides_of(
+    prepared: &Prepared,
+    settings: &RenderSettings,
+    region: Region,
+    image: &mut Image,
+) -> Guides {
+    match image.guides.take() {
+        Some(guides) => guides,
+        None => meshtracer::render::denoise::guides(prepared, settings, region),
+    }
 }
 
 /// A rendered single view, for the steps that write and report it.
@@ -685,11 +710,13 @@ fn write_outputs(args: &RenderArgs, output: PendingOutput, done: &Finished) -> R
     if let Some(path) = &args.view_out {
         view_record(args, done).write(path)?;
     }
+    let denoise_input = done.rendered.denoise_guides.as_ref().map(|g| (image, g));
     tiles::write_sidecar(
         args,
         done.shot.region,
         &done.settings,
         &done.rendered.prepared.scene,
+        denoise_input,
     )
 }
 
@@ -798,6 +825,15 @@ fn write_stats(
     Ok(())
 }
 
+/// The filter that ran, as the summary names it: "Open Image Denoise 2.5.1" or "the built-in
+/// à-trous filter".
+pub(super) fn denoiser_label(report: &Denoised) -> String {
+    match report.denoiser {
+        Denoiser::Oidn => format!("Open Image Denoise {}", report.version),
+        Denoiser::Atrous => "the built-in à-trous filter".to_string(),
+    }
+}
+
 /// Prints the one summary line of a single-view render on standard error: the load, the
 /// The summary's textures: "no textures", or their decoded size (MB, or KB under one MB) and
 /// decoding time.
@@ -832,12 +868,12 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
     let denoise_note = match denoised {
         Some(d) => format!(
             ", denoised by {} in {:.3} s (guides and filter)",
-            match d.report.denoiser {
-                Denoiser::Oidn => format!("Open Image Denoise {}", d.report.version),
-                Denoiser::Atrous => "the built-in à-trous filter".to_string(),
-            },
+            denoiser_label(&d.report),
             d.time.as_secs_f64()
         ),
+        None if done.rendered.denoise_guides.is_some() => {
+            ", film and guides kept for merge to denoise".to_string()
+        }
         None => String::new(),
     };
     let spp = super::spp_label(

@@ -4,18 +4,33 @@
 
 use crate::cli::{MergeArgs, RenderArgs};
 use anyhow::{bail, Context, Result};
-use meshtracer::jobs::batch::model_digest;
+use meshtracer::jobs::batch::{model_digest, sha256_hex};
 use meshtracer::jobs::tiles::{
-    check_cover, extension, fingerprint, Raster, TileFile, TILE_FILE_VERSION,
+    check_cover, extension, fingerprint, Raster, TileDenoise, TileFile, DENOISED_TILE_FILE_VERSION,
+    DENOISE_INPUT, TILE_FILE_VERSION,
 };
-use meshtracer::render::{Region, RenderSettings};
+use meshtracer::output::view_file::ImageSize;
+use meshtracer::render::denoise::{Denoised, Denoiser, Guides};
+use meshtracer::render::{Image, Region, RenderSettings};
 use meshtracer::scene::Scene;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
 
 /// Whether this render is a tile.
-fn tiled(args: &RenderArgs) -> bool {
+pub(super) fn tiled(args: &RenderArgs) -> bool {
     args.tile.is_some() || args.crop.is_some()
+}
+
+/// The file a denoised render's tile keeps its film and guides in, for `merge`
+/// ([`TileFile::denoise_input_path`]), named as an output; `None` for other renders.
+pub(super) fn denoise_input(args: &RenderArgs) -> Option<(&'static str, PathBuf)> {
+    (tiled(args) && args.denoises()).then(|| {
+        (
+            "the tile's denoise input (beside -o)",
+            TileFile::denoise_input_path(&args.output),
+        )
+    })
 }
 
 /// Refusals a tiled render makes before any work: tiles are merged exactly only from formats
@@ -85,11 +100,14 @@ pub(super) fn render_fingerprint(
 /// those of every file it refers to ([`model_digest`]), so that tiles rendered before and after
 /// an edit of the model, a texture or an `.mtl` do not join, where the triangle count and
 /// bounds alone would let them. (A view's fingerprint holds the digest apart.)
+/// A denoised render's tiles add that they are, so that they never join tiles of the same
+/// render not denoised (whose image merge pastes as it is).
 fn tile_fingerprint(args: &RenderArgs, settings: &RenderSettings, scene: &Scene) -> String {
     fingerprint(&format!(
-        "{}\nmodel {}",
+        "{}\nmodel {}{}",
         render_fingerprint(args, settings, scene),
-        model_digest(&args.model, &scene.inputs)
+        model_digest(&args.model, &scene.inputs),
+        if args.denoises() { "\ndenoised" } else { "" }
     ))
 }
 
@@ -105,11 +123,14 @@ fn relative_to(file: &Path, dir: &Path) -> PathBuf {
 }
 
 /// Writes the sidecar of a tiled render, after its outputs: a sidecar means a complete tile.
+/// A denoised render's tile writes its film and guides (`denoise_input`: the tile's image,
+/// not denoised, and its guides) first, into [`denoise_input`]'s file.
 pub(super) fn write_sidecar(
     args: &RenderArgs,
     region: Region,
     settings: &RenderSettings,
     scene: &Scene,
+    denoise_input: Option<(&Image, &Guides)>,
 ) -> Result<()> {
     if !tiled(args) {
         return Ok(());
@@ -119,18 +140,30 @@ pub(super) fn write_sidecar(
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
+    let denoise = match denoise_input {
+        Some((image, guides)) => Some(write_denoise_input(args, image, guides)?),
+        None => None,
+    };
+    let denoise_path = denoise
+        .as_ref()
+        .map(|_| TileFile::denoise_input_path(&args.output));
     let outputs: BTreeMap<String, PathBuf> = [
         ("image", Some(&args.output)),
         ("depth", args.depth_out.as_ref()),
         ("normal", args.normal_out.as_ref()),
         ("mask", args.mask_out.as_ref()),
         ("segmentation", args.segmentation_out.as_ref()),
+        (DENOISE_INPUT, denoise_path.as_ref()),
     ]
     .into_iter()
     .filter_map(|(kind, path)| path.map(|p| (kind.to_string(), relative_to(p, &dir))))
     .collect();
     let file = TileFile {
-        meshtracer_tile: TILE_FILE_VERSION,
+        meshtracer_tile: if denoise.is_some() {
+            DENOISED_TILE_FILE_VERSION
+        } else {
+            TILE_FILE_VERSION
+        },
         image: meshtracer::output::view_file::ImageSize {
             width: settings.view.width,
             height: settings.view.height,
@@ -139,10 +172,28 @@ pub(super) fn write_sidecar(
         tile: args.tile,
         render: tile_fingerprint(args, settings, scene),
         outputs,
+        denoise,
     };
     let text = serde_json::to_string_pretty(&file)?;
     meshtracer::output::write_atomic(&sidecar, text.as_bytes())?;
     Ok(())
+}
+
+/// Writes a denoised render's tile's film and guides ([`meshtracer::output::denoise_input`])
+/// beside its image; returns the sidecar's record of them.
+fn write_denoise_input(args: &RenderArgs, image: &Image, guides: &Guides) -> Result<TileDenoise> {
+    let path = TileFile::denoise_input_path(&args.output);
+    let bytes = meshtracer::output::denoise_input::encode(image, guides)
+        .with_context(|| format!("{}: encoding failed", path.display()))?;
+    meshtracer::output::write_atomic(&path, &bytes)?;
+    Ok(TileDenoise {
+        sha256: sha256_hex(&bytes),
+        samples: image.samples,
+        guide_samples: guides.samples_per_pixel,
+        background: args.background.map(|b| b.to_array()),
+        tonemap: args.tonemap.name().to_string(),
+        denoiser: Denoiser::of_this_build().id().to_string(),
+    })
 }
 
 /// `meshtracer merge -o OUT TILE...`.
@@ -222,51 +273,40 @@ pub(super) fn merge_command(args: &MergeArgs) -> Result<()> {
         .collect();
     meshtracer::output::check_destinations(&outputs, &inputs, args.no_clobber)?;
     let mut encoded = Vec::new();
+    let mut denoised = None;
     for (kind, out) in jobs {
-        let mut whole: Option<Raster> = None;
-        let mut first_layout = String::new();
-        for (sidecar, tile) in &tiles {
-            let path = tile
-                .output_path(sidecar, kind)
-                .with_context(|| format!("{}: lists no {kind} file", sidecar.display()))?;
-            let part = Raster::read(&path)?;
-            let region = tile.region;
-            if part.size() != (u64::from(region.width), u64::from(region.height)) {
-                bail!(
-                    "{}: {}x{} pixels, but its sidecar {} says the tile is {}x{}",
-                    path.display(),
-                    part.size().0,
-                    part.size().1,
-                    sidecar.display(),
-                    region.width,
-                    region.height
-                );
+        let bytes = match &first.denoise {
+            Some(denoise) if kind == "image" => {
+                let (image, report) = denoise_whole(&tiles, size, &cancel)?;
+                denoised = Some(report);
+                let background = denoise.background.map(glam::Vec3::from);
+                let view = denoise.view_transform().map_err(anyhow::Error::msg)?;
+                meshtracer::output::encode_image(out, &image, background, view)?
             }
-            let whole = whole.get_or_insert_with(|| {
-                first_layout = part.layout();
-                part.blank_like(size.width, size.height)
-            });
-            if part.layout() != first_layout {
-                bail!(
-                    "{}: pixel layout {}, the other tiles' {kind} files are {first_layout}",
-                    path.display(),
-                    part.layout()
-                );
-            }
-            whole.paste(&part, region.x, region.y)?;
-            super::render::stop_if_cancelled(&cancel)?;
-        }
-        if let Some(whole) = whole {
-            encoded.push((out, whole.encode(out)?));
-        }
+            _ => paste_whole(kind, &tiles, size, &cancel)?.encode(out)?,
+        };
+        encoded.push((out, bytes));
     }
     super::render::stop_if_cancelled(&cancel)?;
     for (out, bytes) in encoded {
         meshtracer::output::write_atomic(out, &bytes)?;
     }
     if !args.quiet {
+        let denoise_note = match (&denoised, &first.denoise) {
+            (Some(report), Some(denoise)) => {
+                if denoise.denoiser != report.denoiser.id() {
+                    eprintln!(
+                        "note: the tiles were rendered by a build that denoises with '{}'; this one denoised with '{}' (the result is this build's single render)",
+                        denoise.denoiser,
+                        report.denoiser.id()
+                    );
+                }
+                format!(", denoised by {}", super::render::denoiser_label(report))
+            }
+            _ => String::new(),
+        };
         eprintln!(
-            "merged {} tiles into {}x{} -> {}",
+            "merged {} tiles into {}x{}{denoise_note} -> {}",
             tiles.len(),
             size.width,
             size.height,
@@ -274,4 +314,90 @@ pub(super) fn merge_command(args: &MergeArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The tiles' `kind` files pasted into the whole `size` image; each checked against its
+/// sidecar's tile (size) and the first tile (pixel layout).
+fn paste_whole(
+    kind: &str,
+    tiles: &[(PathBuf, TileFile)],
+    size: ImageSize,
+    cancel: &AtomicBool,
+) -> Result<Raster> {
+    let mut whole: Option<Raster> = None;
+    let mut first_layout = String::new();
+    for (sidecar, tile) in tiles {
+        let path = tile
+            .output_path(sidecar, kind)
+            .with_context(|| format!("{}: lists no {kind} file", sidecar.display()))?;
+        let part = Raster::read(&path)?;
+        let region = tile.region;
+        if part.size() != (u64::from(region.width), u64::from(region.height)) {
+            bail!(
+                "{}: {}x{} pixels, but its sidecar {} says the tile is {}x{}",
+                path.display(),
+                part.size().0,
+                part.size().1,
+                sidecar.display(),
+                region.width,
+                region.height
+            );
+        }
+        let whole = whole.get_or_insert_with(|| {
+            first_layout = part.layout();
+            part.blank_like(size.width, size.height)
+        });
+        if part.layout() != first_layout {
+            bail!(
+                "{}: pixel layout {}, the other tiles' {kind} files are {first_layout}",
+                path.display(),
+                part.layout()
+            );
+        }
+        whole.paste(&part, region.x, region.y)?;
+        super::render::stop_if_cancelled(cancel)?;
+    }
+    whole.context("no tiles given")
+}
+
+/// A denoised render's tiles' films and guides joined into the whole `size` image's and
+/// denoised as the render denoises its film ([`meshtracer::render::denoise::denoise`]): the
+/// linear image a single render encodes, and what the denoiser did. One tile's film and
+/// guides are held at a time beside the whole's.
+fn denoise_whole(
+    tiles: &[(PathBuf, TileFile)],
+    size: ImageSize,
+    cancel: &AtomicBool,
+) -> Result<(Image, Denoised)> {
+    let mut whole: Option<(Image, Guides)> = None;
+    for (sidecar, tile) in tiles {
+        let (part, part_guides) = tile.read_denoise_input(sidecar)?;
+        let (image, guides) = whole.get_or_insert_with(|| {
+            let mut image = Image::new(size.width, size.height);
+            image.samples = part.samples;
+            let from_samples = !part_guides.visibility.is_empty();
+            let guides = Guides::new(
+                size.width,
+                size.height,
+                from_samples,
+                part_guides.samples_per_pixel,
+            );
+            (image, guides)
+        });
+        let kept = |g: &Guides| (g.visibility.is_empty(), g.emission.is_empty());
+        if kept(&part_guides) != kept(guides) {
+            bail!(
+                "{}: its denoise input's guides have other channels than the first tile's (visibility, emission): tiles of different renders cannot be merged",
+                sidecar.display()
+            );
+        }
+        let region = tile.region;
+        image.paste(&part, region.x, region.y);
+        guides.paste(&part_guides, region.x, region.y);
+        super::render::stop_if_cancelled(cancel)?;
+    }
+    let (mut image, guides) = whole.context("no tiles given")?;
+    let report = meshtracer::render::denoise::denoise(&mut image, guides)?;
+    super::render::stop_if_cancelled(cancel)?;
+    Ok((image, report))
 }
