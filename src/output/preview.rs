@@ -78,7 +78,9 @@ pub struct PreviewError(String);
 /// (a preview piped into a file or another program would be noise), in the best protocol the
 /// terminal speaks; `Blocks` always, as half blocks, without asking the terminal anything.
 /// Sized to the terminal, never enlarged beyond one pixel a half cell. Returns the protocol
-/// used, or `None` when nothing was shown.
+/// used, or `None` when nothing was shown. A reader that closed standard output early
+/// (`meshtracer render ... --preview=blocks | head -3`) ends the preview quietly, also with
+/// `None`: the picture was for that reader, and the files written are not spoiled by it.
 pub fn show(
     image: &Image,
     background: Option<Vec3>,
@@ -132,9 +134,11 @@ pub fn show_rgba(image: &RgbaImage, mode: PreviewMode) -> Result<Option<Protocol
         Protocol::Blocks => cells(image, cell_width, pixel_height),
         _ => image.clone(),
     };
-    viuer::print(&DynamicImage::ImageRgba8(picture), &config)
-        .map_err(|e| PreviewError(e.to_string()))?;
-    Ok(Some(protocol))
+    match viuer::print(&DynamicImage::ImageRgba8(picture), &config) {
+        Ok(_) => Ok(Some(protocol)),
+        Err(viuer::ViuError::Io(e)) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(None),
+        Err(e) => Err(PreviewError(e.to_string())),
+    }
 }
 
 /// The size in half-block pixels (columns, pixel rows: two a line) that an image of

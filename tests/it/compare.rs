@@ -52,6 +52,15 @@ fn compare_reports_metrics_writes_images_and_fails_on_thresholds() {
         false,
     );
     assert!(crate::common::stderr(&failed).contains("flip"));
+    // The verdict does not depend on whether anyone read the metrics (`| head -1`).
+    let unread = crate::common::run_with_readers_gone(&[
+        "compare",
+        s(&a),
+        s(&b),
+        "--fail-above",
+        "flip=0.0001",
+    ]);
+    assert_eq!(unread.code(), Some(1), "{unread}");
     run(&["compare", s(&a), s(&b), "--fail-below", "psnr=20"], true);
     run(
         &[

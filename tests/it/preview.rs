@@ -4,6 +4,7 @@
 //! piped, `--preview` prints nothing and `--preview=blocks` prints the blocks anyway.
 
 use crate::common::{root, run, s};
+use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
@@ -119,24 +120,28 @@ fn preview_in_tmux_shows_the_silhouette() {
     assert!(dir.path().join("out.png").is_file());
 }
 
-#[test]
-fn piped_preview_prints_nothing_unless_blocks_are_asked_for() {
-    let dir = tempfile::tempdir().unwrap();
-    let model = root().join("assets/shapes.obj");
-    let out = dir.path().join("out.png");
-    let base = [
+/// `render MODEL -o OUT` at 32x16 pixels, 1 spp: 8 lines of half blocks.
+fn small_render<'a>(model: &'a Path, out: &'a Path) -> [&'a str; 10] {
+    [
         "render",
-        s(&model),
+        s(model),
         "-o",
-        s(&out),
+        s(out),
         "--width",
         "32",
         "--height",
         "16",
         "--spp",
         "1",
-        "-q",
-    ];
+    ]
+}
+
+#[test]
+fn piped_preview_prints_nothing_unless_blocks_are_asked_for() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = root().join("assets/shapes.obj");
+    let out = dir.path().join("out.png");
+    let base = [&small_render(&model, &out)[..], &["-q"]].concat();
     let auto = run(&[&base[..], &["--preview"]].concat(), true);
     assert!(auto.stdout.is_empty(), "nothing on a pipe");
     // 24-bit colour where COLORTERM says the terminal has it, the 256-colour palette otherwise.
@@ -156,6 +161,25 @@ fn piped_preview_prints_nothing_unless_blocks_are_asked_for() {
             "COLORTERM={colorterm:?}: {text:?}"
         );
     }
+}
+
+#[test]
+fn a_reader_that_stops_early_spoils_neither_the_files_nor_the_exit_status() {
+    // `render ... --preview=blocks 2>&1 | head -3`: the preview and the summary line meet a
+    // closed pipe. The render still writes every file (the depth map comes after the preview)
+    // and succeeds.
+    let dir = tempfile::tempdir().unwrap();
+    let model = root().join("assets/shapes.obj");
+    let (out, depth) = (dir.path().join("out.png"), dir.path().join("depth.png"));
+    let status = crate::common::run_with_readers_gone(
+        &[
+            &small_render(&model, &out)[..],
+            &["--preview=blocks", "--depth-out", s(&depth)],
+        ]
+        .concat(),
+    );
+    assert!(status.success(), "{status}");
+    assert!(out.is_file() && depth.is_file());
 }
 
 /// What the fake terminal at the other end of the pseudo-terminal claims to speak.

@@ -1,5 +1,16 @@
 //! The `meshtracer` binary: parse options, run, print the error chain once, exit non-zero.
 
+/// `eprintln!` for the progress, summary, warning and error lines on standard error, which
+/// drops a line that cannot be written instead of panicking: after `2>&1 | head -3` the
+/// reader has gone, and the render's files and its exit status must not depend on whether it
+/// read the summary. There is nowhere else to say that the line was lost.
+macro_rules! note {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 mod cli;
 mod commands;
 
@@ -14,14 +25,14 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             if e.is::<meshtracer::render::Cancelled>() {
-                eprintln!("meshtracer: interrupted; no output written");
+                note!("meshtracer: interrupted; no output written");
                 return ExitCode::from(130);
             }
             if let Some(stopped) = e.downcast_ref::<crate::commands::Interrupted>() {
-                eprintln!("meshtracer: {stopped}");
+                note!("meshtracer: {stopped}");
                 return ExitCode::from(130);
             }
-            eprintln!("meshtracer: error: {e:#}");
+            note!("meshtracer: error: {e:#}");
             ExitCode::FAILURE
         }
     }

@@ -105,6 +105,21 @@ pub fn small_run<'a>(
     args
 }
 
+/// Runs the binary with its standard output and standard error each a pipe whose reader has
+/// gone before the first line (as `2>&1 | head -0` leaves them): every write to either fails
+/// with a broken pipe. Returns how the run ended.
+pub fn run_with_readers_gone(args: &[&str]) -> std::process::ExitStatus {
+    let mut child = bin()
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("the binary runs");
+    drop(child.stdout.take());
+    drop(child.stderr.take());
+    child.wait().expect("the binary ends")
+}
+
 /// Standard error as text.
 pub fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()

@@ -95,7 +95,7 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
         Some(path) => Some(JobSheet::new(defaults, Some(path), mine.len())?),
         // A sheet only for the terminal is not worth failing the batch for.
         None => JobSheet::new(defaults, None, mine.len())
-            .map_err(|e| eprintln!("warning: --preview: no preview of the jobs ({e:#})"))
+            .map_err(|e| note!("warning: --preview: no preview of the jobs ({e:#})"))
             .ok(),
     };
 
@@ -178,7 +178,7 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
         } else {
             format!(" of shard {shard} ({} in the manifest)", entries.len())
         };
-        eprintln!(
+        note!(
             "batch: {} jobs{of}: {} ok, {} skipped, {failed} failed in {:.1} s -> {}",
             records.len(),
             count(Status::Ok),
@@ -901,7 +901,7 @@ impl Progress {
         let id = entry.id.as_deref().unwrap_or("(no id)");
         let lock = dir.join(id).join(lock::LOCK_FILE);
         self.multi.suspend(|| {
-            eprintln!(
+            note!(
                 "{id}: held by the batch of {holder}; waiting for its record ({} is taken over once that batch is gone: at once on this host, after {} s without a heartbeat from another)",
                 lock.display(),
                 lock::LEASE.as_secs()
@@ -915,7 +915,7 @@ impl Progress {
         let multi = self.multi.clone();
         Box::new(move |path, e| {
             multi.suspend(|| {
-                eprintln!(
+                note!(
                     "warning: cannot renew the job lock {} ({e}); until it is renewed, another batch may take the job over and render it beside this one",
                     path.display(),
                 );
@@ -960,7 +960,7 @@ impl Progress {
         };
         let note = note.map_or(String::new(), |n| format!(" ({n})"));
         self.multi.suspend(|| {
-            eprintln!("[{done}/{}] {id}: {what}{note}{eta}", self.total);
+            note!("[{done}/{}] {id}: {what}{note}{eta}", self.total);
         });
     }
 
@@ -1040,7 +1040,7 @@ pub(super) fn merge_command(args: &BatchMergeArgs) -> Result<()> {
     meshtracer::output::write_atomic(&results, text.as_bytes())?;
     if !args.quiet {
         let count_of = |status| records.iter().filter(|r| r.status == status).count();
-        eprintln!(
+        note!(
             "batch-merge: {count} shards, {} jobs: {} ok, {} skipped, {} failed -> {}",
             records.len(),
             count_of(Status::Ok),

@@ -40,7 +40,7 @@ pub(super) fn bench_command(args: &BenchArgs) -> Result<()> {
             break;
         }
         if !args.quiet {
-            eprintln!(
+            note!(
                 "[{}/{}] {}: building and tracing...",
                 i + 1,
                 jobs.len(),
@@ -217,7 +217,7 @@ fn measure_job(
             )
         })?;
         if !args.quiet {
-            eprintln!("      wrote {} arrays to {}", files.len(), dir.display());
+            note!("      wrote {} arrays to {}", files.len(), dir.display());
         }
     }
     for (i, &kind) in args.rays.iter().enumerate() {
@@ -227,7 +227,7 @@ fn measure_job(
         let options = BenchOptions { kind, ..*options };
         let row = pool.install(|| measure(&scene, name, &options))?;
         if !args.quiet {
-            eprintln!(
+            note!(
                 "      {} triangles, {} rays: build {:.1} ms, BVH {:.2} Mrays/s{}",
                 row.triangles,
                 kind.name(),
@@ -245,7 +245,7 @@ fn measure_job(
     }
     if args.path_spp > 0 && !stop.load(Ordering::SeqCst) {
         if !args.quiet {
-            eprintln!(
+            note!(
                 "      path tracer against the BVH, {} alternating rounds...",
                 options.runs
             );
@@ -275,7 +275,7 @@ fn measure_path(
         .with_context(|| format!("{name}: textures"))?;
     if !args.quiet {
         for w in &warnings {
-            eprintln!("warning: {name}: {w}");
+            note!("warning: {name}: {w}");
         }
     }
     Ok(meshtracer::tools::bench::path_versus_bvh(

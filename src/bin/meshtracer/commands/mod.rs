@@ -14,16 +14,18 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// `println!` for the commands' results on standard output. A reader that stops early
-/// (`meshtracer compare A B | head -3`) closes the pipe: the command then ends quietly with
-/// success, as other command-line tools do, instead of panicking on the failed write.
+/// (`meshtracer compare A B | head -3`) closes the pipe: the lines after it are dropped
+/// quietly and the command goes on as if they had been read, so that the files it writes
+/// after its lines (`bench --report`) are still written and its verdict (`compare
+/// --fail-above`) still sets the exit status, instead of a panic or an error about a reader
+/// who has gone. Any other failure to write is an error.
 macro_rules! out {
     ($($arg:tt)*) => {{
         use std::io::Write as _;
         if let Err(e) = writeln!(std::io::stdout(), $($arg)*) {
-            if e.kind() == std::io::ErrorKind::BrokenPipe {
-                $crate::commands::exit_now(0);
+            if e.kind() != std::io::ErrorKind::BrokenPipe {
+                return Err(anyhow::Error::from(e).context("cannot write to standard output"));
             }
-            return Err(anyhow::Error::from(e).context("cannot write to standard output"));
         }
     }};
 }
@@ -149,7 +151,7 @@ pub(crate) fn prepare_scene(
     phases.sub_steps_of("bvh build", prepared.accel.build_steps());
     if !args.no_warnings {
         for w in &warnings {
-            eprintln!("warning: {}: {w}", args.model.display());
+            note!("warning: {}: {w}", args.model.display());
         }
     }
     all.extend(warnings);
@@ -201,7 +203,7 @@ pub(crate) fn warn_png_losses(
     ];
     for loss in losses.into_iter().flatten() {
         if !args.no_warnings {
-            eprintln!("warning: {loss}");
+            note!("warning: {loss}");
         }
     }
 }
@@ -212,11 +214,11 @@ pub(crate) fn warn_png_losses(
 pub(crate) fn report_load(args: &RenderArgs, scene: &Scene) {
     if !args.no_warnings {
         for w in &scene.warnings {
-            eprintln!("warning: {}: {w}", args.model.display());
+            note!("warning: {}: {w}", args.model.display());
         }
     }
     if let (Some(pose), false) = (&scene.pose, args.quiet) {
-        eprintln!("{}: posed by {pose}", args.model.display());
+        note!("{}: posed by {pose}", args.model.display());
     }
 }
 
@@ -234,7 +236,7 @@ pub(crate) fn check_lighting(
         );
     }
     if lights.is_empty() && environment.is_none() && !args.no_warnings {
-        eprintln!(
+        note!(
             "warning: no lights (--no-default-lights): only ambient and emissive light the scene"
         );
     }
@@ -623,11 +625,11 @@ fn interrupt_flag() -> Arc<AtomicBool> {
             ctrlc::set_handler(move || {
                 if handler_flag.swap(true, Ordering::SeqCst) && QUIT_ON_SECOND_PRESS.get().is_some()
                 {
-                    eprintln!("meshtracer: interrupted; no output written");
+                    note!("meshtracer: interrupted; no output written");
                     exit_now(130);
                 }
                 if let Some(notice) = QUIT_ON_SECOND_PRESS.get() {
-                    eprintln!("{notice}");
+                    note!("{notice}");
                 }
             })
         });

@@ -230,12 +230,12 @@ fn read_view_file(args: &RenderArgs) -> Result<Option<ViewFile>> {
             bail!("{what}: --strict refuses the file");
         }
         if !args.no_warnings {
-            eprintln!("warning: {what}: ignored");
+            note!("warning: {what}: ignored");
         }
     }
     check_size(args, view_file.image.width, view_file.image.height)?;
     if (args.width.is_some() || args.height.is_some()) && !args.no_warnings {
-        eprintln!(
+        note!(
             "warning: --width and --height are ignored: {} sets the image size ({}x{})",
             path.display(),
             view_file.image.width,
@@ -882,7 +882,7 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
         stats.samples,
         u64::from(width) * u64::from(height),
     );
-    eprintln!(
+    note!(
         "{}: {} triangles, loaded in {:.1} ms, {}, {structure}, {width}x{height} at {spp} rendered in {:.3} s ({:.0} samples/s{}){denoise_note}, peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {} -> {}",
         // The file drawn: the model given, or the one inside the archive or folder given.
         scene.source.display(),

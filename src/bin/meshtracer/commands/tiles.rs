@@ -245,7 +245,7 @@ pub(super) fn merge_command(args: &MergeArgs) -> Result<()> {
                 out.display()
             ),
             (None, Some(_)) if !args.quiet => {
-                eprintln!("note: the tiles also have {kind} files; add {option} FILE to merge them")
+                note!("note: the tiles also have {kind} files; add {option} FILE to merge them")
             }
             (None, _) => {}
         }
@@ -295,7 +295,7 @@ pub(super) fn merge_command(args: &MergeArgs) -> Result<()> {
         let denoise_note = match (&denoised, &first.denoise) {
             (Some(report), Some(denoise)) => {
                 if denoise.denoiser != report.denoiser.id() {
-                    eprintln!(
+                    note!(
                         "note: the tiles were rendered by a build that denoises with '{}'; this one denoised with '{}' (the result is this build's single render)",
                         denoise.denoiser,
                         report.denoiser.id()
@@ -305,7 +305,7 @@ pub(super) fn merge_command(args: &MergeArgs) -> Result<()> {
             }
             _ => String::new(),
         };
-        eprintln!(
+        note!(
             "merged {} tiles into {}x{}{denoise_note} -> {}",
             tiles.len(),
             size.width,

@@ -694,7 +694,7 @@ fn render_each(
                     extras.add_rgba(k, camera, rgba)?;
                 }
                 if !args.quiet {
-                    eprintln!(
+                    note!(
                         "[{}/{}] {} kept: finished by an earlier run, its files verified",
                         k + 1,
                         cameras.len(),
@@ -765,11 +765,11 @@ impl RecordLog {
                     }
                 }
                 if !records.contains_key(&k) && !run.args.quiet {
-                    eprintln!("view {k}: rendered again: {why}");
+                    note!("view {k}: rendered again: {why}");
                 }
             }
             if !run.args.quiet {
-                eprintln!(
+                note!(
                     "--resume: {} of {} views finished before, their files verified; rendering the other {}",
                     records.len(),
                     mine.len(),
@@ -820,7 +820,7 @@ impl RecordLog {
             Ok(rgba) if rgba.dimensions() == (run.width, run.height) => Some(Some(rgba)),
             Ok(_) | Err(_) => {
                 if !run.args.quiet {
-                    eprintln!(
+                    note!(
                         "view {k}: rendered again: {} cannot be read back for the GIF or the sheet",
                         path.display()
                     );
@@ -1175,7 +1175,7 @@ impl ViewRun<'_> {
             }
         };
         if !args.quiet {
-            eprintln!(
+            note!(
                 "[{}/{}] {} rendered in {:.3} s",
                 k + 1,
                 self.count,
@@ -1310,7 +1310,7 @@ impl Summary {
                 super::threads_label(self.threads),
             ),
         };
-        eprintln!(
+        note!(
             "{}: {} triangles, loaded once in {:.1} ms, {structure}; {work}; {:.3} s in all -> {}",
             args.model.display(),
             self.triangles,
@@ -1406,7 +1406,7 @@ impl Extras {
                 Ok(layout) => Some(ContactSheet::new(layout)),
                 // A sheet only for the terminal is not worth failing the run for.
                 Err(e) if out.file.is_none() => {
-                    eprintln!("warning: --preview: no preview of the views ({e:#})");
+                    note!("warning: --preview: no preview of the views ({e:#})");
                     None
                 }
                 Err(e) => return Err(e),
@@ -1461,7 +1461,7 @@ impl Extras {
             let (path, frames, time) = (gif.path().to_path_buf(), gif.frames(), gif.encode_time());
             gif.finish()?;
             if !quiet {
-                eprintln!(
+                note!(
                     "{}: {frames} frames, encoded in {:.2} s ({:.1} ms a frame)",
                     path.display(),
                     time.as_secs_f64(),
@@ -1504,7 +1504,7 @@ pub(super) fn write_sheet(
     file.commit()?;
     if !quiet {
         let l = sheet.layout();
-        eprintln!(
+        note!(
             "{}: {} {what} in {} columns, {}x{} pixels",
             path.display(),
             l.count,
