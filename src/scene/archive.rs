@@ -162,8 +162,10 @@ fn the_model<R: std::io::Read + std::io::Seek>(
 
 /// Whether the file at `path` is a zip archive whose entries name at least one model file
 /// (`.gltf`, `.glb`, `.obj`; macOS's resource forks aside): what a batch's folder manifest
-/// takes for a zipped download. Only the archive's directory is read; nothing is unpacked. An
-/// archive that cannot be read is not one.
+/// takes for a zipped download. A model entry whose path leaves the archive (`../m.gltf`,
+/// `/m.glb`) counts: the job is then refused when it loads, naming the zip and the entry,
+/// rather than the zip left out of the batch without a word. Only the archive's directory is
+/// read; nothing is unpacked. An archive that cannot be read is not one.
 pub fn holds_a_model(path: &Path) -> bool {
     let Ok(mut file) = std::fs::File::open(path) else {
         return false;
@@ -178,7 +180,7 @@ pub fn holds_a_model(path: &Path) -> bool {
         .ok()
         .filter(|zip| zip.len() <= MAX_ENTRIES)
         .and_then(|mut zip| models_in(&mut zip, u64::MAX).ok())
-        .is_some_and(|found| !found.models.is_empty())
+        .is_some_and(|found| !found.models.is_empty() || !found.refused.is_empty())
 }
 
 /// The model files among an archive's entries.

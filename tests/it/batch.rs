@@ -279,8 +279,9 @@ fn a_folder_batch_records_every_model_and_isolates_the_broken_one() {
 }
 
 /// A folder of zipped downloads: each zip holding a model is a job (id: its path without
-/// `.zip`) that renders as the model's files do, one holding two fails naming them, and a zip
-/// without a model, a file that only ends in `.zip`, a zip beside its unzipped copy and one
+/// `.zip`) that renders as the model's files do, one holding two fails naming them, so does
+/// one whose only model leaves the archive (`../evil.gltf`, `/abs.glb`), and a zip without a
+/// model, a file that only ends in `.zip`, a zip beside its unzipped copy and one
 /// beside a model of its id are not jobs.
 #[test]
 fn a_folder_batch_renders_zipped_downloads_once() {
@@ -313,6 +314,8 @@ fn a_folder_batch_renders_zipped_downloads_once() {
     let mut two = shapes();
     two.push(("shapes/other.obj", read("shapes.obj")));
     zip("two.zip", &two);
+    zip("evil.zip", &[("../evil.gltf", b"{}".to_vec())]);
+    zip("absolute.zip", &[("/abs.glb", b"glTF".to_vec())]);
 
     let out = dir.path().join("out");
     let run = batch(&models, &out, &[], &[], false);
@@ -320,9 +323,26 @@ fn a_folder_batch_renders_zipped_downloads_once() {
     let jobs = by_id(&records(&out.join("results.jsonl")));
     assert_eq!(
         jobs.keys().collect::<Vec<_>>(),
-        ["box", "duck/duck", "plain/shapes", "shapes", "two"],
+        [
+            "absolute",
+            "box",
+            "duck/duck",
+            "evil",
+            "plain/shapes",
+            "shapes",
+            "two"
+        ],
         "{stderr}"
     );
+    for (id, entry) in [("evil", "../evil.gltf"), ("absolute", "/abs.glb")] {
+        assert_eq!(jobs[id]["status"], "failed");
+        let error = jobs[id]["error"].as_str().unwrap();
+        assert!(
+            error.contains(&format!("{id}.zip"))
+                && error.contains(&format!("'{entry}' is refused")),
+            "{error}"
+        );
+    }
     let two = &jobs["two"];
     assert_eq!(two["status"], "failed");
     let error = two["error"].as_str().unwrap();
