@@ -833,11 +833,21 @@ impl JobRecord {
         }
     }
 
-    /// The order of results files: by id, then the id-less lines by their error. The same
-    /// for any order of the manifest and any sharding.
+    /// The order of results files: by id, then the id-less lines by their error, whose
+    /// numbers compare as numbers: each starts with its manifest line (`jobs.jsonl line 2: `),
+    /// so line 2 comes before line 10. The same for any order of the manifest and any
+    /// sharding, and for records read back from a results file (which keep no line number
+    /// but in their error).
     pub fn sort(records: &mut [JobRecord]) {
         records.sort_by(|a, b| {
-            (a.id.is_none(), &a.id, &a.error).cmp(&(b.id.is_none(), &b.id, &b.error))
+            (a.id.is_none(), &a.id)
+                .cmp(&(b.id.is_none(), &b.id))
+                .then_with(|| {
+                    numbers_as_numbers(
+                        a.error.as_deref().unwrap_or_default(),
+                        b.error.as_deref().unwrap_or_default(),
+                    )
+                })
         });
     }
 
@@ -862,6 +872,35 @@ pub fn verify_outputs(dir: &Path, outputs: &[OutputRecord]) -> Result<(), String
         }
     }
     Ok(())
+}
+
+/// Compares two texts with each run of ASCII digits taken as the number it writes
+/// (`line 2` < `line 10`; leading zeros aside, `007` = `7`, then the shorter run first so
+/// that the order is total) and the rest character by character.
+fn numbers_as_numbers(a: &str, b: &str) -> std::cmp::Ordering {
+    let (mut a, mut b) = (a, b);
+    loop {
+        let digits = |s: &str| s.find(|c: char| !c.is_ascii_digit()).unwrap_or(s.len());
+        let (da, db) = (digits(a), digits(b));
+        if da > 0 && db > 0 {
+            let (na, nb) = (
+                a[..da].trim_start_matches('0'),
+                b[..db].trim_start_matches('0'),
+            );
+            let order = (na.len(), na, da).cmp(&(nb.len(), nb, db));
+            if order.is_ne() {
+                return order;
+            }
+            (a, b) = (&a[da..], &b[db..]);
+            continue;
+        }
+        let (mut ca, mut cb) = (a.chars(), b.chars());
+        match (ca.next(), cb.next()) {
+            (None, None) => return std::cmp::Ordering::Equal,
+            (x, y) if x != y => return x.cmp(&y),
+            _ => (a, b) = (ca.as_str(), cb.as_str()),
+        }
+    }
 }
 
 /// Results as JSONL: one record a line, in [`JobRecord::sort`] order.
@@ -1313,6 +1352,17 @@ not json
         assert_eq!(results_jsonl(&a), results_jsonl(&b));
         let first = results_jsonl(&a).lines().next().unwrap().to_string();
         assert!(first.starts_with(r#"{"id":"a/c""#), "{first}");
+    }
+
+    #[test]
+    fn id_less_records_sort_by_their_line_as_a_number() {
+        use std::cmp::Ordering::{Equal, Greater, Less};
+        assert_eq!(numbers_as_numbers("j line 2: x", "j line 10: a"), Less);
+        assert_eq!(numbers_as_numbers("j line 10: a", "j line 9: z"), Greater);
+        assert_eq!(numbers_as_numbers("line 7", "line 007"), Less);
+        assert_eq!(numbers_as_numbers("line 7: b", "line 7: a"), Greater);
+        assert_eq!(numbers_as_numbers("a1b", "a1b"), Equal);
+        assert_eq!(numbers_as_numbers("", "0"), Less);
     }
 
     #[test]

@@ -508,6 +508,33 @@ fn a_jsonl_job_failing_when_it_runs_names_its_manifest_line() {
     }
 }
 
+/// Lines without a readable id are recorded after the jobs, in the order of their lines as
+/// numbers: line 2 before line 10 (not before it as text, where "10" < "2").
+#[test]
+fn id_less_lines_are_recorded_in_line_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut lines = vec![String::new(); 12];
+    lines[0] = r#"{"model": "sub/shapes.obj"}"#.into();
+    lines[1] = "not json".into();
+    lines[9] = "[1, 2]".into();
+    lines[10] = "{".into();
+    let manifest = jsonl_manifest(dir.path(), "jobs.jsonl", &lines);
+    let out = dir.path().join("out");
+    batch(&manifest, &out, &[], &[], false);
+    let errors: Vec<String> = records(&out.join("results.jsonl"))
+        .iter()
+        .map(|r| r["error"].as_str().unwrap_or("ok").to_string())
+        .collect();
+    assert_eq!(errors.len(), 4, "{errors:?}");
+    assert_eq!(errors[0], "ok");
+    for (error, line) in errors[1..]
+        .iter()
+        .zip(["line 2: ", "line 10: ", "line 11: "])
+    {
+        assert!(error.contains(&format!("jobs.jsonl {line}")), "{errors:?}");
+    }
+}
+
 /// Issue 15's whole-collection run: a JSONL batch over every model file in the shared samples
 /// (MESHTRACER_SAMPLES: glTF, GLB and OBJ, the encoded, animated and variant ones included)
 /// plus a broken file records exactly one failed job, naming the file, and renders every
