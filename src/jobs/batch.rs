@@ -324,6 +324,8 @@ pub struct Entry {
     /// Where the manifest gives the job, for its errors (`jobs.jsonl line 3`); `None` for a
     /// model found in a folder, whose own path says where.
     pub origin: Option<String>,
+    /// The line of a JSONL manifest that gives the job, counted from 1; `None` in a folder.
+    pub line: Option<usize>,
     /// The job, or why there is none (without the [`origin`](Entry::origin), which
     /// [`JobRecord::failed`] puts in front).
     pub job: Result<Job, String>,
@@ -360,23 +362,42 @@ pub fn read_manifest(path: &Path) -> Result<Vec<Entry>, ManifestError> {
         };
         read_jsonl(&bytes, path, folder)
     };
-    let mut uses: HashMap<String, usize> = HashMap::new();
-    for entry in &entries {
-        if let (Some(id), Ok(_)) = (&entry.id, &entry.job) {
-            *uses.entry(id.clone()).or_default() += 1;
-        }
-    }
-    for entry in &mut entries {
-        if let (Some(id), Ok(_)) = (&entry.id, &entry.job) {
-            let n = uses[id];
-            if n > 1 {
-                entry.job = Err(format!(
-                    "job id '{id}' is given to {n} jobs of the manifest: ids name output folders and must be unique"
-                ));
-            }
-        }
-    }
+    refuse_shared_ids(&mut entries);
     Ok(entries)
+}
+
+/// Fails every job whose id another job of the manifest has too, naming all of them (their
+/// lines, or for a folder their model files), so that each can be fixed from its own record.
+fn refuse_shared_ids(entries: &mut [Entry]) {
+    let mut uses: HashMap<String, Vec<usize>> = HashMap::new();
+    for (i, entry) in entries.iter().enumerate() {
+        if let (Some(id), Ok(_)) = (&entry.id, &entry.job) {
+            uses.entry(id.clone()).or_default().push(i);
+        }
+    }
+    for (id, sharing) in uses {
+        if sharing.len() < 2 {
+            continue;
+        }
+        let lines: Option<Vec<String>> = sharing
+            .iter()
+            .map(|&i| entries[i].line.map(|n| n.to_string()))
+            .collect();
+        let places = match lines {
+            Some(lines) => format!("lines {}", lines.join(", ")),
+            None => sharing
+                .iter()
+                .map(|&i| entries[i].model.clone().unwrap_or_default())
+                .collect::<Vec<_>>()
+                .join(", "),
+        };
+        for &i in &sharing {
+            entries[i].job = Err(format!(
+                "job id '{id}' is given to {} jobs of the manifest ({places}): ids name output folders and must be unique",
+                sharing.len()
+            ));
+        }
+    }
 }
 
 /// Every model file below `root`, and every zip holding one (a zipped download), sorted by
@@ -458,6 +479,7 @@ fn read_folder(root: &Path) -> Result<Vec<Entry>, ManifestError> {
                     id: Some(id),
                     model: Some(text),
                     origin: None,
+                    line: None,
                     job,
                 },
             )
@@ -521,6 +543,7 @@ fn read_jsonl(bytes: &[u8], path: &Path, folder: &Path) -> Vec<Entry> {
             id,
             model,
             origin: Some(format!("{} line {}", path.display(), n + 1)),
+            line: Some(n + 1),
             job,
         });
     }

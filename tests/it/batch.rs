@@ -535,6 +535,52 @@ fn id_less_lines_are_recorded_in_line_order() {
     }
 }
 
+/// An id given to several jobs fails each of them, and each record names every line (in a
+/// folder: every model file) that shares it, so that all can be found from any one.
+#[test]
+fn a_shared_id_names_every_line_that_shares_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let lines = [
+        r#"{"id": "twin", "model": "cornell-box.gltf"}"#,
+        r#"{"model": "sub/shapes.obj"}"#,
+        r#"{"id": "twin", "model": "sub/shapes.obj"}"#,
+        r#"{"id": "twin", "model": "cornell-box.gltf", "spp": 2}"#,
+    ]
+    .map(String::from);
+    let manifest = jsonl_manifest(dir.path(), "jobs.jsonl", &lines);
+    let out = dir.path().join("out");
+    batch(&manifest, &out, &[], &[], false);
+    let twins: Vec<Value> = records(&out.join("results.jsonl"))
+        .into_iter()
+        .filter(|r| r["id"] == "twin")
+        .collect();
+    assert_eq!(twins.len(), 3);
+    for (twin, line) in twins.iter().zip([1, 3, 4]) {
+        let error = twin["error"].as_str().unwrap();
+        assert!(
+            error.starts_with(&format!("{} line {line}: ", s(&manifest)))
+                && error
+                    .contains("job id 'twin' is given to 3 jobs of the manifest (lines 1, 3, 4)"),
+            "{error}"
+        );
+    }
+    // A folder: `twin.gltf` and `twin.obj` both have the id `twin`.
+    let folder = dir.path().join("folder");
+    std::fs::create_dir_all(&folder).unwrap();
+    let assets = root().join("assets");
+    std::fs::copy(assets.join("cornell-box.gltf"), folder.join("twin.gltf")).unwrap();
+    std::fs::copy(assets.join("shapes.obj"), folder.join("twin.obj")).unwrap();
+    let out = dir.path().join("folder-out");
+    batch(&folder, &out, &[], &[], false);
+    for twin in records(&out.join("results.jsonl")) {
+        let error = twin["error"].as_str().unwrap();
+        assert!(
+            error.contains("is given to 2 jobs of the manifest (twin.gltf, twin.obj)"),
+            "{error}"
+        );
+    }
+}
+
 /// Issue 15's whole-collection run: a JSONL batch over every model file in the shared samples
 /// (MESHTRACER_SAMPLES: glTF, GLB and OBJ, the encoded, animated and variant ones included)
 /// plus a broken file records exactly one failed job, naming the file, and renders every
