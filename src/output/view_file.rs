@@ -223,6 +223,31 @@ fn key_path(key: &serde_ignored::Path) -> String {
     }
 }
 
+/// The keys of the environment's `source` object in `text` that its type does not have
+/// (`{"type": "uniform", "radiance": [1, 1, 1], "intesity": 2}`), as paths from the top
+/// (`environment.source.intesity`), in the order of their names. The source is a tagged enum,
+/// which serde reads through a buffer of its own, so `serde_ignored` never sees its keys: they
+/// are found here instead, as those that the source parsed from `text` does not write back.
+fn unknown_source_keys(text: &str, view: &ViewFile) -> Vec<String> {
+    let Some(environment) = &view.environment else {
+        return Vec::new();
+    };
+    let (Ok(known), Ok(file)) = (
+        serde_json::to_value(&environment.source),
+        serde_json::from_str::<serde_json::Value>(text),
+    ) else {
+        return Vec::new();
+    };
+    let Some(given) = file["environment"]["source"].as_object() else {
+        return Vec::new();
+    };
+    given
+        .keys()
+        .filter(|key| known.get(key.as_str()).is_none())
+        .map(|key| format!("environment.source.{key}"))
+        .collect()
+}
+
 /// One id of the segmentation AOV.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SegmentId {
@@ -320,13 +345,16 @@ impl ViewFile {
     /// Parses and checks the text of a view file (`path` names it in errors), and lists the
     /// keys that no view file has, in file order, as paths from the top (`camera.yfvo`,
     /// `lights[1].colour`): a misspelt key would otherwise be dropped unseen, and the render
-    /// made without it. Inside an environment's `source` (a tagged enum, which serde reads
-    /// through a buffer of its own) unknown keys are not seen.
+    /// made without it. Those inside an environment's `source` come last, in the order of
+    /// their names ([`unknown_source_keys`]).
     pub fn parse(text: &str, path: &Path) -> Result<(ViewFile, Vec<String>), ViewError> {
         let mut unknown = Vec::new();
         let mut json = serde_json::Deserializer::from_str(text);
         let view = serde_ignored::deserialize(&mut json, |key| unknown.push(key_path(&key)))
             .and_then(|view| json.end().map(|()| view));
+        if let Ok(view) = &view {
+            unknown.extend(unknown_source_keys(text, view));
+        }
         // A refusal names the unknown keys too: a misspelt key ("yfvo") is often why the
         // field the refusal is about is missing.
         let err = |problem: String| ViewError {
@@ -751,6 +779,9 @@ mod tests {
         edited["camera"]["yfvo"] = 0.5.into();
         edited["lights"][0]["colour"] = serde_json::json!([1, 0, 0]);
         edited["environment"]["rotaton"] = 90.into();
+        // Inside the source: a typo, and a key of another type of source (a file's).
+        edited["environment"]["source"]["radiance_"] = serde_json::json!([2, 2, 2]);
+        edited["environment"]["source"]["path"] = "studio.hdr".into();
         let (read, unknown) = ViewFile::parse(&edited.to_string(), path).unwrap();
         assert_eq!(read, full);
         assert_eq!(
@@ -759,7 +790,9 @@ mod tests {
                 "camera.yfvo",
                 "environment.rotaton",
                 "exposur",
-                "lights[0].colour"
+                "lights[0].colour",
+                "environment.source.path",
+                "environment.source.radiance_"
             ]
         );
 

@@ -1248,9 +1248,9 @@ fn the_view_round_trips() {
 }
 
 /// A view file as `--view-out` writes it (path tracer, studio environment, denoise record,
-/// segmentation table) reads back without a warning; one with a misspelt key (`yfvo`) renders
-/// with a warning naming the file and the key, and under `--strict` is refused, nothing
-/// written.
+/// segmentation table) reads back without a warning; one with a misspelt key (`yfvo`, or
+/// `florr` inside the environment's source) renders with a warning naming the file and the
+/// key, and under `--strict` is refused, nothing written.
 #[test]
 fn a_view_file_key_no_view_has_is_warned_of_and_refused_under_strict() {
     let dir = tempfile::tempdir().unwrap();
@@ -1284,26 +1284,36 @@ fn a_view_file_key_no_view_has_is_warned_of_and_refused_under_strict() {
     let err = render(&["--view", s(&view), "--strict"], true);
     assert!(!err.contains("warning"), "{err}");
 
-    let mut typo = v.clone();
-    typo["camera"]["yfvo"] = json!(0.5);
-    let misspelt = dir.path().join("misspelt.json");
-    std::fs::write(&misspelt, serde_json::to_vec(&typo).unwrap()).unwrap();
-    std::fs::remove_file(&out).unwrap();
-    let err = render(&["--view", s(&misspelt)], true);
-    let expected = format!(
-        "warning: {}: unknown key 'camera.yfvo' (misspelt?): ignored",
-        misspelt.display()
-    );
-    assert!(err.contains(&expected), "{err}");
-    assert!(out.exists());
-    std::fs::remove_file(&out).unwrap();
-    let err = render(&["--view", s(&misspelt), "--strict"], false);
-    let expected = format!(
-        "error: {}: unknown key 'camera.yfvo' (misspelt?): --strict refuses the file",
-        misspelt.display()
-    );
-    assert!(err.contains(&expected), "{err}");
-    assert!(!out.exists(), "nothing written");
+    // A misspelt key of the camera, and one inside the environment's source (a tagged enum,
+    // which serde reads apart from the rest).
+    let typo_in = |key: &str| {
+        let mut typo = v.clone();
+        match key {
+            "camera.yfvo" => typo["camera"]["yfvo"] = json!(0.5),
+            _ => typo["environment"]["source"]["florr"] = json!(0.1),
+        }
+        typo
+    };
+    for key in ["camera.yfvo", "environment.source.florr"] {
+        let misspelt = dir.path().join("misspelt.json");
+        std::fs::write(&misspelt, serde_json::to_vec(&typo_in(key)).unwrap()).unwrap();
+        let _ = std::fs::remove_file(&out);
+        let err = render(&["--view", s(&misspelt)], true);
+        let expected = format!(
+            "warning: {}: unknown key '{key}' (misspelt?): ignored",
+            misspelt.display()
+        );
+        assert!(err.contains(&expected), "{err}");
+        assert!(out.exists());
+        std::fs::remove_file(&out).unwrap();
+        let err = render(&["--view", s(&misspelt), "--strict"], false);
+        let expected = format!(
+            "error: {}: unknown key '{key}' (misspelt?): --strict refuses the file",
+            misspelt.display()
+        );
+        assert!(err.contains(&expected), "{err}");
+        assert!(!out.exists(), "nothing written");
+    }
 }
 
 /// The AOVs of the bundled scene: instance ids match the view's table, normals and depth are
