@@ -52,7 +52,8 @@ env_intensity=1.0, env_visible=False, progress=None)``
     prints after ``meshtracer: error:``, naming the file and the part.
 
 ``MissingFileError``
-    The ``Error`` raised when the model file or the ``env`` panorama does not exist. It is
+    The ``Error`` raised when a file does not exist: the model, a buffer or (with
+    ``strict=True``) a texture it refers to, or the ``env`` panorama. It is
     also a ``FileNotFoundError``, so ``except FileNotFoundError`` and ``except OSError`` catch
     it as well as ``except meshtracer.Error``.
 """

@@ -27,7 +27,7 @@ use meshtracer::output::view_file::MAX_VIEW_BOUNCES;
 use meshtracer::prepare::{PrepareOptions, Prepared};
 use meshtracer::render::{render, Region, RenderSettings};
 use meshtracer::scene::{
-    Camera, Light, LoadError, LoadErrorKind, LoadOptions, MeshArrays, PoseOptions, Projection,
+    Camera, Light, LoadError, LoadOptions, MeshArrays, PoseOptions, Projection,
 };
 use meshtracer::setup::{self, LightingOptions};
 use meshtracer::shading::ShadingModel;
@@ -60,8 +60,9 @@ fn missing_file_error_type(py: Python<'_>) -> PyResult<&Bound<'_, PyType>> {
         namespace.set_item("__module__", "meshtracer")?;
         namespace.set_item(
             "__doc__",
-            "A file to read does not exist (the model, or the panorama of `env`): both a \
-             meshtracer.Error, with the CLI's message, and a FileNotFoundError.",
+            "A file to read does not exist (the model, a buffer or, with strict=True, a \
+             texture it refers to, or the panorama of `env`): both a meshtracer.Error, with \
+             the CLI's message naming the file, and a FileNotFoundError.",
         )?;
         let bases = (py.get_type::<Error>(), py.get_type::<PyFileNotFoundError>());
         let class = py
@@ -86,11 +87,10 @@ fn file_error(py: Python<'_>, message: String, missing: bool) -> PyErr {
 
 /// A load error as the CLI prints it (anyhow's alternate form, the error and its sources
 /// joined by ": ", as `main.rs` prints `meshtracer: error: {e:#}`), a [`MISSING_FILE_ERROR`]
-/// when the file it names (the model itself: a missing buffer or texture is an error of the
-/// model's, with a message of its own) does not exist.
+/// when a file it needs does not exist: the model, a buffer, or (with `strict=True`) a
+/// texture ([`LoadError::missing_file`]); the message names that file.
 fn load_error(py: Python<'_>, error: LoadError) -> PyErr {
-    let missing =
-        matches!(&error.kind, LoadErrorKind::Io(e) if e.kind() == std::io::ErrorKind::NotFound);
+    let missing = error.missing_file().is_some();
     file_error(py, format!("{:#}", anyhow::Error::from(error)), missing)
 }
 

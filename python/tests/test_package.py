@@ -75,6 +75,63 @@ def test_a_missing_file_is_also_a_file_not_found_error(tmp_path):
     assert not isinstance(caught.value, OSError)
 
 
+def textured_triangle_gltf(folder, buffer_uri, image_uri):
+    """A glTF of one textured triangle with its buffer in `buffer_uri` (written when it is
+    `tri.bin`) and its texture in `image_uri` (written when it is `tex.png`), and its path."""
+    import struct
+
+    from PIL import Image
+
+    data = struct.pack("<9f6f", 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 1)
+    (folder / "tri.bin").write_bytes(data)
+    Image.new("RGB", (2, 2), (200, 30, 30)).save(folder / "tex.png")
+    gltf = {
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0, "TEXCOORD_0": 1},
+                                    "material": 0}]}],
+        "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+        "textures": [{"source": 0}], "images": [{"uri": image_uri}],
+        "buffers": [{"byteLength": len(data), "uri": buffer_uri}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36},
+                        {"buffer": 0, "byteOffset": 36, "byteLength": 24}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 0]},
+                      {"bufferView": 1, "componentType": 5126, "count": 3, "type": "VEC2"}],
+    }
+    path = folder / f"{Path(buffer_uri).stem}-{Path(image_uri).stem}.gltf"
+    path.write_text(json.dumps(gltf))
+    return path
+
+
+def test_a_missing_buffer_or_texture_is_a_missing_file_error(cli, tmp_path):
+    """A buffer file that is missing, and under strict=True a texture file, raise
+    MissingFileError (so FileNotFoundError too) naming the file, with the CLI's message; a
+    missing texture without strict is a warning, as in the CLI."""
+    no_buffer = textured_triangle_gltf(tmp_path, "no-such.bin", "tex.png")
+    with pytest.raises(meshtracer.MissingFileError) as caught:
+        meshtracer.load(no_buffer)
+    assert isinstance(caught.value, FileNotFoundError)
+    assert "no-such.bin" in str(caught.value), str(caught.value)
+    assert str(caught.value) == cli_error_message(cli("info", no_buffer, check=False))
+
+    no_texture = textured_triangle_gltf(tmp_path, "tri.bin", "no-such.png")
+    with pytest.raises(meshtracer.MissingFileError) as caught:
+        meshtracer.load(no_texture, strict=True)
+    assert "no-such.png" in str(caught.value), str(caught.value)
+    out = tmp_path / "out.png"
+    refused = cli("render", no_texture, "-o", out, "--strict", "-q", check=False)
+    assert str(caught.value) == cli_error_message(refused)
+    meshtracer.load(no_texture)
+
+    # A file that is there but broken stays a plain Error.
+    whole = textured_triangle_gltf(tmp_path, "tri.bin", "tex.png")
+    (tmp_path / "tri.bin").write_bytes(b"\0" * 8)
+    with pytest.raises(meshtracer.Error) as caught:
+        meshtracer.load(whole)
+    assert not isinstance(caught.value, OSError)
+
+
 def test_broken_gltf_raises_the_clis_message(cli, tmp_path):
     broken = tmp_path / "broken.gltf"
     broken.write_text('{"asset": {"version": "2.0"}, "meshes": [')

@@ -21,6 +21,18 @@ impl LoadError {
             kind,
         }
     }
+
+    /// The file whose absence is the error, if that is what it is: the model itself, or a
+    /// buffer or texture it refers to ([`LoadErrorKind::MissingFile`]). A caller can then
+    /// tell a missing file from a broken one (the Python package raises `MissingFileError`,
+    /// also a `FileNotFoundError`).
+    pub fn missing_file(&self) -> Option<&Path> {
+        match &self.kind {
+            LoadErrorKind::Io(e) if e.kind() == std::io::ErrorKind::NotFound => Some(&self.path),
+            LoadErrorKind::MissingFile { file, .. } => Some(file),
+            _ => None,
+        }
+    }
 }
 
 /// Where in a glTF mesh a problem is.
@@ -44,6 +56,15 @@ pub enum LoadErrorKind {
     /// Reading a file failed (missing, unreadable).
     #[error("{0}")]
     Io(#[source] std::io::Error),
+    /// A file the model refers to (a buffer; a texture under `--strict`) does not exist:
+    /// `problem` is the error about it, displayed as it is, and `file` the path looked for.
+    #[error("{problem}")]
+    MissingFile {
+        /// The file looked for, resolved against the model's folder.
+        file: PathBuf,
+        /// The error, which names the file as the model gives it.
+        problem: Box<LoadErrorKind>,
+    },
     /// A directory was given where a file was expected.
     #[error("is a folder, not a file")]
     IsDirectory,

@@ -375,6 +375,28 @@ pub(crate) struct UnusableImage {
     pub origin: String,
     /// What is wrong, naming the resolved file where there is one.
     pub problem: String,
+    /// The file looked for, when what is wrong is that it does not exist.
+    pub missing: Option<std::path::PathBuf>,
+}
+
+impl UnusableImage {
+    /// The image `image` (`origin` as the file gives it) that cannot be used because of
+    /// `problem`; `path`, the file it was looked for in, is recorded as missing when no file
+    /// is there.
+    pub(crate) fn new(
+        image: usize,
+        origin: String,
+        problem: String,
+        path: Option<&std::path::Path>,
+    ) -> UnusableImage {
+        let missing = path.filter(|p| matches!(p.try_exists(), Ok(false)));
+        UnusableImage {
+            image,
+            origin,
+            problem,
+            missing: missing.map(std::path::Path::to_path_buf),
+        }
+    }
 }
 
 /// A missing texture is not a missing model (what Blender and the web viewers do): every
@@ -412,12 +434,19 @@ pub(crate) fn draw_without(
             _ => format!("materials {}", users.join(", ")),
         };
         if strict {
-            return Err(LoadErrorKind::Image {
+            let problem = LoadErrorKind::Image {
                 image: bad.image,
                 problem: format!(
                     "{}: {}; used by {used_by} (--strict refuses a missing texture)",
                     bad.origin, bad.problem
                 ),
+            };
+            return Err(match &bad.missing {
+                Some(file) => LoadErrorKind::MissingFile {
+                    file: file.clone(),
+                    problem: Box::new(problem),
+                },
+                None => problem,
             });
         }
         let consequence = match users.len() {

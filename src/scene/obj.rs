@@ -281,11 +281,12 @@ fn map_materials(
                         ),
                     };
                     if let Err(problem) = checked {
-                        unusable.push(UnusableImage {
-                            image: images.len(),
-                            origin: file.to_string(),
+                        unusable.push(UnusableImage::new(
+                            images.len(),
+                            file.to_string(),
                             problem,
-                        });
+                            source.path.as_deref(),
+                        ));
                     }
                     images.push(source);
                     textures.push(Texture {

@@ -544,7 +544,7 @@ fn cases() -> Vec<Case> {
         edited(
             "missing image file",
             |j, _| with_image(j, "missing.png"),
-            |k| matches!(k, K::Image { image: 0, .. }),
+            |k| matches!(k, K::MissingFile { problem, .. } if matches!(**problem, K::Image { image: 0, .. })),
         ),
         edited(
             "image that is not an image",
@@ -688,7 +688,10 @@ fn cases() -> Vec<Case> {
             "OBJ with a missing texture",
             b"mtllib m.mtl\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
             vec![("m.mtl".into(), b"newmtl a\nmap_Kd gone.png\n".to_vec())],
-            |k| matches!(k, K::Image { problem, .. } if problem.contains("gone.png")),
+            |k| {
+                matches!(k, K::MissingFile { problem, .. }
+                    if matches!(&**problem, K::Image { problem, .. } if problem.contains("gone.png")))
+            },
         ),
         obj_case(
             "OBJ face index that is not a number",
@@ -850,7 +853,8 @@ fn cases() -> Vec<Case> {
     ]);
     // The missing-.bin case: the base with no tri.bin written.
     cases[18].files.truncate(1);
-    cases[18].expect = |k| matches!(k, K::Buffer { buffer: 0, .. });
+    // The file is missing: the buffer's error says so (`LoadError::missing_file`).
+    cases[18].expect = |k| matches!(k, K::MissingFile { problem, .. } if matches!(**problem, K::Buffer { buffer: 0, .. }));
     cases
 }
 

@@ -467,12 +467,19 @@ pub(super) fn load_buffers<'a>(
                     access
                         .read_prefix(&file, buffer.length() as u64)
                         .map_err(|e| {
-                            model_err(LoadErrorKind::Buffer {
+                            let problem = LoadErrorKind::Buffer {
                                 buffer: index,
                                 // The URI as the file gives it, beside the model the error
                                 // names: a zip's model is read from a temporary folder whose
                                 // path means nothing to the user (and is gone by then).
                                 problem: format!("cannot read '{uri}': {}", e.kind),
+                            };
+                            model_err(match e.missing_file() {
+                                Some(missing) => LoadErrorKind::MissingFile {
+                                    file: missing.to_path_buf(),
+                                    problem: Box::new(problem),
+                                },
+                                None => problem,
                             })
                         })?,
                 )

@@ -206,11 +206,12 @@ pub(super) fn images(
                 ));
             }
             if switched == 0 || textures.iter().any(|t| t.image == index) {
-                unusable.push(UnusableImage {
-                    image: index,
-                    origin: source.origin.clone(),
+                unusable.push(UnusableImage::new(
+                    index,
+                    source.origin.clone(),
                     problem,
-                });
+                    source.path.as_deref(),
+                ));
             }
         }
         out.push(source);
