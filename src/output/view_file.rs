@@ -346,7 +346,7 @@ impl ViewFile {
     /// keys that no view file has, in file order, as paths from the top (`camera.yfvo`,
     /// `lights[1].colour`): a misspelt key would otherwise be dropped unseen, and the render
     /// made without it. Those inside an environment's `source` come last, in the order of
-    /// their names ([`unknown_source_keys`]).
+    /// their names (`unknown_source_keys`).
     pub fn parse(text: &str, path: &Path) -> Result<(ViewFile, Vec<String>), ViewError> {
         let mut unknown = Vec::new();
         let mut json = serde_json::Deserializer::from_str(text);
