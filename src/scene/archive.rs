@@ -83,13 +83,25 @@ pub(super) fn is_zip(path: &Path) -> bool {
         .is_ok_and(|()| &head == MAGIC || &head == EMPTY_MAGIC)
 }
 
+/// Why a file that starts as a zip could not be opened as one, in a user's words: a file
+/// without the directory a zip ends with was most likely cut short.
+fn unreadable(e: &zip::result::ZipError) -> String {
+    match e {
+        zip::result::ZipError::InvalidArchive(why) if why.contains("Could not find EOCD") => {
+            "not a readable zip archive: the directory a zip ends with is missing (is the file \
+             complete, or was the download cut short?)"
+                .to_string()
+        }
+        e => format!("not a readable zip archive ({e})"),
+    }
+}
+
 /// Unpacks the zip archive at `path` into a new temporary folder, at most `max_bytes` of it,
 /// and names the one model in it (relative to the folder).
 pub(super) fn unpack(path: &Path, max_bytes: u64) -> Result<(Archive, PathBuf), LoadErrorKind> {
     let bad = |problem: String| LoadErrorKind::Archive(problem);
     let file = std::fs::File::open(path).map_err(LoadErrorKind::Io)?;
-    let mut zip =
-        zip::ZipArchive::new(file).map_err(|e| bad(format!("not a readable zip archive ({e})")))?;
+    let mut zip = zip::ZipArchive::new(file).map_err(|e| bad(unreadable(&e)))?;
     if zip.len() > MAX_ENTRIES {
         return Err(bad(format!(
             "{} entries, over the limit of {MAX_ENTRIES}",
@@ -164,8 +176,11 @@ fn the_model<R: std::io::Read + std::io::Seek>(
 /// (`.gltf`, `.glb`, `.obj`; macOS's resource forks aside): what a batch's folder manifest
 /// takes for a zipped download. A model entry whose path leaves the archive (`../m.gltf`,
 /// `/m.glb`) counts: the job is then refused when it loads, naming the zip and the entry,
-/// rather than the zip left out of the batch without a word. Only the archive's directory is
-/// read; nothing is unpacked. An archive that cannot be read is not one.
+/// rather than the zip left out of the batch without a word. So does a file that starts as a
+/// zip but whose directory cannot be read (a download cut short) or lists more than
+/// `MAX_ENTRIES` entries: what it holds is unknown, and its job fails naming the problem. Only
+/// the archive's directory is read; nothing is unpacked. A file that only ends in `.zip` is
+/// not one.
 pub fn holds_a_model(path: &Path) -> bool {
     let Ok(mut file) = std::fs::File::open(path) else {
         return false;
@@ -176,11 +191,15 @@ pub fn holds_a_model(path: &Path) -> bool {
     if file.read_exact(&mut head).is_err() || &head != MAGIC {
         return false;
     }
-    zip::ZipArchive::new(file)
-        .ok()
-        .filter(|zip| zip.len() <= MAX_ENTRIES)
-        .and_then(|mut zip| models_in(&mut zip, u64::MAX).ok())
-        .is_some_and(|found| !found.models.is_empty() || !found.refused.is_empty())
+    let Ok(mut zip) = zip::ZipArchive::new(file) else {
+        return true;
+    };
+    if zip.len() > MAX_ENTRIES {
+        return true;
+    }
+    models_in(&mut zip, u64::MAX).map_or(true, |found| {
+        !found.models.is_empty() || !found.refused.is_empty()
+    })
 }
 
 /// The model files among an archive's entries.

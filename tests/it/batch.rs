@@ -280,8 +280,8 @@ fn a_folder_batch_records_every_model_and_isolates_the_broken_one() {
 
 /// A folder of zipped downloads: each zip holding a model is a job (id: its path without
 /// `.zip`) that renders as the model's files do, one holding two fails naming them, so does
-/// one whose only model leaves the archive (`../evil.gltf`, `/abs.glb`), and a zip without a
-/// model, a file that only ends in `.zip`, a zip beside its unzipped copy and one
+/// one whose only model leaves the archive (`../evil.gltf`, `/abs.glb`) and so does one cut
+/// short (a download that did not finish: its directory is lost), and a zip without a model, a file that only ends in `.zip`, a zip beside its unzipped copy and one
 /// beside a model of its id are not jobs.
 #[test]
 fn a_folder_batch_renders_zipped_downloads_once() {
@@ -316,6 +316,8 @@ fn a_folder_batch_renders_zipped_downloads_once() {
     zip("two.zip", &two);
     zip("evil.zip", &[("../evil.gltf", b"{}".to_vec())]);
     zip("absolute.zip", &[("/abs.glb", b"glTF".to_vec())]);
+    let whole = std::fs::read(models.join("shapes.zip")).unwrap();
+    std::fs::write(models.join("cut.zip"), &whole[..whole.len() / 2]).unwrap();
 
     let out = dir.path().join("out");
     let run = batch(&models, &out, &[], &[], false);
@@ -326,6 +328,7 @@ fn a_folder_batch_renders_zipped_downloads_once() {
         [
             "absolute",
             "box",
+            "cut",
             "duck/duck",
             "evil",
             "plain/shapes",
@@ -343,6 +346,13 @@ fn a_folder_batch_renders_zipped_downloads_once() {
             "{error}"
         );
     }
+    let cut = &jobs["cut"];
+    assert_eq!(cut["status"], "failed");
+    let error = cut["error"].as_str().unwrap();
+    assert!(
+        error.contains("cut.zip") && error.contains("not a readable zip archive"),
+        "{error}"
+    );
     let two = &jobs["two"];
     assert_eq!(two["status"], "failed");
     let error = two["error"].as_str().unwrap();
