@@ -179,8 +179,8 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
             format!(" of shard {shard} ({} in the manifest)", entries.len())
         };
         note!(
-            "batch: {} jobs{of}: {} ok, {} skipped, {failed} failed in {:.1} s -> {}",
-            records.len(),
+            "batch: {}{of}: {} ok, {} skipped, {failed} failed in {:.1} s -> {}",
+            super::counted(records.len(), "job"),
             count(Status::Ok),
             count(Status::Skipped),
             start.elapsed().as_secs_f64(),
@@ -1041,8 +1041,9 @@ pub(super) fn merge_command(args: &BatchMergeArgs) -> Result<()> {
     if !args.quiet {
         let count_of = |status| records.iter().filter(|r| r.status == status).count();
         note!(
-            "batch-merge: {count} shards, {} jobs: {} ok, {} skipped, {} failed -> {}",
-            records.len(),
+            "batch-merge: {}, {}: {} ok, {} skipped, {} failed -> {}",
+            super::counted(count, "shard"),
+            super::counted(records.len(), "job"),
             count_of(Status::Ok),
             count_of(Status::Skipped),
             count_of(Status::Failed),

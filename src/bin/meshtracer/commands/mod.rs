@@ -332,9 +332,16 @@ pub(crate) fn preset_label(
 
 /// `1 thread`, `2 threads`: a report's thread count with its noun.
 pub(crate) fn threads_label(threads: usize) -> String {
-    match threads {
-        1 => "1 thread".to_string(),
-        n => format!("{n} threads"),
+    counted(threads, "thread")
+}
+
+/// A count with its noun, singular for one: `1 job`, `0 jobs`, `2 jobs` (nouns whose plural
+/// adds an `s`).
+pub(crate) fn counted(n: usize, noun: &str) -> String {
+    if n == 1 {
+        format!("1 {noun}")
+    } else {
+        format!("{n} {noun}s")
     }
 }
 
@@ -462,9 +469,9 @@ fn info(args: &InfoArgs) -> Result<()> {
     );
     out!("materials   {}", scene.materials.len());
     out!(
-        "textures    {} ({} images)",
+        "textures    {} ({})",
         scene.textures.len(),
-        scene.images.len()
+        counted(scene.images.len(), "image")
     );
     if !scene.variants.is_empty() {
         let names: Vec<String> = scene.variants.iter().map(|v| format!("'{v}'")).collect();
@@ -827,4 +834,33 @@ fn compare_command(args: &crate::cli::CompareArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_are_singular_for_one() {
+        assert_eq!(counted(0, "job"), "0 jobs");
+        assert_eq!(counted(1, "job"), "1 job");
+        assert_eq!(counted(2, "triangle"), "2 triangles");
+        assert_eq!(threads_label(1), "1 thread");
+        assert_eq!(threads_label(8), "8 threads");
+    }
+
+    #[test]
+    fn spp_is_the_mean_over_the_pixels_rendered_when_adaptive() {
+        assert_eq!(spp_label(16, None, 999, 10), "16 spp");
+        // 2 samples a pixel over a 1024x384 tile: its own pixels, not the whole image's.
+        assert_eq!(
+            spp_label(32, Some(1.0), 2 * 1024 * 384, 1024 * 384),
+            "2.0 spp (adaptive to noise 1, at most 32)"
+        );
+        // No pixels (an empty region) divides by one, not zero.
+        assert_eq!(
+            spp_label(4, Some(0.5), 0, 0),
+            "0.0 spp (adaptive to noise 0.5, at most 4)"
+        );
+    }
 }

@@ -834,7 +834,6 @@ pub(super) fn denoiser_label(report: &Denoised) -> String {
     }
 }
 
-/// Prints the one summary line of a single-view render on standard error: the load, the
 /// The summary's textures: "no textures", or their decoded size (MB, or KB under one MB) and
 /// decoding time.
 fn textures_label(bytes: usize, time: Duration) -> String {
@@ -846,6 +845,7 @@ fn textures_label(bytes: usize, time: Duration) -> String {
     }
 }
 
+/// Prints the one summary line of a single-view render on standard error: the load, the
 /// textures, the acceleration structure, the render and its rays, the denoiser, peak memory.
 fn print_summary(args: &RenderArgs, done: &Finished) {
     let Rendered {
@@ -876,17 +876,27 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
         }
         None => String::new(),
     };
+    let region = done.shot.region;
+    let size = if region == meshtracer::render::Region::full(width, height) {
+        format!("{width}x{height}")
+    } else {
+        format!(
+            "{}x{} of {width}x{height} from ({}, {})",
+            region.width, region.height, region.x, region.y
+        )
+    };
     let spp = super::spp_label(
         done.settings.spp,
         done.settings.noise,
         stats.samples,
-        u64::from(width) * u64::from(height),
+        // The pixels rendered: a tile's own, not the whole image's.
+        u64::from(region.width) * u64::from(region.height),
     );
     note!(
-        "{}: {} triangles, loaded in {:.1} ms, {}, {structure}, {width}x{height} at {spp} rendered in {:.3} s ({:.0} samples/s{}){denoise_note}, peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {} -> {}",
+        "{}: {}, loaded in {:.1} ms, {}, {structure}, {size} at {spp} rendered in {:.3} s ({:.0} samples/s{}){denoise_note}, peak memory {}: {} rays ({} primary, {} shadow{}), {:.2} Mrays/s on {} -> {}",
         // The file drawn: the model given, or the one inside the archive or folder given.
         scene.source.display(),
-        scene.soup.len(),
+        super::counted(scene.soup.len(), "triangle"),
         done.load_time.as_secs_f64() * 1e3,
         textures_label(prepared.textures.bytes, *texture_time),
         stats.time.as_secs_f64(),
@@ -907,4 +917,18 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
         super::threads_label(threads),
         args.output.display()
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn textures_are_counted_in_kilobytes_under_a_megabyte() {
+        let ms = Duration::from_micros(2500);
+        assert_eq!(textures_label(0, ms), "no textures");
+        assert_eq!(textures_label(1, ms), "1 KB of textures in 2.5 ms");
+        assert_eq!(textures_label(1025, ms), "2 KB of textures in 2.5 ms");
+        assert_eq!(textures_label(3 << 20, ms), "3 MB of textures in 2.5 ms");
+    }
 }

@@ -306,8 +306,8 @@ pub(super) fn merge_command(args: &MergeArgs) -> Result<()> {
             _ => String::new(),
         };
         note!(
-            "merged {} tiles into {}x{}{denoise_note} -> {}",
-            tiles.len(),
+            "merged {} into {}x{}{denoise_note} -> {}",
+            super::counted(tiles.len(), "tile"),
             size.width,
             size.height,
             args.output.display()

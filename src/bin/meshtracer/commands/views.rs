@@ -1505,10 +1505,10 @@ pub(super) fn write_sheet(
     if !quiet {
         let l = sheet.layout();
         note!(
-            "{}: {} {what} in {} columns, {}x{} pixels",
+            "{}: {} {what} in {}, {}x{} pixels",
             path.display(),
             l.count,
-            l.columns,
+            super::counted(l.columns as usize, "column"),
             l.width(),
             l.height()
         );
