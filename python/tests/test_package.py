@@ -105,7 +105,7 @@ def textured_triangle_gltf(folder, buffer_uri, image_uri):
 
 
 def test_a_missing_buffer_or_texture_is_a_missing_file_error(cli, tmp_path):
-    """A buffer file that is missing, and under strict=True a texture file, raise
+    """A buffer file that is missing, and under strict=True a texture or MTL file, raise
     MissingFileError (so FileNotFoundError too) naming the file, with the CLI's message; a
     missing texture without strict is a warning, as in the CLI."""
     no_buffer = textured_triangle_gltf(tmp_path, "no-such.bin", "tex.png")
@@ -123,6 +123,14 @@ def test_a_missing_buffer_or_texture_is_a_missing_file_error(cli, tmp_path):
     refused = cli("render", no_texture, "-o", out, "--strict", "-q", check=False)
     assert str(caught.value) == cli_error_message(refused)
     meshtracer.load(no_texture)
+
+    # An OBJ's material library too, under strict=True (else its faces are grey).
+    no_mtl = tmp_path / "no-mtl.obj"
+    no_mtl.write_text("mtllib no-such.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.raises(meshtracer.MissingFileError) as caught:
+        meshtracer.load(no_mtl, strict=True)
+    assert "no-such.mtl" in str(caught.value), str(caught.value)
+    meshtracer.load(no_mtl)
 
     # A file that is there but broken stays a plain Error.
     whole = textured_triangle_gltf(tmp_path, "tri.bin", "tex.png")

@@ -43,7 +43,7 @@ use super::texture::{Sampler, Texture};
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::RefCell;
 use std::collections::HashMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Loads an OBJ file whose bytes are already read.
 pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<Scene, LoadError> {
@@ -183,12 +183,21 @@ fn parse(path: &Path, text: &str, access: &FileAccess, strict: bool) -> Result<P
     let err = |kind| LoadError::new(path, kind);
     let mtl_error: RefCell<Option<LoadError>> = RefCell::new(None);
     let unread: RefCell<Vec<String>> = RefCell::new(Vec::new());
-    // A library that cannot be used: a warning, or with `strict` the error.
-    let skip = |mtl: String, problem: String| {
+    // A library that cannot be used: a warning, or with `strict` the error (a missing file's,
+    // naming the path looked for, when it does not exist).
+    let skip = |mtl: String, problem: String, missing: Option<PathBuf>| {
         if strict {
             let problem = format!("{problem} (--strict refuses a missing MTL)");
+            let kind = LoadErrorKind::Mtl { mtl, problem };
+            let kind = match missing {
+                Some(file) => LoadErrorKind::MissingFile {
+                    file,
+                    problem: Box::new(kind),
+                },
+                None => kind,
+            };
             let mut first = mtl_error.borrow_mut();
-            first.get_or_insert_with(|| err(LoadErrorKind::Mtl { mtl, problem }));
+            first.get_or_insert_with(|| err(kind));
         } else {
             unread.borrow_mut().push(format!(
                 "MTL '{mtl}': {problem}; the faces using its materials get a grey default"
@@ -207,17 +216,20 @@ fn parse(path: &Path, text: &str, access: &FileAccess, strict: bool) -> Result<P
     let (models, materials) =
         tobj::load_obj_buf(&mut carried.as_bytes(), &load_options, |mtl_path: &Path| {
             let name = mtl_path.to_string_lossy().into_owned();
-            let read = access
-                .resolve("mtllib", &name)
-                .and_then(|p| access.read(&p).map(|b| (p, b)));
-            match read {
-                Ok((_, bytes)) => tobj::load_mtl_buf(&mut &bytes[..]).inspect_err(|e| {
-                    skip(name.clone(), format!("cannot parse it: {e}"));
+            let resolved = access.resolve("mtllib", &name);
+            let looked_for = resolved.as_ref().ok().cloned();
+            match resolved.and_then(|p| access.read(&p)) {
+                Ok(bytes) => tobj::load_mtl_buf(&mut &bytes[..]).inspect_err(|e| {
+                    skip(name.clone(), format!("cannot parse it: {e}"), None);
                 }),
                 Err(e) => {
                     match e.kind {
-                        LoadErrorKind::Io(io) => skip(name, format!("cannot read it: {io}")),
-                        LoadErrorKind::IsDirectory => skip(name, "it is a folder".into()),
+                        LoadErrorKind::Io(io) => {
+                            let missing =
+                                looked_for.filter(|_| io.kind() == std::io::ErrorKind::NotFound);
+                            skip(name, format!("cannot read it: {io}"), missing)
+                        }
+                        LoadErrorKind::IsDirectory => skip(name, "it is a folder".into(), None),
                         other => {
                             let problem = other.to_string();
                             let mut first = mtl_error.borrow_mut();
@@ -941,9 +953,15 @@ mod tests {
         };
         let refused = load(&model, text("gone.mtl").as_bytes(), &strict).unwrap_err();
         assert!(
-            matches!(&refused.kind, LoadErrorKind::Mtl { mtl, problem }
-                if mtl == "gone.mtl" && problem.contains("--strict")),
+            matches!(&refused.kind, LoadErrorKind::MissingFile { problem, .. }
+                if matches!(problem.as_ref(), LoadErrorKind::Mtl { mtl, problem }
+                    if mtl == "gone.mtl" && problem.contains("--strict"))),
             "{refused}"
+        );
+        // A missing library is a missing file, named as the path looked for.
+        assert_eq!(
+            refused.missing_file(),
+            Some(dir.path().join("m").join("gone.mtl").as_path())
         );
         let outside = load(&model, text("../outside.mtl").as_bytes(), &lenient).unwrap_err();
         assert!(
