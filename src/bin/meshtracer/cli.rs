@@ -138,6 +138,25 @@ pub struct LoadArgs {
     pub time: Option<f32>,
 }
 
+/// The most worker threads `--threads` takes: more than the largest machines' cores. Past a
+/// few thousand, starting the threads exhausts memory (each has its own stack) and the
+/// process fails inside the thread library instead of with a message.
+pub const MAX_THREADS: usize = 1024;
+
+/// A `--threads`: 0 (one per core) to [`MAX_THREADS`].
+fn parse_threads(text: &str) -> Result<usize, String> {
+    let threads: usize = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{text}' is not a whole number of threads"))?;
+    if threads > MAX_THREADS {
+        return Err(format!(
+            "{threads} threads: at most {MAX_THREADS} (0 = one per core)"
+        ));
+    }
+    Ok(threads)
+}
+
 /// A `--time`: a finite number of seconds, 0 or more.
 fn parse_time(text: &str) -> Result<f32, String> {
     let time: f32 = text
@@ -362,8 +381,8 @@ pub struct RenderArgs {
     /// than 32 rays a triangle (a big model, a small image), `medium` otherwise.
     #[arg(long, value_parser = choice::<BvhPreset>(), default_value = "auto")]
     pub bvh_preset: BvhPreset,
-    /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0)]
+    /// Worker threads (0 = one per core; at most 1024).
+    #[arg(long, default_value_t = 0, value_parser = parse_threads)]
     pub threads: usize,
     /// Exposure in stops: linear radiance is multiplied by 2^EV before encoding.
     #[arg(
@@ -675,8 +694,8 @@ pub struct BenchArgs {
     /// to be the same.
     #[arg(long)]
     pub packets: bool,
-    /// Worker threads (0 = one per core).
-    #[arg(long, default_value_t = 0)]
+    /// Worker threads (0 = one per core; at most 1024).
+    #[arg(long, default_value_t = 0, value_parser = parse_threads)]
     pub threads: usize,
     /// Write the table and the settings as Markdown here.
     #[arg(long, value_name = "FILE")]
@@ -909,6 +928,16 @@ mod tests {
             "ssim=-2",
         ] {
             assert!(parse_threshold(bad).is_err(), "{bad}");
+        }
+    }
+
+    /// Thousands of threads would fail inside the thread library (each needs its stack).
+    #[test]
+    fn threads_are_bounded() {
+        assert_eq!(parse_threads("0"), Ok(0));
+        assert_eq!(parse_threads("1024"), Ok(MAX_THREADS));
+        for bad in ["1025", "100000", "-1", "two", ""] {
+            assert!(parse_threads(bad).is_err(), "{bad}");
         }
     }
 
