@@ -366,7 +366,7 @@ impl PyScene {
             let file_camera = match camera {
                 Some(i) => Some(scene.cameras.get(i).ok_or_else(|| {
                     Error::new_err(format!(
-                        "{}: --camera {i}: the file has {} camera(s)",
+                        "{}: camera {i}: the file has {} camera(s)",
                         self.path.display(),
                         scene.cameras.len()
                     ))
@@ -641,25 +641,67 @@ fn check_plan_options(spec: &ViewSpec, options: &PlanOptions) -> PyResult<()> {
 }
 
 /// Refuses a size the CLI refuses.
-fn check_size(width: u32, height: u32, max_pixels: u64) -> PyResult<()> {
-    if width == 0 || height == 0 {
+fn check_size(width: i64, height: i64, max_pixels: u64) -> PyResult<(u32, u32)> {
+    if width < 1 || height < 1 {
         return Err(Error::new_err(format!(
             "image size {width}x{height}: width and height must be at least 1"
         )));
     }
-    let pixels = u64::from(width) * u64::from(height);
-    if pixels > max_pixels {
-        return Err(Error::new_err(format!(
+    let pixels = (width as u128) * (height as u128);
+    match (u32::try_from(width), u32::try_from(height)) {
+        (Ok(w), Ok(h)) if pixels <= u128::from(max_pixels) => Ok((w, h)),
+        _ => Err(Error::new_err(format!(
             "image size {width}x{height} is {pixels} pixels, over the limit of {max_pixels} \
              (raise it with max_pixels)"
-        )));
+        ))),
     }
-    Ok(())
 }
 
-/// Bytes a pixel of each view holds until the call returns: the film (RGBA and variance, 20),
-/// the AOVs (depth, normal, instance: 20) and the arrays handed to Python (colour 16, mask,
-/// srgb8, normal).
+/// A camera index given from Python: an error naming it when it is negative.
+fn camera_index(camera: Option<i64>) -> PyResult<Option<usize>> {
+    camera
+        .map(|i| {
+            usize::try_from(i)
+                .map_err(|_| Error::new_err(format!("camera {i}: indices count from 0")))
+        })
+        .transpose()
+}
+
+/// The unsigned integer types of whole-number keyword options, with their largest value.
+trait WholeNumber: TryFrom<i128> {
+    const LARGEST: u128;
+}
+
+impl WholeNumber for u32 {
+    const LARGEST: u128 = u32::MAX as u128;
+}
+
+impl WholeNumber for u64 {
+    const LARGEST: u128 = u64::MAX as u128;
+}
+
+/// A whole-number keyword option (`spp`, `seed`...): a negative or too large number is an
+/// error naming the option and the number, not Python's bare `OverflowError`.
+fn whole<T: WholeNumber>(key: &str, value: &Bound<'_, PyAny>) -> PyResult<T> {
+    let number: i128 = value
+        .extract()
+        .map_err(|e| Error::new_err(format!("{key}: {e}")))?;
+    T::try_from(number).map_err(|_| {
+        Error::new_err(format!(
+            "{key} {number}: must be a whole number from 0 to {}",
+            T::LARGEST
+        ))
+    })
+}
+
+/// [`whole`], or `None` for Python's `None`.
+fn whole_or_none<T: WholeNumber>(key: &str, value: &Bound<'_, PyAny>) -> PyResult<Option<T>> {
+    if value.is_none() {
+        return Ok(None);
+    }
+    whole(key, value).map(Some)
+}
+
 fn bytes_kept_per_pixel(settings: &RenderSettings, o: &RenderOptions) -> u64 {
     let aovs = if settings.aovs { 20 } else { 0 };
     let mask = if o.wants("mask") { 4 } else { 0 };
@@ -1026,15 +1068,15 @@ impl PyScene {
     fn render<'py>(
         &self,
         py: Python<'py>,
-        width: u32,
-        height: u32,
-        camera: Option<usize>,
+        width: i64,
+        height: i64,
+        camera: Option<i64>,
         progress: Option<Bound<'py, PyAny>>,
         options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let o = RenderOptions::from_kwargs(options)?.resolved(true);
-        check_size(width, height, o.max_pixels)?;
-        let view = self.view(py, camera, width, height)?;
+        let (width, height) = check_size(width, height, o.max_pixels)?;
+        let view = self.view(py, camera_index(camera)?, width, height)?;
         let settings = self.settings(py, view.clone(), &view, &o)?;
         let mut out = self.render_settings(py, &[settings], &o, progress.as_ref())?;
         out.pop()
@@ -1050,8 +1092,8 @@ impl PyScene {
         &self,
         py: Python<'py>,
         spec: &str,
-        width: u32,
-        height: u32,
+        width: i64,
+        height: i64,
         views_json: Option<&str>,
         yfov: Option<f32>,
         look_at: Option<[f32; 3]>,
@@ -1062,7 +1104,7 @@ impl PyScene {
         options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let o = RenderOptions::from_kwargs(options)?.resolved(false);
-        check_size(width, height, o.max_pixels)?;
+        let (width, height) = check_size(width, height, o.max_pixels)?;
         let views_error = |e: ViewsError| Error::new_err(e.to_string());
         let (parsed, explicit) = match views_json {
             Some(text) => (
@@ -1167,7 +1209,7 @@ impl RenderOptions {
             let bad = |e: PyErr| Error::new_err(format!("{key}: {e}"));
             match key.as_str() {
                 // None: the CLI's default sampling, as when `spp` is not given.
-                "spp" => o.spp = value.extract().map_err(bad)?,
+                "spp" => o.spp = whole_or_none("spp", &value)?,
                 "integrator" => {
                     o.integrator = match value.extract::<String>().map_err(bad)?.as_str() {
                         "direct" => IntegratorKind::Direct,
@@ -1179,8 +1221,8 @@ impl RenderOptions {
                         }
                     }
                 }
-                "seed" => o.seed = value.extract().map_err(bad)?,
-                "bounces" => o.bounces = value.extract().map_err(bad)?,
+                "seed" => o.seed = whole("seed", &value)?,
+                "bounces" => o.bounces = whole("bounces", &value)?,
                 "exposure" => o.exposure = value.extract().map_err(bad)?,
                 "aovs" => o.aovs = value.extract().map_err(bad)?,
                 "srgb8" => o.srgb8 = value.extract().map_err(bad)?,
@@ -1205,8 +1247,8 @@ impl RenderOptions {
                 "env_rotation" => o.env_rotation = value.extract().map_err(bad)?,
                 "env_intensity" => o.env_intensity = value.extract().map_err(bad)?,
                 "env_visible" => o.env_visible = value.extract().map_err(bad)?,
-                "max_pixels" => o.max_pixels = value.extract().map_err(bad)?,
-                "max_spp" => o.max_spp = value.extract().map_err(bad)?,
+                "max_pixels" => o.max_pixels = whole("max_pixels", &value)?,
+                "max_spp" => o.max_spp = whole("max_spp", &value)?,
                 "denoise" => o.denoise = value.extract().map_err(bad)?,
                 _ => {
                     return Err(Error::new_err(format!(

@@ -194,7 +194,7 @@ def test_the_scene_says_what_it_holds():
      "light range 0: must be above 0 (or None for no range)"),
     (lambda: quad_scene().add_light("spot", np.eye(4), range=float("nan")),
      "light range NaN: must be above 0"),
-    (lambda: quad_scene().render(8, 8, camera=3), "--camera 3: the file has 0 camera(s)"),
+    (lambda: quad_scene().render(8, 8, camera=3), "<arrays>: camera 3: the file has 0 camera(s)"),
     (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, colors=np.full((4, 3), 2.0)),
      "<arrays>: mesh 0: colors: row 0: 2 must be from 0 to 1"),
     (lambda: meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES,

@@ -161,6 +161,22 @@ def test_bad_render_arguments_raise_errors():
         scene.render(0, 8)
     with pytest.raises(meshtracer.Error, match="camera 5: the file has 1 camera"):
         scene.render(8, 8, camera=5)
+    # Negative and too large numbers name the argument and the number, not a bare
+    # OverflowError.
+    with pytest.raises(meshtracer.Error, match=r"image size -1x8: width and height must be at least 1"):
+        scene.render(-1, 8)
+    with pytest.raises(meshtracer.Error, match=r"image size 8x4294967296 is 34359738368 pixels, over the limit"):
+        scene.render(8, 2**32)
+    with pytest.raises(meshtracer.Error, match=r"camera -1: indices count from 0"):
+        scene.render(8, 8, camera=-1)
+    with pytest.raises(meshtracer.Error, match=r"spp -3: must be a whole number from 0 to 4294967295"):
+        scene.render(8, 8, spp=-3)
+    with pytest.raises(meshtracer.Error, match=r"seed -1: must be a whole number from 0 to 18446744073709551615"):
+        scene.render(8, 8, seed=-1)
+    with pytest.raises(meshtracer.Error, match=r"bounces 4294967296: must be a whole number"):
+        scene.render(8, 8, bounces=2**32)
+    with pytest.raises(meshtracer.Error, match=r"seed:"):
+        scene.render(8, 8, seed=1.5)
     with pytest.raises(meshtracer.Error, match="aov 'albedo'"):
         scene.render(8, 8, aovs=("albedo",))
     with pytest.raises(meshtracer.Error, match="--time"):
