@@ -676,7 +676,10 @@ fn cases() -> Vec<Case> {
             "OBJ with a missing MTL",
             b"mtllib gone.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
             vec![],
-            |k| matches!(k, K::Mtl { mtl, .. } if mtl == "gone.mtl"),
+            |k| {
+                matches!(k, K::MissingFile { problem, .. }
+                    if matches!(&**problem, K::Mtl { mtl, .. } if mtl == "gone.mtl"))
+            },
         ),
         obj_case(
             "OBJ MTL escaping the folder",
