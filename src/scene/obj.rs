@@ -28,6 +28,11 @@
 //! - `illum 0` and `illum 1` (colour, or colour and ambient, without highlights) turn the
 //!   specular term off: no dielectric reflection, Blinn-Phong specular 0 and roughness 1.
 //! - `map_Bump`/`bump`/`norm` -> normal map.
+//! - Vertex colours (`v x y z r g b`, written by scanning and mesh-generating tools in place of
+//!   a texture) -> the soup's colours, which multiply the base colour as glTF's COLOR_0 does.
+//!   They are display colours, decoded from sRGB (as Blender 5.2's importer reads them,
+//!   checked); faces without an MTL material get white instead of the grey default, so the
+//!   colours show as a mesh viewer shows them.
 
 use super::builder::{SoupBuilder, TriangleIn, VerticesIn};
 use super::error::{LoadError, LoadErrorKind};
@@ -56,7 +61,22 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         options.allow_external_files,
         options.limits.max_file_bytes,
     );
-    let (models, mtl_materials, mtl_warnings) = parse(path, text, &access, options.strict)?;
+    let (models, mtl_materials, mtl_warnings) = match parse(path, text, &access, options.strict) {
+        // tobj refuses a face whose vertex has no colour when others have one: give those
+        // white, as a vertex without COLOR_0 is drawn in glTF, and parse again.
+        Err(e) => match with_every_vertex_coloured(text) {
+            Some(padded) => {
+                let mut parsed = parse(path, &padded, &access, options.strict)?;
+                parsed.2.push(
+                    "only some vertices have a colour (v x y z r g b); the others are drawn white"
+                        .into(),
+                );
+                parsed
+            }
+            None => return Err(e),
+        },
+        Ok(parsed) => parsed,
+    };
     steps.mark("parse");
 
     let MtlMaterials {
@@ -67,7 +87,18 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     } = map_materials(&mtl_materials, &access, options)?;
     let image_warnings =
         draw_without(&mut materials, &textures, &unusable, options.strict).map_err(err)?;
-    let default_material = materials.len() as u32;
+    // The defaults for faces without an MTL material, appended after the MTL's as first used:
+    // grey, or white for a model with vertex colours (its colours are its surface's, as a
+    // viewer shows them, where grey would darken them).
+    let mut defaults: Vec<Material> = Vec::new();
+    let mut default_index = |material: Material| -> u32 {
+        let found = defaults.iter().position(|m| m.name == material.name);
+        let i = found.unwrap_or_else(|| {
+            defaults.push(material);
+            defaults.len() - 1
+        });
+        (materials.len() + i) as u32
+    };
     let mut uses_default = false;
     let mut lone_material_fallback = false;
 
@@ -87,7 +118,11 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
             }
             _ => {
                 uses_default = true;
-                default_material
+                if geometry.colors.is_empty() {
+                    default_index(obj_default_material())
+                } else {
+                    default_index(vertex_color_material())
+                }
             }
         };
         let instance = instances.len() as u32;
@@ -98,9 +133,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         });
         push_model(&mut builder, mesh, geometry, material, instance).map_err(err)?;
     }
-    if uses_default {
-        materials.push(obj_default_material());
-    }
+    materials.extend(defaults);
     let mut warnings = mtl_warnings;
     warnings.extend(mtl_materials.iter().flat_map(mtl_out_of_range));
     warnings.extend(image_warnings);
@@ -112,7 +145,10 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         ));
     }
     if uses_default && !mtl_materials.is_empty() {
-        warnings.push("some faces use no material from the MTL; they get a grey default".into());
+        warnings.push(
+            "some faces use no material from the MTL; they get a default (grey, white under vertex colours)"
+                .into(),
+        );
     }
     let file_triangles = builder.offered();
     let (soup, bounds) = builder.finish();
@@ -169,6 +205,35 @@ fn checked_text(bytes: &[u8]) -> Result<&str, LoadErrorKind> {
     };
     check_face_indices(text).map_err(LoadErrorKind::Obj)?;
     Ok(text)
+}
+
+/// The OBJ text with `1 1 1` (white) added to every `v x y z` line, when some `v` lines have a
+/// colour and others have none; `None` otherwise.
+fn with_every_vertex_coloured(text: &str) -> Option<String> {
+    let position_words = |line: &str| {
+        let mut words = line.split_whitespace();
+        (words.next() == Some("v")).then(|| words.count())
+    };
+    let (mut coloured, mut plain) = (false, false);
+    for line in text.lines() {
+        match position_words(line) {
+            Some(6) => coloured = true,
+            Some(3) => plain = true,
+            _ => {}
+        }
+    }
+    if !(coloured && plain) {
+        return None;
+    }
+    let mut padded = String::with_capacity(text.len() + text.len() / 4);
+    for line in text.lines() {
+        padded.push_str(line);
+        if position_words(line) == Some(3) {
+            padded.push_str(" 1 1 1");
+        }
+        padded.push('\n');
+    }
+    Some(padded)
 }
 
 /// What [`parse`] reads: the models, the MTL materials, a warning for each unusable library.
@@ -360,6 +425,7 @@ fn read_geometry(model_index: usize, model: &tobj::Model) -> Result<ObjGeometry,
         .chunks_exact(2)
         .map(|t| Vec2::new(t[0], 1.0 - t[1]))
         .collect();
+    let colors = vertex_colors(&mesh.vertex_color, positions.len());
     let check = |what: &'static str, indices: &[u32], count: usize| match indices
         .iter()
         .find(|&&i| i as usize >= count)
@@ -386,9 +452,32 @@ fn read_geometry(model_index: usize, model: &tobj::Model) -> Result<ObjGeometry,
         positions,
         normals,
         texcoords,
+        colors,
         has_normals,
         has_uvs,
     })
+}
+
+/// A model's vertex colours (the common extension `v x y z r g b`, which photogrammetry and
+/// mesh-generating tools write in place of a texture), as linear RGBA, one a position; empty
+/// when the model has none, or not one for every position (tobj then refuses the faces
+/// beyond them). They are display colours, as 8-bit ones divided by 255 are: decoded from sRGB
+/// as a base colour texture is (Blender's OBJ importer reads them so too). Channels are
+/// clamped to 0..1 (a NaN to 0); a file whose colours go above 1 is taken to be in 0..255.
+fn vertex_colors(rgb: &[f32], positions: usize) -> Vec<Vec4> {
+    if rgb.is_empty() || rgb.len() != positions * 3 {
+        return Vec::new();
+    }
+    let scale = if rgb.iter().any(|&c| c > 1.0) {
+        1.0 / 255.0
+    } else {
+        1.0
+    };
+    // `max` before `min`: a NaN becomes 0 (`clamp` would keep it).
+    let channel = |c: f32| crate::color::srgb_to_linear((c * scale).max(0.0).min(1.0));
+    rgb.chunks_exact(3)
+        .map(|c| Vec4::new(channel(c[0]), channel(c[1]), channel(c[2]), 1.0))
+        .collect()
 }
 
 /// Adds one OBJ model's triangles to the soup: each with vertices of its own and its flat
@@ -405,9 +494,11 @@ fn push_model(
         positions,
         normals,
         texcoords,
+        colors,
         has_normals,
         has_uvs,
     } = geometry;
+    let has_colors = !colors.is_empty();
     let triangles = mesh.indices.len() / 3;
     builder.reserve(triangles)?;
     if !has_normals {
@@ -418,6 +509,7 @@ fn push_model(
             let tri = TriangleIn {
                 positions: corner.map(|k| positions[mesh.indices[k] as usize]),
                 uv0: has_uvs.then(|| corner.map(|k| texcoords[mesh.texcoord_indices[k] as usize])),
+                colors: has_colors.then(|| corner.map(|k| colors[mesh.indices[k] as usize])),
                 ..Default::default()
             };
             builder.push(&tri, material, instance);
@@ -444,6 +536,9 @@ fn push_model(
             if has_uvs {
                 vertices.uv0.push(texcoords[t as usize]);
             }
+            if has_colors {
+                vertices.colors.push(colors[p as usize]);
+            }
             next
         });
         corners.push(v);
@@ -452,6 +547,7 @@ fn push_model(
         positions: &vertices.positions,
         normals: Some(vertices.normals.as_slice()),
         uv0: has_uvs.then_some(vertices.uv0.as_slice()),
+        colors: has_colors.then_some(vertices.colors.as_slice()),
         ..Default::default()
     };
     builder.push_primitive(
@@ -710,6 +806,16 @@ fn locate_face_error(text: &str, error: &tobj::LoadError) -> Option<String> {
 }
 
 /// Grey, rough, double-sided: what an OBJ face without a material looks like.
+/// The material of faces with vertex colours and no MTL material: the grey default's, white,
+/// so that the colours are drawn as they are.
+fn vertex_color_material() -> Material {
+    Material {
+        name: Some("vertex colours".into()),
+        base_color: Vec4::ONE,
+        ..obj_default_material()
+    }
+}
+
 fn obj_default_material() -> Material {
     Material {
         name: Some("default".into()),
@@ -920,6 +1026,81 @@ mod tests {
                 "{text:?}: {problem}"
             );
         }
+    }
+
+    /// Vertex colours are display colours: decoded from sRGB, 0..255 files scaled, channels
+    /// clamped (a NaN to 0), and none when not every position has one.
+    #[test]
+    fn vertex_colours_are_decoded_from_srgb() {
+        let half = crate::color::srgb_to_linear(0.5);
+        assert_eq!(
+            vertex_colors(&[1.0, 0.5, 0.0], 1),
+            [Vec4::new(1.0, half, 0.0, 1.0)]
+        );
+        assert_eq!(
+            vertex_colors(&[255.0, 127.5, 0.0], 1),
+            vertex_colors(&[1.0, 0.5, 0.0], 1)
+        );
+        assert_eq!(
+            vertex_colors(&[f32::NAN, -1.0, 0.5, 0.0, 0.0, 0.0], 2)[0],
+            Vec4::new(0.0, 0.0, half, 1.0)
+        );
+        assert!(vertex_colors(&[1.0, 1.0, 1.0], 2).is_empty());
+        assert!(vertex_colors(&[], 2).is_empty());
+    }
+
+    /// A model with vertex colours carries them into the soup. Without an MTL material its
+    /// faces get a white default (the colours drawn as they are), not the grey one; with one,
+    /// the colours multiply its `Kd`, as glTF's COLOR_0 multiplies the base colour.
+    #[test]
+    fn vertex_colours_reach_the_soup_over_a_white_default() {
+        let dir = tempfile::tempdir().unwrap();
+        let model = dir.path().join("coloured.obj");
+        let text = "v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 0 1 0 0 0 1\nf 1 2 3\n";
+        let scene = load(&model, text.as_bytes(), &LoadOptions::default()).unwrap();
+        assert_eq!(
+            scene.soup.corner_colors(0),
+            Some([
+                Vec4::new(1.0, 0.0, 0.0, 1.0),
+                Vec4::new(0.0, 1.0, 0.0, 1.0),
+                Vec4::new(0.0, 0.0, 1.0, 1.0)
+            ])
+        );
+        assert_eq!(scene.materials.len(), 1);
+        assert_eq!(scene.materials[0].base_color, Vec4::ONE);
+
+        // A coloured model and a plain one in one file.
+        let text = "o a\nv 0 0 0 1 1 1\nv 1 0 0 1 1 1\nv 0 1 0 1 1 1\nf 1 2 3\n\
+                    o b\nv 0 0 1\nv 1 0 1\nv 0 1 1\nf 4 5 6\n";
+        let scene = load(&model, text.as_bytes(), &LoadOptions::default()).unwrap();
+        // The vertices without a colour are white, with a warning.
+        assert_eq!(scene.soup.corner_colors(1).map(|c| c[0]), Some(Vec4::ONE));
+        assert!(
+            scene
+                .warnings
+                .iter()
+                .any(|w| w.starts_with("only some vertices have a colour")),
+            "{:?}",
+            scene.warnings
+        );
+
+        std::fs::write(dir.path().join("m.mtl"), "newmtl m\nKd 0.5 0.5 0.5\n").unwrap();
+        let text = "mtllib m.mtl\nusemtl m\nv 0 0 0 1 0 0\nv 1 0 0 1 0 0\nv 0 1 0 1 0 0\nf 1 2 3\n";
+        let scene = load(&model, text.as_bytes(), &LoadOptions::default()).unwrap();
+        assert_eq!(scene.materials.len(), 1);
+        assert_eq!(scene.materials[0].base_color.truncate(), Vec3::splat(0.5));
+        assert_eq!(
+            scene.soup.corner_colors(0).map(|c| c[0]),
+            Some(Vec4::new(1.0, 0.0, 0.0, 1.0))
+        );
+
+        let plain = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let scene = load(&model, plain.as_bytes(), &LoadOptions::default()).unwrap();
+        assert_eq!(scene.soup.corner_colors(0), None);
+        assert_eq!(
+            scene.materials[0].base_color,
+            obj_default_material().base_color
+        );
     }
 
     /// A missing material library is a warning naming it, its faces grey; `--strict` refuses
@@ -1190,6 +1371,7 @@ struct ObjVertices {
     positions: Vec<Vec3>,
     normals: Vec<Vec3>,
     uv0: Vec<Vec2>,
+    colors: Vec<Vec4>,
 }
 
 /// One OBJ model's vertex attributes as read, before they are welded into vertices.
@@ -1197,6 +1379,8 @@ struct ObjGeometry {
     positions: Vec<Vec3>,
     normals: Vec<Vec3>,
     texcoords: Vec<Vec2>,
+    /// The vertex colours (`v x y z r g b`), linear, one a position; empty without them.
+    colors: Vec<Vec4>,
     /// Every face corner has a normal.
     has_normals: bool,
     /// Every face corner has texture coordinates.

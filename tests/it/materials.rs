@@ -1002,3 +1002,78 @@ fn dispersion_splits_an_edge_seen_through_a_glass_wedge() {
         );
     }
 }
+
+/// OBJ vertex colours (`v x y z r g b`, what mesh-generating and scanning tools write instead
+/// of a texture) are display colours that multiply the material's `Kd`: a quad with `Kd 1 1 1`
+/// and colours (1, 0.5, 0.2) renders as the same quad without colours and with `Kd` set to
+/// those colours decoded from sRGB (within a level of the 8-bit image), and not as the plain
+/// quad; 8-bit colours (0..255) render as 0..1 ones.
+#[test]
+fn obj_vertex_colours_multiply_the_diffuse_colour() {
+    let dir = tempfile::tempdir().unwrap();
+    let srgb = |c: f32| {
+        if c <= 0.04045 {
+            c / 12.92
+        } else {
+            ((c + 0.055) / 1.055).powf(2.4)
+        }
+    };
+    let quad = |name: &str, kd: [f32; 3], colour: Option<[f32; 3]>| {
+        let mtl = format!("{name}.mtl");
+        std::fs::write(
+            dir.path().join(&mtl),
+            format!("newmtl m\nKd {} {} {}\n", kd[0], kd[1], kd[2]),
+        )
+        .unwrap();
+        let rgb = colour.map_or(String::new(), |c| format!(" {} {} {}", c[0], c[1], c[2]));
+        let mut obj = format!("mtllib {mtl}\nusemtl m\n");
+        for (x, y) in [(-1, -1), (1, -1), (1, 1), (-1, 1)] {
+            obj += &format!("v {x} {y} 0{rgb}\n");
+        }
+        obj += "vn 0 0 1\nf 1//1 2//1 3//1 4//1\n";
+        let path = dir.path().join(format!("{name}.obj"));
+        std::fs::write(&path, obj).unwrap();
+        path
+    };
+    let colour = [1.0, 0.5, 0.2];
+    let coloured = quad("coloured", [1.0; 3], Some(colour));
+    let bytes = quad("bytes", [1.0; 3], Some(colour.map(|c| c * 255.0)));
+    let kd = quad("kd", colour.map(srgb), None);
+    let plain = quad("plain", [1.0; 3], None);
+    let view = [
+        "--integrator",
+        "direct",
+        "--tonemap",
+        "standard",
+        "--width",
+        "32",
+        "--height",
+        "32",
+        "--look-from",
+        "0,0,3",
+        "--look-at",
+        "0,0,0",
+    ];
+    let image = |model: &Path, name: &str| render(dir.path(), model, name, &view);
+    let coloured = image(&coloured, "coloured.png");
+    let by_kd = image(&kd, "kd.png");
+    let largest = coloured
+        .iter()
+        .zip(&by_kd)
+        .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).abs()))
+        .fold(0.0f32, f32::max);
+    assert!(
+        largest <= 1.0 / 255.0 + 1e-6,
+        "largest difference {largest}"
+    );
+    assert_eq!(
+        coloured,
+        image(&bytes, "bytes.png"),
+        "0..255 colours as 0..1"
+    );
+    // The centre: orange under the colours, white without.
+    let centre = 16 * 32 + 16;
+    let (c, p) = (coloured[centre], image(&plain, "plain.png")[centre]);
+    assert!(c[0] > 0.5 && c[2] < 0.5 * c[0], "{c:?}");
+    assert!((p[0] - p[2]).abs() < 0.01, "{p:?}");
+}
