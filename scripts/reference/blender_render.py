@@ -36,7 +36,10 @@ each is skipped where the Blender at hand does not need it):
   opaque `illum 2` material becomes clear glass: transmission is reset unless `illum` is 4, 6,
   7 or 9;
 - OBJ: a `usemtl` naming no material of the MTL becomes an empty material of that name;
-  where the MTL defines just one material, those faces get it, as meshtracer reads them.
+  where the MTL defines just one material, those faces get it, as meshtracer reads them;
+- OBJ: vertex colours (`v x y z r g b`) are imported as a colour attribute no material reads;
+  they multiply each material's base colour (a white default's where a face has none), as in
+  meshtracer.
 """
 import argparse
 import json
@@ -144,14 +147,14 @@ def fix_iridescence(model):
             socket.default_value = ext.get("iridescenceThicknessMaximum", 400.0)
 
 
-def default_material(obj_file):
+def default_material(obj_file, coloured=False):
     """glTF's default material (white, metallic 1, roughness 1), or for an OBJ face without a
-    material meshtracer's grey (0.8, metallic 0, roughness 1)."""
+    material meshtracer's grey (0.8, metallic 0, roughness 1), white under vertex colours."""
     material = bpy.data.materials.new("default")
     if hasattr(material, "use_nodes"):
         material.use_nodes = True
     node = principled(material)
-    grey = 0.8 if obj_file else 1.0
+    grey = 0.8 if obj_file and not coloured else 1.0
     node.inputs["Base Color"].default_value = (grey, grey, grey, 1.0)
     node.inputs["Metallic"].default_value = 0.0 if obj_file else 1.0
     node.inputs["Roughness"].default_value = 1.0
@@ -160,13 +163,16 @@ def default_material(obj_file):
 
 def fix_missing_materials(obj_file):
     """Gives meshes without a material the default one meshtracer uses, not Cycles' grey."""
-    material = None
+    defaults = {}
     for obj in bpy.data.objects:
         if obj.type != "MESH":
             continue
         slots = obj.data.materials
         if len(slots) == 0 or any(m is None for m in slots):
-            material = material or default_material(obj_file)
+            coloured = obj_file and len(obj.data.color_attributes) > 0
+            if coloured not in defaults:
+                defaults[coloured] = default_material(obj_file, coloured)
+            material = defaults[coloured]
             if len(slots) == 0:
                 slots.append(material)
             else:
@@ -213,6 +219,40 @@ def fix_obj_transmission(model):
             node.inputs["Transmission Weight"].default_value = 0.0
 
 
+def fix_obj_vertex_colours():
+    """OBJ vertex colours multiply the base colour, as glTF's COLOR_0 does and meshtracer draws
+    them; Blender's importer keeps them (decoded from sRGB, as meshtracer decodes them) as a
+    colour attribute that no material reads. Each coloured mesh gets its own copy of its
+    materials, with the attribute multiplied into Base Color."""
+    for obj in bpy.data.objects:
+        if obj.type != "MESH" or len(obj.data.color_attributes) == 0:
+            continue
+        layer = obj.data.color_attributes[0].name
+        slots = obj.data.materials
+        for i, material in enumerate(slots):
+            if material is None:
+                continue
+            material = material.copy()
+            slots[i] = material
+            node = principled(material)
+            if node is None:
+                continue
+            tree = material.node_tree
+            attribute = tree.nodes.new("ShaderNodeVertexColor")
+            attribute.layer_name = layer
+            mix = tree.nodes.new("ShaderNodeMix")
+            mix.data_type = "RGBA"
+            mix.blend_type = "MULTIPLY"
+            mix.inputs["Factor"].default_value = 1.0
+            base, colour_a, colour_b = node.inputs["Base Color"], mix.inputs[6], mix.inputs[7]
+            if base.is_linked:
+                tree.links.new(base.links[0].from_socket, colour_a)
+            else:
+                colour_a.default_value = base.default_value
+            tree.links.new(attribute.outputs["Color"], colour_b)
+            tree.links.new(mix.outputs[2], base)
+
+
 def fix_obj_undefined_materials(model):
     """Faces whose `usemtl` names no material of the MTL get its only material when it defines
     just one, as meshtracer (and tinyobjloader-based viewers) read them: VikingRoom says
@@ -249,6 +289,8 @@ def import_model(model):
         bpy.ops.import_scene.gltf(filepath=model, **options)
         fix_iridescence(model)
     fix_missing_materials(model.lower().endswith(".obj"))
+    if model.lower().endswith(".obj"):
+        fix_obj_vertex_colours()
     for obj in list(bpy.data.objects):
         if obj.type in {"CAMERA", "LIGHT"}:
             bpy.data.objects.remove(obj, do_unlink=True)
