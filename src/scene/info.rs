@@ -5,7 +5,8 @@ use super::Scene;
 
 impl Scene {
     /// The `info --json` object: the file and its format, triangle counts (in the file, traced,
-    /// dropped as degenerate or non-finite), meshes, primitives, instances, materials, textures,
+    /// dropped as degenerate or non-finite), meshes, primitives, instances, the optional vertex
+    /// attributes (`uv0`, `uv1`, `colors`, `tangents`), materials, textures,
     /// images, cameras, lights, bounds, warnings, variants, animations, the pose drawn, the
     /// extensions with their status, and the material list.
     pub fn info_json(&self) -> serde_json::Value {
@@ -18,6 +19,7 @@ impl Scene {
             "meshes": self.mesh_count,
             "primitives": self.primitive_count,
             "instances": self.instances.len(),
+            "vertex_attributes": self.soup.attributes(),
             "materials": self.materials.len(),
             "textures": self.textures.len(),
             "images": self.images.len(),

@@ -1068,6 +1068,7 @@ mod tests {
         );
         assert_eq!(scene.materials.len(), 1);
         assert_eq!(scene.materials[0].base_color, Vec4::ONE);
+        assert_eq!(scene.soup.attributes(), ["colors"]);
 
         // A coloured model and a plain one in one file.
         let text = "o a\nv 0 0 0 1 1 1\nv 1 0 0 1 1 1\nv 0 1 0 1 1 1\nf 1 2 3\n\
@@ -1097,6 +1098,7 @@ mod tests {
         let plain = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
         let scene = load(&model, plain.as_bytes(), &LoadOptions::default()).unwrap();
         assert_eq!(scene.soup.corner_colors(0), None);
+        assert!(scene.soup.attributes().is_empty());
         assert_eq!(
             scene.materials[0].base_color,
             obj_default_material().base_color

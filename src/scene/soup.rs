@@ -43,6 +43,20 @@ impl TriangleSoup {
         self.indices.len()
     }
 
+    /// The optional vertex attributes the soup holds, by field name (`uv0`, `uv1`, `colors`,
+    /// `tangents`): what a file gave beyond positions and normals, which every soup has.
+    pub fn attributes(&self) -> Vec<&'static str> {
+        [
+            ("uv0", self.uv0.is_empty()),
+            ("uv1", self.uv1.is_empty()),
+            ("colors", self.colors.is_empty()),
+            ("tangents", self.tangents.is_empty()),
+        ]
+        .into_iter()
+        .filter_map(|(name, empty)| (!empty).then_some(name))
+        .collect()
+    }
+
     /// True when the soup holds no triangle.
     pub fn is_empty(&self) -> bool {
         self.indices.is_empty()

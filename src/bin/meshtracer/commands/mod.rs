@@ -462,10 +462,19 @@ fn info(args: &InfoArgs) -> Result<()> {
         );
     }
     out!(
-        "meshes      {} ({} instances, {} triangle primitives flattened)",
+        "meshes      {} ({}, {} flattened)",
         scene.mesh_count,
-        scene.instances.len(),
-        scene.primitive_count
+        counted(scene.instances.len(), "instance"),
+        counted(scene.primitive_count, "triangle primitive")
+    );
+    let attributes = scene.soup.attributes();
+    out!(
+        "attributes  {}",
+        if attributes.is_empty() {
+            "positions and normals only".to_string()
+        } else {
+            format!("{} (beside positions and normals)", attributes.join(", "))
+        }
     );
     out!("materials   {}", scene.materials.len());
     out!(
