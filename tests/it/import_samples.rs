@@ -312,6 +312,7 @@ fn info_json_has_the_documented_keys() {
         "format",
         "triangles",
         "instances",
+        "vertex_attributes",
         "materials",
         "textures",
         "cameras",
@@ -327,6 +328,8 @@ fn info_json_has_the_documented_keys() {
     assert_eq!(v["triangles"], 4212);
     assert_eq!(v["cameras"].as_array().unwrap().len(), 1);
     assert!(v["bounds"]["min"].is_array() && v["bounds"]["max"].is_array());
+    // The Duck has normals and one set of texture coordinates.
+    assert_eq!(v["vertex_attributes"], serde_json::json!(["uv0"]));
 }
 
 /// `info --json` reports every extension used with its status, and each one not fully
