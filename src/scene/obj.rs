@@ -473,8 +473,11 @@ fn vertex_colors(rgb: &[f32], positions: usize) -> Vec<Vec4> {
     } else {
         1.0
     };
-    // `max` before `min`: a NaN becomes 0 (`clamp` would keep it).
-    let channel = |c: f32| crate::color::srgb_to_linear((c * scale).max(0.0).min(1.0));
+    let channel = |c: f32| {
+        let c = c * scale;
+        // A NaN becomes 0 (`clamp` would keep it).
+        crate::color::srgb_to_linear(if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) })
+    };
     rgb.chunks_exact(3)
         .map(|c| Vec4::new(channel(c[0]), channel(c[1]), channel(c[2]), 1.0))
         .collect()
