@@ -460,10 +460,11 @@ fn read_geometry(model_index: usize, model: &tobj::Model) -> Result<ObjGeometry,
 
 /// A model's vertex colours (the common extension `v x y z r g b`, which photogrammetry and
 /// mesh-generating tools write in place of a texture), as linear RGBA, one a position; empty
-/// when the model has none, or not one for every position (tobj then refuses the faces
-/// beyond them). They are display colours, as 8-bit ones divided by 255 are: decoded from sRGB
-/// as a base colour texture is (Blender's OBJ importer reads them so too). Channels are
-/// clamped to 0..1 (a NaN to 0); a file whose colours go above 1 is taken to be in 0..255.
+/// when the model has none, or not one for every position (a file with only some coloured is
+/// parsed again with the others white: [`with_every_vertex_coloured`]). They are display
+/// colours, as 8-bit ones divided by 255 are: decoded from sRGB as a base colour texture is
+/// (Blender's OBJ importer reads them so too). Channels are clamped to 0..1 (a NaN to 0); a
+/// file whose colours go above 1 is taken to be in 0..255.
 fn vertex_colors(rgb: &[f32], positions: usize) -> Vec<Vec4> {
     if rgb.is_empty() || rgb.len() != positions * 3 {
         return Vec::new();
