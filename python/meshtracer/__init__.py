@@ -207,7 +207,9 @@ def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, mat
     positions: N x 3 (metres), indices: M x 3 (counter-clockwise from the front), normals:
     N x 3, uvs: N x 2 ((0, 0) at the texture's top-left, as glTF), uvs1: N x 2, a second set
     (glTF's TEXCOORD_1) for textures that name it, colors: N x 3 or N x 4
-    (linear, multiplying the base colour); pose: 4x4 world-from-local matrix (default
+    (linear, multiplying the base colour; floats from 0 to 1, or uint8 or uint16 arrays read as
+    glTF reads normalized integer colours, 255 or 65535 = 1, so trimesh's
+    ``visual.vertex_colors`` can be passed as they are); pose: 4x4 world-from-local matrix (default
     identity); material: a dict of glTF metallic-roughness factors (``base_color`` RGB or
     RGBA, ``metallic``, ``roughness``, ``emissive``, ``emissive_strength``, ``alpha_mode``,
     ``alpha_cutoff``, ``double_sided``, ``unlit``, ``normal_scale``, ``occlusion_strength``,
@@ -227,9 +229,13 @@ def _add_mesh(self, positions, indices, normals=None, uvs=None, colors=None, mat
     range or a factor out of its range.
     """
     if colors is not None:
-        c = _np.asarray(colors, dtype=_np.float32)
-        if c.ndim == 2 and c.shape[1] == 3:
-            colors = _np.concatenate([c, _np.ones((len(c), 1), _np.float32)], axis=1)
+        c = _np.asarray(colors)
+        if c.dtype in (_np.uint8, _np.uint16):
+            # glTF's normalized unsigned integers: 255 (65535) is 1.
+            c = c.astype(_np.float32) / _np.float32(_np.iinfo(c.dtype).max)
+        colors = _np.asarray(c, dtype=_np.float32)
+        if colors.ndim == 2 and colors.shape[1] == 3:
+            colors = _np.concatenate([colors, _np.ones((len(colors), 1), _np.float32)], axis=1)
     if material is not None and not isinstance(material, dict):
         raise Error(f"material: a dict of factors, not {type(material).__name__}")
     if material is not None and any(k in material for k in _TEXTURE_SLOTS):

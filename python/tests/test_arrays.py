@@ -610,3 +610,23 @@ def test_an_exception_in_the_callback_cancels_and_propagates(exception):
     # The scene is intact: it renders again.
     again = scene.render(16, 12, **SETTINGS)
     assert again["color"].shape == (12, 16, 4)
+
+
+def test_integer_colours_are_normalized_as_gltf_reads_them():
+    """uint8 and uint16 colours (trimesh's ``visual.vertex_colors`` are uint8 RGBA) are read as
+    glTF reads normalized integers, 255 or 65535 = 1: the same picture as the floats."""
+    floats = np.array([[1.0, 0.5, 0.2], [1.0, 0.5, 0.2], [0.2, 0.5, 1.0], [0.2, 0.5, 1.0]])
+
+    def render(colors):
+        scene = meshtracer.Scene.from_arrays(QUAD, QUAD_TRIANGLES, colors=colors, material=MATTE)
+        scene.add_light("directional", np.eye(4), intensity=3.0)
+        return scene.render(16, 16, spp=1, integrator="direct", default_lights=False)["color"]
+
+    reference = render(np.round(floats * 255) / 255)
+    rgba8 = np.concatenate([np.round(floats * 255), np.full((4, 1), 255)], axis=1).astype(np.uint8)
+    assert np.allclose(render(rgba8), reference, atol=1e-6)
+    rgb16 = np.round(np.round(floats * 255) / 255 * 65535).astype(np.uint16)
+    assert np.allclose(render(rgb16), reference, atol=1e-5)
+    # A quad whose colours were ignored would be grey: it shades from orange to blue.
+    seen = reference[reference[:, :, 3] > 0]
+    assert (seen[:, 0] > 2 * seen[:, 2]).any() and (seen[:, 2] > 2 * seen[:, 0]).any()
