@@ -123,7 +123,7 @@ pub struct LoadArgs {
     #[arg(long)]
     pub allow_external_files: bool,
     /// Refuse scenes with more triangles than this, after instancing.
-    #[arg(long, default_value_t = meshtracer::defaults::MAX_TRIANGLES, value_name = "N")]
+    #[arg(long, default_value_t = meshtracer::defaults::MAX_TRIANGLES, value_name = "N", allow_negative_numbers = true)]
     pub max_triangles: u64,
     /// Pose the model by this glTF animation, by name or index (`info` lists them) [default
     /// with --time: animation 0]: its node channels, and its KHR_animation_pointer channels
@@ -198,17 +198,17 @@ pub struct RenderArgs {
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
     /// Image width in pixels [default: 1024].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub width: Option<u32>,
     /// Image height in pixels [default: from the camera's aspectRatio, else 768].
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub height: Option<u32>,
     /// Samples per pixel, exactly: 1 shoots through pixel centres; N > 1 takes
     /// Owen-scrambled Sobol samples (powers of two stratify best) [default: the path tracer samples each
     /// pixel adaptively, up to 32, until its noise is under --noise (1.0 when denoised, as the
     /// default render is, else 0.1); the direct integrator takes 4].
     // Read it through `RenderArgs::spp`, which applies the default.
-    #[arg(long = "spp", value_name = "N")]
+    #[arg(long = "spp", value_name = "N", allow_negative_numbers = true)]
     pub spp_given: Option<u32>,
     /// Adaptive sampling: each pixel stops once the standard error of its luminance is at most
     /// this fraction of it (of 0.05 in dark pixels), checked every 4 samples (every 2 when
@@ -239,10 +239,10 @@ pub struct RenderArgs {
     #[arg(long)]
     pub no_denoise: bool,
     /// Seed of the sample pattern (the output is identical for the same seed).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     pub seed: u64,
     /// Use the file's camera with this index (in node order) instead of the first.
-    #[arg(long, value_name = "INDEX")]
+    #[arg(long, value_name = "INDEX", allow_negative_numbers = true)]
     pub camera: Option<usize>,
     /// Place the camera here instead (X,Y,Z); with --look-at, --up and --yfov.
     #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true)]
@@ -276,7 +276,8 @@ pub struct RenderArgs {
         long,
         value_name = "N",
         value_parser = clap::value_parser!(u32).range(1..=i64::from(meshtracer::output::turntable::MAX_TURNTABLE_FRAMES)),
-        conflicts_with_all = ["views", "view", "camera", "look_from", "up", "time_limit", "stats"]
+        conflicts_with_all = ["views", "view", "camera", "look_from", "up", "time_limit", "stats"],
+        allow_negative_numbers = true
     )]
     pub turntable: Option<u32>,
     /// With --turntable (or --views: the views in order): also write the frames as an animated
@@ -321,7 +322,12 @@ pub struct RenderArgs {
     #[arg(long, value_name = "FILE.png")]
     pub contact_sheet: Option<PathBuf>,
     /// With --contact-sheet: cells per row [default: about the square root of the count].
-    #[arg(long, value_name = "N", requires = "contact_sheet")]
+    #[arg(
+        long,
+        value_name = "N",
+        requires = "contact_sheet",
+        allow_negative_numbers = true
+    )]
     pub sheet_columns: Option<u32>,
     /// With --contact-sheet: width of a cell's thumbnail in pixels; its height follows the
     /// images' aspect.
@@ -329,7 +335,8 @@ pub struct RenderArgs {
         long,
         value_name = "PX",
         default_value_t = meshtracer::output::sheet::DEFAULT_CELL_WIDTH,
-        requires = "contact_sheet"
+        requires = "contact_sheet",
+        allow_negative_numbers = true
     )]
     pub sheet_cell_width: u32,
     /// With --views: each view's image, relative to the -o folder; {view} is the view number,
@@ -382,7 +389,7 @@ pub struct RenderArgs {
     #[arg(long, value_parser = choice::<BvhPreset>(), default_value = "auto")]
     pub bvh_preset: BvhPreset,
     /// Worker threads (0 = one per core; at most 1024).
-    #[arg(long, default_value_t = 0, value_parser = parse_threads)]
+    #[arg(long, default_value_t = 0, value_parser = parse_threads, allow_negative_numbers = true)]
     pub threads: usize,
     /// Exposure in stops: linear radiance is multiplied by 2^EV before encoding.
     #[arg(
@@ -416,7 +423,7 @@ pub struct RenderArgs {
     pub shading: meshtracer::shading::ShadingModel,
     /// Decoded texture memory budget in MiB; larger images are halved until they fit, with a
     /// warning.
-    #[arg(long, default_value_t = meshtracer::defaults::MAX_TEXTURE_MIB, value_name = "MIB")]
+    #[arg(long, default_value_t = meshtracer::defaults::MAX_TEXTURE_MIB, value_name = "MIB", allow_negative_numbers = true)]
     pub max_texture_memory: usize,
     /// Do not add the default key and fill lights (direct) or the built-in studio environment
     /// (path) when the file has no lights.
@@ -429,7 +436,7 @@ pub struct RenderArgs {
     #[arg(long, value_parser = choice::<IntegratorKind>(), default_value = "path")]
     pub integrator: meshtracer::integrator::IntegratorKind,
     /// Path tracer: most bounces after the first hit (0 = direct light only).
-    #[arg(long, default_value_t = meshtracer::defaults::DEFAULT_BOUNCES, value_name = "N")]
+    #[arg(long, default_value_t = meshtracer::defaults::DEFAULT_BOUNCES, value_name = "N", allow_negative_numbers = true)]
     pub bounces: u32,
     /// Path tracer: the most a sample's indirect light may bring (its largest channel, after
     /// the first surface's direct light), against fireflies; biased, as Cycles' Clamp
@@ -491,10 +498,10 @@ pub struct RenderArgs {
     #[arg(long, value_name = "FILE")]
     pub view: Option<PathBuf>,
     /// Refuse images with more pixels than this.
-    #[arg(long, default_value_t = meshtracer::defaults::MAX_RENDER_PIXELS, value_name = "N")]
+    #[arg(long, default_value_t = meshtracer::defaults::MAX_RENDER_PIXELS, value_name = "N", allow_negative_numbers = true)]
     pub max_pixels: u64,
     /// Refuse more samples per pixel than this.
-    #[arg(long, default_value_t = meshtracer::defaults::MAX_SPP, value_name = "N")]
+    #[arg(long, default_value_t = meshtracer::defaults::MAX_SPP, value_name = "N", allow_negative_numbers = true)]
     pub max_spp: u32,
     /// Refuse to overwrite an existing output file.
     #[arg(long)]
@@ -619,7 +626,12 @@ pub struct BatchArgs {
     pub image_name: Option<String>,
     /// The number of shards when JOB_COMPLETION_INDEX (a Kubernetes Indexed Job) gives the
     /// index [default: MESHTRACER_SHARD_COUNT].
-    #[arg(long, value_name = "N", conflicts_with = "shard")]
+    #[arg(
+        long,
+        value_name = "N",
+        conflicts_with = "shard",
+        allow_negative_numbers = true
+    )]
     pub shard_count: Option<usize>,
 }
 
@@ -677,14 +689,14 @@ pub struct BenchArgs {
     #[arg(long, value_parser = choice::<RayKind>(), value_delimiter = ',', default_value = "primary")]
     pub rays: Vec<meshtracer::tools::bench::RayKind>,
     /// Camera rays per image side (side² primary rays per run).
-    #[arg(long, default_value_t = 512)]
+    #[arg(long, default_value_t = 512, allow_negative_numbers = true)]
     pub side: u32,
     /// Timed runs per measurement, 1 or more (the median is reported).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, allow_negative_numbers = true)]
     pub runs: usize,
     /// Triangle tests the linear scan may spend per measurement (it traces a subset of the rays
     /// so that it finishes); 0 skips the linear scan.
-    #[arg(long, default_value_t = 2_000_000_000)]
+    #[arg(long, default_value_t = 2_000_000_000, allow_negative_numbers = true)]
     pub linear_budget: u64,
     /// obvhs build preset.
     #[arg(long, value_parser = choice::<BvhPreset>(), default_value = "medium")]
@@ -695,7 +707,7 @@ pub struct BenchArgs {
     #[arg(long)]
     pub packets: bool,
     /// Worker threads (0 = one per core; at most 1024).
-    #[arg(long, default_value_t = 0, value_parser = parse_threads)]
+    #[arg(long, default_value_t = 0, value_parser = parse_threads, allow_negative_numbers = true)]
     pub threads: usize,
     /// Write the table and the settings as Markdown here.
     #[arg(long, value_name = "FILE")]
@@ -709,7 +721,12 @@ pub struct BenchArgs {
     /// lights, else the built-in studio), alternating `--runs` times with the BVH alone on
     /// diffuse rays in the same tree, and report both throughputs and their ratio (the rest
     /// of the path tracer's time is shading). 0 = off.
-    #[arg(long, default_value_t = 0, value_name = "SPP")]
+    #[arg(
+        long,
+        default_value_t = 0,
+        value_name = "SPP",
+        allow_negative_numbers = true
+    )]
     pub path_spp: u32,
     /// The path tracer's image size for --path-spp.
     #[arg(long, default_value = "512x384", value_name = "WIDTHxHEIGHT", value_parser = parse_size)]
