@@ -702,6 +702,9 @@ fn whole_or_none<T: WholeNumber>(key: &str, value: &Bound<'_, PyAny>) -> PyResul
     whole(key, value).map(Some)
 }
 
+/// Bytes a pixel of each view holds until the call returns: the film (RGBA and variance, 20),
+/// the AOVs (depth, normal, instance: 20) and the arrays handed to Python (colour 16, mask,
+/// srgb8, normal).
 fn bytes_kept_per_pixel(settings: &RenderSettings, o: &RenderOptions) -> u64 {
     let aovs = if settings.aovs { 20 } else { 0 };
     let mask = if o.wants("mask") { 4 } else { 0 };
