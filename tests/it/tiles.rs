@@ -416,3 +416,61 @@ fn bad_tile_options_are_refused_before_rendering() {
         assert!(!lossy.exists());
     }
 }
+
+/// A tile's summary line names the tile (its size, the whole image's and where it starts) and
+/// the adaptive sampler's mean over the tile's own pixels: at 64x48 every pixel takes the cap
+/// of 4 samples, so the tile says 4.0 spp as the whole image does (2.0 when its samples were
+/// divided by the whole image's pixels).
+#[test]
+fn a_tiles_summary_names_the_tile_and_its_own_spp() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("t.png");
+    let output = run(
+        &[
+            "render",
+            s(&cornell()),
+            "-o",
+            s(&out),
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--spp",
+            "4",
+            "--noise",
+            "1",
+            "--no-denoise",
+            "--tile",
+            "1/2",
+        ],
+        true,
+    );
+    let err = stderr(&output);
+    assert!(
+        err.contains(", 64x24 of 64x48 from (0, 24) at 4.0 spp (adaptive"),
+        "{err}"
+    );
+    let whole = run(
+        &[
+            "render",
+            s(&cornell()),
+            "-o",
+            s(&dir.path().join("w.png")),
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--spp",
+            "4",
+            "--noise",
+            "1",
+            "--no-denoise",
+        ],
+        true,
+    );
+    assert!(
+        stderr(&whole).contains(", 64x48 at 4.0 spp (adaptive"),
+        "{}",
+        stderr(&whole)
+    );
+}
