@@ -641,13 +641,13 @@ fn check_plan_options(spec: &ViewSpec, options: &PlanOptions) -> PyResult<()> {
 }
 
 /// Refuses a size the CLI refuses.
-fn check_size(width: i64, height: i64, max_pixels: u64) -> PyResult<(u32, u32)> {
+fn check_size(width: i128, height: i128, max_pixels: u64) -> PyResult<(u32, u32)> {
     if width < 1 || height < 1 {
         return Err(Error::new_err(format!(
             "image size {width}x{height}: width and height must be at least 1"
         )));
     }
-    let pixels = (width as u128) * (height as u128);
+    let pixels = (width as u128).saturating_mul(height as u128);
     match (u32::try_from(width), u32::try_from(height)) {
         (Ok(w), Ok(h)) if pixels <= u128::from(max_pixels) => Ok((w, h)),
         _ => Err(Error::new_err(format!(
@@ -657,12 +657,18 @@ fn check_size(width: i64, height: i64, max_pixels: u64) -> PyResult<(u32, u32)> 
     }
 }
 
-/// A camera index given from Python: an error naming it when it is negative.
-fn camera_index(camera: Option<i64>) -> PyResult<Option<usize>> {
+/// A camera index given from Python: an error naming it when it is negative or beyond any
+/// file's cameras.
+fn camera_index(camera: Option<i128>) -> PyResult<Option<usize>> {
     camera
         .map(|i| {
-            usize::try_from(i)
-                .map_err(|_| Error::new_err(format!("camera {i}: indices count from 0")))
+            usize::try_from(i).map_err(|_| {
+                Error::new_err(if i < 0 {
+                    format!("camera {i}: indices count from 0")
+                } else {
+                    format!("camera {i}: no file has that many cameras")
+                })
+            })
         })
         .transpose()
 }
@@ -1071,9 +1077,9 @@ impl PyScene {
     fn render<'py>(
         &self,
         py: Python<'py>,
-        width: i64,
-        height: i64,
-        camera: Option<i64>,
+        width: i128,
+        height: i128,
+        camera: Option<i128>,
         progress: Option<Bound<'py, PyAny>>,
         options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Bound<'py, PyDict>> {
@@ -1095,8 +1101,8 @@ impl PyScene {
         &self,
         py: Python<'py>,
         spec: &str,
-        width: i64,
-        height: i64,
+        width: i128,
+        height: i128,
         views_json: Option<&str>,
         yfov: Option<f32>,
         look_at: Option<[f32; 3]>,

@@ -167,6 +167,10 @@ def test_bad_render_arguments_raise_errors():
         scene.render(-1, 8)
     with pytest.raises(meshtracer.Error, match=r"image size 8x4294967296 is 34359738368 pixels, over the limit"):
         scene.render(8, 2**32)
+    with pytest.raises(meshtracer.Error, match=r"image size 18446744073709551616x8 is .* pixels, over the limit"):
+        scene.render(2**64, 8)
+    with pytest.raises(meshtracer.Error, match=r"camera 18446744073709551616: no file has that many cameras"):
+        scene.render(8, 8, camera=2**64)
     with pytest.raises(meshtracer.Error, match=r"camera -1: indices count from 0"):
         scene.render(8, 8, camera=-1)
     with pytest.raises(meshtracer.Error, match=r"spp -3: must be a whole number from 0 to 4294967295"):
