@@ -7,6 +7,14 @@
 //! (s, t) ∈ [0, 1]² (s to the right, t up) passes through
 //! `eye - w + (s - 1/2)·W·u + (t - 1/2)·H·v`. An orthographic camera shoots parallel rays along
 //! -w from the points `eye + (s - 1/2)·2·xmag·u + (t - 1/2)·2·ymag·v`.
+//!
+//! A [`ThinLens`] (depth of field; glTF cameras have none, so only when asked for) replaces the
+//! pinhole by a disk of radius `aperture_radius` around each pinhole ray's origin, across u and
+//! v: the ray through pixel (s, t) and lens point L goes from L through the point where the
+//! pinhole ray meets the plane of focus, `focus_distance` in front of the eye along -w. Points
+//! on that plane stay sharp; a point at view-axis depth z spreads over a circle of diameter
+//! `2·aperture_radius·|z - focus_distance| / z` measured on the plane of focus (pbrt's and
+//! Mitsuba's `thinlens` model).
 
 use crate::geometry::Ray;
 use crate::scene::{Bounds, Camera, Projection};
@@ -33,6 +41,17 @@ pub struct View {
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
+    /// Depth of field, when asked for: `None` is a pinhole.
+    pub thin_lens: Option<ThinLens>,
+}
+
+/// A thin lens: depth of field (see the module's notes).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ThinLens {
+    /// Radius of the lens disk, in scene units (metres for glTF).
+    pub aperture_radius: f32,
+    /// Distance of the plane in focus in front of the eye, along the view axis.
+    pub focus_distance: f32,
 }
 
 /// The projection with sizes resolved for the image.
@@ -105,7 +124,40 @@ impl View {
             zfar,
             width,
             height,
+            thin_lens: None,
         }
+    }
+
+    /// This view with depth of field through `lens` (a radius of 0 keeps the pinhole).
+    pub fn with_thin_lens(mut self, lens: ThinLens) -> View {
+        self.thin_lens = (lens.aperture_radius > 0.0).then_some(lens);
+        self
+    }
+
+    /// The eye ray through continuous pixel coordinates (`px`, `py`), as [`View::ray`], and
+    /// through the lens point that `lens` (two numbers in [0, 1)) picks on the thin lens's
+    /// disk; without a thin lens, the pinhole ray itself. Every lens point's ray through a
+    /// pixel position meets the pinhole ray on the plane of focus; its interval is the clip
+    /// range along the view axis, as the pinhole ray's.
+    #[inline(always)]
+    pub fn lens_ray(&self, px: f32, py: f32, lens: (f32, f32)) -> Ray {
+        let pinhole = self.ray(px, py);
+        let Some(thin) = self.thin_lens else {
+            return pinhole;
+        };
+        let disk = crate::sampling::concentric_disk(lens.0, lens.1) * thin.aperture_radius;
+        if disk == glam::Vec2::ZERO {
+            // The lens centre: the pinhole ray, bit for bit.
+            return pinhole;
+        }
+        let (origin, direction) = (Vec3::from(pinhole.origin), Vec3::from(pinhole.direction));
+        let forward = -self.w;
+        // The pinhole ray reaches view-axis depth z at distance z / cos along it.
+        let focus = origin + direction * (thin.focus_distance / direction.dot(forward));
+        let start = origin + disk.x * self.u + disk.y * self.v;
+        let direction = (focus - start).normalize();
+        let cos = direction.dot(forward);
+        Ray::new(start, direction, self.znear / cos, self.zfar / cos)
     }
 
     /// This view with `camera`'s own horizontal extent where it has one: a perspective
@@ -575,5 +627,66 @@ mod tests {
         let centred = plain.clone().with_intrinsics(fx, fy, 32.0, 24.0);
         let (a, b) = (centred.ray(10.5, 7.5), plain.ray(10.5, 7.5));
         assert!((a.direction - b.direction).length() < 1e-6);
+    }
+
+    /// A thin lens's rays through one pixel position start on the lens disk (within the
+    /// aperture radius of the eye, across the view axis) and all meet the pinhole ray where it
+    /// crosses the plane of focus; the lens centre's ray is the pinhole ray, and a radius of 0
+    /// is the pinhole. Orthographic views focus the same way.
+    #[test]
+    fn thin_lens_rays_meet_on_the_plane_of_focus() {
+        let lens = ThinLens {
+            aperture_radius: 0.05,
+            focus_distance: 2.5,
+        };
+        let ortho = Camera {
+            projection: Projection::Orthographic {
+                xmag: 1.0,
+                ymag: 0.75,
+                znear: 0.0,
+                zfar: 100.0,
+            },
+            ..camera(Projection::Perspective {
+                yfov: 0.8,
+                aspect_ratio: None,
+                znear: 0.1,
+                zfar: None,
+            })
+        };
+        for base in [
+            camera(Projection::Perspective {
+                yfov: 0.8,
+                aspect_ratio: None,
+                znear: 0.1,
+                zfar: None,
+            }),
+            ortho,
+        ] {
+            let plain = View::from_camera(&base, 64, 48);
+            let view = plain.clone().with_thin_lens(lens);
+            let forward = -view.w;
+            for (px, py) in [(32.0, 24.0), (0.5, 0.5), (63.0, 10.25)] {
+                let pinhole = plain.ray(px, py);
+                let (o, d) = (Vec3::from(pinhole.origin), Vec3::from(pinhole.direction));
+                let focus = o + d * (2.5 / d.dot(forward));
+                assert_eq!(view.lens_ray(px, py, (0.5, 0.5)), pinhole);
+                for u in [(0.0, 0.0), (0.9, 0.2), (0.3, 0.99), (0.5, 0.01)] {
+                    let ray = view.lens_ray(px, py, u);
+                    let (start, dir) = (Vec3::from(ray.origin), Vec3::from(ray.direction));
+                    let across = start - o;
+                    assert!(across.dot(forward).abs() < 1e-6, "{across}");
+                    assert!(across.length() <= 0.05 + 1e-6, "{across}");
+                    let reached = start + dir * ((focus - start).dot(forward) / dir.dot(forward));
+                    assert!((reached - focus).length() < 1e-5, "{reached} vs {focus}");
+                    assert!((ray.tmin * dir.dot(forward) - view.znear).abs() < 1e-6);
+                }
+            }
+            let closed = plain.clone().with_thin_lens(ThinLens {
+                aperture_radius: 0.0,
+                ..lens
+            });
+            assert_eq!(closed, plain);
+            assert_eq!(closed.lens_ray(3.0, 4.0, (0.1, 0.9)), plain.ray(3.0, 4.0));
+        }
     }
 }

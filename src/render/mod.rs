@@ -695,7 +695,14 @@ impl<'a, I: Integrator> PixelLoop<'a, I> {
                 } else {
                     pixel.sampler.next_2d()
                 };
-                rays[count] = view.ray(pixel.x as f32 + dx, y as f32 + dy);
+                // A thin lens takes the next two (a pinhole view draws none, so its numbers
+                // stay where they were); one sample a pixel goes through the lens centre.
+                let lens = if view.thin_lens.is_some() && spp != 1 {
+                    pixel.sampler.next_2d()
+                } else {
+                    (0.5, 0.5)
+                };
+                rays[count] = view.lens_ray(pixel.x as f32 + dx, y as f32 + dy, lens);
                 sampling[count] = i;
                 count += 1;
             }

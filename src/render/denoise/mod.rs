@@ -144,7 +144,11 @@ pub fn guides(scene: &Prepared, settings: &RenderSettings, region: Region) -> Gu
                     for s in 0..grid * grid {
                         let dx = ((s % grid) as f32 + 0.5) / grid as f32;
                         let dy = ((s / grid) as f32 + 0.5) / grid as f32;
-                        let ray = view.ray(x as f32 + dx, y as f32 + dy);
+                        // Through a thin lens the grid's samples spread over the lens too,
+                        // as a Fibonacci-like lattice of the grid's count.
+                        let count = (grid * grid) as f32;
+                        let lens = ((s as f32 + 0.5) / count, (s as f32 * 0.618_034).fract());
+                        let ray = view.lens_ray(x as f32 + dx, y as f32 + dy, lens);
                         let (sa, sn, st) = first_surfaces(scene, &ray, spread, background);
                         a += sa;
                         n += sn;
