@@ -5,6 +5,7 @@
 //! Units are glTF's: metres, radians, candela (point, spot), lux (directional). Directions are
 //! unit vectors in world space; a light's `direction` is the way its light travels.
 
+use crate::camera::ThinLens;
 use crate::integrator::IntegratorKind;
 use crate::light::environment::{Environment, EnvironmentSource};
 use crate::scene::{Camera, Light, LightKind, Projection};
@@ -56,6 +57,12 @@ pub struct ViewCamera {
     pub znear: f32,
     /// Far clip distance; null for infinite.
     pub zfar: Option<f32>,
+    /// Depth of field: the thin lens's aperture radius in scene units (absent: a pinhole).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub aperture_radius: Option<f32>,
+    /// With `aperture_radius`: the distance of the plane in focus along the view axis.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub focus_distance: Option<f32>,
 }
 
 /// One light, in glTF units.
@@ -311,6 +318,8 @@ impl ViewFile {
                 aspect,
                 znear,
                 zfar: zfar.filter(|z| z.is_finite()),
+                aperture_radius: None,
+                focus_distance: None,
             },
             lights: lights.iter().map(view_light).collect(),
             ambient: ambient.to_array(),
@@ -384,6 +393,7 @@ impl ViewFile {
             return Err(err("image width and height must be at least 1".into()));
         }
         view.camera.to_camera().map_err(err)?;
+        view.camera.thin_lens().map_err(err)?;
         for l in &view.lights {
             to_light(l).map_err(err)?;
         }
@@ -441,6 +451,29 @@ impl ViewFile {
 }
 
 impl ViewCamera {
+    /// The thin lens this record describes (`None`: a pinhole), or what is wrong with it.
+    pub fn thin_lens(&self) -> Result<Option<ThinLens>, String> {
+        match (self.aperture_radius, self.focus_distance) {
+            (None, None) => Ok(None),
+            (Some(r), Some(f)) if r.is_finite() && r >= 0.0 && f.is_finite() && f > 0.0 => {
+                Ok((r > 0.0).then_some(ThinLens {
+                    aperture_radius: r,
+                    focus_distance: f,
+                }))
+            }
+            (Some(_), Some(_)) => Err("aperture_radius must be a finite number, 0 or more, and \
+                focus_distance a finite number above 0"
+                .into()),
+            _ => Err("aperture_radius and focus_distance go together".into()),
+        }
+    }
+
+    /// This record with `lens` (`None`: a pinhole).
+    pub fn set_thin_lens(&mut self, lens: Option<ThinLens>) {
+        self.aperture_radius = lens.map(|l| l.aperture_radius);
+        self.focus_distance = lens.map(|l| l.focus_distance);
+    }
+
     /// The camera this record describes, or what is wrong with it.
     pub fn to_camera(&self) -> Result<Camera, String> {
         let c = self;
