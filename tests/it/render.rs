@@ -308,6 +308,163 @@ fn camera_conventions_put_a_quad_where_expected() {
     }
 }
 
+/// Depth of field (`--aperture-radius`, `--focus-distance`): a thin lens blurs an edge off the
+/// plane of focus over the circle of confusion the lens model gives, and leaves an edge on
+/// that plane sharp. A half-plane (x < 0) 4 m in front of a camera whose view is 1 m tall at
+/// 1 m (so 4 m tall at the edge, 128 pixels: 1/32 m a pixel) is seen through a lens of radius
+/// 0.25 focused at 2 m: a point 4 m away spreads over a disk of radius A·(d - f)/f = 0.25 m
+/// there, 8 pixels. Each column's coverage, averaged over the rows, must be the fraction of
+/// that disk on the half-plane's side (box-filtered over the pixel), within 0.03; focused at
+/// 4 m the edge is the pinhole's. The view file records the lens and renders the same bytes.
+#[test]
+fn a_thin_lens_blurs_an_edge_over_its_circle_of_confusion() {
+    let dir = tempfile::tempdir().unwrap();
+    // 2.5 m each way reaches past the frame (2 m) and the blur (0.25 m); a larger quad would
+    // move its edge by the triangle test's tolerance (1e-4 of its size, a pixel's 0.06 at 20 m).
+    let edge = [
+        [-2.5, -2.5, -4.0],
+        [0.0, -2.5, -4.0],
+        [0.0, 2.5, -4.0],
+        [-2.5, 2.5, -4.0],
+    ];
+    let yfov = 2.0 * 0.5f32.atan();
+    let extra = json!({
+        "materials": [white(true)],
+        "cameras": [{"type": "perspective", "perspective": {"yfov": yfov, "znear": 0.1}}],
+        "nodes": [{"camera": 0}]
+    });
+    let (json, bin) = quads_gltf(&[(edge, 0)], extra);
+    let model = write_gltf(dir.path(), "edge.gltf", json, &bin);
+    // The fraction of a unit disk centred x radii right of the edge that lies left of it
+    // (the segment beyond a chord x from the centre).
+    let left_of = |x: f32| -> f32 {
+        let x = x.clamp(-1.0, 1.0);
+        (x.acos() - x * (1.0 - x * x).sqrt()) / PI
+    };
+    let profile = |out: &Path| -> Vec<f32> {
+        let (w, h, pixels) = read_rgba(out);
+        (0..w as usize)
+            .map(|i| {
+                (0..h as usize)
+                    .map(|j| pixels[j * w as usize + i][3])
+                    .sum::<f32>()
+                    / h as f32
+            })
+            .collect()
+    };
+    for (focus, radius_px) in [("2", 8.0f32), ("4", 0.0)] {
+        let name = format!("focus-{focus}.png");
+        let view = dir.path().join(format!("focus-{focus}.view.json"));
+        let args = [
+            "--width",
+            "128",
+            "--height",
+            "128",
+            "--spp",
+            "256",
+            "--aperture-radius",
+            "0.25",
+            "--focus-distance",
+            focus,
+            "--view-out",
+            s(&view),
+        ];
+        let out = render_to(dir.path(), &model, &name, &args);
+        for (i, &measured) in profile(&out).iter().enumerate() {
+            // Pixel i spans [i - 64, i - 63] in pixels from the edge: its box, in 16 steps.
+            let expected = (0..16)
+                .map(|k| {
+                    let x = i as f32 - 64.0 + (k as f32 + 0.5) / 16.0;
+                    if radius_px == 0.0 {
+                        f32::from(u8::from(x < 0.0))
+                    } else {
+                        left_of(x / radius_px)
+                    }
+                })
+                .sum::<f32>()
+                / 16.0;
+            assert!(
+                (measured - expected).abs() < 0.03,
+                "focus {focus}: column {i}: coverage {measured}, the lens model {expected}"
+            );
+        }
+        let recorded: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&view).unwrap()).unwrap();
+        assert_eq!(recorded["camera"]["aperture_radius"], json!(0.25));
+        assert_eq!(
+            recorded["camera"]["focus_distance"].as_f64(),
+            focus.parse().ok()
+        );
+        let again = render_to(
+            dir.path(),
+            &model,
+            &format!("again-{focus}.png"),
+            &["--spp", "256", "--view", s(&view)],
+        );
+        assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&again).unwrap());
+    }
+}
+
+/// Depth-of-field options that cannot make a lens are refused, each naming the option.
+#[test]
+fn thin_lens_options_that_cannot_make_a_lens_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = crate::common::root().join("assets/cornell-box.gltf");
+    let out = dir.path().join("out.png");
+    for (extra, message) in [
+        (
+            &["--aperture-radius", "-1"][..],
+            "--aperture-radius -1: must be a finite number, 0 or more",
+        ),
+        (
+            &["--aperture-radius", "NaN"][..],
+            "--aperture-radius NaN: must be a finite number",
+        ),
+        (
+            &["--aperture-radius", "0.1", "--focus-distance", "0"][..],
+            "--focus-distance 0: must be a finite number above 0",
+        ),
+        (&["--focus-distance", "2"][..], "--aperture-radius"),
+        (
+            &["--aperture-radius", "0.1", "--views", "orbit:2"][..],
+            "cannot be used with",
+        ),
+        // The file's camera looks away from the model: its centre cannot be the plane in
+        // focus.
+        (
+            &["--aperture-radius", "0.1"][..],
+            "the scene's centre is not in front of the camera",
+        ),
+    ] {
+        let model = if extra.len() == 2 && extra[0] == "--aperture-radius" && extra[1] == "0.1" {
+            let behind = json!({
+                "materials": [white(true)],
+                "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}],
+                "nodes": [{"camera": 0, "rotation": [0.0, 1.0, 0.0, 0.0]}]
+            });
+            let (json, bin) = quads_gltf(&[(square(1.0, -4.0), 0)], behind);
+            write_gltf(dir.path(), "behind.gltf", json, &bin)
+        } else {
+            model.clone()
+        };
+        let mut args = vec![
+            "render",
+            s(&model),
+            "-o",
+            s(&out),
+            "--width",
+            "8",
+            "--height",
+            "8",
+        ];
+        args.extend_from_slice(extra);
+        let output = run(&args, false);
+        let err = crate::common::stderr(&output);
+        assert!(err.contains(message), "{extra:?}: {err}");
+        assert!(!out.exists(), "{extra:?} left {}", out.display());
+    }
+}
+
 fn coverage(path: &Path) -> f32 {
     let (_, _, pixels) = read_rgba(path);
     pixels.iter().map(|p| p[3]).sum::<f32>() / pixels.len() as f32

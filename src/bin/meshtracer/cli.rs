@@ -258,6 +258,26 @@ pub struct RenderArgs {
     // A negative value is taken as the value, so that its range check names it.
     #[arg(long, value_name = "DEG", allow_hyphen_values = true)]
     pub yfov: Option<f32>,
+    /// Depth of field: the radius of a thin lens's aperture, in scene units (metres for glTF);
+    /// the plane at --focus-distance stays sharp and the rest blurs. Lens points are sampled
+    /// with the pixel's samples (one sample a pixel goes through the lens centre). For single
+    /// images and tiles [default: 0, a pinhole, as glTF cameras are].
+    #[arg(
+        long,
+        value_name = "R",
+        allow_hyphen_values = true,
+        conflicts_with_all = ["views", "turntable"]
+    )]
+    pub aperture_radius: Option<f32>,
+    /// With --aperture-radius: the distance of the plane in focus in front of the camera,
+    /// along its view axis [default: that of --look-at, else of the scene's centre].
+    #[arg(
+        long,
+        value_name = "D",
+        allow_hyphen_values = true,
+        requires = "aperture_radius"
+    )]
+    pub focus_distance: Option<f32>,
     /// Render many views after one load and one BVH build, into the folder -o names:
     /// orbit:N (a circle around the model), sphere:N (spread evenly over a sphere), random:N
     /// (random directions from --seed), cameras (every camera of the file), or a JSON file of

@@ -536,6 +536,8 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         look_at,
         up,
         yfov,
+        aperture_radius,
+        focus_distance,
         views,
         turntable,
         gif,
@@ -664,6 +666,8 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         .field_unless_default("tonemap", tonemap)
         .field_unless_default("noise", &args.noise())
         .field_unless_default("clamp_indirect", clamp_indirect)
+        .field_unless_default("aperture_radius", aperture_radius)
+        .field_unless_default("focus_distance", focus_distance)
         .group_field("load", &load_record)
 }
 

@@ -13,7 +13,7 @@ use super::{
 use crate::cli::RenderArgs;
 use anyhow::{bail, Context, Result};
 use meshtracer::accel::AccelKind;
-use meshtracer::camera::{auto_camera, look_at, View};
+use meshtracer::camera::{auto_camera, look_at, ThinLens, View};
 use meshtracer::defaults::DEFAULT_YFOV_DEGREES;
 use meshtracer::integrator::IntegratorKind;
 use meshtracer::light::environment::Environment;
@@ -86,6 +86,7 @@ pub(super) fn render_model(
     stop_if_cancelled(&cancel)?;
     let shot = choose_view(args, &scene, view_file.as_ref())?;
     let view = View::from_camera(&shot.camera, shot.width, shot.height);
+    let view = with_thin_lens(args, view, &scene, view_file.as_ref())?;
     let lit = light_view(args, &scene.lights, view_file.as_ref(), &view, env_file)?;
     let using_rig = lit.default_rig;
     let mut settings = render_settings(args, view, lit);
@@ -172,6 +173,16 @@ fn check_image_options(args: &RenderArgs) -> Result<()> {
     if let Some(yfov) = args.yfov {
         if !(yfov > 0.0 && yfov < 180.0) {
             bail!("--yfov {yfov}: must be between 0 and 180 degrees");
+        }
+    }
+    if let Some(r) = args.aperture_radius {
+        if !(r.is_finite() && r >= 0.0) {
+            bail!("--aperture-radius {r}: must be a finite number, 0 or more (scene units)");
+        }
+    }
+    if let Some(f) = args.focus_distance {
+        if !(f.is_finite() && f > 0.0) {
+            bail!("--focus-distance {f}: must be a finite number above 0 (scene units)");
         }
     }
     if let (Some(w), Some(h)) = (args.width, args.height) {
@@ -326,6 +337,56 @@ struct Shot {
     height: u32,
     /// The whole image, or the tile of `--tile` or `--crop`.
     region: Region,
+}
+
+/// `view` with the depth of field asked for: `--aperture-radius` (focused at
+/// `--focus-distance`, else at the view-axis depth of `--look-at` or of the scene's centre),
+/// else the `--view` file's thin lens, else the pinhole. Refuses a default focus behind the
+/// camera.
+fn with_thin_lens(
+    args: &RenderArgs,
+    view: View,
+    scene: &Scene,
+    view_file: Option<&ViewFile>,
+) -> Result<View> {
+    let Some(aperture_radius) = args.aperture_radius else {
+        let lens = match view_file {
+            Some(file) => file.camera.thin_lens().map_err(|problem| {
+                anyhow::anyhow!(
+                    "{}: {problem}",
+                    args.view
+                        .as_deref()
+                        .unwrap_or(Path::new("--view"))
+                        .display()
+                )
+            })?,
+            None => None,
+        };
+        return Ok(match lens {
+            Some(lens) => view.with_thin_lens(lens),
+            None => view,
+        });
+    };
+    let focus_distance = match args.focus_distance {
+        Some(f) => f,
+        None => {
+            let (target, what) = match args.look_at {
+                Some(at) => (at, "--look-at"),
+                None => (scene.bounds.center(), "the scene's centre"),
+            };
+            let depth = (target - view.eye).dot(-view.w);
+            if !(depth.is_finite() && depth > 0.0) {
+                bail!(
+                    "--aperture-radius: {what} is not in front of the camera, so it cannot be the plane in focus: give --focus-distance"
+                );
+            }
+            depth
+        }
+    };
+    Ok(view.with_thin_lens(ThinLens {
+        aperture_radius,
+        focus_distance,
+    }))
 }
 
 /// Frames the single view. The `--view` file gives the camera and size; else the size comes
@@ -773,6 +834,7 @@ fn view_record(args: &RenderArgs, done: &Finished) -> ViewFile {
         settings.environment.as_ref(),
     );
     view.denoise = done.rendered.denoised.as_ref().map(view_denoise);
+    view.camera.set_thin_lens(settings.view.thin_lens);
     view
 }
 
