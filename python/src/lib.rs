@@ -386,6 +386,32 @@ impl PyScene {
         self.with_lens(camera.unwrap_or(0), &chosen, view)
     }
 
+    /// `view` with the depth of field of `aperture_radius`, focused at `focus_distance`, else
+    /// at the view-axis depth of the scene's centre (`render --aperture-radius`).
+    fn with_thin_lens(&self, py: Python<'_>, view: View, o: &RenderOptions) -> PyResult<View> {
+        let Some(aperture_radius) = o.aperture_radius else {
+            return Ok(view);
+        };
+        let focus_distance = match o.focus_distance {
+            Some(f) => f,
+            None => {
+                let centre = self.with_scene(py, |scene| scene.bounds.center())?;
+                let depth = (centre - view.eye).dot(-view.w);
+                if !(depth.is_finite() && depth > 0.0) {
+                    return Err(Error::new_err(
+                        "aperture_radius: the scene's centre is not in front of the camera, so \
+                         it cannot be the plane in focus: give focus_distance",
+                    ));
+                }
+                depth
+            }
+        };
+        Ok(view.with_thin_lens(meshtracer::camera::ThinLens {
+            aperture_radius,
+            focus_distance,
+        }))
+    }
+
     /// `view`, made by `View::from_camera` of `camera` (the scene's camera `index`), with the
     /// intrinsics or stretch that camera was added with, if any.
     fn with_lens(&self, index: usize, camera: &Camera, view: View) -> PyResult<View> {
@@ -575,6 +601,9 @@ struct RenderOptions {
     /// Denoise each view with the built-in filter; `None` until [`RenderOptions::for_views`]
     /// decides as the CLI does ([`setup::denoises_by_default`]).
     denoise: Option<bool>,
+    /// `--aperture-radius`, `--focus-distance`: depth of field (`render` only).
+    aperture_radius: Option<f32>,
+    focus_distance: Option<f32>,
 }
 
 impl RenderOptions {
@@ -1086,6 +1115,7 @@ impl PyScene {
         let o = RenderOptions::from_kwargs(options)?.resolved(true);
         let (width, height) = check_size(width, height, o.max_pixels)?;
         let view = self.view(py, camera_index(camera)?, width, height)?;
+        let view = self.with_thin_lens(py, view, &o)?;
         let settings = self.settings(py, view.clone(), &view, &o)?;
         let mut out = self.render_settings(py, &[settings], &o, progress.as_ref())?;
         out.pop()
@@ -1113,6 +1143,12 @@ impl PyScene {
         options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let o = RenderOptions::from_kwargs(options)?.resolved(false);
+        if o.aperture_radius.is_some() {
+            return Err(Error::new_err(
+                "aperture_radius: depth of field is for render(), not render_views \
+                 (transforms.json describes pinhole cameras), as the CLI's --views",
+            ));
+        }
         let (width, height) = check_size(width, height, o.max_pixels)?;
         let views_error = |e: ViewsError| Error::new_err(e.to_string());
         let (parsed, explicit) = match views_json {
@@ -1212,6 +1248,8 @@ impl RenderOptions {
             max_pixels: MAX_RENDER_PIXELS,
             max_spp: MAX_SPP,
             denoise: None,
+            aperture_radius: None,
+            focus_distance: None,
         };
         for (key, value) in kwargs.into_iter().flat_map(|d| d.iter()) {
             let key: String = key.extract()?;
@@ -1259,14 +1297,33 @@ impl RenderOptions {
                 "max_pixels" => o.max_pixels = whole("max_pixels", &value)?,
                 "max_spp" => o.max_spp = whole("max_spp", &value)?,
                 "denoise" => o.denoise = value.extract().map_err(bad)?,
+                "aperture_radius" => o.aperture_radius = value.extract().map_err(bad)?,
+                "focus_distance" => o.focus_distance = value.extract().map_err(bad)?,
                 _ => {
                     return Err(Error::new_err(format!(
                         "unknown render option '{key}': use spp, integrator, seed, bounces, \
                          exposure, aovs, srgb8, tonemap, noise, clamp_indirect, ambient, \
                          default_lights, env, env_rotation, env_intensity, env_visible, max_pixels, \
-                         max_spp, denoise"
+                         max_spp, denoise, aperture_radius, focus_distance"
                     )))
                 }
+            }
+        }
+        if let Some(r) = o.aperture_radius.filter(|r| !(r.is_finite() && *r >= 0.0)) {
+            return Err(Error::new_err(format!(
+                "aperture_radius {r}: must be a finite number, 0 or more (scene units)"
+            )));
+        }
+        if let Some(f) = o.focus_distance {
+            if !(f.is_finite() && f > 0.0) {
+                return Err(Error::new_err(format!(
+                    "focus_distance {f}: must be a finite number above 0 (scene units)"
+                )));
+            }
+            if o.aperture_radius.is_none() {
+                return Err(Error::new_err(
+                    "focus_distance focuses a thin lens: give aperture_radius too",
+                ));
             }
         }
         for (name, value) in [("noise", o.noise), ("clamp_indirect", o.clamp_indirect)] {

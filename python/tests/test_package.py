@@ -276,6 +276,28 @@ def test_path_tracer_colour_equals_the_clis_png(cli, tmp_path):
     np.testing.assert_array_equal(arrays["srgb8"], files["png"])
 
 
+def test_depth_of_field_equals_the_clis(cli, tmp_path):
+    # The thin lens focused at the CLI's default (the scene centre's depth) and at a given
+    # distance: the same bytes as --aperture-radius / --focus-distance.
+    scene = meshtracer.load(CORNELL)
+    for focus in (None, 2.5):
+        png = tmp_path / f"dof-{focus}.png"
+        extra = () if focus is None else ("--focus-distance", focus)
+        cli("render", CORNELL, "-o", png, "--width", 48, "--height", 36, "--quiet", "--spp", 8,
+            "--aperture-radius", 0.1, *extra)
+        options = {} if focus is None else {"focus_distance": focus}
+        arrays = scene.render(48, 36, spp=8, srgb8=True, aperture_radius=0.1, **options)
+        np.testing.assert_array_equal(arrays["srgb8"], read_png_rgba(png))
+    pinhole = scene.render(48, 36, spp=8, srgb8=True)["srgb8"]
+    assert (pinhole != arrays["srgb8"]).any()
+    with pytest.raises(meshtracer.Error, match="aperture_radius -1: must be a finite number"):
+        scene.render(8, 8, aperture_radius=-1.0)
+    with pytest.raises(meshtracer.Error, match="give aperture_radius too"):
+        scene.render(8, 8, focus_distance=2.0)
+    with pytest.raises(meshtracer.Error, match="not render_views"):
+        scene.render_views("orbit:2", 8, 8, aperture_radius=0.1)
+
+
 def write_hdr(path, pixels):
     """A Radiance .hdr of float32 H x W x 3 `pixels`, flat RGBE scanlines (W < 8: never
     run-length encoded)."""
