@@ -322,6 +322,18 @@ def main(argv):
     else:
         camera_data.type = "ORTHO"
         camera_data.ortho_scale = 2.0 * cam["ymag"]
+    if cam.get("aperture_radius"):
+        # meshtracer's thin lens (--aperture-radius, --focus-distance): Cycles' aperture radius
+        # is the focal length / (2·f-stop) (1 / (2·f-stop) for an orthographic camera), the
+        # focal length in metres from the sensor height that the vertical fov implies.
+        camera_data.dof.use_dof = True
+        camera_data.dof.focus_distance = cam["focus_distance"]
+        if cam["type"] == "perspective":
+            focal = camera_data.lens * 1e-3
+        else:
+            focal = 1.0
+        camera_data.dof.aperture_fstop = focal / (2.0 * cam["aperture_radius"])
+        camera_data.dof.aperture_blades = 0
     camera_data.clip_start = max(cam["znear"], 1e-4)
     camera_data.clip_end = cam["zfar"] or 1e5
     camera = bpy.data.objects.new("view", camera_data)

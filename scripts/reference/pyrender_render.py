@@ -67,6 +67,9 @@ def main():
     )
 
     cam = view["camera"]
+    if cam.get("aperture_radius"):
+        print("warning: pyrender has no depth of field: the view's thin lens is rendered as "
+              "a pinhole", file=sys.stderr)
     zfar = cam.get("zfar")
     if cam["type"] == "perspective":
         camera = pyrender.PerspectiveCamera(
