@@ -370,6 +370,26 @@ fn a_thin_lens_blurs_an_edge_over_its_circle_of_confusion() {
             s(&view),
         ];
         let out = render_to(dir.path(), &model, &name, &args);
+        // The summary says the picture went through a lens.
+        let mut loud = vec!["render", s(&model), "-o"];
+        let summary_png = dir.path().join("summary.png");
+        loud.extend([
+            s(&summary_png),
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--spp",
+            "4",
+        ]);
+        loud.extend(["--aperture-radius", "0.25", "--focus-distance", focus]);
+        let said = crate::common::stderr(&run(&loud, true));
+        assert!(
+            said.contains(&format!(
+                "16x16 through a lens of radius 0.25 focused at {focus} at 4 spp"
+            )),
+            "{said}"
+        );
         for (i, &measured) in profile(&out).iter().enumerate() {
             // Pixel i spans [i - 64, i - 63] in pixels from the edge: its box, in 16 steps.
             let expected = (0..16)

@@ -947,6 +947,14 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
             region.width, region.height, region.x, region.y
         )
     };
+    // Depth of field, when asked for: said beside the size, since it changes the picture.
+    let size = match done.settings.view.thin_lens {
+        Some(lens) => format!(
+            "{size} through a lens of radius {} focused at {}",
+            lens.aperture_radius, lens.focus_distance
+        ),
+        None => size,
+    };
     let spp = super::spp_label(
         done.settings.spp,
         done.settings.noise,
