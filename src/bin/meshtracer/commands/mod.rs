@@ -345,6 +345,16 @@ pub(crate) fn counted(n: usize, noun: &str) -> String {
     }
 }
 
+/// A length for a summary line: as given where it reads plainly (`0.08`, `3`), in scientific
+/// notation where its digits would run on (`3e38`, `1e-30`).
+pub(crate) fn length_label(x: f32) -> String {
+    if x == 0.0 || (1e-3..1e6).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// The samples a pixel, for a summary line: "12.3 spp (adaptive to noise 0.1, at most 32)" when
 /// the adaptive sampler chose how many (`samples` over `pixels` is their mean), else "16 spp".
 pub(crate) fn spp_label(spp: u32, noise: Option<f32>, samples: u64, pixels: u64) -> String {
@@ -856,6 +866,15 @@ mod tests {
         assert_eq!(counted(2, "triangle"), "2 triangles");
         assert_eq!(threads_label(1), "1 thread");
         assert_eq!(threads_label(8), "8 threads");
+    }
+
+    #[test]
+    fn lengths_read_plainly_or_in_scientific_notation() {
+        assert_eq!(length_label(0.08), "0.08");
+        assert_eq!(length_label(3.0), "3");
+        assert_eq!(length_label(0.0), "0");
+        assert_eq!(length_label(3e38), "3e38");
+        assert_eq!(length_label(1e-30), "1e-30");
     }
 
     #[test]

@@ -951,7 +951,8 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
     let size = match done.settings.view.thin_lens {
         Some(lens) => format!(
             "{size} through a lens of radius {} focused at {}",
-            lens.aperture_radius, lens.focus_distance
+            super::length_label(lens.aperture_radius),
+            super::length_label(lens.focus_distance)
         ),
         None => size,
     };
