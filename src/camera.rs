@@ -128,6 +128,13 @@ impl View {
         }
     }
 
+    /// The distance along the view axis at which `target` lies, for a thin lens to focus on
+    /// it: `None` where it is not in front of the eye.
+    pub fn depth_of(&self, target: Vec3) -> Option<f32> {
+        let depth = (target - self.eye).dot(-self.w);
+        (depth.is_finite() && depth > 0.0).then_some(depth)
+    }
+
     /// This view with depth of field through `lens` (a radius of 0 keeps the pinhole).
     pub fn with_thin_lens(mut self, lens: ThinLens) -> View {
         self.thin_lens = (lens.aperture_radius > 0.0).then_some(lens);

@@ -92,6 +92,10 @@ pub struct Frame {
     pub depth_file_path: Option<String>,
     /// The coverage mask, if written.
     pub mask_path: Option<String>,
+    /// The view's thin lens, if it has one (`render --aperture-radius`): written as the frame's
+    /// `aperture_radius` and `focus_distance`, which the pinhole model above does not describe
+    /// (nerfstudio and instant-ngp ignore keys they do not know).
+    pub thin_lens: Option<crate::camera::ThinLens>,
 }
 
 /// The frames of one multi-view render, all of `width` x `height` pixels.
@@ -128,6 +132,10 @@ struct FrameEntry<'a> {
     mask_path: Option<&'a str>,
     #[serde(flatten)]
     intrinsics: Option<Intrinsics>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    aperture_radius: Option<f32>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    focus_distance: Option<f32>,
     transform_matrix: [[f32; 4]; 4],
 }
 
@@ -161,6 +169,8 @@ impl Dataset {
                     depth_file_path: f.depth_file_path.as_deref(),
                     mask_path: f.mask_path.as_deref(),
                     intrinsics: shared.is_none().then_some(f.intrinsics),
+                    aperture_radius: f.thin_lens.map(|l| l.aperture_radius),
+                    focus_distance: f.thin_lens.map(|l| l.focus_distance),
                     transform_matrix: f.transform_matrix,
                 })
                 .collect(),
@@ -232,6 +242,7 @@ mod tests {
                 intrinsics: Intrinsics::of(&v).unwrap(),
                 depth_file_path: Some(format!("depth/{name}")),
                 mask_path: None,
+                thin_lens: None,
             }
         };
         let mut set = Dataset {
@@ -258,6 +269,15 @@ mod tests {
         assert!(json.get("fl_x").is_none());
         assert!(json["frames"][0]["fl_x"].as_f64() > json["frames"][1]["fl_x"].as_f64());
         assert_eq!(set.to_json(), set.to_json(), "deterministic");
+        // A frame through a thin lens says so; the others do not.
+        set.frames[0].thin_lens = Some(crate::camera::ThinLens {
+            aperture_radius: 0.25,
+            focus_distance: 2.0,
+        });
+        let json: serde_json::Value = serde_json::from_str(&set.to_json()).unwrap();
+        assert_eq!(json["frames"][0]["aperture_radius"].as_f64(), Some(0.25));
+        assert_eq!(json["frames"][0]["focus_distance"].as_f64(), Some(2.0));
+        assert!(json["frames"][1].get("aperture_radius").is_none());
     }
 
     #[test]

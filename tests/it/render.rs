@@ -445,18 +445,20 @@ fn thin_lens_options_that_cannot_make_a_lens_are_refused() {
             "--focus-distance 0: must be a finite number above 0",
         ),
         (&["--focus-distance", "2"][..], "--aperture-radius"),
-        (
-            &["--aperture-radius", "0.1", "--views", "orbit:2"][..],
-            "cannot be used with",
-        ),
-        // The file's camera looks away from the model: its centre cannot be the plane in
-        // focus.
+        // The file's camera looks away from the model (below): its centre cannot be the plane
+        // in focus, alone or as a view of `--views cameras`.
         (
             &["--aperture-radius", "0.1"][..],
             "the scene's centre is not in front of the camera",
         ),
+        (
+            &["--aperture-radius", "0.1", "--views", "cameras"][..],
+            "view 0 does not face the point it would focus on",
+        ),
     ] {
-        let model = if extra.len() == 2 && extra[0] == "--aperture-radius" && extra[1] == "0.1" {
+        let model = if extra[..2] == ["--aperture-radius", "0.1"]
+            && !extra.contains(&"--focus-distance")
+        {
             let behind = json!({
                 "materials": [white(true)],
                 "cameras": [{"type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}],
@@ -466,6 +468,11 @@ fn thin_lens_options_that_cannot_make_a_lens_are_refused() {
             write_gltf(dir.path(), "behind.gltf", json, &bin)
         } else {
             model.clone()
+        };
+        // With --views, -o names a folder.
+        let out = match extra.contains(&"--views") {
+            true => dir.path().join("views"),
+            false => out.clone(),
         };
         let mut args = vec![
             "render",

@@ -424,6 +424,76 @@ fn a_view_of_the_run_equals_the_view_rendered_alone() {
     }
 }
 
+/// Views through a thin lens (`--aperture-radius`): each view focuses at its distance to the
+/// model's centre, which it looks at, and records the lens in its view file and its
+/// transforms.json frame; a view rendered alone from its file is the run's, byte for byte,
+/// and differs from the pinhole's.
+#[test]
+fn views_through_a_thin_lens_record_it_and_render_alone_the_same() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = cornell();
+    let lens = dir.path().join("lens");
+    let pinhole = dir.path().join("pinhole");
+    // Four samples a pixel (`render_views` takes one, which goes through the lens centre).
+    let views = |out: &Path, extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            s(&model),
+            "--views",
+            "orbit:2",
+            "-o",
+            s(out),
+            "-q",
+        ];
+        args.extend_from_slice(&["--width", "64", "--height", "48", "--spp", "4"]);
+        args.extend_from_slice(extra);
+        run(&args, true);
+    };
+    views(&lens, &["--aperture-radius", "0.2"]);
+    views(&pinhole, &[]);
+    let spp = ["--spp", "4"];
+    let transforms = read_json(&lens.join("transforms.json"));
+    let centre = bounds_centre(&model);
+    for (k, frame) in transforms["frames"].as_array().unwrap().iter().enumerate() {
+        assert_eq!(frame["aperture_radius"].as_f64(), Some(0.2));
+        let m = matrix(frame);
+        let eye = m.w_axis.truncate();
+        let forward = -m.z_axis.truncate();
+        let focus = frame["focus_distance"].as_f64().unwrap() as f32;
+        assert!(
+            ((centre - eye).dot(forward) - focus).abs() < 1e-4 * focus,
+            "view {k}"
+        );
+        let view_file = read_json(&lens.join(format!("{k:03}.view.json")));
+        assert_eq!(
+            view_file["camera"]["focus_distance"],
+            frame["focus_distance"]
+        );
+    }
+    let alone = dir.path().join("alone.png");
+    let view = lens.join("001.view.json");
+    let mut args = vec![
+        "render",
+        s(&model),
+        "--view",
+        s(&view),
+        "-o",
+        s(&alone),
+        "-q",
+    ];
+    args.extend_from_slice(&spp);
+    run(&args, true);
+    let bytes = |p: &Path| std::fs::read(p).unwrap();
+    assert!(
+        bytes(&alone) == bytes(&lens.join("001.png")),
+        "view 1 alone differs"
+    );
+    assert!(
+        bytes(&alone) != bytes(&pinhole.join("001.png")),
+        "the lens changed nothing"
+    );
+}
+
 /// The same command writes the same bytes: images, AOVs, view files and transforms.json.
 #[test]
 fn the_same_command_writes_the_same_bytes() {

@@ -260,17 +260,14 @@ pub struct RenderArgs {
     pub yfov: Option<f32>,
     /// Depth of field: the radius of a thin lens's aperture, in scene units (metres for glTF);
     /// the plane at --focus-distance stays sharp and the rest blurs. Lens points are sampled
-    /// with the pixel's samples (one sample a pixel goes through the lens centre). For single
-    /// images and tiles [default: 0, a pinhole, as glTF cameras are].
-    #[arg(
-        long,
-        value_name = "R",
-        allow_hyphen_values = true,
-        conflicts_with_all = ["views", "turntable"]
-    )]
+    /// with the pixel's samples (one sample a pixel goes through the lens centre). With
+    /// --views each view file and transforms.json frame records the lens [default: 0, a
+    /// pinhole, as glTF cameras are].
+    #[arg(long, value_name = "R", allow_hyphen_values = true)]
     pub aperture_radius: Option<f32>,
     /// With --aperture-radius: the distance of the plane in focus in front of the camera,
-    /// along its view axis [default: that of --look-at, else of the scene's centre].
+    /// along its view axis [default: that of --look-at, else of the scene's centre; for
+    /// --views, each view's distance to the point it looks at].
     #[arg(
         long,
         value_name = "D",

@@ -374,13 +374,9 @@ fn with_thin_lens(
                 Some(at) => (at, "--look-at"),
                 None => (scene.bounds.center(), "the scene's centre"),
             };
-            let depth = (target - view.eye).dot(-view.w);
-            if !(depth.is_finite() && depth > 0.0) {
-                bail!(
-                    "--aperture-radius: {what} is not in front of the camera, so it cannot be the plane in focus: give --focus-distance"
-                );
-            }
-            depth
+            view.depth_of(target).with_context(|| {
+                format!("--aperture-radius: {what} is not in front of the camera, so it cannot be the plane in focus: give --focus-distance")
+            })?
         }
     };
     Ok(view.with_thin_lens(ThinLens {

@@ -17,7 +17,7 @@ use crate::cli::RenderArgs;
 use anyhow::{bail, Context, Result};
 use glam::Vec3;
 use meshtracer::accel::AccelKind;
-use meshtracer::camera::{auto_camera, View};
+use meshtracer::camera::{auto_camera, ThinLens, View};
 use meshtracer::jobs::batch::{model_digest, sha256_file, sha256_hex, OutputRecord, Shard};
 use meshtracer::jobs::views::{
     azimuth_degrees, elevation_degrees, in_shard, plan_cameras, read_rendered_in, read_views_file,
@@ -955,6 +955,33 @@ fn shard(args: &RenderArgs) -> Shard {
     args.shard.unwrap_or(Shard::ALL)
 }
 
+/// View `k`'s thin lens (`--aperture-radius`): focused at `--focus-distance`, else at the
+/// depth of the views' target (`--look-at`, else the scene's centre), which a generated view
+/// looks at; `None` without the option. Refuses a view whose target is not in front of it.
+fn view_thin_lens(
+    args: &RenderArgs,
+    k: usize,
+    camera: &Camera,
+    scene: &Scene,
+) -> Result<Option<ThinLens>> {
+    let Some(aperture_radius) = args.aperture_radius.filter(|r| *r > 0.0) else {
+        return Ok(None);
+    };
+    let focus_distance = match args.focus_distance {
+        Some(f) => f,
+        None => {
+            let target = args.look_at.unwrap_or(scene.bounds.center());
+            View::from_camera(camera, 1, 1)
+                .depth_of(target)
+                .with_context(|| format!("--aperture-radius: view {k} does not face the point it would focus on (--look-at, else the scene's centre): give --focus-distance"))?
+        }
+    };
+    Ok(Some(ThinLens {
+        aperture_radius,
+        focus_distance,
+    }))
+}
+
 /// The cameras of a spec, all perspective (transforms.json describes pinhole cameras only).
 /// Generated views frame the model as the automatic camera does, at `--yfov` (default 45°).
 fn view_cameras(
@@ -999,6 +1026,10 @@ fn view_cameras(
             "{}: --views: view {i} is an orthographic camera, and transforms.json describes perspective (pinhole) cameras only",
             args.model.display()
         );
+    }
+    // Every view's lens can be made before the first is rendered.
+    for (k, camera) in cameras.iter().enumerate() {
+        view_thin_lens(args, k, camera, scene)?;
     }
     Ok(cameras)
 }
@@ -1061,12 +1092,20 @@ impl ViewRun<'_> {
             &self.prepared.scene,
             self.environment.as_ref(),
         );
+        record
+            .camera
+            .set_thin_lens(view_thin_lens(args, k, camera, &self.prepared.scene)?);
         // Render what `render --view` reads back from the view file, number for number, so
         // that the view rendered alone from its file gives the same bytes.
         let text = record.to_json();
         let view_path = dir.join(&names.view);
         let read_back = ViewFile::from_json(&text, &view_path)?;
         let view = View::from_camera(&read_back.camera()?, width, height);
+        let view = match read_back.camera.thin_lens() {
+            Ok(Some(lens)) => view.with_thin_lens(lens),
+            Ok(None) => view,
+            Err(problem) => bail!("view {k}: {problem}"),
+        };
         let intrinsics =
             Intrinsics::of(&view).with_context(|| format!("view {k}: not a perspective camera"))?;
         let settings = RenderSettings {
@@ -1093,6 +1132,7 @@ impl ViewRun<'_> {
             intrinsics,
             depth_file_path: names.depth.clone(),
             mask_path: names.mask.clone(),
+            thin_lens: settings.view.thin_lens,
         };
         // Everything that decides the view's bytes: the pixels' inputs (as tiles join on
         // them), the model file and meshtracer's version, and the view file's text.
@@ -1294,10 +1334,14 @@ impl Summary {
             // Everything was kept (`--resume`): no rays, no rate to report.
             0 => format!("no view rendered ({} kept from an earlier run)", self.kept),
             n => format!(
-                "{n} view{} of {}x{} at {} rendered in {render_seconds:.3} s ({:.3} s a view{kept}): {} rays, {:.2} Mrays/s on {}",
+                "{n} view{} of {}x{}{} at {} rendered in {render_seconds:.3} s ({:.3} s a view{kept}): {} rays, {:.2} Mrays/s on {}",
                 if n == 1 { "" } else { "s" },
                 self.width,
                 self.height,
+                match args.aperture_radius.filter(|r| *r > 0.0) {
+                    Some(r) => format!(" through a lens of radius {}", super::length_label(r)),
+                    None => String::new(),
+                },
                 super::spp_label(
                     args.spp(),
                     args.noise(),
