@@ -40,7 +40,7 @@ env_intensity=1.0, env_visible=False, progress=None)``
     (degrees), ``env_intensity`` and ``env_visible`` the path tracer's ``--env`` options (read
     once and kept while the file and transform stay the same); ``aperture_radius`` and
     ``focus_distance`` are ``--aperture-radius`` and ``--focus-distance`` (depth of field
-    through a thin lens, in scene units; ``render`` only); ``progress(done, total)`` is called on this thread as tiles finish,
+    through a thin lens, in scene units); ``progress(done, total)`` is called on this thread as tiles finish,
     and an exception it raises, or Ctrl-C, cancels the render and propagates. Any other keyword
     raises Error.
 

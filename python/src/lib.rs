@@ -387,23 +387,32 @@ impl PyScene {
     }
 
     /// `view` with the depth of field of `aperture_radius`, focused at `focus_distance`, else
-    /// at the view-axis depth of the scene's centre (`render --aperture-radius`).
-    fn with_thin_lens(&self, py: Python<'_>, view: View, o: &RenderOptions) -> PyResult<View> {
+    /// at the view-axis depth of `look_at`, else of the scene's centre (`render
+    /// --aperture-radius`); `which` names the view in an error ("the camera", "view 2").
+    fn with_thin_lens(
+        &self,
+        py: Python<'_>,
+        view: View,
+        o: &RenderOptions,
+        look_at: Option<Vec3>,
+        which: &str,
+    ) -> PyResult<View> {
         let Some(aperture_radius) = o.aperture_radius else {
             return Ok(view);
         };
         let focus_distance = match o.focus_distance {
             Some(f) => f,
             None => {
-                let centre = self.with_scene(py, |scene| scene.bounds.center())?;
-                let depth = (centre - view.eye).dot(-view.w);
-                if !(depth.is_finite() && depth > 0.0) {
-                    return Err(Error::new_err(
-                        "aperture_radius: the scene's centre is not in front of the camera, so \
-                         it cannot be the plane in focus: give focus_distance",
-                    ));
-                }
-                depth
+                let target = match look_at {
+                    Some(at) => at,
+                    None => self.with_scene(py, |scene| scene.bounds.center())?,
+                };
+                view.depth_of(target).ok_or_else(|| {
+                    Error::new_err(format!(
+                        "aperture_radius: the point to focus on (look_at, else the scene's \
+                         centre) is not in front of {which}: give focus_distance"
+                    ))
+                })?
             }
         };
         Ok(view.with_thin_lens(meshtracer::camera::ThinLens {
@@ -1115,7 +1124,7 @@ impl PyScene {
         let o = RenderOptions::from_kwargs(options)?.resolved(true);
         let (width, height) = check_size(width, height, o.max_pixels)?;
         let view = self.view(py, camera_index(camera)?, width, height)?;
-        let view = self.with_thin_lens(py, view, &o)?;
+        let view = self.with_thin_lens(py, view, &o, None, "the camera")?;
         let settings = self.settings(py, view.clone(), &view, &o)?;
         let mut out = self.render_settings(py, &[settings], &o, progress.as_ref())?;
         out.pop()
@@ -1143,12 +1152,6 @@ impl PyScene {
         options: Option<&Bound<'py, PyDict>>,
     ) -> PyResult<Vec<Bound<'py, PyDict>>> {
         let o = RenderOptions::from_kwargs(options)?.resolved(false);
-        if o.aperture_radius.is_some() {
-            return Err(Error::new_err(
-                "aperture_radius: depth of field is for render(), not render_views \
-                 (transforms.json describes pinhole cameras), as the CLI's --views",
-            ));
-        }
         let (width, height) = check_size(width, height, o.max_pixels)?;
         let views_error = |e: ViewsError| Error::new_err(e.to_string());
         let (parsed, explicit) = match views_json {
@@ -1195,6 +1198,8 @@ impl PyScene {
                     true => self.with_lens(i, c, view)?,
                     false => view,
                 };
+                let which = format!("view {i}");
+                let view = self.with_thin_lens(py, view, &o, options.look_at, &which)?;
                 self.settings(py, view, &front, &o)
             })
             .collect::<PyResult<_>>()?;

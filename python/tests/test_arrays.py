@@ -534,6 +534,21 @@ def test_render_views_orbit_gives_n_views_around_the_model(cli, tmp_path):
             np.testing.assert_array_equal(view["srgb8"], np.asarray(image.convert("RGBA")))
 
 
+def test_views_through_a_thin_lens_are_the_clis(cli, tmp_path):
+    # Each view focused at its distance to the scene's centre, as `--views --aperture-radius`.
+    out = meshtracer.load(CORNELL).render_views("orbit:2", 48, 36, srgb8=True,
+                                                aperture_radius=0.2, **SETTINGS)
+    cli("render", CORNELL, "--views", "orbit:2", "-o", tmp_path, "--width", 48, "--height", 36,
+        "--spp", 4, "--integrator", "direct", "--seed", 0, "--tonemap", "standard", "--quiet",
+        "--aperture-radius", 0.2)
+    from PIL import Image
+    pngs = sorted(tmp_path.glob("*.png"))
+    assert len(pngs) == 2, pngs
+    for view, png in zip(out, pngs):
+        with Image.open(png) as image:
+            np.testing.assert_array_equal(view["srgb8"], np.asarray(image.convert("RGBA")))
+
+
 def test_denoised_views_are_the_clis(cli, tmp_path):
     # The default sampling with denoise=True: each view adaptive and denoised, as
     # `render --views --denoise` makes it.

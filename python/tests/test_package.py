@@ -294,8 +294,9 @@ def test_depth_of_field_equals_the_clis(cli, tmp_path):
         scene.render(8, 8, aperture_radius=-1.0)
     with pytest.raises(meshtracer.Error, match="give aperture_radius too"):
         scene.render(8, 8, focus_distance=2.0)
-    with pytest.raises(meshtracer.Error, match="not render_views"):
-        scene.render_views("orbit:2", 8, 8, aperture_radius=0.1)
+    with pytest.raises(meshtracer.Error, match="not in front of view 0: give focus_distance"):
+        scene.render_views("", 8, 8, aperture_radius=0.1,
+                           views_json='[{"look_from": [0, 1, 6], "look_at": [0, 1, 9]}]')
 
 
 def write_hdr(path, pixels):
