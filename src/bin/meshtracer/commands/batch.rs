@@ -593,17 +593,7 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         variant,
         load,
     } = args;
-    let LoadArgs {
-        allow_external_files,
-        max_triangles,
-        animation,
-        time,
-    } = load;
-    let load_record = FingerprintRecord::load_options()
-        .field("allow_external_files", allow_external_files)
-        .field("max_triangles", max_triangles)
-        .field("animation", animation)
-        .field("time", time);
+    let load_record = load_fingerprint_record(load);
     FingerprintRecord::render_options()
         .field("model", model)
         .field("output", output)
@@ -669,6 +659,22 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         .field_unless_default("aperture_radius", aperture_radius)
         .field_unless_default("focus_distance", focus_distance)
         .group_field("load", &load_record)
+}
+
+/// The `load` group of [`fingerprint_record`]: every field of [`LoadArgs`], named by the
+/// destructuring as there.
+fn load_fingerprint_record(load: &LoadArgs) -> FingerprintRecord {
+    let LoadArgs {
+        allow_external_files,
+        max_triangles,
+        animation,
+        time,
+    } = load;
+    FingerprintRecord::load_options()
+        .field("allow_external_files", allow_external_files)
+        .field("max_triangles", max_triangles)
+        .field("animation", animation)
+        .field("time", time)
 }
 
 fn render_args(batch: &BatchArgs, job: &Job, job_dir: &Path) -> Result<RenderArgs> {
