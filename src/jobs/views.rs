@@ -345,6 +345,15 @@ pub enum ExplicitView {
 }
 
 impl ExplicitView {
+    /// The point a thin lens focuses on by default: the view's `look_at`, where it has one
+    /// (a view file's camera records only a direction).
+    pub fn focus_target(&self) -> Option<Vec3> {
+        match self {
+            ExplicitView::LookAt { at, .. } => Some(*at),
+            ExplicitView::Camera(_) => None,
+        }
+    }
+
     /// The camera of this view: `yfov` (radians) where the view gives none, and the near clip
     /// plane from the scene's bounding sphere (`scene_centre`, `scene_radius`).
     pub fn camera(&self, yfov: f32, scene_centre: Vec3, scene_radius: f32) -> Camera {

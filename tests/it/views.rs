@@ -470,6 +470,34 @@ fn views_through_a_thin_lens_record_it_and_render_alone_the_same() {
             frame["focus_distance"]
         );
     }
+    // A views file's view focuses at its own look_at: 3 m ahead here, off the centre.
+    let file = dir.path().join("views.json");
+    std::fs::write(
+        &file,
+        r#"[{"look_from": [0.5, 1, 3], "look_at": [0.5, 1, 0]}]"#,
+    )
+    .unwrap();
+    let explicit = dir.path().join("explicit");
+    let mut args = vec![
+        "render",
+        s(&model),
+        "--views",
+        s(&file),
+        "-o",
+        s(&explicit),
+        "-q",
+    ];
+    args.extend_from_slice(&[
+        "--width",
+        "16",
+        "--height",
+        "12",
+        "--aperture-radius",
+        "0.2",
+    ]);
+    run(&args, true);
+    let frame = &read_json(&explicit.join("transforms.json"))["frames"][0];
+    assert_eq!(frame["focus_distance"].as_f64(), Some(3.0));
     let alone = dir.path().join("alone.png");
     let view = lens.join("001.view.json");
     let mut args = vec![

@@ -304,12 +304,13 @@ fn render_views_into(
     super::report_load(args, &scene);
 
     let (width, height) = views_size(args, &spec, &scene)?;
-    let cameras = view_cameras(args, &spec, explicit, &scene, width, height)?;
+    let (cameras, lenses) = view_cameras(args, &spec, explicit, &scene, width, height)?;
     let names = outputs.names(args, dir, cameras.len(), (width, height))?;
     let plan = Plan {
         width,
         height,
         cameras,
+        lenses,
         names,
         load_time,
         threads,
@@ -591,6 +592,8 @@ struct Plan {
     width: u32,
     height: u32,
     cameras: Vec<Camera>,
+    /// Each view's thin lens, if `--aperture-radius` asks for one.
+    lenses: Vec<Option<ThinLens>>,
     names: Vec<ViewNames>,
     /// Wall time of the parse and flatten (the tangents come with the prepare).
     load_time: Duration,
@@ -684,7 +687,7 @@ fn render_each(
     on_view(0, mine.len());
     for (done, &k) in mine.iter().enumerate() {
         let (camera, names) = (&cameras[k], &plan.names[k]);
-        let work = match run.prepare(k, camera, names) {
+        let work = match run.prepare(k, camera, plan.lenses[k], names) {
             Ok(work) => work,
             Err(e) => return Err(failed_part_way(args, plan, frames, k, e)),
         };
@@ -752,7 +755,9 @@ impl RecordLog {
                     continue;
                 };
                 let names = &plan.names[k];
-                let fingerprint = run.prepare(k, &plan.cameras[k], names)?.fingerprint;
+                let fingerprint = run
+                    .prepare(k, &plan.cameras[k], plan.lenses[k], names)?
+                    .fingerprint;
                 // The whole run's record, then each shard's: the first that still holds.
                 let mut why = String::new();
                 for record in candidates {
@@ -956,25 +961,23 @@ fn shard(args: &RenderArgs) -> Shard {
 }
 
 /// View `k`'s thin lens (`--aperture-radius`): focused at `--focus-distance`, else at the
-/// depth of the views' target (`--look-at`, else the scene's centre), which a generated view
-/// looks at; `None` without the option. Refuses a view whose target is not in front of it.
+/// depth of `target`, the point it looks at (a views file's `look_at`, else `--look-at`, else
+/// the scene's centre); `None` without the option. Refuses a view that does not face its
+/// target.
 fn view_thin_lens(
     args: &RenderArgs,
     k: usize,
     camera: &Camera,
-    scene: &Scene,
+    target: Vec3,
 ) -> Result<Option<ThinLens>> {
     let Some(aperture_radius) = args.aperture_radius.filter(|r| *r > 0.0) else {
         return Ok(None);
     };
     let focus_distance = match args.focus_distance {
         Some(f) => f,
-        None => {
-            let target = args.look_at.unwrap_or(scene.bounds.center());
-            View::from_camera(camera, 1, 1)
-                .depth_of(target)
-                .with_context(|| format!("--aperture-radius: view {k} does not face the point it would focus on (--look-at, else the scene's centre): give --focus-distance"))?
-        }
+        None => View::from_camera(camera, 1, 1)
+            .depth_of(target)
+            .with_context(|| format!("--aperture-radius: view {k} does not face the point it would focus on (its look_at, else --look-at, else the scene's centre): give --focus-distance"))?,
     };
     Ok(Some(ThinLens {
         aperture_radius,
@@ -982,8 +985,9 @@ fn view_thin_lens(
     }))
 }
 
-/// The cameras of a spec, all perspective (transforms.json describes pinhole cameras only).
-/// Generated views frame the model as the automatic camera does, at `--yfov` (default 45°).
+/// The cameras of a spec, all perspective (transforms.json describes pinhole cameras only),
+/// and their thin lenses ([`view_thin_lens`]). Generated views frame the model as the
+/// automatic camera does, at `--yfov` (default 45°).
 fn view_cameras(
     args: &RenderArgs,
     spec: &ViewSpec,
@@ -991,7 +995,7 @@ fn view_cameras(
     scene: &Scene,
     width: u32,
     height: u32,
-) -> Result<Vec<Camera>> {
+) -> Result<(Vec<Camera>, Vec<Option<ThinLens>>)> {
     let aspect = width as f32 / height as f32;
     let mut options = PlanOptions {
         yfov_degrees: args.yfov,
@@ -1027,11 +1031,17 @@ fn view_cameras(
             args.model.display()
         );
     }
-    // Every view's lens can be made before the first is rendered.
-    for (k, camera) in cameras.iter().enumerate() {
-        view_thin_lens(args, k, camera, scene)?;
-    }
-    Ok(cameras)
+    // Every view's lens, made before the first view is rendered.
+    let lenses = cameras
+        .iter()
+        .enumerate()
+        .map(|(k, camera)| {
+            let target = explicit.get(k).and_then(ExplicitView::focus_target);
+            let target = target.or(args.look_at).unwrap_or(scene.bounds.center());
+            view_thin_lens(args, k, camera, target)
+        })
+        .collect::<Result<_>>()?;
+    Ok((cameras, lenses))
 }
 
 /// What every view of a run shares.
@@ -1076,7 +1086,13 @@ impl ViewRun<'_> {
 
     /// What view `k` is rendered from: the view file's text, the settings read back from it,
     /// its frame and its fingerprint. No work beyond that.
-    fn prepare(&self, k: usize, camera: &Camera, names: &ViewNames) -> Result<ViewWork> {
+    fn prepare(
+        &self,
+        k: usize,
+        camera: &Camera,
+        lens: Option<ThinLens>,
+        names: &ViewNames,
+    ) -> Result<ViewWork> {
         let (args, dir, (width, height)) = (self.args, self.dir, (self.width, self.height));
         let mut record = ViewFile::new(
             camera,
@@ -1092,9 +1108,7 @@ impl ViewRun<'_> {
             &self.prepared.scene,
             self.environment.as_ref(),
         );
-        record
-            .camera
-            .set_thin_lens(view_thin_lens(args, k, camera, &self.prepared.scene)?);
+        record.camera.set_thin_lens(lens);
         // Render what `render --view` reads back from the view file, number for number, so
         // that the view rendered alone from its file gives the same bytes.
         let text = record.to_json();
