@@ -19,7 +19,7 @@ use meshtracer::color::ViewTransform;
 use meshtracer::defaults::{DEFAULT_BOUNCES, MAX_RENDER_PIXELS, MAX_SPP, MAX_TEXTURE_MIB};
 use meshtracer::integrator::IntegratorKind;
 use meshtracer::jobs::views::{
-    parse_views, plan_cameras, read_views_file, PlanOptions, ViewSpec, ViewsError,
+    parse_views, plan_cameras, read_views_file, ExplicitView, PlanOptions, ViewSpec, ViewsError,
 };
 use meshtracer::light::environment::Environment;
 use meshtracer::output::dataset::{camera_to_world, Intrinsics};
@@ -409,8 +409,8 @@ impl PyScene {
                 };
                 view.depth_of(target).ok_or_else(|| {
                     Error::new_err(format!(
-                        "aperture_radius: the point to focus on (look_at, else the scene's \
-                         centre) is not in front of {which}: give focus_distance"
+                        "aperture_radius: the point to focus on (the view's look_at, else the \
+                         scene's centre) is not in front of {which}: give focus_distance"
                     ))
                 })?
             }
@@ -1198,8 +1198,10 @@ impl PyScene {
                     true => self.with_lens(i, c, view)?,
                     false => view,
                 };
+                // Focused at the view's own look_at, where a views file gives one.
+                let target = explicit.get(i).and_then(ExplicitView::focus_target);
                 let which = format!("view {i}");
-                let view = self.with_thin_lens(py, view, &o, options.look_at, &which)?;
+                let view = self.with_thin_lens(py, view, &o, target.or(options.look_at), &which)?;
                 self.settings(py, view, &front, &o)
             })
             .collect::<PyResult<_>>()?;

@@ -295,8 +295,16 @@ def test_depth_of_field_equals_the_clis(cli, tmp_path):
     with pytest.raises(meshtracer.Error, match="give aperture_radius too"):
         scene.render(8, 8, focus_distance=2.0)
     with pytest.raises(meshtracer.Error, match="not in front of view 0: give focus_distance"):
-        scene.render_views("", 8, 8, aperture_radius=0.1,
-                           views_json='[{"look_from": [0, 1, 6], "look_at": [0, 1, 9]}]')
+        # A view file's camera looking away from the scene: no look_at of its own to focus on.
+        away = ('[{"camera": {"type": "perspective", "position": [0, 1, 6], "look_at": [0, 1, 7],'
+                ' "up": [0, 1, 0], "yfov": 0.8, "aspect": 1.0, "znear": 0.05, "zfar": null}}]')
+        scene.render_views("", 8, 8, aperture_radius=0.1, views_json=away)
+    # A views file's look_at is where its view focuses (6 in front of the eye here).
+    ahead = '[{"look_from": [0, 1, 6], "look_at": [0, 1, 0]}]'
+    near = scene.render_views("", 16, 12, spp=8, aperture_radius=0.2, views_json=ahead)
+    given = scene.render_views("", 16, 12, spp=8, aperture_radius=0.2, focus_distance=6.0,
+                               views_json=ahead)
+    np.testing.assert_array_equal(near[0]["color"], given[0]["color"])
 
 
 def write_hdr(path, pixels):
