@@ -299,12 +299,14 @@ def test_depth_of_field_equals_the_clis(cli, tmp_path):
         away = ('[{"camera": {"type": "perspective", "position": [0, 1, 6], "look_at": [0, 1, 7],'
                 ' "up": [0, 1, 0], "yfov": 0.8, "aspect": 1.0, "znear": 0.05, "zfar": null}}]')
         scene.render_views("", 8, 8, aperture_radius=0.1, views_json=away)
-    # A views file's look_at is where its view focuses (6 in front of the eye here).
-    ahead = '[{"look_from": [0, 1, 6], "look_at": [0, 1, 0]}]'
-    near = scene.render_views("", 16, 12, spp=8, aperture_radius=0.2, views_json=ahead)
-    given = scene.render_views("", 16, 12, spp=8, aperture_radius=0.2, focus_distance=6.0,
-                               views_json=ahead)
-    np.testing.assert_array_equal(near[0]["color"], given[0]["color"])
+    # A views file's look_at is where its view focuses: 4 in front of the eye here, where
+    # the scene's centre (0, 1, 0) is 6.
+    ahead = '[{"look_from": [0, 1, 6], "look_at": [0, 1, 2]}]'
+    own = scene.render_views("", 16, 12, spp=8, aperture_radius=0.2, views_json=ahead)
+    at = {f: scene.render_views("", 16, 12, spp=8, aperture_radius=0.2, focus_distance=f,
+                                views_json=ahead)[0]["color"] for f in (4.0, 6.0)}
+    np.testing.assert_array_equal(own[0]["color"], at[4.0])
+    assert (own[0]["color"] != at[6.0]).any()
 
 
 def write_hdr(path, pixels):

@@ -470,11 +470,12 @@ fn views_through_a_thin_lens_record_it_and_render_alone_the_same() {
             frame["focus_distance"]
         );
     }
-    // A views file's view focuses at its own look_at: 3 m ahead here, off the centre.
+    // A views file's view focuses at its own look_at: 2 m ahead here, where the scene's
+    // centre (0, 1, 0) is 3 m ahead.
     let file = dir.path().join("views.json");
     std::fs::write(
         &file,
-        r#"[{"look_from": [0.5, 1, 3], "look_at": [0.5, 1, 0]}]"#,
+        r#"[{"look_from": [0.5, 1, 3], "look_at": [0.5, 1, 1]}]"#,
     )
     .unwrap();
     let explicit = dir.path().join("explicit");
@@ -497,7 +498,7 @@ fn views_through_a_thin_lens_record_it_and_render_alone_the_same() {
     ]);
     run(&args, true);
     let frame = &read_json(&explicit.join("transforms.json"))["frames"][0];
-    assert_eq!(frame["focus_distance"].as_f64(), Some(3.0));
+    assert_eq!(frame["focus_distance"].as_f64(), Some(2.0));
     let alone = dir.path().join("alone.png");
     let view = lens.join("001.view.json");
     let mut args = vec![
