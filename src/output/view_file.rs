@@ -763,6 +763,34 @@ mod tests {
                 )
             );
         }
+        // A thin lens: both keys or neither, a radius of 0 or more and a focus above 0.
+        let lens = |r: Option<f32>, f: Option<f32>| {
+            move |v: &mut ViewFile| {
+                v.camera.aperture_radius = r;
+                v.camera.focus_distance = f;
+            }
+        };
+        assert_eq!(
+            refusal(&lens(Some(0.1), None)),
+            "edited.json: aperture_radius and focus_distance go together"
+        );
+        for (r, f) in [(-0.1, 2.0), (0.1, 0.0), (0.1, -1.0)] {
+            assert_eq!(
+                refusal(&lens(Some(r), Some(f))),
+                "edited.json: aperture_radius must be a finite number, 0 or more, and \
+                 focus_distance a finite number above 0"
+            );
+        }
+        let mut through = view.clone();
+        lens(Some(0.1), Some(2.0))(&mut through);
+        let read = ViewFile::from_json(&through.to_json(), path).unwrap();
+        assert_eq!(
+            read.camera.thin_lens(),
+            Ok(Some(ThinLens {
+                aperture_radius: 0.1,
+                focus_distance: 2.0
+            }))
+        );
     }
 
     /// Every key the writer writes, each optional record included, reads back as known; keys
