@@ -54,6 +54,39 @@ impl AnimationInfo {
     }
 }
 
+/// The index of the animation `wanted` names (a name first, then an index), or an error
+/// listing those there are (as `--animation` chooses; `None` is animation 0).
+pub fn choose_animation(
+    animations: &[AnimationInfo],
+    wanted: Option<&str>,
+) -> Result<usize, String> {
+    let list = || {
+        if animations.is_empty() {
+            "the file has no animations".to_string()
+        } else {
+            let names: Vec<String> = animations.iter().map(AnimationInfo::label).collect();
+            format!("the file has {}", names.join(", "))
+        }
+    };
+    let Some(wanted) = wanted else {
+        return if animations.is_empty() {
+            Err(format!("--time needs an animation: {}", list()))
+        } else {
+            Ok(0)
+        };
+    };
+    if let Some(a) = animations
+        .iter()
+        .find(|a| a.name.as_deref() == Some(wanted))
+    {
+        return Ok(a.index);
+    }
+    match wanted.parse::<usize>() {
+        Ok(i) if i < animations.len() => Ok(i),
+        _ => Err(format!("no animation '{wanted}'; {}", list())),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

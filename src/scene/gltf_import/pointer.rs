@@ -437,7 +437,7 @@ pub(crate) fn chosen(
     if !options.animates() {
         return None;
     }
-    pose::choose_animation(animations, options.animation.as_deref()).ok()
+    crate::scene::pose::choose_animation(animations, options.animation.as_deref()).ok()
 }
 
 #[cfg(test)]

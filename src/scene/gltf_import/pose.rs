@@ -22,7 +22,7 @@
 use super::attributes;
 use super::buffer::Buffer;
 use super::pointer::PointerChannel;
-use crate::scene::pose::{AnimationInfo, PoseOptions};
+use crate::scene::pose::{choose_animation, AnimationInfo, PoseOptions};
 use glam::{Mat3, Mat4, Quat, Vec3, Vec4};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::animation::{Interpolation, Property};
@@ -455,39 +455,6 @@ fn targets_of(node: &gltf::Node) -> usize {
     node.mesh()
         .and_then(|m| m.primitives().next())
         .map_or(0, |p| p.morph_targets().len())
-}
-
-/// The index of the animation `wanted` names (a name first, then an index), or an error
-/// listing those there are.
-pub(crate) fn choose_animation(
-    animations: &[AnimationInfo],
-    wanted: Option<&str>,
-) -> Result<usize, String> {
-    let list = || {
-        if animations.is_empty() {
-            "the file has no animations".to_string()
-        } else {
-            let names: Vec<String> = animations.iter().map(AnimationInfo::label).collect();
-            format!("the file has {}", names.join(", "))
-        }
-    };
-    let Some(wanted) = wanted else {
-        return if animations.is_empty() {
-            Err(format!("--time needs an animation: {}", list()))
-        } else {
-            Ok(0)
-        };
-    };
-    if let Some(a) = animations
-        .iter()
-        .find(|a| a.name.as_deref() == Some(wanted))
-    {
-        return Ok(a.index);
-    }
-    match wanted.parse::<usize>() {
-        Ok(i) if i < animations.len() => Ok(i),
-        _ => Err(format!("no animation '{wanted}'; {}", list())),
-    }
 }
 
 /// The pose `options` ask for: the rest pose, or animation `options.animation` sampled at
