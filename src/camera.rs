@@ -316,6 +316,34 @@ pub fn fit_distance(
     (distance > 0.0 && distance.is_finite()).then_some(distance)
 }
 
+/// The few of `points` that decide [`auto_camera`]'s distance (for an image of `aspect`,
+/// whatever the bounds' centre): the distance [`fit_distance`] reaches from one direction is
+/// the largest of four linear functions of a point (`p·direction ± p·right / tan_x`, `±
+/// p·up / tan_y`), so the point that maximises each decides it. Fitting these four (from each
+/// of many point sets, such as an animation's poses) gives the distance that fitting every
+/// point gives, without keeping them all.
+pub fn auto_camera_extremes(points: &[Vec3], aspect: f32) -> Vec<Vec3> {
+    let yfov = crate::defaults::DEFAULT_YFOV_DEGREES.to_radians();
+    let direction = AUTO_CAMERA_DIRECTION.normalize();
+    // The basis and the margin of `fit_distance`.
+    let tan_y = (yfov * 0.5).tan() / FIT_MARGIN;
+    let tan_x = tan_y * aspect;
+    let Some(right) = (-direction).cross(Vec3::Y).try_normalize() else {
+        return points.to_vec();
+    };
+    let up = right.cross(-direction);
+    [right / tan_x, -right / tan_x, up / tan_y, -up / tan_y]
+        .into_iter()
+        .filter_map(|side| {
+            let part = direction + side;
+            points
+                .iter()
+                .copied()
+                .max_by(|a, b| a.dot(part).total_cmp(&b.dot(part)))
+        })
+        .collect()
+}
+
 /// The radius of the sphere the automatic camera frames: the bounding sphere's. Any positive
 /// radius is framed as it is (a model in micrometres is still a model); only an empty or
 /// single-point scene gets a unit sphere.
@@ -506,6 +534,49 @@ mod tests {
             "{} vs {boxed}, {sphere}",
             distance(&fitted)
         );
+    }
+
+    /// The four extremes of each of several point sets fit the camera as all their points do:
+    /// three sets of 500 scattered points (poses of a model, say), a box around them all and
+    /// both aspects; and a set with no points gives none.
+    #[test]
+    fn the_extremes_of_point_sets_fit_as_all_their_points() {
+        let mut state = 12_345u32;
+        let mut random = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state as f32 / u32::MAX as f32 - 0.5
+        };
+        let sets: Vec<Vec<Vec3>> = (0..3)
+            .map(|k| {
+                let offset = Vec3::new(k as f32 * 0.7, k as f32 * 0.2, -(k as f32) * 0.4);
+                (0..500)
+                    .map(|_| offset + Vec3::new(random(), random() * 2.0, random()))
+                    .collect()
+            })
+            .collect();
+        let all: Vec<Vec3> = sets.concat();
+        let mut bounds = Bounds::EMPTY;
+        all.iter().for_each(|&p| bounds.grow(p));
+        for aspect in [4.0 / 3.0, 0.5] {
+            let extremes: Vec<Vec3> = sets
+                .iter()
+                .flat_map(|set| auto_camera_extremes(set, aspect))
+                .collect();
+            assert_eq!(extremes.len(), 12);
+            let yfov = 45f32.to_radians();
+            let direction = [AUTO_CAMERA_DIRECTION.normalize()];
+            let from_all = fit_distance(&bounds, &all, direction, yfov, aspect).unwrap();
+            let from_extremes = fit_distance(&bounds, &extremes, direction, yfov, aspect).unwrap();
+            assert!(
+                (from_all - from_extremes).abs() <= 1e-5 * from_all,
+                "{from_all} vs {from_extremes}"
+            );
+            let boxed = fit_distance(&bounds, &[], direction, yfov, aspect).unwrap();
+            assert!(from_all < 0.95 * boxed, "{from_all} vs {boxed}");
+        }
+        assert!(auto_camera_extremes(&[], 1.0).is_empty());
     }
 
     fn camera(projection: Projection) -> Camera {
