@@ -1016,3 +1016,201 @@ fn node_visibility_hides_a_subtree_and_animates() {
     assert_eq!(shown["lights"].as_array().map(Vec::len), Some(1));
     assert_eq!(shown["warnings"], json!([]), "{}", shown["warnings"]);
 }
+
+/// The sliding square of [`sliding_square`] without its camera (node 1 keeps its place, empty),
+/// so that renders frame it with the automatic camera.
+fn sliding_square_without_camera(dir: &Path) -> PathBuf {
+    let model = sliding_square(dir);
+    let mut json: Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    json["nodes"][1] = json!({"translation": [0.0, 0.0, 5.0]});
+    json.as_object_mut().unwrap().remove("cameras");
+    let path = dir.join("sliding-no-camera.gltf");
+    std::fs::write(&path, serde_json::to_string(&json).unwrap()).unwrap();
+    path
+}
+
+/// Frame k of `--frames N` with the file's (animated) camera is the plain render of the pose
+/// at k/N of the animation, byte for byte; the GIF holds the N frames, each lasting the
+/// animation's duration over N.
+#[test]
+fn frames_are_the_plain_renders_of_their_poses() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = sliding_square(dir.path());
+    let (frames, gif) = (dir.path().join("frames"), dir.path().join("slide.gif"));
+    let options = [
+        "--animation",
+        "slide",
+        "--width",
+        "24",
+        "--height",
+        "24",
+        "--spp",
+        "1",
+    ];
+    let mut args = vec!["render", s(&model), "-o", s(&frames), "-q", "--frames", "4"];
+    args.extend(["--gif", s(&gif)]);
+    args.extend(options);
+    run(&args, true);
+    let names: Vec<String> = std::fs::read_dir(&frames)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect::<std::collections::BTreeSet<_>>()
+        .into_iter()
+        .collect();
+    assert_eq!(names, ["000.png", "001.png", "002.png", "003.png"]);
+    // "slide" lasts 2 s: the frames are at 0, 0.5, 1 and 1.5 s.
+    for (k, time) in ["0", "0.5", "1", "1.5"].iter().enumerate() {
+        let single = dir.path().join(format!("single-{k}.png"));
+        let mut args = vec!["render", s(&model), "-o", s(&single), "-q", "--time", time];
+        args.extend(options);
+        run(&args, true);
+        let frame = frames.join(format!("{k:03}.png"));
+        assert_eq!(
+            std::fs::read(&frame).unwrap(),
+            std::fs::read(&single).unwrap(),
+            "frame {k} against the render at {time} s"
+        );
+    }
+    let first = std::fs::read(frames.join("000.png")).unwrap();
+    assert_ne!(first, std::fs::read(frames.join("002.png")).unwrap());
+    use image::AnimationDecoder;
+    let bytes = std::io::Cursor::new(std::fs::read(&gif).unwrap());
+    let decoded = image::codecs::gif::GifDecoder::new(bytes).unwrap();
+    let gif_frames = decoded.into_frames().collect_frames().unwrap();
+    assert_eq!(gif_frames.len(), 4);
+    for frame in &gif_frames {
+        // Real time: 2 s over 4 frames.
+        assert_eq!(frame.delay().numer_denom_ms(), (500, 1));
+    }
+}
+
+/// With no camera in the file, the frames share one automatic camera that frames every pose:
+/// "ease" moves the square from x = 0 to x = 6.75 (at 1.5 s, the last of four frames); the
+/// square never touches the image's border, and moves right from frame to frame (a camera
+/// fitted to each pose would keep it centred).
+#[test]
+fn the_automatic_camera_frames_every_pose_of_the_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = sliding_square_without_camera(dir.path());
+    let frames = dir.path().join("frames");
+    let mut args = vec!["render", s(&model), "-o", s(&frames), "-q", "--frames", "4"];
+    args.extend(["--animation", "ease", "--width", "64", "--height", "32"]);
+    args.extend(["--spp", "1", "--integrator", "direct"]);
+    run(&args, true);
+    let mut centres = Vec::new();
+    for k in 0..4 {
+        let (w, h, pixels) = read_rgba(&frames.join(format!("{k:03}.png")));
+        let covered = |x: u32, y: u32| pixels[(y * w + x) as usize][3] > 0.5;
+        let border = (0..w).flat_map(|x| [(x, 0), (x, h - 1)]);
+        let border = border.chain((0..h).flat_map(|y| [(0, y), (w - 1, y)]));
+        assert!(
+            border.into_iter().all(|(x, y)| !covered(x, y)),
+            "frame {k} touches the border"
+        );
+        let xs: Vec<u32> = (0..w).filter(|&x| (0..h).any(|y| covered(x, y))).collect();
+        assert!(!xs.is_empty(), "frame {k} shows the square");
+        centres.push(xs.iter().sum::<u32>() as f64 / xs.len() as f64);
+    }
+    assert!(
+        centres.windows(2).all(|c| c[1] > c[0] + 3.0),
+        "the square moves right: {centres:?}"
+    );
+    // The plain render of the last pose frames that pose alone: it differs.
+    let single = dir.path().join("single.png");
+    let mut args = vec!["render", s(&model), "-o", s(&single), "-q", "--time", "1.5"];
+    args.extend(["--animation", "ease", "--width", "64", "--height", "32"]);
+    args.extend(["--spp", "1", "--integrator", "direct"]);
+    run(&args, true);
+    assert_ne!(
+        std::fs::read(&single).unwrap(),
+        std::fs::read(frames.join("003.png")).unwrap()
+    );
+}
+
+/// What --frames cannot do is refused with one message, before any frame is written: a file
+/// without animations, an animation that does not last, an -o that names an image, options it
+/// conflicts with, and a batch.
+#[test]
+fn frames_that_cannot_be_made_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    // A square whose one animation has a single keyframe at 0 s, and one with none.
+    let mut b = Buffer::default();
+    let (position, indices) = square(&mut b, 1.0);
+    let times = b.floats(&[0.0], "SCALAR");
+    let still = b.floats(&[0.0, 1.0, 0.0], "VEC3");
+    let mut json = json!({
+        "scene": 0,
+        "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}],
+        "meshes": [{"primitives": [{"attributes": {"POSITION": position}, "indices": indices}]}],
+        "animations": [{"name": "still", "samplers": [{"input": times, "output": still}],
+            "channels": [{"sampler": 0, "target": {"node": 0, "path": "translation"}}]}]
+    });
+    let still_model = {
+        let b2 = Buffer {
+            bin: b.bin.clone(),
+            views: b.views.clone(),
+            accessors: b.accessors.clone(),
+        };
+        b2.write(dir.path(), "still.gltf", json.clone())
+    };
+    json.as_object_mut().unwrap().remove("animations");
+    let plain_model = b.write(dir.path(), "plain.gltf", json);
+    let out = dir.path().join("frames");
+    let refused = |args: &[&str], expected: &str| {
+        let mut full = vec!["render", "-q"];
+        full.extend(args);
+        let message = stderr(&run(&full, false));
+        assert!(message.contains(expected), "{args:?}: {message}");
+        assert!(!out.exists(), "{args:?} wrote {}", out.display());
+    };
+    refused(
+        &[s(&plain_model), "-o", s(&out), "--frames", "4"],
+        "the file has no animations",
+    );
+    refused(
+        &[s(&still_model), "-o", s(&out), "--frames", "4"],
+        "animation 0 'still' lasts 0 s",
+    );
+    let sliding = sliding_square(dir.path());
+    let image = dir.path().join("frames.png");
+    refused(
+        &[s(&sliding), "-o", s(&image), "--frames", "4"],
+        "with --frames, -o names the folder",
+    );
+    assert!(!image.exists());
+    refused(
+        &[
+            s(&sliding),
+            "-o",
+            s(&out),
+            "--frames",
+            "4",
+            "--animation",
+            "gallop",
+        ],
+        "no animation 'gallop'",
+    );
+    refused(
+        &[s(&sliding), "-o", s(&out), "--frames", "4", "--time", "1"],
+        "cannot be used with",
+    );
+    refused(&[s(&sliding), "-o", s(&out), "--frames", "0"], "--frames");
+    refused(
+        &[
+            s(&sliding),
+            "-o",
+            s(&out),
+            "--frames",
+            "2",
+            "--gif",
+            "x.png",
+        ],
+        "must end in .gif",
+    );
+    let message = stderr(&run(
+        &["batch", s(dir.path()), "-o", s(&out), "--frames", "4", "-q"],
+        false,
+    ));
+    assert!(message.contains("made by render"), "{message}");
+}

@@ -188,6 +188,7 @@ pub struct InfoArgs {
 /// `meshtracer render`.
 #[derive(Debug, Args, Clone)]
 #[command(group(clap::ArgGroup::new("many_views").args(["views", "turntable"])))]
+#[command(group(clap::ArgGroup::new("animated").args(["views", "turntable", "frames"])))]
 pub struct RenderArgs {
     /// The model: .gltf, .glb or .obj, or a .zip download (or the folder it unzips to) holding
     /// one with its files.
@@ -297,13 +298,31 @@ pub struct RenderArgs {
         allow_negative_numbers = true
     )]
     pub turntable: Option<u32>,
-    /// With --turntable (or --views: the views in order): also write the frames as an animated
-    /// GIF that loops forever (256 colours a frame; transparent where less than half covered,
-    /// unless --background).
-    #[arg(long, value_name = "FILE.gif", requires = "many_views")]
+    /// Render a glTF animation (--animation, default animation 0) as N frames into the -o
+    /// folder (000.png, 001.png, ...): frame k poses the model at k/N of the animation's
+    /// duration, so that the frames loop. The camera is the file's (an animated camera moves),
+    /// --camera or --look-from as asked, else the automatic camera of the first frame, kept
+    /// for all. --gif plays them at the animation's speed.
+    #[arg(
+        long,
+        value_name = "N",
+        value_parser = clap::value_parser!(u32).range(1..=i64::from(meshtracer::output::turntable::MAX_TURNTABLE_FRAMES)),
+        conflicts_with_all = [
+            "views", "turntable", "time", "view", "tile", "crop", "resume", "shard",
+            "contact_sheet", "preview", "stats", "view_out", "env_out", "depth_out",
+            "normal_out", "mask_out", "segmentation_out",
+        ],
+        allow_negative_numbers = true
+    )]
+    pub frames: Option<u32>,
+    /// With --turntable or --frames (or --views: the views in order): also write the frames as
+    /// an animated GIF that loops forever (256 colours a frame; transparent where less than
+    /// half covered, unless --background).
+    #[arg(long, value_name = "FILE.gif", requires = "animated")]
     pub gif: Option<PathBuf>,
     /// With --gif: frames per second, 0.0015 to 50 (GIF delays are whole hundredths of a
-    /// second, at most 655.35 s) [default: a full turn in 4 s, e.g. 9 fps for 36 frames].
+    /// second, at most 655.35 s) [default: a full turn in 4 s, e.g. 9 fps for 36 frames; with
+    /// --frames, the animation's own speed, at most 50 fps].
     #[arg(long, value_name = "FPS", requires = "gif")]
     pub fps: Option<f32>,
     /// With --views orbit:N or --turntable: elevation of the circle above the target, in

@@ -54,6 +54,11 @@ pub(super) fn batch_command(args: &BatchArgs) -> Result<()> {
             "--turntable {n}: a turntable is made by render; in a batch give the jobs \"views\": \"orbit:{n}\" (or --views orbit:{n})"
         );
     }
+    if let Some(n) = defaults.frames {
+        bail!(
+            "--frames {n}: an animation's frames are made by render (a batch job renders one pose: give it \"animation\" and \"time\")"
+        );
+    }
     if let Some(path) = &defaults.contact_sheet {
         if !has_extension(path, "png") {
             bail!(
@@ -540,6 +545,7 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         focus_distance,
         views,
         turntable,
+        frames,
         gif,
         fps,
         orbit_elevation,
@@ -658,6 +664,7 @@ fn fingerprint_record(args: &RenderArgs) -> FingerprintRecord {
         .field_unless_default("clamp_indirect", clamp_indirect)
         .field_unless_default("aperture_radius", aperture_radius)
         .field_unless_default("focus_distance", focus_distance)
+        .field_unless_default("frames", frames)
         .group_field("load", &load_record)
 }
 

@@ -32,6 +32,7 @@ macro_rules! out {
 
 mod batch;
 mod bench;
+mod frames;
 mod render;
 mod tiles;
 mod views;
@@ -621,6 +622,7 @@ fn check_size(args: &RenderArgs, width: u32, height: u32) -> Result<()> {
 }
 
 /// What one render (one view, or `--views`) did: for a caller that records it.
+#[derive(Default)]
 pub(crate) struct RenderReport {
     /// Triangles traced.
     pub triangles: usize,

@@ -5,7 +5,7 @@
 //! both flows share are checked.
 
 use super::{
-    check_lighting, check_size, image_size, interrupt_flag, lighting_options, load,
+    check_lighting, check_size, frames, image_size, interrupt_flag, lighting_options, load,
     peak_memory_bytes, prepare_scene, preset_label, record_render, render_load_options,
     report_load, start_load_threads, tiles, views, worker_pool, write_panorama, Phases,
     PreparedModel, RenderReport,
@@ -51,7 +51,7 @@ pub(super) fn render_model(
     let run_start = Instant::now();
     // Before any output is reserved: a Ctrl-C or a scheduler's SIGTERM during the load or the
     // BVH build would otherwise kill the process, leaving the reserved temporary file behind.
-    let cancel = interrupt_flag();
+    interrupt_flag();
     start_load_threads(args.threads);
     // Everything that can be refused is refused before any work: options, output, then model.
     check_image_options(args)?;
@@ -66,9 +66,29 @@ pub(super) fn render_model(
         // A turntable is an orbit (starting where the plain render stands).
         return views::render_views(args, &format!("orbit:{frames}"), env_file, on_view);
     }
+    if let Some(frames) = args.frames {
+        // An animation's frames, each loaded in its own pose: commands/frames.rs.
+        return frames::render_frames(args, frames, env_file, on_view);
+    }
     if args.contact_sheet.is_some() {
         bail!("--contact-sheet lays out many views: add --views SPEC or --turntable N (or give it to batch, for a cell per job)");
     }
+    let report = render_one(args, view_file.as_ref(), env_file, run_start, None)?;
+    on_view(1, 1);
+    Ok(report)
+}
+
+/// The single view of `render_model` once its options are checked: reserves the output,
+/// loads the model, frames and lights the view, renders it and writes its files. `camera`,
+/// when given, replaces the camera the options choose (the frames of `--frames` share one).
+pub(super) fn render_one(
+    args: &RenderArgs,
+    view_file: Option<&ViewFile>,
+    env_file: Option<Environment>,
+    run_start: Instant,
+    camera: Option<&Camera>,
+) -> Result<RenderReport> {
+    let cancel = interrupt_flag();
     let outputs = single_view_outputs(args);
     let outputs: Vec<_> = outputs.iter().map(|(o, p)| (*o, p.as_path())).collect();
     meshtracer::output::check_destinations(&outputs, &run_inputs(args), args.no_clobber)?;
@@ -84,10 +104,13 @@ pub(super) fn render_model(
         .collect();
     meshtracer::output::check_not_inputs(&outputs, &referred)?;
     stop_if_cancelled(&cancel)?;
-    let shot = choose_view(args, &scene, view_file.as_ref())?;
+    let mut shot = choose_view(args, &scene, view_file)?;
+    if let Some(camera) = camera {
+        shot.camera = camera.clone();
+    }
     let view = View::from_camera(&shot.camera, shot.width, shot.height);
-    let view = with_thin_lens(args, view, &scene, view_file.as_ref())?;
-    let lit = light_view(args, &scene.lights, view_file.as_ref(), &view, env_file)?;
+    let view = with_thin_lens(args, view, &scene, view_file)?;
+    let lit = light_view(args, &scene.lights, view_file, &view, env_file)?;
     let using_rig = lit.default_rig;
     let mut settings = render_settings(args, view, lit);
     let rendered = pool
@@ -110,7 +133,6 @@ pub(super) fn render_model(
     if !args.quiet {
         print_summary(args, &done);
     }
-    on_view(1, 1);
     Ok(done.report(args))
 }
 
