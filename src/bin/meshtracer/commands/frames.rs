@@ -16,7 +16,7 @@
 //! character; textures are decoded when a frame is prepared). With it, frame k is the plain
 //! render of its pose only where that pose is the one that decides the framing.
 
-use super::render::{render_one, stop_if_cancelled};
+use super::render::{bar_with_template, render_one, stop_if_cancelled};
 use super::views::has_extension;
 use super::{image_size, interrupt_flag, load, render_load_options, RenderReport};
 use crate::cli::RenderArgs;
@@ -142,8 +142,15 @@ fn camera_for_every_pose(
     let mut bounds = first.bounds;
     let mut extremes = auto_camera_extremes(&first.soup.positions, aspect);
     let cancel = interrupt_flag();
+    // A big model's poses take a while before the first frame renders.
+    let bar = bar_with_template(
+        args.quiet,
+        "{spinner} framing every pose [{bar:40}] {pos}/{len} eta {eta}",
+    );
+    bar.set_length(u64::from(frames.saturating_sub(1)));
     for k in 1..frames {
         stop_if_cancelled(&cancel)?;
+        bar.inc(1);
         let time = clip.time_of(k, frames);
         let pose = load_pose(args, time)
             .with_context(|| format!("--frames {frames}: frame {k} (at {time} s)"))?;
@@ -153,6 +160,7 @@ fn camera_for_every_pose(
         }
         extremes.extend(auto_camera_extremes(&pose.soup.positions, aspect));
     }
+    bar.finish_and_clear();
     let mut camera = auto_camera(&bounds, &extremes, aspect);
     if let (Some(deg), Projection::Perspective { yfov, .. }) = (args.yfov, &mut camera.projection) {
         *yfov = deg.to_radians();

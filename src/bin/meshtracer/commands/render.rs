@@ -682,17 +682,23 @@ fn spp_for_time_limit(
 /// The progress bar of a render: hidden under `--quiet`, else drawn while standard error is a
 /// terminal.
 fn progress_bar(quiet: bool) -> indicatif::ProgressBar {
+    bar_with_template(
+        quiet,
+        "{spinner} rendering [{bar:40}] {percent}% tiles {pos}/{len} eta {eta}",
+    )
+}
+
+/// A progress bar drawn with indicatif's `template` (hidden under `--quiet`; indicatif draws
+/// only when stderr is a terminal).
+pub(super) fn bar_with_template(quiet: bool, template: &str) -> indicatif::ProgressBar {
     if quiet {
         return indicatif::ProgressBar::hidden();
     }
-    // indicatif draws only when stderr is a terminal.
     let bar = indicatif::ProgressBar::new(0);
     bar.set_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} rendering [{bar:40}] {percent}% tiles {pos}/{len} eta {eta}",
-        )
-        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-        .progress_chars("=> "),
+        indicatif::ProgressStyle::with_template(template)
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+            .progress_chars("=> "),
     );
     bar
 }
