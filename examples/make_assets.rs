@@ -1,5 +1,5 @@
-//! Writes the scenes bundled in `assets/`: `cornell-box.gltf` (the default scene) and
-//! `shapes.obj` + `shapes.mtl`. Run `cargo run --example make_assets` from the repository root;
+//! Writes the scenes bundled in `assets/`: `cornell-box.gltf` (the default scene),
+//! `shapes.obj` + `shapes.mtl`, and `pendulum.gltf` (an animation, for `render --frames`). Run `cargo run --example make_assets` from the repository root;
 //! `tests/it/bundled_assets.rs` checks that the committed files equal what this writes.
 
 use base64::Engine;
@@ -139,6 +139,31 @@ impl GltfWriter {
             let max = data.iter().fold(Vec3::NEG_INFINITY, |a, b| a.max(*b));
             accessor["min"] = json!(min.to_array());
             accessor["max"] = json!(max.to_array());
+        }
+        self.accessors.push(accessor);
+        self.accessors.len() - 1
+    }
+
+    /// A float accessor of `kind` ("SCALAR", "VEC4") over `data` in a view without a target
+    /// (animation data), with its bounds for a scalar (glTF requires them of sampler inputs).
+    fn float_accessor(&mut self, data: &[f32], kind: &str, width: usize) -> usize {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let bytes: Vec<u8> = data.iter().flat_map(|x| x.to_le_bytes()).collect();
+        self.views.push(json!({
+            "buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()
+        }));
+        self.bin.extend_from_slice(&bytes);
+        let mut accessor = json!({
+            "bufferView": self.views.len() - 1, "componentType": 5126,
+            "count": data.len() / width, "type": kind
+        });
+        if kind == "SCALAR" {
+            let min = data.iter().copied().fold(f32::INFINITY, f32::min);
+            let max = data.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+            accessor["min"] = json!([min]);
+            accessor["max"] = json!([max]);
         }
         self.accessors.push(accessor);
         self.accessors.len() - 1
@@ -288,6 +313,87 @@ fn cornell_box() -> String {
     text
 }
 
+/// Seconds of one swing of the pendulum there and back: the animation's duration.
+const SWING_SECONDS: f32 = 2.0;
+
+/// A pendulum on a stand over a floor, without a camera or lights (the automatic camera and,
+/// in the path tracer, the studio environment): its animation "Swing" turns the pivot about Z
+/// by 30°·cos(2πt / 2 s), from +30° at 0 s through 0 at 0.5 s to -30° at 1 s and back, as
+/// LINEAR keys every 1/12 s (slerp between them).
+fn pendulum() -> String {
+    let mut w = GltfWriter::default();
+    let (floor_material, wood, steel, brass) = (0, 1, 2, 3);
+    let p = Vec3::new;
+    let mut floor = MeshData::default();
+    floor.quad([
+        p(-1.6, 0., 1.),
+        p(1.6, 0., 1.),
+        p(1.6, 0., -1.),
+        p(-1.6, 0., -1.),
+    ]);
+    let floor_mesh = w.mesh("floor", &floor, floor_material);
+    let post_mesh = w.mesh("post", &MeshData::cuboid(p(0.04, 1.0, 0.04)), wood);
+    let beam_mesh = w.mesh("beam", &MeshData::cuboid(p(1.34, 0.04, 0.04)), wood);
+    let rod_mesh = w.mesh("rod", &MeshData::cuboid(p(0.012, 0.6, 0.012)), steel);
+    let bob_mesh = w.mesh("bob", &MeshData::sphere(0.22, 24, 48), brass);
+
+    let keys = 24;
+    let times: Vec<f32> = (0..=keys)
+        .map(|k| SWING_SECONDS * k as f32 / keys as f32)
+        .collect();
+    let rotations: Vec<f32> = times
+        .iter()
+        .flat_map(|t| {
+            let angle = 30f32.to_radians() * (std::f32::consts::TAU * t / SWING_SECONDS).cos();
+            quat(Quat::from_rotation_z(angle))
+        })
+        .collect();
+    let input = w.float_accessor(&times, "SCALAR", 1);
+    let output = w.float_accessor(&rotations, "VEC4", 4);
+
+    let data_uri = format!(
+        "data:application/octet-stream;base64,{}",
+        base64::engine::general_purpose::STANDARD.encode(&w.bin)
+    );
+    let gltf = json!({
+        "asset": {
+            "version": "2.0",
+            "generator": "meshtracer examples/make_assets.rs",
+            "copyright": "meshtracer authors, CC0-1.0"
+        },
+        "scene": 0,
+        "scenes": [{"name": "Pendulum", "nodes": [0, 1, 2, 3, 4]}],
+        "nodes": [
+            {"name": "floor", "mesh": floor_mesh},
+            {"name": "left post", "mesh": post_mesh, "translation": [-1.3, 1.0, 0.0]},
+            {"name": "right post", "mesh": post_mesh, "translation": [1.3, 1.0, 0.0]},
+            {"name": "beam", "mesh": beam_mesh, "translation": [0.0, 2.04, 0.0]},
+            {"name": "pivot", "translation": [0.0, 2.0, 0.0], "rotation": rotations[..4],
+             "children": [5, 6]},
+            {"name": "rod", "mesh": rod_mesh, "translation": [0.0, -0.6, 0.0]},
+            {"name": "bob", "mesh": bob_mesh, "translation": [0.0, -1.42, 0.0]}
+        ],
+        "animations": [{
+            "name": "Swing",
+            "samplers": [{"input": input, "output": output, "interpolation": "LINEAR"}],
+            "channels": [{"sampler": 0, "target": {"node": 4, "path": "rotation"}}]
+        }],
+        "materials": [
+            {"name": "floor", "pbrMetallicRoughness": {"baseColorFactor": [0.7, 0.7, 0.7, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.8}},
+            {"name": "wood", "pbrMetallicRoughness": {"baseColorFactor": [0.45, 0.28, 0.15, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.7}},
+            {"name": "steel", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.82, 1.0], "metallicFactor": 1.0, "roughnessFactor": 0.35}},
+            {"name": "brass", "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.7, 0.35, 1.0], "metallicFactor": 1.0, "roughnessFactor": 0.25}}
+        ],
+        "meshes": w.meshes,
+        "accessors": w.accessors,
+        "bufferViews": w.views,
+        "buffers": [{"byteLength": w.bin.len(), "uri": data_uri}]
+    });
+    let mut text = serde_json::to_string_pretty(&gltf).expect("JSON of plain values");
+    text.push('\n');
+    text
+}
+
 /// A small OBJ scene with an MTL: ground, cube, pyramid, in three materials.
 fn shapes_obj() -> (String, String) {
     let mut obj = String::from("# meshtracer bundled OBJ scene (CC0-1.0), written by examples/make_assets.rs\nmtllib shapes.mtl\n");
@@ -372,6 +478,7 @@ pub fn assets() -> Vec<(&'static str, String)> {
         ("assets/cornell-box.gltf", cornell_box()),
         ("assets/shapes.obj", obj),
         ("assets/shapes.mtl", mtl),
+        ("assets/pendulum.gltf", pendulum()),
     ]
 }
 

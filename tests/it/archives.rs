@@ -178,13 +178,13 @@ fn a_folder_holding_one_model_renders_as_the_model_does() {
         );
     }
     assert!(std::fs::read(&from_folder).unwrap() == std::fs::read(&from_file).unwrap());
-    // The bundled assets folder holds two models: both named, nothing written.
+    // The bundled assets folder holds three models: all named, nothing written.
     let out_png = dir.path().join("none.png");
     let out = run(&["render", s(&assets), "-o", s(&out_png), "-q"], false);
     assert_eq!(
         stderr(&out).trim(),
         format!(
-            "meshtracer: error: {}: folder: holds 2 models ('cornell-box.gltf', 'shapes.obj'): name the one to render",
+            "meshtracer: error: {}: folder: holds 3 models ('cornell-box.gltf', 'pendulum.gltf', 'shapes.obj'): name the one to render",
             assets.display()
         )
     );
