@@ -169,6 +169,28 @@ impl GltfWriter {
         self.accessors.len() - 1
     }
 
+    /// The glTF document: `scene` (its nodes, materials and the rest) with the asset header
+    /// and this writer's meshes, accessors, views and buffer (a data URI), pretty-printed with
+    /// a final newline.
+    fn finish(self, mut scene: Value) -> String {
+        let data_uri = format!(
+            "data:application/octet-stream;base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(&self.bin)
+        );
+        scene["asset"] = json!({
+            "version": "2.0",
+            "generator": "meshtracer examples/make_assets.rs",
+            "copyright": "meshtracer authors, CC0-1.0"
+        });
+        scene["meshes"] = json!(self.meshes);
+        scene["accessors"] = json!(self.accessors);
+        scene["bufferViews"] = json!(self.views);
+        scene["buffers"] = json!([{"byteLength": self.bin.len(), "uri": data_uri}]);
+        let mut text = serde_json::to_string_pretty(&scene).expect("JSON of plain values");
+        text.push('\n');
+        text
+    }
+
     fn mesh(&mut self, name: &str, data: &MeshData, material: usize) -> usize {
         let position = self.vec3_accessor(&data.positions, true);
         let normal = self.vec3_accessor(&data.normals, false);
@@ -259,16 +281,7 @@ fn cornell_box() -> String {
     let spot_rotation =
         Quat::from_rotation_arc(Vec3::NEG_Z, (spot_target - spot_position).normalize());
 
-    let data_uri = format!(
-        "data:application/octet-stream;base64,{}",
-        base64::engine::general_purpose::STANDARD.encode(&w.bin)
-    );
-    let gltf = json!({
-        "asset": {
-            "version": "2.0",
-            "generator": "meshtracer examples/make_assets.rs",
-            "copyright": "meshtracer authors, CC0-1.0"
-        },
+    w.finish(json!({
         "extensionsUsed": ["KHR_lights_punctual"],
         "extensions": {"KHR_lights_punctual": {"lights": [
             {"name": "ceiling bulb", "type": "point", "color": [1.0, 0.92, 0.8], "intensity": 2.5},
@@ -302,15 +315,8 @@ fn cornell_box() -> String {
             {"name": "orange gloss", "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.45, 0.15, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.3}},
             {"name": "plaster", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.78, 0.74, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.6}},
             {"name": "lamp", "pbrMetallicRoughness": {"baseColorFactor": [1.0, 1.0, 1.0, 1.0], "metallicFactor": 0.0}, "emissiveFactor": [1.0, 0.92, 0.8], "doubleSided": true}
-        ],
-        "meshes": w.meshes,
-        "accessors": w.accessors,
-        "bufferViews": w.views,
-        "buffers": [{"byteLength": w.bin.len(), "uri": data_uri}]
-    });
-    let mut text = serde_json::to_string_pretty(&gltf).expect("JSON of plain values");
-    text.push('\n');
-    text
+        ]
+    }))
 }
 
 /// Seconds of one swing of the pendulum there and back: the animation's duration.
@@ -351,16 +357,7 @@ fn pendulum() -> String {
     let input = w.float_accessor(&times, "SCALAR", 1);
     let output = w.float_accessor(&rotations, "VEC4", 4);
 
-    let data_uri = format!(
-        "data:application/octet-stream;base64,{}",
-        base64::engine::general_purpose::STANDARD.encode(&w.bin)
-    );
-    let gltf = json!({
-        "asset": {
-            "version": "2.0",
-            "generator": "meshtracer examples/make_assets.rs",
-            "copyright": "meshtracer authors, CC0-1.0"
-        },
+    w.finish(json!({
         "scene": 0,
         "scenes": [{"name": "Pendulum", "nodes": [0, 1, 2, 3, 4]}],
         "nodes": [
@@ -383,15 +380,8 @@ fn pendulum() -> String {
             {"name": "wood", "pbrMetallicRoughness": {"baseColorFactor": [0.45, 0.28, 0.15, 1.0], "metallicFactor": 0.0, "roughnessFactor": 0.7}},
             {"name": "steel", "pbrMetallicRoughness": {"baseColorFactor": [0.8, 0.8, 0.82, 1.0], "metallicFactor": 1.0, "roughnessFactor": 0.35}},
             {"name": "brass", "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.7, 0.35, 1.0], "metallicFactor": 1.0, "roughnessFactor": 0.25}}
-        ],
-        "meshes": w.meshes,
-        "accessors": w.accessors,
-        "bufferViews": w.views,
-        "buffers": [{"byteLength": w.bin.len(), "uri": data_uri}]
-    });
-    let mut text = serde_json::to_string_pretty(&gltf).expect("JSON of plain values");
-    text.push('\n');
-    text
+        ]
+    }))
 }
 
 /// A small OBJ scene with an MTL: ground, cube, pyramid, in three materials.
