@@ -16,13 +16,13 @@ diffuse ray from each camera hit). Then, one process at a time, single-threaded:
 - **meshtracer**: `callgrind` runs `meshtracer bench MODEL --rays KIND --threads 1 --runs
   PASSES-1` (a warm-up and PASSES-1 timed runs: PASSES walks over the rays), collecting only
   inside the query (`Accel::intersect_filtered` for closest hits, `Accel::occluded_filtered`
-  for shadow rays), and divides by the queries made. A diffuse run's closest-hit queries
-  include the camera rays its rays start from: a run of two passes, which has the same, is
-  taken off, so the diffuse rays' figures are those of the passes beyond two.
+  for shadow rays). A run of two passes is taken off, so the figures are those of the passes
+  beyond two (a warm cache), and a diffuse run's camera rays (traced once, for the diffuse
+  rays to start from) cancel.
 - **Embree** (`embreex`, one `rtcIntersect1`/`rtcOccluded1` a ray, as `peers.py` calls it):
   `callgrind` runs a small driver that builds the scene (inside embreex's first `run`) and
-  traces the rays PASSES times, dumping its counts after each `run`; the dumps after the
-  build's are summed over Embree's library (`libembree4`: its stripped internals, the
+  traces the rays PASSES times, dumping its counts after each `run`; the dumps of the passes
+  beyond two are summed over Embree's library (`libembree4`: its stripped internals, the
   traversal among them, and its entry points `rtcIntersect1`, `rtcOccluded1`).
 
 Both simulate the same caches: a first-level data cache of `--l1` and a last level of `--ll`
@@ -131,23 +131,14 @@ def model_counts(args, model, kinds, tmp):
     rays = {kind: len(np.load(folder / f"{kind}.npy")) for kind in peers.KINDS}
     driver = tmp / "embree_driver.py"
     driver.write_text(EMBREE_DRIVER)
-    primary = ours_events(args, model, "primary", args.passes, tmp)
-    camera = {e: v / (rays["primary"] * args.passes) for e, v in primary.items()}
     for kind in kinds:
-        if kind == "primary":
-            ours = camera
-        else:
-            total = ours_events(args, model, kind, args.passes, tmp)
-            passes = args.passes
-            if kind == "diffuse":
-                # Its closest-hit queries start with the camera rays its rays leave from, traced
-                # once after the build: the same in a run of two passes, which is taken off.
-                two = ours_events(args, model, kind, 2, tmp)
-                total = {e: v - two.get(e, 0) for e, v in total.items()}
-                passes -= 2
-            ours = {e: v / (rays[kind] * passes) for e, v in total.items()}
-        theirs = {e: v / (rays[kind] * args.passes)
-                  for e, v in embree_events(args, driver, folder, kind, tmp).items()}
+        # The passes beyond two, on each side: a warm cache, and for meshtracer's diffuse rays
+        # without the camera rays they start from (traced once, after the build, in both runs).
+        total = ours_events(args, model, kind, args.passes, tmp)
+        two = ours_events(args, model, kind, 2, tmp)
+        per_ray = rays[kind] * (args.passes - 2)
+        ours = {e: (v - two.get(e, 0)) / per_ray for e, v in total.items()}
+        theirs = {e: v / per_ray for e, v in embree_events(args, driver, folder, kind, tmp).items()}
         yield kind, ours, theirs
 
 
@@ -185,7 +176,7 @@ def embree_events(args, driver, folder, kind, tmp):
         sys.exit(f"{out}: {len(parts)} dumps where {args.passes + 1} calls of embreex's run "
                  "were expected")
     sums = {}
-    for part in parts[1:]:
+    for part in parts[3:]:  # after the build's dump and the first two passes' (as ours)
         for event, value in totals(part, embree=True).items():
             sums[event] = sums.get(event, 0) + value
     return sums
