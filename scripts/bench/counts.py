@@ -100,7 +100,7 @@ def main():
     if unknown := set(kinds) - set(peers.KINDS):
         sys.exit(f"--kinds: unknown {', '.join(sorted(unknown))} (primary, shadow, diffuse)")
     if args.passes < 3:
-        sys.exit("--passes: at least 3 (diffuse rays are counted as the passes beyond two)")
+        sys.exit("--passes: at least 3 (the counts are those of the passes beyond two)")
     if not args.cli.is_file():
         sys.exit(f"{args.cli}: no meshtracer binary (cargo build --release, or --cli PATH)")
     if not shutil.which("valgrind"):
@@ -132,6 +132,9 @@ def model_counts(args, model, kinds, tmp):
     driver = tmp / "embree_driver.py"
     driver.write_text(EMBREE_DRIVER)
     for kind in kinds:
+        if rays[kind] == 0:
+            print(f"{model}: no {kind} rays (the camera rays hit nothing), skipped", file=sys.stderr)
+            continue
         # The passes beyond two, on each side: a warm cache, and for meshtracer's diffuse rays
         # without the camera rays they start from (traced once, after the build, in both runs).
         total = ours_events(args, model, kind, args.passes, tmp)
