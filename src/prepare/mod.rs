@@ -6,6 +6,7 @@
 
 pub mod lights;
 mod queries;
+mod texture_inputs;
 pub mod textures;
 
 use crate::accel::{Accel, AccelKind, BvhPreset};
@@ -81,18 +82,36 @@ impl Prepared {
     /// appended to `warnings`. `on_step` is told each step as it ends, with the instant it
     /// started (`render --stats` times them).
     pub fn build(
+        scene: Scene,
+        options: &PrepareOptions,
+        warnings: &mut Vec<String>,
+        on_step: &mut dyn FnMut(PrepareStep, Instant),
+    ) -> Result<Prepared, TextureError> {
+        Prepared::build_reusing(scene, options, warnings, on_step, None)
+    }
+
+    /// [`Prepared::build`], keeping the textures of `textures` (an earlier build's, of the same
+    /// model in another pose) where [`TextureSet::load_reusing`] finds them decoded from the
+    /// same inputs.
+    pub fn build_reusing(
         mut scene: Scene,
         options: &PrepareOptions,
         warnings: &mut Vec<String>,
         on_step: &mut dyn FnMut(PrepareStep, Instant),
+        textures: Option<&TextureSet>,
     ) -> Result<Prepared, TextureError> {
         let start = Instant::now();
         crate::scene::tangents::generate_missing(&mut scene);
         warnings.extend(crate::scene::tangents::anisotropy_without_tangents(&scene));
         on_step(PrepareStep::Tangents, start);
         let start = Instant::now();
-        let textures =
-            TextureSet::load(&scene, options.max_texture_bytes, options.strict, warnings)?;
+        let textures = TextureSet::load_reusing(
+            &scene,
+            options.max_texture_bytes,
+            options.strict,
+            warnings,
+            textures,
+        )?;
         on_step(PrepareStep::Textures, start);
         let start = Instant::now();
         let accel = Accel::build(

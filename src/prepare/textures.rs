@@ -11,6 +11,7 @@
 //! minification picks a mip level from the ray footprint (trilinear, or nearest texel on the
 //! nearest level for NEAREST samplers), so distant surfaces do not alias.
 
+use super::texture_inputs::TextureInputs;
 use crate::scene::{Encoded, Filter, ImageSource, Sampler, Scene, TextureRef, Wrap};
 use glam::{Vec2, Vec4};
 use rayon::prelude::*;
@@ -110,6 +111,12 @@ pub struct TextureSet {
     images: Vec<Option<Arc<MipImage>>>,
     /// Decoded bytes in total (all levels).
     pub bytes: usize,
+    /// What the images were decoded from, when a later load can tell whether it is the same.
+    inputs: Option<TextureInputs>,
+    /// The warnings the decoding gave, repeated by a load that keeps this set.
+    warnings: Vec<String>,
+    /// Whether this set was kept from an earlier load ([`TextureSet::load_reusing`]).
+    reused: bool,
 }
 
 fn srgb_table() -> &'static [f32; 256] {
@@ -553,6 +560,33 @@ fn texels_of(img: image::RgbaImage) -> Vec<[u8; 4]> {
     })
 }
 
+/// Which of `scene`'s images the drawn materials use: only the materials the triangles use
+/// (after a variant is chosen) need their images.
+fn used_images(scene: &Scene) -> Vec<bool> {
+    let mut drawn = vec![false; scene.materials.len()];
+    for &m in &scene.soup.material {
+        if let Some(d) = drawn.get_mut(m as usize) {
+            *d = true;
+        }
+    }
+    let mut used = vec![false; scene.images.len()];
+    for (_, m) in scene
+        .materials
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| drawn[*i])
+    {
+        for r in m.texture_refs() {
+            if let Some(t) = scene.textures.get(r.texture) {
+                if let Some(u) = used.get_mut(t.image) {
+                    *u = true;
+                }
+            }
+        }
+    }
+    used
+}
+
 /// The materials that use an image, for messages: `material 'wood' (2)` or `materials 0, 3`.
 fn users_of(scene: &Scene, image: usize) -> String {
     let users: Vec<String> = scene
@@ -586,35 +620,60 @@ impl TextureSet {
         strict: bool,
         warnings: &mut Vec<String>,
     ) -> Result<TextureSet, TextureError> {
-        // Only the materials the triangles use (after a variant is chosen) need their images.
-        let mut drawn = vec![false; scene.materials.len()];
-        for &m in &scene.soup.material {
-            if let Some(d) = drawn.get_mut(m as usize) {
-                *d = true;
-            }
+        TextureSet::load_reusing(scene, budget_bytes, strict, warnings, None)
+    }
+
+    /// [`TextureSet::load`], keeping `previous` (an earlier load's set, cheaply: its images are
+    /// shared) when it was decoded from the same inputs: the same model and files, unchanged on
+    /// disk (length and modification time), naming the same images, with the same images drawn
+    /// and the same budget. Then the result is the one decoding again would give, bit for bit,
+    /// with its warnings. `render --frames` loads the model again for each pose; its images
+    /// do not change with the pose.
+    pub fn load_reusing(
+        scene: &Scene,
+        budget_bytes: usize,
+        strict: bool,
+        warnings: &mut Vec<String>,
+        previous: Option<&TextureSet>,
+    ) -> Result<TextureSet, TextureError> {
+        let used = used_images(scene);
+        let inputs = TextureInputs::of(scene, &used, budget_bytes, strict);
+        if let Some(previous) = previous.filter(|p| inputs.is_some() && p.inputs == inputs) {
+            warnings.extend(previous.warnings.iter().cloned());
+            return Ok(TextureSet {
+                reused: true,
+                ..previous.clone()
+            });
         }
-        let mut used = vec![false; scene.images.len()];
-        for (_, m) in scene
-            .materials
-            .iter()
-            .enumerate()
-            .filter(|(i, _)| drawn[*i])
-        {
-            for r in m.texture_refs() {
-                if let Some(t) = scene.textures.get(r.texture) {
-                    if let Some(u) = used.get_mut(t.image) {
-                        *u = true;
-                    }
-                }
-            }
-        }
+        let mut own_warnings = Vec::new();
+        let mut set = TextureSet::decode(scene, &used, budget_bytes, strict, &mut own_warnings)?;
+        warnings.extend(own_warnings.iter().cloned());
+        set.inputs = inputs;
+        set.warnings = own_warnings;
+        Ok(set)
+    }
+
+    /// Whether this set was kept from an earlier load ([`TextureSet::load_reusing`]) rather
+    /// than decoded.
+    pub fn reused(&self) -> bool {
+        self.reused
+    }
+
+    /// Decodes the `used` images of `scene` (see [`TextureSet::load`]).
+    fn decode(
+        scene: &Scene,
+        used: &[bool],
+        budget_bytes: usize,
+        strict: bool,
+        warnings: &mut Vec<String>,
+    ) -> Result<TextureSet, TextureError> {
         // Decoding is most of the work (DamagedHelmet: five 2048² images, 106 MB): the images
         // are decoded in parallel, each once, and then sized to the budget in index order so
         // that what is halved does not depend on which decoder finished first.
-        let decoded = decode_used(scene, &used);
+        let decoded = decode_used(scene, used);
         let mut set = TextureSet {
             images: vec![None; scene.images.len()],
-            bytes: 0,
+            ..TextureSet::default()
         };
         let mut chosen = Vec::new();
         for (index, (source, decoded)) in scene.images.iter().zip(decoded).enumerate() {
@@ -966,5 +1025,88 @@ mod tests {
         // S: (1, 0) -> (2, 0); R(90°): (cos·2, -sin·2) = (0, -2); T: (0.5, -2).
         let uv = transform_uv(&r, Vec2::new(1.0, 0.0));
         assert!((uv - Vec2::new(0.5, -2.0)).length() < 1e-5, "{uv}");
+    }
+
+    /// A model with one base-colour texture `texture.png` of `size`² texels of `rgb`, drawn
+    /// by its one triangle.
+    fn textured_model(dir: &std::path::Path, size: u32, rgb: [u8; 3]) -> std::path::PathBuf {
+        let [r, g, b] = rgb;
+        image::RgbImage::from_pixel(size, size, image::Rgb([r, g, b]))
+            .save(dir.join("texture.png"))
+            .expect("writes the PNG");
+        let positions: Vec<u8> = [0.0f32, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        std::fs::write(dir.join("triangle.bin"), &positions).expect("writes the buffer");
+        let gltf = serde_json::json!({
+            "asset": {"version": "2.0"},
+            "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "material": 0}]}],
+            "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+            "textures": [{"source": 0}],
+            "images": [{"uri": "texture.png"}],
+            "buffers": [{"uri": "triangle.bin", "byteLength": 36}],
+            "bufferViews": [{"buffer": 0, "byteLength": 36}],
+            "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                "min": [0.0, 0.0, 0.0], "max": [1.0, 1.0, 0.0]}]
+        });
+        let path = dir.join("triangle.gltf");
+        std::fs::write(&path, gltf.to_string()).expect("writes the model");
+        path
+    }
+
+    /// A second load of an unchanged model keeps the first's decoded images (the same memory,
+    /// not a copy); a changed image file, another budget or another strictness decodes again.
+    #[test]
+    fn unchanged_textures_are_kept_from_an_earlier_load() {
+        let dir = tempfile::tempdir().expect("a temporary folder");
+        let model = textured_model(dir.path(), 4, [200, 40, 40]);
+        let load = |previous: Option<&TextureSet>, budget: usize, strict: bool| {
+            let scene = Scene::load(&model).expect("loads");
+            let mut warnings = Vec::new();
+            let set = TextureSet::load_reusing(&scene, budget, strict, &mut warnings, previous)
+                .expect("decodes");
+            (set, scene)
+        };
+        let image = |set: &TextureSet| set.images[0].clone().expect("image 0 decoded");
+        let (first, _) = load(None, usize::MAX, false);
+        assert!(!first.reused());
+        let (second, _) = load(Some(&first), usize::MAX, false);
+        assert!(second.reused());
+        assert!(Arc::ptr_eq(&image(&first), &image(&second)));
+        // Kept again from a kept set.
+        let (third, _) = load(Some(&second), usize::MAX, false);
+        assert!(third.reused() && Arc::ptr_eq(&image(&first), &image(&third)));
+        for (budget, strict) in [(1 << 20, false), (usize::MAX, true)] {
+            let (other, _) = load(Some(&first), budget, strict);
+            assert!(!other.reused(), "budget {budget}, strict {strict}");
+        }
+        // The texture rewritten (another size, so another length whatever the clock says).
+        textured_model(dir.path(), 8, [10, 220, 10]);
+        let (changed, scene) = load(Some(&first), usize::MAX, false);
+        assert!(!changed.reused());
+        assert_eq!(image(&changed).size(), (8, 8));
+        let sampler = &scene.textures[0].sampler;
+        let green = image(&changed).sample(Vec2::splat(0.5), 0.0, sampler, false);
+        assert_eq!((green.x * 255.0).round(), 10.0);
+    }
+
+    /// Images handed over as pixels are never taken for an earlier load's: their identity is
+    /// not a file's.
+    #[test]
+    fn textures_given_as_pixels_are_decoded_every_time() {
+        let mut scene = Scene::empty("arrays");
+        scene
+            .add_texture(2, 2, vec![7; 16], Sampler::default(), None)
+            .expect("a 2x2 texture");
+        let mut warnings = Vec::new();
+        let first = TextureSet::load_reusing(&scene, usize::MAX, false, &mut warnings, None)
+            .expect("decodes");
+        assert!(first.inputs.is_none());
+        let second =
+            TextureSet::load_reusing(&scene, usize::MAX, false, &mut warnings, Some(&first))
+                .expect("decodes");
+        assert!(!second.reused());
     }
 }

@@ -1029,6 +1029,36 @@ fn sliding_square_without_camera(dir: &Path) -> PathBuf {
     path
 }
 
+/// The options of the sliding square's frames and single renders in the tests below.
+const SLIDE_OPTIONS: [&str; 8] = [
+    "--animation",
+    "slide",
+    "--width",
+    "24",
+    "--height",
+    "24",
+    "--spp",
+    "1",
+];
+
+/// Asserts that frame k in `frames` (`000.png`, ...) is, byte for byte, the single render of
+/// `model` with [`SLIDE_OPTIONS`] at `times[k]` seconds.
+fn assert_frames_are_single_renders(model: &Path, frames: &Path, times: &[&str]) {
+    let dir = frames.parent().expect("the frames' folder is in a folder");
+    for (k, time) in times.iter().enumerate() {
+        let single = dir.join(format!("single-{k}.png"));
+        let mut args = vec!["render", s(model), "-o", s(&single), "-q", "--time", time];
+        args.extend(SLIDE_OPTIONS);
+        run(&args, true);
+        let frame = frames.join(format!("{k:03}.png"));
+        assert_eq!(
+            std::fs::read(&frame).unwrap(),
+            std::fs::read(&single).unwrap(),
+            "frame {k} against the render at {time} s"
+        );
+    }
+}
+
 /// Frame k of `--frames N` with the file's (animated) camera is the plain render of the pose
 /// at k/N of the animation, byte for byte; the GIF holds the N frames, each lasting the
 /// animation's duration over N.
@@ -1037,19 +1067,9 @@ fn frames_are_the_plain_renders_of_their_poses() {
     let dir = tempfile::tempdir().unwrap();
     let model = sliding_square(dir.path());
     let (frames, gif) = (dir.path().join("frames"), dir.path().join("slide.gif"));
-    let options = [
-        "--animation",
-        "slide",
-        "--width",
-        "24",
-        "--height",
-        "24",
-        "--spp",
-        "1",
-    ];
     let mut args = vec!["render", s(&model), "-o", s(&frames), "-q", "--frames", "4"];
     args.extend(["--gif", s(&gif)]);
-    args.extend(options);
+    args.extend(SLIDE_OPTIONS);
     run(&args, true);
     let names: Vec<String> = std::fs::read_dir(&frames)
         .unwrap()
@@ -1059,18 +1079,7 @@ fn frames_are_the_plain_renders_of_their_poses() {
         .collect();
     assert_eq!(names, ["000.png", "001.png", "002.png", "003.png"]);
     // "slide" lasts 2 s: the frames are at 0, 0.5, 1 and 1.5 s.
-    for (k, time) in ["0", "0.5", "1", "1.5"].iter().enumerate() {
-        let single = dir.path().join(format!("single-{k}.png"));
-        let mut args = vec!["render", s(&model), "-o", s(&single), "-q", "--time", time];
-        args.extend(options);
-        run(&args, true);
-        let frame = frames.join(format!("{k:03}.png"));
-        assert_eq!(
-            std::fs::read(&frame).unwrap(),
-            std::fs::read(&single).unwrap(),
-            "frame {k} against the render at {time} s"
-        );
-    }
+    assert_frames_are_single_renders(&model, &frames, &["0", "0.5", "1", "1.5"]);
     let first = std::fs::read(frames.join("000.png")).unwrap();
     assert_ne!(first, std::fs::read(frames.join("002.png")).unwrap());
     use image::AnimationDecoder;
@@ -1082,6 +1091,51 @@ fn frames_are_the_plain_renders_of_their_poses() {
         // Real time: 2 s over 4 frames.
         assert_eq!(frame.delay().numer_denom_ms(), (500, 1));
     }
+}
+
+/// The frames of a textured model decode its texture once: later frames keep the first's
+/// images (their summary lines say so), and each is still the plain render of its pose, byte
+/// for byte. (A texture changed on disk is decoded again: the library's unit tests.)
+#[test]
+fn frames_keep_the_textures_they_share_and_stay_the_plain_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = sliding_square(dir.path());
+    let mut json: Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    image::RgbImage::from_pixel(4, 4, image::Rgb([220, 60, 20]))
+        .save(dir.path().join("orange.png"))
+        .unwrap();
+    json["images"] = json!([{"uri": "orange.png"}]);
+    json["textures"] = json!([{"source": 0}]);
+    // Emissive too: the animated point light stays in the square's plane, lighting nothing.
+    json["materials"] = json!([{
+        "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}},
+        "emissiveTexture": {"index": 0},
+        "emissiveFactor": [1.0, 1.0, 1.0]
+    }]);
+    json["meshes"][0]["primitives"][0]["material"] = json!(0);
+    let model = dir.path().join("textured.gltf");
+    std::fs::write(&model, serde_json::to_string(&json).unwrap()).unwrap();
+    let frames = dir.path().join("frames");
+    let mut args = vec!["render", s(&model), "-o", s(&frames), "--frames", "3"];
+    args.extend(SLIDE_OPTIONS);
+    let out = stderr(&run(&args, true));
+    let lines: Vec<&str> = out.lines().filter(|l| l.contains("of textures")).collect();
+    assert_eq!(lines.len(), 3, "{out}");
+    assert!(lines[0].contains("KB of textures in "), "{}", lines[0]);
+    for line in &lines[1..] {
+        assert!(
+            line.contains("KB of textures kept from the last frame"),
+            "{line}"
+        );
+    }
+    // "slide" lasts 2 s: the frames are at 0, 2/3 and 4/3 s (as f32, printed exactly).
+    let times = [0.0f32, 2.0 / 3.0, 4.0 / 3.0].map(|t| t.to_string());
+    let times: Vec<&str> = times.iter().map(String::as_str).collect();
+    assert_frames_are_single_renders(&model, &frames, &times);
+    // The texture is drawn: the square's centre glows orange.
+    let (width, _, pixels) = read_rgba(&frames.join("000.png"));
+    let [r, g, b, _] = pixels[(12 * width + 12) as usize];
+    assert!(r > 2.0 * g && g > b, "{r} {g} {b}");
 }
 
 /// With no camera in the file, the frames share one automatic camera that frames every pose:

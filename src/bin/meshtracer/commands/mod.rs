@@ -5,6 +5,7 @@ use anyhow::{bail, Context, Result};
 use meshtracer::defaults::{DEFAULT_HEIGHT, DEFAULT_WIDTH};
 use meshtracer::light::environment::Environment;
 use meshtracer::output::view_file::{SegmentId, ViewEnvironment};
+use meshtracer::prepare::textures::TextureSet;
 use meshtracer::prepare::Prepared;
 use meshtracer::scene::{Camera, LightKind, LoadOptions, Projection, Scene};
 use meshtracer::setup::LightingOptions;
@@ -115,13 +116,15 @@ pub(crate) struct PreparedModel {
 
 /// Prepares `scene` for `render` (one view or many) through the library's one build sequence
 /// ([`Prepared::build`]): the BVH preset chosen for `rays` rays, textures within
-/// `--max-texture-memory`, each step timed into `phases`, the decoder's warnings printed unless
+/// `--max-texture-memory` (those of `kept`, an earlier frame's, kept where they are the
+/// same), each step timed into `phases`, the decoder's warnings printed unless
 /// `--no-warnings`.
 pub(crate) fn prepare_scene(
     args: &RenderArgs,
     scene: Scene,
     rays: f64,
     phases: &mut Phases,
+    kept: Option<&TextureSet>,
 ) -> Result<PreparedModel> {
     let options = meshtracer::prepare::PrepareOptions {
         accel: args.accel,
@@ -132,7 +135,7 @@ pub(crate) fn prepare_scene(
     let mut all = scene.warnings.clone();
     let mut warnings = Vec::new();
     let (mut tangents, mut textures) = (Duration::ZERO, Duration::ZERO);
-    let prepared = Prepared::build(scene, &options, &mut warnings, &mut |step, start| {
+    let mut on_step = |step, start: std::time::Instant| {
         use meshtracer::prepare::PrepareStep;
         match step {
             PrepareStep::Tangents => tangents = start.elapsed(),
@@ -148,7 +151,8 @@ pub(crate) fn prepare_scene(
             },
             start,
         );
-    })?;
+    };
+    let prepared = Prepared::build_reusing(scene, &options, &mut warnings, &mut on_step, kept)?;
     phases.sub_steps_of("bvh build", prepared.accel.build_steps());
     if !args.no_warnings {
         for w in &warnings {

@@ -19,6 +19,7 @@ use meshtracer::integrator::IntegratorKind;
 use meshtracer::light::environment::Environment;
 use meshtracer::output::view_file::ViewFile;
 use meshtracer::output::PendingOutput;
+use meshtracer::prepare::textures::TextureSet;
 use meshtracer::prepare::Prepared;
 use meshtracer::render::denoise::{Denoised, Denoiser, Guides};
 use meshtracer::render::{render, render_region, Aovs, Image, Region, RenderSettings, RenderStats};
@@ -73,7 +74,7 @@ pub(super) fn render_model(
     if args.contact_sheet.is_some() {
         bail!("--contact-sheet lays out many views: add --views SPEC or --turntable N (or give it to batch, for a cell per job)");
     }
-    let report = render_one(args, view_file.as_ref(), env_file, run_start, None)?;
+    let report = render_one(args, view_file.as_ref(), env_file, run_start, None, None)?;
     on_view(1, 1);
     Ok(report)
 }
@@ -81,12 +82,16 @@ pub(super) fn render_model(
 /// The single view of `render_model` once its options are checked: reserves the output,
 /// loads the model, frames and lights the view, renders it and writes its files. `camera`,
 /// when given, replaces the camera the options choose (the frames of `--frames` share one).
+/// `textures`, when given, holds the decoded textures from one render to the next (the frames
+/// of `--frames`, whose poses share their images): kept where they are the same, and replaced
+/// by this render's.
 pub(super) fn render_one(
     args: &RenderArgs,
     view_file: Option<&ViewFile>,
     env_file: Option<Environment>,
     run_start: Instant,
     camera: Option<&Camera>,
+    textures: Option<&mut Option<TextureSet>>,
 ) -> Result<RenderReport> {
     let cancel = interrupt_flag();
     let outputs = single_view_outputs(args);
@@ -113,8 +118,21 @@ pub(super) fn render_one(
     let lit = light_view(args, &scene.lights, view_file, &view, env_file)?;
     let using_rig = lit.default_rig;
     let mut settings = render_settings(args, view, lit);
-    let rendered = pool
-        .install(|| prepare_and_render(args, scene, &mut settings, &shot, &cancel, &mut phases))?;
+    let kept = textures.as_deref().and_then(Option::as_ref);
+    let rendered = pool.install(|| {
+        prepare_and_render(
+            args,
+            scene,
+            &mut settings,
+            &shot,
+            &cancel,
+            &mut phases,
+            kept,
+        )
+    })?;
+    if let Some(textures) = textures {
+        *textures = Some(rendered.prepared.textures.clone());
+    }
     let done = Finished {
         load_time: load_time + rendered.tangents,
         shot,
@@ -595,6 +613,7 @@ fn prepare_and_render(
     shot: &Shot,
     cancel: &AtomicBool,
     phases: &mut Phases,
+    textures: Option<&TextureSet>,
 ) -> Result<Rendered> {
     let rays = meshtracer::setup::expected_rays(
         u64::from(shot.width) * u64::from(shot.height),
@@ -609,7 +628,7 @@ fn prepare_and_render(
         warnings,
         tangents,
         textures,
-    } = prepare_scene(args, scene, rays, phases)?;
+    } = prepare_scene(args, scene, rays, phases, textures)?;
     let render_start = Instant::now();
     if let Some(limit) = args.time_limit {
         settings.spp = spp_for_time_limit(&prepared, settings, cancel, limit, args.max_spp)?;
@@ -922,12 +941,16 @@ pub(super) fn denoiser_label(report: &Denoised) -> String {
 
 /// The summary's textures: "no textures", or their decoded size (MB, or KB under one MB) and
 /// decoding time.
-fn textures_label(bytes: usize, time: Duration) -> String {
+fn textures_label(bytes: usize, time: Duration, reused: bool) -> String {
     let ms = time.as_secs_f64() * 1e3;
+    let how = match reused {
+        true => "kept from the last frame".to_string(),
+        false => format!("in {ms:.1} ms"),
+    };
     match bytes {
         0 => "no textures".to_string(),
-        b if b < 1 << 20 => format!("{} KB of textures in {ms:.1} ms", b.div_ceil(1 << 10)),
-        b => format!("{} MB of textures in {ms:.1} ms", b >> 20),
+        b if b < 1 << 20 => format!("{} KB of textures {how}", b.div_ceil(1 << 10)),
+        b => format!("{} MB of textures {how}", b >> 20),
     }
 }
 
@@ -993,7 +1016,11 @@ fn print_summary(args: &RenderArgs, done: &Finished) {
         scene.source.display(),
         super::counted(scene.soup.len(), "triangle"),
         done.load_time.as_secs_f64() * 1e3,
-        textures_label(prepared.textures.bytes, *texture_time),
+        textures_label(
+            prepared.textures.bytes,
+            *texture_time,
+            prepared.textures.reused(),
+        ),
         stats.time.as_secs_f64(),
         stats.samples_per_second(),
         stats
@@ -1021,9 +1048,19 @@ mod tests {
     #[test]
     fn textures_are_counted_in_kilobytes_under_a_megabyte() {
         let ms = Duration::from_micros(2500);
-        assert_eq!(textures_label(0, ms), "no textures");
-        assert_eq!(textures_label(1, ms), "1 KB of textures in 2.5 ms");
-        assert_eq!(textures_label(1025, ms), "2 KB of textures in 2.5 ms");
-        assert_eq!(textures_label(3 << 20, ms), "3 MB of textures in 2.5 ms");
+        assert_eq!(textures_label(0, ms, false), "no textures");
+        assert_eq!(textures_label(1, ms, false), "1 KB of textures in 2.5 ms");
+        assert_eq!(
+            textures_label(1025, ms, false),
+            "2 KB of textures in 2.5 ms"
+        );
+        assert_eq!(
+            textures_label(3 << 20, ms, false),
+            "3 MB of textures in 2.5 ms"
+        );
+        assert_eq!(
+            textures_label(3 << 20, ms, true),
+            "3 MB of textures kept from the last frame"
+        );
     }
 }
