@@ -90,15 +90,15 @@ impl Prepared {
         Prepared::build_reusing(scene, options, warnings, on_step, None)
     }
 
-    /// [`Prepared::build`], keeping the textures of `textures` (an earlier build's, of the same
-    /// model in another pose) where [`TextureSet::load_reusing`] finds them decoded from the
-    /// same inputs.
+    /// [`Prepared::build`], keeping `textures` (an earlier build's, of the same model in
+    /// another pose) where [`TextureSet::load_reusing`] finds them decoded from the same
+    /// inputs.
     pub fn build_reusing(
         mut scene: Scene,
         options: &PrepareOptions,
         warnings: &mut Vec<String>,
         on_step: &mut dyn FnMut(PrepareStep, Instant),
-        textures: Option<&TextureSet>,
+        textures: Option<TextureSet>,
     ) -> Result<Prepared, TextureError> {
         let start = Instant::now();
         crate::scene::tangents::generate_missing(&mut scene);

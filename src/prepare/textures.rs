@@ -623,18 +623,19 @@ impl TextureSet {
         TextureSet::load_reusing(scene, budget_bytes, strict, warnings, None)
     }
 
-    /// [`TextureSet::load`], keeping `previous` (an earlier load's set, cheaply: its images are
-    /// shared) when it was decoded from the same inputs: the same model and files, unchanged on
-    /// disk (length and modification time), naming the same images, with the same images drawn
-    /// and the same budget. Then the result is the one decoding again would give, bit for bit,
-    /// with its warnings. `render --frames` loads the model again for each pose; its images
-    /// do not change with the pose.
+    /// [`TextureSet::load`], keeping `previous` (an earlier load's set) when it was decoded
+    /// from the same inputs: the same model and files, unchanged on disk (length and
+    /// modification time), naming the same images, with the same images drawn and the same
+    /// budget. Then the result is the one decoding again would give, bit for bit, with its
+    /// warnings. Otherwise `previous` is dropped before anything is decoded. `render --frames`
+    /// and a batch's jobs load a model again for each pose; its images do not change with the
+    /// pose.
     pub fn load_reusing(
         scene: &Scene,
         budget_bytes: usize,
         strict: bool,
         warnings: &mut Vec<String>,
-        previous: Option<&TextureSet>,
+        previous: Option<TextureSet>,
     ) -> Result<TextureSet, TextureError> {
         let used = used_images(scene);
         let inputs = TextureInputs::of(scene, &used, budget_bytes, strict);
@@ -642,7 +643,7 @@ impl TextureSet {
             warnings.extend(previous.warnings.iter().cloned());
             return Ok(TextureSet {
                 reused: true,
-                ..previous.clone()
+                ..previous
             });
         }
         let mut own_warnings = Vec::new();
@@ -1062,7 +1063,7 @@ mod tests {
     fn unchanged_textures_are_kept_from_an_earlier_load() {
         let dir = tempfile::tempdir().expect("a temporary folder");
         let model = textured_model(dir.path(), 4, [200, 40, 40]);
-        let load = |previous: Option<&TextureSet>, budget: usize, strict: bool| {
+        let load = |previous: Option<TextureSet>, budget: usize, strict: bool| {
             let scene = Scene::load(&model).expect("loads");
             let mut warnings = Vec::new();
             let set = TextureSet::load_reusing(&scene, budget, strict, &mut warnings, previous)
@@ -1072,19 +1073,19 @@ mod tests {
         let image = |set: &TextureSet| set.images[0].clone().expect("image 0 decoded");
         let (first, _) = load(None, usize::MAX, false);
         assert!(!first.reused());
-        let (second, _) = load(Some(&first), usize::MAX, false);
+        let (second, _) = load(Some(first.clone()), usize::MAX, false);
         assert!(second.reused());
         assert!(Arc::ptr_eq(&image(&first), &image(&second)));
         // Kept again from a kept set.
-        let (third, _) = load(Some(&second), usize::MAX, false);
+        let (third, _) = load(Some(second), usize::MAX, false);
         assert!(third.reused() && Arc::ptr_eq(&image(&first), &image(&third)));
         for (budget, strict) in [(1 << 20, false), (usize::MAX, true)] {
-            let (other, _) = load(Some(&first), budget, strict);
+            let (other, _) = load(Some(first.clone()), budget, strict);
             assert!(!other.reused(), "budget {budget}, strict {strict}");
         }
         // The texture rewritten (another size, so another length whatever the clock says).
         textured_model(dir.path(), 8, [10, 220, 10]);
-        let (changed, scene) = load(Some(&first), usize::MAX, false);
+        let (changed, scene) = load(Some(first), usize::MAX, false);
         assert!(!changed.reused());
         assert_eq!(image(&changed).size(), (8, 8));
         let sampler = &scene.textures[0].sampler;
@@ -1105,7 +1106,7 @@ mod tests {
             .expect("decodes");
         assert!(first.inputs.is_none());
         let second =
-            TextureSet::load_reusing(&scene, usize::MAX, false, &mut warnings, Some(&first))
+            TextureSet::load_reusing(&scene, usize::MAX, false, &mut warnings, Some(first))
                 .expect("decodes");
         assert!(!second.reused());
     }

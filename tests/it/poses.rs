@@ -1093,28 +1093,35 @@ fn frames_are_the_plain_renders_of_their_poses() {
     }
 }
 
-/// The frames of a textured model decode its texture once: later frames keep the first's
-/// images (their summary lines say so), and each is still the plain render of its pose, byte
-/// for byte. (A texture changed on disk is decoded again: the library's unit tests.)
-#[test]
-fn frames_keep_the_textures_they_share_and_stay_the_plain_renders() {
-    let dir = tempfile::tempdir().unwrap();
-    let model = sliding_square(dir.path());
+/// The sliding square of [`sliding_square`] with a 4x4 orange texture (`orange.png`) as its
+/// base colour and emission (the animated point light stays in the square's plane, lighting
+/// nothing), as `textured.gltf`.
+fn textured_sliding_square(dir: &Path) -> PathBuf {
+    let model = sliding_square(dir);
     let mut json: Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
     image::RgbImage::from_pixel(4, 4, image::Rgb([220, 60, 20]))
-        .save(dir.path().join("orange.png"))
+        .save(dir.join("orange.png"))
         .unwrap();
     json["images"] = json!([{"uri": "orange.png"}]);
     json["textures"] = json!([{"source": 0}]);
-    // Emissive too: the animated point light stays in the square's plane, lighting nothing.
     json["materials"] = json!([{
         "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}},
         "emissiveTexture": {"index": 0},
         "emissiveFactor": [1.0, 1.0, 1.0]
     }]);
     json["meshes"][0]["primitives"][0]["material"] = json!(0);
-    let model = dir.path().join("textured.gltf");
-    std::fs::write(&model, serde_json::to_string(&json).unwrap()).unwrap();
+    let path = dir.join("textured.gltf");
+    std::fs::write(&path, serde_json::to_string(&json).unwrap()).unwrap();
+    path
+}
+
+/// The frames of a textured model decode its texture once: later frames keep the first's
+/// images (their summary lines say so), and each is still the plain render of its pose, byte
+/// for byte. (A texture changed on disk is decoded again: the library's unit tests.)
+#[test]
+fn frames_keep_the_textures_they_share_and_stay_the_plain_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = textured_sliding_square(dir.path());
     let frames = dir.path().join("frames");
     let mut args = vec!["render", s(&model), "-o", s(&frames), "--frames", "3"];
     args.extend(SLIDE_OPTIONS);
@@ -1136,6 +1143,50 @@ fn frames_keep_the_textures_they_share_and_stay_the_plain_renders() {
     let (width, _, pixels) = read_rgba(&frames.join("000.png"));
     let [r, g, b, _] = pixels[(12 * width + 12) as usize];
     assert!(r > 2.0 * g && g > b, "{r} {g} {b}");
+}
+
+/// A batch's consecutive jobs of one textured model (an animation's frames as jobs) keep its
+/// decoded texture from job to job, and a job of another model between them does not disturb
+/// that: every job's image is the single render of its pose, byte for byte.
+#[test]
+fn batch_jobs_of_one_textured_model_are_its_single_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = textured_sliding_square(dir.path());
+    let other = sliding_square(dir.path());
+    let job = |id: &str, model: &Path, time: &str| {
+        json!({"id": id, "model": model, "animation": "slide", "time": time.parse::<f32>().unwrap()})
+            .to_string()
+    };
+    let jobs = [
+        job("t0", &model, "0"),
+        job("t1", &model, "0.5"),
+        job("plain", &other, "0.5"),
+        job("t2", &model, "1"),
+    ];
+    let manifest = dir.path().join("jobs.jsonl");
+    std::fs::write(&manifest, jobs.join("\n")).unwrap();
+    let out = dir.path().join("out");
+    let size = ["--width", "24", "--height", "24", "--spp", "1"];
+    let mut args = vec!["batch", s(&manifest), "-o", s(&out), "-q"];
+    args.extend(size);
+    run(&args, true);
+    for (id, model, time) in [
+        ("t0", &model, "0"),
+        ("t1", &model, "0.5"),
+        ("plain", &other, "0.5"),
+        ("t2", &model, "1"),
+    ] {
+        let single = dir.path().join(format!("single-{id}.png"));
+        let mut args = vec!["render", s(model), "-o", s(&single), "-q"];
+        args.extend(["--animation", "slide", "--time", time]);
+        args.extend(size);
+        run(&args, true);
+        assert_eq!(
+            std::fs::read(out.join(id).join("image.png")).unwrap(),
+            std::fs::read(&single).unwrap(),
+            "job {id}"
+        );
+    }
 }
 
 /// With no camera in the file, the frames share one automatic camera that frames every pose:

@@ -341,6 +341,9 @@ fn run_job(
         remove_leftovers(&folder);
     }
     progress.start_job(&job.id);
+    // Consecutive jobs of one model (an animation's frames as jobs) keep its decoded textures;
+    // another model's are not held while this one loads and renders.
+    super::forget_kept_textures_unless(&render_args.model);
     let rendered = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         render_model(&render_args, &|done, total| progress.view(done, total))
     }))

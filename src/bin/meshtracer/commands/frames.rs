@@ -14,7 +14,7 @@
 //! (as the plain render's frames its one pose's vertices), found by loading each pose once
 //! before the first frame renders (a load is parse and flatten, a few milliseconds for a
 //! character; textures are decoded when the first frame is prepared, and kept for the others
-//! while they are the same: [`meshtracer::prepare::textures::TextureSet::load_reusing`]).
+//! while they are the same ([`super::prepare_scene`]).
 //! With it, frame k is the plain render of its pose only where that pose is the one that
 //! decides the framing.
 
@@ -84,21 +84,14 @@ pub(super) fn render_frames(
         .with_context(|| format!("-o {}: cannot create the folder", dir.display()))?;
     let digits = frames.saturating_sub(1).to_string().len().max(3);
     let mut total = RenderReport::default();
-    // The poses share their images: decoded for the first frame, kept for the others.
-    let mut textures = None;
     for k in 0..frames {
         let time = clip.time_of(k, frames);
         let mut frame = frame_args(args, time, k > 0);
         frame.output = dir.join(format!("{k:0digits$}.png"));
-        let report = render_one(
-            &frame,
-            None,
-            env_file.clone(),
-            run_start,
-            camera.as_ref(),
-            Some(&mut textures),
-        )
-        .with_context(|| format!("--frames {frames}: frame {k} (at {time} s)"))?;
+        // The poses share their images: decoded for the first frame, kept for the others
+        // (`prepare_scene`).
+        let report = render_one(&frame, None, env_file.clone(), run_start, camera.as_ref())
+            .with_context(|| format!("--frames {frames}: frame {k} (at {time} s)"))?;
         if let Some(gif) = &mut gif {
             // The frame as its PNG holds it (8-bit sRGB, straight alpha).
             let rgba = image::open(&frame.output)

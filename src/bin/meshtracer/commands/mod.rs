@@ -9,9 +9,9 @@ use meshtracer::prepare::textures::TextureSet;
 use meshtracer::prepare::Prepared;
 use meshtracer::scene::{Camera, LightKind, LoadOptions, Projection, Scene};
 use meshtracer::setup::LightingOptions;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 /// `println!` for the commands' results on standard output. A reader that stops early
@@ -101,6 +101,42 @@ impl Phases {
 
 pub use meshtracer::measure::peak_memory_bytes;
 
+/// The decoded textures of the last model this process prepared, with the path it was given
+/// by. The frames of `render --frames` and a batch's jobs load a model again for each pose,
+/// and its images do not change with the pose: [`prepare_scene`] offers this set to the next
+/// preparation of the same path, which keeps it only where it is what decoding again would
+/// give ([`TextureSet::load_reusing`]: the files unchanged on disk, the same images drawn, the
+/// same budget) and otherwise drops it before decoding. Its images are shared with the
+/// prepared scene's (no copy); a batch forgets them before a job of another model
+/// ([`forget_kept_textures_unless`]).
+static KEPT_TEXTURES: Mutex<Option<(PathBuf, TextureSet)>> = Mutex::new(None);
+
+/// [`KEPT_TEXTURES`], locked (nothing panics while holding it, and a kept set is valid
+/// whatever happened elsewhere: a poisoned lock is taken as it is).
+fn kept_textures() -> MutexGuard<'static, Option<(PathBuf, TextureSet)>> {
+    KEPT_TEXTURES.lock().unwrap_or_else(PoisonError::into_inner)
+}
+
+/// The textures kept for `model`, taken out; a set kept for another model is dropped.
+fn take_kept_textures(model: &Path) -> Option<TextureSet> {
+    let (path, textures) = kept_textures().take()?;
+    (path == model).then_some(textures)
+}
+
+/// Keeps `textures` (sharing their images) for the next preparation of `model`.
+fn keep_textures(model: &Path, textures: &TextureSet) {
+    *kept_textures() = Some((model.to_path_buf(), textures.clone()));
+}
+
+/// Drops the kept textures unless they are `model`'s: a batch, before a job's load, so that
+/// another model's images are not held while it loads and renders.
+pub(crate) fn forget_kept_textures_unless(model: &Path) {
+    let mut kept = kept_textures();
+    if kept.as_ref().is_some_and(|(path, _)| path != model) {
+        *kept = None;
+    }
+}
+
 /// What [`prepare_scene`] hands back.
 pub(crate) struct PreparedModel {
     /// The scene ready to render.
@@ -116,15 +152,14 @@ pub(crate) struct PreparedModel {
 
 /// Prepares `scene` for `render` (one view or many) through the library's one build sequence
 /// ([`Prepared::build`]): the BVH preset chosen for `rays` rays, textures within
-/// `--max-texture-memory` (those of `kept`, an earlier frame's, kept where they are the
-/// same), each step timed into `phases`, the decoder's warnings printed unless
-/// `--no-warnings`.
+/// `--max-texture-memory` (the last preparation's, of the same model, kept where decoding
+/// again would give the same: [`KEPT_TEXTURES`]), each step timed into `phases`, the decoder's
+/// warnings printed unless `--no-warnings`.
 pub(crate) fn prepare_scene(
     args: &RenderArgs,
     scene: Scene,
     rays: f64,
     phases: &mut Phases,
-    kept: Option<&TextureSet>,
 ) -> Result<PreparedModel> {
     let options = meshtracer::prepare::PrepareOptions {
         accel: args.accel,
@@ -152,7 +187,9 @@ pub(crate) fn prepare_scene(
             start,
         );
     };
+    let kept = take_kept_textures(&args.model);
     let prepared = Prepared::build_reusing(scene, &options, &mut warnings, &mut on_step, kept)?;
+    keep_textures(&args.model, &prepared.textures);
     phases.sub_steps_of("bvh build", prepared.accel.build_steps());
     if !args.no_warnings {
         for w in &warnings {

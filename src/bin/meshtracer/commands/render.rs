@@ -19,7 +19,6 @@ use meshtracer::integrator::IntegratorKind;
 use meshtracer::light::environment::Environment;
 use meshtracer::output::view_file::ViewFile;
 use meshtracer::output::PendingOutput;
-use meshtracer::prepare::textures::TextureSet;
 use meshtracer::prepare::Prepared;
 use meshtracer::render::denoise::{Denoised, Denoiser, Guides};
 use meshtracer::render::{render, render_region, Aovs, Image, Region, RenderSettings, RenderStats};
@@ -74,7 +73,7 @@ pub(super) fn render_model(
     if args.contact_sheet.is_some() {
         bail!("--contact-sheet lays out many views: add --views SPEC or --turntable N (or give it to batch, for a cell per job)");
     }
-    let report = render_one(args, view_file.as_ref(), env_file, run_start, None, None)?;
+    let report = render_one(args, view_file.as_ref(), env_file, run_start, None)?;
     on_view(1, 1);
     Ok(report)
 }
@@ -82,16 +81,12 @@ pub(super) fn render_model(
 /// The single view of `render_model` once its options are checked: reserves the output,
 /// loads the model, frames and lights the view, renders it and writes its files. `camera`,
 /// when given, replaces the camera the options choose (the frames of `--frames` share one).
-/// `textures`, when given, holds the decoded textures from one render to the next (the frames
-/// of `--frames`, whose poses share their images): kept where they are the same, and replaced
-/// by this render's.
 pub(super) fn render_one(
     args: &RenderArgs,
     view_file: Option<&ViewFile>,
     env_file: Option<Environment>,
     run_start: Instant,
     camera: Option<&Camera>,
-    textures: Option<&mut Option<TextureSet>>,
 ) -> Result<RenderReport> {
     let cancel = interrupt_flag();
     let outputs = single_view_outputs(args);
@@ -118,21 +113,8 @@ pub(super) fn render_one(
     let lit = light_view(args, &scene.lights, view_file, &view, env_file)?;
     let using_rig = lit.default_rig;
     let mut settings = render_settings(args, view, lit);
-    let kept = textures.as_deref().and_then(Option::as_ref);
-    let rendered = pool.install(|| {
-        prepare_and_render(
-            args,
-            scene,
-            &mut settings,
-            &shot,
-            &cancel,
-            &mut phases,
-            kept,
-        )
-    })?;
-    if let Some(textures) = textures {
-        *textures = Some(rendered.prepared.textures.clone());
-    }
+    let rendered = pool
+        .install(|| prepare_and_render(args, scene, &mut settings, &shot, &cancel, &mut phases))?;
     let done = Finished {
         load_time: load_time + rendered.tangents,
         shot,
@@ -613,7 +595,6 @@ fn prepare_and_render(
     shot: &Shot,
     cancel: &AtomicBool,
     phases: &mut Phases,
-    textures: Option<&TextureSet>,
 ) -> Result<Rendered> {
     let rays = meshtracer::setup::expected_rays(
         u64::from(shot.width) * u64::from(shot.height),
@@ -628,7 +609,7 @@ fn prepare_and_render(
         warnings,
         tangents,
         textures,
-    } = prepare_scene(args, scene, rays, phases, textures)?;
+    } = prepare_scene(args, scene, rays, phases)?;
     let render_start = Instant::now();
     if let Some(limit) = args.time_limit {
         settings.spp = spp_for_time_limit(&prepared, settings, cancel, limit, args.max_spp)?;

@@ -630,7 +630,7 @@ fn render_all(
         warnings,
         tangents,
         ..
-    } = super::prepare_scene(args, scene, rays, &mut super::Phases::default(), None)?;
+    } = super::prepare_scene(args, scene, rays, &mut super::Phases::default())?;
     let load_time = plan.load_time + tangents;
     let bvh_time = prepared.accel.build_time();
     if let (Some(path), Some(env)) = (&args.env_out, &lit.environment) {
