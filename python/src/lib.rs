@@ -24,6 +24,7 @@ use meshtracer::jobs::views::{
 use meshtracer::light::environment::Environment;
 use meshtracer::output::dataset::{camera_to_world, Intrinsics};
 use meshtracer::output::view_file::MAX_VIEW_BOUNCES;
+use meshtracer::prepare::textures::TextureSet;
 use meshtracer::prepare::{PrepareOptions, Prepared};
 use meshtracer::render::{render, Region, RenderSettings};
 use meshtracer::scene::{
@@ -37,8 +38,8 @@ use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyDict, PyType};
 use std::collections::HashMap;
-use std::path::PathBuf;
-use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard, Weak};
 
 pyo3::create_exception!(
     meshtracer,
@@ -115,6 +116,28 @@ struct PyScene {
     lenses: Mutex<HashMap<usize, CameraLens>>,
     /// The last `env` panorama rendered with, turned and scaled, and what it was made from.
     environment: Mutex<Option<(EnvironmentKey, Arc<Environment>)>>,
+    /// The decoded textures of another scene of the same file, alive when this one was loaded
+    /// (the last pose of a loop over an animation's times), offered to this scene's
+    /// preparation ([`live_textures`]).
+    inherited: Mutex<Option<TextureSet>>,
+}
+
+/// The last scene prepared in this process, with the file it was loaded from; weakly, so that
+/// it is freed when the program drops it.
+static LAST_PREPARED: Mutex<Option<(PathBuf, Weak<Prepared>)>> = Mutex::new(None);
+
+/// The decoded textures of the last scene prepared from `path`, if the program still holds it:
+/// `for t in times: scene = meshtracer.load(path, time=t)` loads each pose while the last one
+/// is still bound, and its images do not change with the pose. A preparation keeps them only
+/// where decoding again would give the same (`TextureSet::load_reusing`: the files unchanged
+/// on disk, the same images drawn), as the CLI's frames do.
+fn live_textures(path: &Path) -> Option<TextureSet> {
+    let last = LAST_PREPARED.lock().ok()?;
+    let (last_path, prepared) = last.as_ref()?;
+    (last_path == path)
+        .then(|| prepared.upgrade())
+        .flatten()
+        .map(|p| p.textures.clone())
 }
 
 /// How the views of a camera added from Python are made.
@@ -191,10 +214,12 @@ impl PyScene {
             strict: self.strict,
         };
         let mut warnings = Vec::new();
+        let inherited = self.inherited.lock().ok().and_then(|mut i| i.take());
+        let kept = inherited.or_else(|| live_textures(&self.path));
         // A panic must not leave the state `Preparing`: the waiting calls would wait forever.
         let outcome = py.detach(|| {
             std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                Prepared::new(*scene, &options, &mut warnings)
+                Prepared::build_reusing(*scene, &options, &mut warnings, &mut |_, _| {}, kept)
             }))
         });
         let result = match outcome {
@@ -209,6 +234,9 @@ impl PyScene {
         };
         if let Ok(mut kept) = self.prepare_warnings.lock() {
             kept.extend(warnings);
+        }
+        if let (Ok(p), Ok(mut last)) = (&result, LAST_PREPARED.lock()) {
+            *last = Some((self.path.clone(), Arc::downgrade(p)));
         }
         let mut state = self.state.lock().unwrap_or_else(|p| p.into_inner());
         *state = match &result {
@@ -315,6 +343,7 @@ impl PyScene {
             prepare_warnings: Mutex::new(Vec::new()),
             lenses: Mutex::new(HashMap::new()),
             environment: Mutex::new(None),
+            inherited: Mutex::new(None),
         }
     }
 
@@ -540,6 +569,7 @@ impl PyScene {
                 numbers.set_item("shadow_rays", stats.shadow_rays)?;
                 numbers.set_item("indirect_rays", stats.indirect_rays)?;
                 numbers.set_item("denoise_seconds", denoise_seconds)?;
+                numbers.set_item("textures_kept", prepared.textures.reused())?;
                 out.set_item("stats", numbers)?;
                 Ok(out)
             })
@@ -1420,7 +1450,13 @@ fn load(
             )));
         }
     };
-    Ok(PyScene::new(path, strict, scene))
+    // Taken while the last pose, if it is this file's, is still bound.
+    let inherited = live_textures(&path);
+    let loaded = PyScene::new(path, strict, scene);
+    if let Ok(mut slot) = loaded.inherited.lock() {
+        *slot = inherited;
+    }
+    Ok(loaded)
 }
 
 #[pymodule]

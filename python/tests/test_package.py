@@ -382,6 +382,36 @@ def test_sample_model_equals_the_cli(cli, samples, tmp_path, model):
     assert (arrays["depth"] > 0).any()
 
 
+def test_poses_of_one_model_share_its_decoded_textures(samples):
+    """A loop over an animation's times loads each pose while the last is still bound: the new
+    pose keeps the last one's decoded textures (so does a pose loaded ahead and rendered while
+    another pose of the file is alive), and renders exactly as a fresh load does."""
+    import gc
+
+    fox = samples / "Fox/glTF/Fox.gltf"
+    if not fox.exists():
+        pytest.fail(f"{fox}: the sample model is missing from MESHTRACER_SAMPLES")
+    kept = []
+    scene = None
+    for time in (0.5, 1.0, 1.5):
+        scene = meshtracer.load(fox, time=time)
+        out = scene.render(32, 24, spp=1, aovs=())
+        kept.append(out["stats"]["textures_kept"])
+    assert kept == [False, True, True]
+    del scene, out
+    gc.collect()
+    # Nothing of the file is alive now: a fresh load decodes, and draws the same pixels.
+    fresh = meshtracer.load(fox, time=1.5).render(32, 24, spp=1, aovs=())
+    assert fresh["stats"]["textures_kept"] is False
+    # Poses loaded ahead: the first rendered decodes, a later one takes its textures then.
+    first = meshtracer.load(fox, time=1.0)
+    second = meshtracer.load(fox, time=1.5)
+    assert first.render(32, 24, spp=1, aovs=())["stats"]["textures_kept"] is False
+    again = second.render(32, 24, spp=1, aovs=())
+    assert again["stats"]["textures_kept"] is True
+    np.testing.assert_array_equal(fresh["color"], again["color"])
+
+
 # The binding itself ------------------------------------------------------------------------
 
 def test_renders_are_deterministic_and_the_scene_is_reused():
