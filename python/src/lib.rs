@@ -28,7 +28,7 @@ use meshtracer::prepare::textures::TextureSet;
 use meshtracer::prepare::{PrepareOptions, Prepared};
 use meshtracer::render::{render, Region, RenderSettings};
 use meshtracer::scene::{
-    Camera, Light, LoadError, LoadOptions, MeshArrays, PoseOptions, Projection,
+    Camera, FileStamp, Light, LoadError, LoadOptions, MeshArrays, PoseOptions, Projection,
 };
 use meshtracer::setup::{self, LightingOptions};
 use meshtracer::shading::ShadingModel;
@@ -155,8 +155,8 @@ enum CameraLens {
 #[derive(Clone, Debug, PartialEq)]
 struct EnvironmentKey {
     path: PathBuf,
-    modified: Option<std::time::SystemTime>,
-    len: u64,
+    /// The file as it was on disk (`None`: it could not be read).
+    file: Option<FileStamp>,
     rotation_degrees: f32,
     intensity: f32,
 }
@@ -355,13 +355,11 @@ impl PyScene {
         let Some(path) = &o.env else {
             return Ok(None);
         };
-        let meta = std::fs::metadata(path);
-        let missing = matches!(&meta, Err(e) if e.kind() == std::io::ErrorKind::NotFound);
-        let meta = meta.ok();
+        let stamp = FileStamp::of(path);
+        let missing = matches!(&stamp, Err(e) if e.kind() == std::io::ErrorKind::NotFound);
         let key = EnvironmentKey {
             path: path.clone(),
-            modified: meta.as_ref().and_then(|m| m.modified().ok()),
-            len: meta.map_or(0, |m| m.len()),
+            file: stamp.ok(),
             rotation_degrees: o.env_rotation,
             intensity: o.env_intensity,
         };

@@ -5,29 +5,8 @@
 //!
 //! [`TextureSet`]: super::textures::TextureSet
 
-use crate::scene::Scene;
-use std::path::{Path, PathBuf};
-use std::time::SystemTime;
-
-/// A file as it was on disk: its path, length and modification time.
-#[derive(Clone, Debug, PartialEq)]
-struct FileStamp {
-    path: PathBuf,
-    len: u64,
-    modified: Option<SystemTime>,
-}
-
-impl FileStamp {
-    /// `None` for a file that cannot be read now (decoding it would fail or differ).
-    fn of(path: &Path) -> Option<FileStamp> {
-        let meta = std::fs::metadata(path).ok()?;
-        Some(FileStamp {
-            path: path.to_path_buf(),
-            len: meta.len(),
-            modified: meta.modified().ok(),
-        })
-    }
-}
+use crate::scene::{FileStamp, Scene};
+use std::path::PathBuf;
 
 /// An image as the model names it: where it comes from, not the bytes (those are covered by
 /// the files' stamps: an external image's file is one of the model's inputs, and embedded
@@ -67,7 +46,7 @@ impl TextureInputs {
     ) -> Option<TextureInputs> {
         let files = std::iter::once(scene.source.as_path())
             .chain(scene.inputs.iter().map(PathBuf::as_path))
-            .map(FileStamp::of)
+            .map(|path| FileStamp::of(path).ok())
             .collect::<Option<Vec<_>>>()?;
         let images = scene
             .images

@@ -9,6 +9,7 @@ mod builder;
 mod error;
 mod exr_blocks;
 pub mod extensions;
+mod file_stamp;
 pub mod gltf_import;
 mod image_header;
 mod image_source;
@@ -35,6 +36,7 @@ pub use arrays::{check_material, ArraysError, MeshArrays};
 pub use builder::{SoupBuilder, TriangleIn, VerticesIn};
 pub use error::{catch_quietly, image_error_text, panic_message, LoadError, LoadErrorKind};
 pub use exr_blocks::{decode_exr, decode_exr_channels, ExrChannels, MAX_EXR_TEXELS};
+pub use file_stamp::FileStamp;
 pub use image_source::{Encoded, FileRange, ImageSource, SharedBytes};
 pub use material::{
     AlphaMode, AnisotropyLayer, ClearcoatLayer, DiffuseTransmissionLayer, IridescenceLayer,
