@@ -144,6 +144,36 @@ impl GuidePlanes {
         let [x, y, z] = &self.albedo;
         Vec3::new(x.values[at], y.values[at], z.values[at])
     }
+
+    /// Pixel `i` (row-major) as it was given, bit for bit.
+    pub(super) fn pixel(&self, i: usize) -> Pixel {
+        self.pixel_at(i % self.width, i / self.width)
+    }
+
+    /// Pixel (`x`, `y`) as it was given, bit for bit.
+    #[inline]
+    pub(super) fn pixel_at(&self, x: usize, y: usize) -> Pixel {
+        let at = y * self.stride() + PAD_LEFT + x;
+        let [nx, ny, nz] = &self.normal;
+        let [gx, gy] = &self.gradient;
+        Pixel {
+            surface: self.surface.values[at] != 0.0,
+            normal: Vec3::new(nx.values[at], ny.values[at], nz.values[at]),
+            depth: self.depth.values[at],
+            albedo: Vec3::new(
+                self.albedo[0].values[at],
+                self.albedo[1].values[at],
+                self.albedo[2].values[at],
+            ),
+            gradient: (gx.values[at], gy.values[at]),
+            visibility: self.visibility.values[at],
+        }
+    }
+
+    /// The image's width and height.
+    pub(super) fn size(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
 }
 
 /// The illumination, its luminance and its variance as planes: what a pass reads of the
@@ -222,6 +252,19 @@ impl Lit {
     #[cfg(test)]
     pub(super) fn variance(&self, width: usize, i: usize) -> f32 {
         self.variance.values[Lit::at(width, i)]
+    }
+
+    /// The luminance of pixel `i`'s illumination, as the passes compare it.
+    pub(super) fn luminance(&self, width: usize, i: usize) -> f32 {
+        self.luminance.values[Lit::at(width, i)]
+    }
+
+    /// Sets pixel `i`'s illumination (and its luminance) to `rgb`.
+    pub(super) fn set_illumination(&mut self, width: usize, i: usize, rgb: Vec3) {
+        let at = Lit::at(width, i);
+        let [x, y, z] = &mut self.illumination;
+        (x.values[at], y.values[at], z.values[at]) = (rgb.x, rgb.y, rgb.z);
+        self.luminance.values[at] = luminance(rgb);
     }
 }
 

@@ -28,6 +28,7 @@
 //! another CPU may differ in the last bits). `tests/it/denoise.rs` checks both.
 
 pub mod atrous;
+mod edges;
 mod lanes;
 #[cfg(feature = "denoise")]
 mod open_image_denoise;
