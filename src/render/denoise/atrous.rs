@@ -282,18 +282,19 @@ pub fn filter(image: &mut Image, guides: Guides) {
     // Two sets of planes, read and written in turn: the passes allocate nothing.
     let mut next = super::lanes::Lit::zeros(width, height);
     let mut scales = vec![0.0f32; width * height];
-    let mut first_scales = Vec::new();
+    // The mixed pixels' luminance scales of the first pass (their own noise), for the mending.
+    let mut mix_scales = Vec::new();
     for pass in 0..ITERATIONS {
         let step = 1usize << pass;
         super::lanes::luminance_scales(&planes, &lit, sigma, &mut scales);
-        if pass == 0 && !mixes.is_empty() {
-            first_scales = scales.clone();
+        if pass == 0 {
+            mix_scales = mixes.iter().map(|m| scales[m.pixel]).collect();
         }
         super::lanes::pass(&planes, step, &lit, &scales, &mut next);
         std::mem::swap(&mut lit, &mut next);
     }
     drop((next, scales));
-    super::edges::mend(&planes, &mut lit, &mixes, &first_scales);
+    super::edges::mend(&planes, &mut lit, &mixes, &mix_scales);
     for (i, pixel) in image.pixels.iter_mut().enumerate() {
         if planes.is_surface(i) {
             let rgb = (lit.illumination(width, i) * divisor(planes.albedo(i))).max(Vec3::ZERO)

@@ -188,12 +188,14 @@ impl Guide {
 
 /// Gives each of the `mixes` its two neighbours' illumination in `lit` in its proportion,
 /// unless its own illumination's luminance differs from that by more than the filter's
-/// tolerance (`scales`, each pixel's luminance scale of the first pass).
+/// tolerance (`scales`, each mixed pixel's luminance scale of the first pass, in the order of
+/// `mixes`).
 pub(super) fn mend(planes: &GuidePlanes, lit: &mut Lit, mixes: &[Mix], scales: &[f32]) {
     let (width, _) = planes.size();
     let mended: Vec<Option<Vec3>> = mixes
         .par_iter()
-        .map(|m| {
+        .zip(scales)
+        .map(|(m, &scale)| {
             // The two sides' radiance (illumination times albedo) mixed, as the pixel's
             // illumination: remodulated by its own albedo, the mix of the two sides' albedo,
             // it gives that radiance back. (Mixing illumination alone and multiplying by the
@@ -201,8 +203,7 @@ pub(super) fn mend(planes: &GuidePlanes, lit: &mut Lit, mixes: &[Mix], scales: &
             let radiance = |k: usize| lit.illumination(width, k) * divisor(planes.albedo(k));
             let rgb = (radiance(m.p) * m.t + radiance(m.q) * (1.0 - m.t))
                 / divisor(planes.albedo(m.pixel));
-            let term = (crate::color::luminance(rgb) - lit.luminance(width, m.pixel)).abs()
-                * scales[m.pixel];
+            let term = (crate::color::luminance(rgb) - lit.luminance(width, m.pixel)).abs() * scale;
             (term <= 1.0).then_some(rgb)
         })
         .collect();
