@@ -493,7 +493,10 @@ fn sized_texels(image: &image::Rgb32FImage) -> (usize, usize, Vec<Vec3>) {
 }
 
 /// A panorama's size and linear RGB texels (rows from the top), read by the `image` crate
-/// (Radiance `.hdr`, and any other format it knows), within the panorama size limits.
+/// (Radiance `.hdr`, and any other format it knows), within the panorama size limits. An
+/// image of integers (an 8- or 16-bit PNG, a JPEG, a WebP) holds sRGB-encoded colours, as
+/// every such panorama is authored (Blender and pbrt read them so too), and is decoded to
+/// linear radiance; float images (`.hdr`) are linear already.
 fn read_with_image(path: &Path) -> Result<(usize, usize, Vec<Vec3>), String> {
     let mut reader = image::ImageReader::open(path)
         .map_err(|e| e.to_string())?
@@ -504,16 +507,23 @@ fn read_with_image(path: &Path) -> Result<(usize, usize, Vec<Vec3>), String> {
     limits.max_image_height = Some(MAX_PANORAMA_WIDTH as u32 / 2);
     limits.max_alloc = Some(MAX_ENVIRONMENT_TEXELS * 16);
     reader.limits(limits);
-    let image = reader
-        .decode()
-        .map_err(|e| {
-            format!(
-                "cannot decode the panorama: {}",
-                crate::scene::image_error_text(&e)
-            )
-        })?
-        .into_rgb32f();
-    Ok(sized_texels(&image))
+    let image = reader.decode().map_err(|e| {
+        format!(
+            "cannot decode the panorama: {}",
+            crate::scene::image_error_text(&e)
+        )
+    })?;
+    let linear = matches!(
+        image.color(),
+        image::ColorType::Rgb32F | image::ColorType::Rgba32F
+    );
+    let (width, height, mut texels) = sized_texels(&image.into_rgb32f());
+    if !linear {
+        for texel in &mut texels {
+            *texel = Vec3::from(texel.to_array().map(crate::color::srgb_to_linear));
+        }
+    }
+    Ok((width, height, texels))
 }
 
 /// An OpenEXR panorama's size and R, G, B texels over its display window (black where the data
@@ -801,6 +811,28 @@ mod tests {
             refused.contains("claims a section of 18014398509481984"),
             "{refused}"
         );
+    }
+
+    /// An 8-bit panorama (PNG, JPEG) is sRGB-encoded and lights the scene with its linear
+    /// values; a Radiance .hdr is linear already and keeps its values.
+    #[test]
+    fn eight_bit_panoramas_are_decoded_from_srgb() {
+        let dir = tempfile::tempdir().expect("a temporary folder");
+        let png = dir.path().join("sky.png");
+        image::RgbImage::from_pixel(8, 4, image::Rgb([128, 64, 255]))
+            .save(&png)
+            .expect("writes the PNG");
+        let texel = Environment::load(&png).expect("loads").to_rgb32f()[(3, 2)].0;
+        let expected = [128.0f32, 64.0, 255.0].map(|c| crate::color::srgb_to_linear(c / 255.0));
+        for (got, want) in texel.iter().zip(expected) {
+            assert!((got - want).abs() < 1e-5, "{texel:?} against {expected:?}");
+        }
+        let hdr = dir.path().join("sky.hdr");
+        image::Rgb32FImage::from_pixel(8, 4, image::Rgb([0.5, 0.25, 2.0]))
+            .save(&hdr)
+            .expect("writes the .hdr");
+        let texel = Environment::load(&hdr).expect("loads").to_rgb32f()[(3, 2)].0;
+        assert_eq!(texel, [0.5, 0.25, 2.0]);
     }
 
     /// Blender's studio panoramas as it ships them (DWAB-compressed EXR) decode to the values

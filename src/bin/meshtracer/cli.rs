@@ -480,8 +480,8 @@ pub struct RenderArgs {
     #[arg(long, value_name = "RADIANCE", value_parser = parse_clamp)]
     pub clamp_indirect: Option<f32>,
     /// Path tracer: light the scene with this equirectangular panorama (.hdr, or .exr with
-    /// any compression but HTJ2K) [default: the built-in neutral studio when the file has no
-    /// lights].
+    /// any compression but HTJ2K; an 8-bit .png or .jpg is read as sRGB) [default: the
+    /// built-in neutral studio when the file has no lights].
     #[arg(long, value_name = "FILE")]
     pub env: Option<PathBuf>,
     /// Path tracer: turn the environment about +Y by this many degrees.
