@@ -27,7 +27,9 @@
 //!   reflection on every OBJ surface made the OBJ Cornell boxes 4.6-7% brighter than Cycles.
 //! - `illum 0` and `illum 1` (colour, or colour and ambient, without highlights) turn the
 //!   specular term off: no dielectric reflection, Blinn-Phong specular 0 and roughness 1.
-//! - `map_Bump`/`bump`/`norm` -> normal map.
+//! - `map_Bump`/`bump`/`norm` -> normal map, `-bm` its strength.
+//! - Texture statements' `-s` and `-o` -> a texture transform; their file is the rest of the
+//!   line after the options ([`TextureStatement`]).
 //! - Vertex colours (`v x y z r g b`, written by scanning and mesh-generating tools in place of
 //!   a texture) -> the soup's colours, which multiply the base colour as glTF's COLOR_0 does.
 //!   They are display colours, decoded from sRGB (as Blender 5.2's importer reads them,
@@ -137,6 +139,7 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
     let mut warnings = mtl_warnings;
     warnings.extend(mtl_materials.iter().flat_map(mtl_out_of_range));
     warnings.extend(image_warnings);
+    warnings.extend(access.recased_warnings());
     warnings.extend(builder.dropped_warning());
     if lone_material_fallback {
         warnings.push(format!(
@@ -330,12 +333,12 @@ fn map_materials(
     let mut image_index: HashMap<String, usize> = HashMap::new();
     let mut unusable = Vec::new();
     let mut texture =
-        |what: &str, name: &Option<String>| -> Result<Option<TextureRef>, LoadError> {
+        |what: &str, name: &Option<String>| -> Result<Option<MtlTexture>, LoadError> {
             let Some(name) = name.as_deref().map(str::trim).filter(|n| !n.is_empty()) else {
                 return Ok(None);
             };
-            // MTL texture statements may carry options ("-bm 1.0 file.png"): the file is last.
-            let file = name.split_whitespace().last().unwrap_or(name);
+            let statement = texture_statement(name);
+            let file = statement.file;
             let index = match image_index.get(file) {
                 Some(&i) => i,
                 None => {
@@ -376,17 +379,26 @@ fn map_materials(
                     textures.len() - 1
                 }
             };
-            Ok(Some(TextureRef {
-                texture: index,
-                tex_coord: 0,
-                transform: None,
-            }))
+            Ok(Some((
+                TextureRef {
+                    texture: index,
+                    tex_coord: 0,
+                    transform: statement.transform(),
+                },
+                statement.bump_multiplier,
+            )))
         };
     let mut materials = Vec::with_capacity(mtl_materials.len() + 1);
     for m in mtl_materials {
         let mut mat = mtl_material(m);
-        mat.base_color_texture = texture("map_Kd", &m.diffuse_texture)?;
-        mat.normal_texture = texture("map_Bump", &m.normal_texture)?;
+        mat.base_color_texture = texture("map_Kd", &m.diffuse_texture)?.map(|(t, _)| t);
+        if let Some((normal, bump_multiplier)) = texture("map_Bump", &m.normal_texture)? {
+            mat.normal_texture = Some(normal);
+            // `-bm`: the bump's strength, as Blender's importer reads it for its normal map.
+            if let Some(strength) = bump_multiplier.filter(|b| b.is_finite()) {
+                mat.normal_scale = strength;
+            }
+        }
         materials.push(mat);
     }
     Ok(MtlMaterials {
@@ -396,6 +408,107 @@ fn map_materials(
         unusable,
     })
 }
+
+/// A texture statement of an MTL file (`map_Kd -s 2 2 1 wood grain.png`) read as the MTL
+/// specification and Blender's importer read it: options first, each with its arguments,
+/// then the file, which is the rest of the line (spaces included: a name with a space is not
+/// cut to its last word). Options other than those kept here are skipped with their
+/// arguments; an unknown one ends the options.
+struct TextureStatement<'a> {
+    /// The image file, as written (relative to the MTL's folder).
+    file: &'a str,
+    /// `-s u v w`: the texture coordinates' scale (u and v; w, for 3D textures, is ignored).
+    scale: Option<[f32; 2]>,
+    /// `-o u v w`: their offset.
+    offset: Option<[f32; 2]>,
+    /// `-bm m`: the bump multiplier (a normal map's strength).
+    bump_multiplier: Option<f32>,
+}
+
+impl TextureStatement<'_> {
+    /// `-s` and `-o` as a [`TextureTransform`] in glTF's texture space. MTL's apply to OBJ's
+    /// coordinates (origin bottom-left), u' = s·u + o; the importer flips v to glTF's top-left
+    /// origin (v_gltf = 1 - v), where the same map is v_gltf' = s·v_gltf + (1 - s - o).
+    fn transform(&self) -> Option<super::material::TextureTransform> {
+        if self.scale.is_none() && self.offset.is_none() {
+            return None;
+        }
+        let [su, sv] = self.scale.unwrap_or([1.0, 1.0]);
+        let [ou, ov] = self.offset.unwrap_or([0.0, 0.0]);
+        Some(super::material::TextureTransform {
+            offset: [ou, 1.0 - sv - ov],
+            rotation: 0.0,
+            scale: [su, sv],
+        })
+    }
+}
+
+/// Reads an MTL texture statement's options and file ([`TextureStatement`]).
+fn texture_statement(statement: &str) -> TextureStatement<'_> {
+    let mut out = TextureStatement {
+        file: statement.trim(),
+        scale: None,
+        offset: None,
+        bump_multiplier: None,
+    };
+    let mut rest = statement.trim_start();
+    // The next word and what follows it.
+    let split = |s: &str| -> (usize, usize) {
+        let end = s.find(|c: char| c.is_ascii_whitespace()).unwrap_or(s.len());
+        (end, s[end..].len())
+    };
+    while rest.starts_with('-') {
+        let (end, _) = split(rest);
+        let option = &rest[..end];
+        let fixed = match option {
+            "-blendu" | "-blendv" | "-cc" | "-clamp" | "-imfchan" | "-texres" | "-bm"
+            | "-boost" | "-type" => Some(1),
+            "-mm" => Some(2),
+            // One to three numbers.
+            "-o" | "-s" | "-t" => None,
+            _ => break,
+        };
+        let mut after = rest[end..].trim_start();
+        let mut numbers = Vec::new();
+        loop {
+            let wanted = fixed.map_or(numbers.len() < 3, |n| numbers.len() < n);
+            let (word_end, _) = split(after);
+            if !wanted || word_end == 0 {
+                break;
+            }
+            let word = &after[..word_end];
+            let number = word.parse::<f32>().ok();
+            // A variable count stops at the first word that is not a number (the file).
+            if fixed.is_none() && number.is_none() {
+                break;
+            }
+            numbers.push(number.unwrap_or(f32::NAN));
+            after = after[word_end..].trim_start();
+        }
+        if fixed.is_some_and(|n| numbers.len() < n) || numbers.is_empty() {
+            // Arguments missing: what is left is taken as the file, as written.
+            break;
+        }
+        let uv = || [numbers[0], numbers.get(1).copied().unwrap_or(numbers[0])];
+        match option {
+            "-s" => out.scale = Some(uv()),
+            "-o" => out.offset = Some([numbers[0], numbers.get(1).copied().unwrap_or(0.0)]),
+            "-bm" => out.bump_multiplier = Some(numbers[0]),
+            _ => {}
+        }
+        rest = after;
+    }
+    let file = rest.trim();
+    if !file.is_empty() {
+        out.file = file;
+    }
+    out.scale = out.scale.filter(|s| s.iter().all(|v| v.is_finite()));
+    out.offset = out.offset.filter(|o| o.iter().all(|v| v.is_finite()));
+    out
+}
+
+/// A texture reference of an MTL material, with its statement's `-bm` (bump multiplier).
+type MtlTexture = (TextureRef, Option<f32>);
 
 /// What [`map_materials`] maps: materials, textures, images, and the images it cannot use.
 struct MtlMaterials {
@@ -1006,6 +1119,45 @@ mod tests {
     /// absolute ones may point forward (tobj resolves them at the end); zero, a relative
     /// index before the first element and one too big for tobj's arithmetic are refused,
     /// naming the line and the index as written, on the byte path and on the Unicode one.
+    /// MTL texture statements: options with their arguments (a fixed count, or one to three
+    /// numbers), then the file as the rest of the line; `-s` and `-o` as a glTF texture
+    /// transform that maps every point as MTL's does in OBJ's flipped v.
+    #[test]
+    fn texture_statements_split_options_from_the_file() {
+        let read = |line: &str| {
+            let t = texture_statement(line);
+            (t.file.to_string(), t.scale, t.offset, t.bump_multiplier)
+        };
+        assert_eq!(read("wood.png"), ("wood.png".into(), None, None, None));
+        assert_eq!(
+            read("  -s 2 3 1 wood grain.png "),
+            ("wood grain.png".into(), Some([2.0, 3.0]), None, None)
+        );
+        assert_eq!(
+            read("-o 0.5 -bm 0.3 -clamp on -mm 0 1 n.png"),
+            ("n.png".into(), None, Some([0.5, 0.0]), Some(0.3))
+        );
+        assert_eq!(read("-s 4 tiles.png").1, Some([4.0, 4.0]));
+        // Arguments missing, or an option not in the specification: the rest is the file.
+        assert_eq!(read("-bm").0, "-bm");
+        assert_eq!(read("-blendu").0, "-blendu");
+        assert_eq!(read("-zoom 2 x.png").0, "-zoom 2 x.png");
+        assert_eq!(read("-s nan 1 x.png"), ("x.png".into(), None, None, None));
+        // The transform maps (u, 1 - v) to (s·u + o, 1 - (s·v + o)).
+        let t = texture_statement("-s 2 0.5 -o 0.25 0.125 x.png")
+            .transform()
+            .unwrap();
+        for (u, v) in [(0.0f32, 0.0f32), (0.3, 0.7), (1.0, 1.0)] {
+            let (u2, v2) = (2.0 * u + 0.25, 0.5 * v + 0.125);
+            let mapped = [
+                t.scale[0] * u + t.offset[0],
+                t.scale[1] * (1.0 - v) + t.offset[1],
+            ];
+            assert!((mapped[0] - u2).abs() < 1e-6 && (mapped[1] - (1.0 - v2)).abs() < 1e-6);
+        }
+        assert!(texture_statement("-clamp on x.png").transform().is_none());
+    }
+
     #[test]
     fn face_indices_are_checked_before_tobj() {
         use super::check_face_indices as check;

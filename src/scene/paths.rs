@@ -25,6 +25,9 @@ pub struct FileAccess {
     /// Every path [`FileAccess::resolve`] gave, shared by the clones: the files the model
     /// refers to.
     resolved: std::sync::Arc<std::sync::Mutex<Vec<PathBuf>>>,
+    /// The references found only with another letter case ([`find_ignoring_case`]): as
+    /// written, then as found. Shared by the clones.
+    recased: std::sync::Arc<std::sync::Mutex<Vec<(String, PathBuf)>>>,
 }
 
 impl FileAccess {
@@ -48,7 +51,26 @@ impl FileAccess {
             allow_external,
             max_bytes,
             resolved: Default::default(),
+            recased: Default::default(),
         }
+    }
+
+    /// One warning for each reference found only with another letter case: the model names
+    /// its files as a case-insensitive file system (Windows', macOS') finds them.
+    pub fn recased_warnings(&self) -> Vec<String> {
+        let recased = self.recased.lock().unwrap_or_else(|e| e.into_inner());
+        let mut seen = std::collections::HashSet::new();
+        recased
+            .iter()
+            .filter(|(uri, _)| seen.insert(uri.clone()))
+            .map(|(uri, found)| {
+                let found = found.strip_prefix(&self.base).unwrap_or(found);
+                format!(
+                    "'{uri}' names no file; '{}' differs from it only in letter case and is used (Windows and macOS ignore the case of file names, other systems do not)",
+                    found.display()
+                )
+            })
+            .collect()
     }
 
     /// The files resolved so far (buffers, images, material libraries), each once, in the
@@ -99,7 +121,19 @@ impl FileAccess {
                     base = target;
                     target.join(rel)
                 }
-                _ => self.base.join(rel),
+                _ => {
+                    let path = self.base.join(&rel);
+                    match (path.exists(), find_ignoring_case(&self.base, &rel)) {
+                        (false, Some(found)) => {
+                            self.recased
+                                .lock()
+                                .unwrap_or_else(|e| e.into_inner())
+                                .push((decoded.clone(), found.clone()));
+                            found
+                        }
+                        _ => path,
+                    }
+                }
             },
             None if self.allow_external => {
                 let p = decoded.strip_prefix("file://").unwrap_or(&decoded);
@@ -171,6 +205,35 @@ impl FileAccess {
             .map_err(|e| err(LoadErrorKind::Io(e)))?;
         Ok(bytes)
     }
+}
+
+/// `relative` under `base`, each of its parts matched to the folder's entries without regard
+/// to letter case, where the path as written names nothing (`Textures/Wood.PNG` for
+/// `textures/wood.png`: models made on Windows or macOS, whose file systems ignore case, often
+/// name their files so). A part that matches exactly is taken as it is; `None` when a part
+/// matches no entry, or more than one.
+fn find_ignoring_case(base: &Path, relative: &Path) -> Option<PathBuf> {
+    let mut found = base.to_path_buf();
+    for part in relative.components() {
+        let name = part.as_os_str();
+        let exact = found.join(name);
+        if exact.exists() {
+            found = exact;
+            continue;
+        }
+        let wanted = name.to_str()?.to_lowercase();
+        let mut matches = std::fs::read_dir(&found).ok()?.filter_map(|entry| {
+            let entry = entry.ok()?;
+            let same = entry.file_name().to_str()?.to_lowercase() == wanted;
+            same.then(|| entry.path())
+        });
+        let first = matches.next()?;
+        if matches.next().is_some() {
+            return None;
+        }
+        found = first;
+    }
+    Some(found)
 }
 
 /// What kind of file `meta` describes, when it is not a regular file or a directory: "a FIFO",
@@ -302,5 +365,51 @@ mod tests {
     fn escaped_dot_dot_is_refused() {
         let access = FileAccess::new(Path::new("/tmp/m/model.gltf"), false, 1 << 20);
         assert!(access.resolve("buffer 0", "%2e%2e/secret.bin").is_err());
+    }
+
+    /// A reference that names no file is found part by part without regard to letter case,
+    /// and said so once; one that matches two entries, or none, stays as written (the read
+    /// that follows reports it missing); an exact name is taken as it is.
+    #[test]
+    fn references_in_another_letter_case_are_found_and_reported() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("Textures")).unwrap();
+        for name in [
+            "Textures/Wood.PNG",
+            "Textures/twin.png",
+            "Textures/TWIN.png",
+        ] {
+            std::fs::write(dir.path().join(name), b"x").unwrap();
+        }
+        let access = FileAccess::new(&dir.path().join("model.gltf"), false, 1 << 20);
+        let wood = dir.path().join("Textures/Wood.PNG");
+        assert_eq!(
+            access.resolve("image 0", "textures/wood.png").unwrap(),
+            wood
+        );
+        assert_eq!(
+            access.resolve("image 1", "textures\\WOOD.png").unwrap(),
+            wood
+        );
+        assert_eq!(
+            access.resolve("image 2", "Textures/Wood.PNG").unwrap(),
+            wood
+        );
+        let twin = access.resolve("image 3", "Textures/Twin.png").unwrap();
+        assert_eq!(twin, dir.path().join("Textures/Twin.png"));
+        let gone = access.resolve("image 4", "textures/gone.png").unwrap();
+        assert_eq!(gone, dir.path().join("textures/gone.png"));
+        let warnings = access.recased_warnings();
+        assert_eq!(warnings.len(), 2, "{warnings:?}");
+        assert!(
+            warnings[0].starts_with(
+                "'textures/wood.png' names no file; 'Textures/Wood.PNG' differs from it only in letter case"
+            ),
+            "{warnings:?}"
+        );
+        assert!(
+            warnings[1].starts_with("'textures\\WOOD.png'"),
+            "{warnings:?}"
+        );
     }
 }

@@ -1077,3 +1077,72 @@ fn obj_vertex_colours_multiply_the_diffuse_colour() {
     assert!(c[0] > 0.5 && c[2] < 0.5 * c[0], "{c:?}");
     assert!((p[0] - p[2]).abs() < 0.01, "{p:?}");
 }
+
+/// MTL texture statements as Blender's importer reads them: options first (`-s`, `-o` as the
+/// texture coordinates' scale and offset, applied in OBJ's bottom-left texture space), then
+/// the file as the rest of the line, its name with a space and a Windows path separator, and
+/// written in another letter case than the file on disk (found, with a warning naming both).
+/// An 8x8 texture of four coloured quadrants on a quad that fills the view: plain, it shows
+/// as drawn; `-s 0.5 0.5` shows only its bottom-left quadrant; `-o 0.5 0` swaps its halves
+/// left and right; `-o 0 0.5` top and bottom.
+#[test]
+fn obj_texture_statements_read_as_blender_reads_them() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("Maps")).unwrap();
+    let (red, blue, green, yellow) = ([255, 0, 0], [0, 0, 255], [0, 255, 0], [255, 255, 0]);
+    let texture = image::RgbImage::from_fn(8, 8, |x, y| {
+        image::Rgb(match (x < 4, y < 4) {
+            (true, true) => red,
+            (false, true) => blue,
+            (true, false) => green,
+            (false, false) => yellow,
+        })
+    });
+    texture.save(dir.path().join("Maps/Quad Tex.PNG")).unwrap();
+    let quad = |name: &str, options: &str| {
+        let mtl = format!("{name}.mtl");
+        std::fs::write(
+            dir.path().join(&mtl),
+            format!("newmtl m\nKd 1 1 1\nmap_Kd {options} maps\\quad tex.png\n"),
+        )
+        .unwrap();
+        let obj = format!(
+            "mtllib {mtl}\nusemtl m\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n\
+             vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1 4/4/1\n"
+        );
+        let path = dir.path().join(format!("{name}.obj"));
+        std::fs::write(&path, obj).unwrap();
+        path
+    };
+    // The colours at the quad's four quadrants (top-left, top-right, bottom-left,
+    // bottom-right of the image), each named by which channels are lit.
+    let quadrants = |name: &str, options: &str| {
+        let model = quad(name, options);
+        let out = dir.path().join(format!("{name}.png"));
+        let view = ["--look-from", "0,0,2", "--look-at", "0,0,0", "--yfov", "40"];
+        let args = crate::common::small_run("render", s(&model), s(&out), ("64", "64"), "1", &view);
+        let output = run(&args, true);
+        let warnings = crate::common::stderr(&output);
+        assert!(
+            warnings.contains("'maps\\quad tex.png' names no file; 'Maps/Quad Tex.PNG' differs from it only in letter case"),
+            "{warnings}"
+        );
+        let (width, _, pixels) = read_rgba(&out);
+        let at = |x: usize, y: usize| {
+            let p = pixels[y * width as usize + x];
+            let lit = |c: f32| if c > 0.25 { 255u8 } else { 0 };
+            [lit(p[0]), lit(p[1]), lit(p[2])]
+        };
+        [at(20, 20), at(44, 20), at(20, 44), at(44, 44)]
+    };
+    assert_eq!(quadrants("plain", ""), [red, blue, green, yellow]);
+    assert_eq!(quadrants("scaled", "-s 0.5 0.5 1"), [green; 4]);
+    assert_eq!(
+        quadrants("shifted-u", "-o 0.5 0 0 -clamp off"),
+        [blue, red, yellow, green]
+    );
+    assert_eq!(
+        quadrants("shifted-v", "-bm 1 -o 0 0.5"),
+        [green, yellow, red, blue]
+    );
+}

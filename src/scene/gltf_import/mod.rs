@@ -151,6 +151,7 @@ pub(crate) fn load(
     } = importer;
     warnings.extend(extensions.iter().filter_map(ExtensionUse::warning));
     warnings.extend(image_warnings);
+    warnings.extend(access.recased_warnings());
     if skipped_non_triangle > 0 {
         warnings.push(format!(
             "skipped {skipped_non_triangle} POINTS/LINES primitives (a ray tracer draws only triangles)"
