@@ -287,9 +287,17 @@ fn parse(path: &Path, text: &str, access: &FileAccess, strict: bool) -> Result<P
             let resolved = access.resolve("mtllib", &name);
             let looked_for = resolved.as_ref().ok().cloned();
             match resolved.and_then(|p| access.read(&p)) {
-                Ok(bytes) => tobj::load_mtl_buf(&mut &bytes[..]).inspect_err(|e| {
-                    skip(name.clone(), format!("cannot parse it: {e}"), None);
-                }),
+                Ok(bytes) => {
+                    let (bytes, dropped) = complete_colours(&bytes);
+                    unread.borrow_mut().extend(
+                        dropped
+                            .into_iter()
+                            .map(|problem| format!("MTL '{name}': {problem}")),
+                    );
+                    tobj::load_mtl_buf(&mut &bytes[..]).inspect_err(|e| {
+                        skip(name.clone(), format!("cannot parse it: {e}"), None);
+                    })
+                }
                 Err(e) => {
                     match e.kind {
                         LoadErrorKind::Io(io) => {
@@ -318,6 +326,56 @@ fn parse(path: &Path, text: &str, access: &FileAccess, strict: bool) -> Result<P
     }
     // tobj returns the error of a library only when no other one gave a material.
     Ok((models, materials.unwrap_or_default(), unread.into_inner()))
+}
+
+/// An MTL file's colour statements (`Ka`, `Kd`, `Ks`, `Ke`) as tobj reads them: three
+/// numbers. The MTL specification lets a colour give r alone ("if only r is specified, g and b
+/// are assumed equal to r"), which tobj cannot read (it panicked); such a statement gets r for
+/// its missing channels. One it cannot express (`Kd spectral file.rfl`, `Kd xyz x y z`, or no
+/// numbers) is left out (an empty line, so that the lines after it keep their numbers), with a
+/// problem said for it, so that the file's other statements still count (tobj refused the
+/// whole library). The other lines keep their bytes.
+fn complete_colours(mtl: &[u8]) -> (std::borrow::Cow<'_, [u8]>, Vec<String>) {
+    let colour = |line: &[u8]| -> Option<(Vec<f32>, bool)> {
+        let text = std::str::from_utf8(line).ok()?;
+        let mut words = text.split_ascii_whitespace();
+        let keyword = words.next()?;
+        if !matches!(keyword, "Ka" | "Kd" | "Ks" | "Ke") {
+            return None;
+        }
+        let values: Vec<&str> = words.take(3).collect();
+        let numbers: Vec<f32> = values.iter().map_while(|w| w.parse().ok()).collect();
+        let readable = !numbers.is_empty() && numbers.len() == values.len();
+        (numbers.len() < 3).then_some((numbers, readable))
+    };
+    if !mtl
+        .split(|&b| b == b'\n')
+        .any(|line| colour(line).is_some())
+    {
+        return (std::borrow::Cow::Borrowed(mtl), Vec::new());
+    }
+    let mut out = Vec::with_capacity(mtl.len() + 64);
+    let mut problems = Vec::new();
+    for (number, line) in mtl.split(|&b| b == b'\n').enumerate() {
+        match colour(line) {
+            Some((numbers, true)) => {
+                let keyword = String::from_utf8_lossy(line);
+                let keyword = keyword.split_ascii_whitespace().next().unwrap_or("Kd");
+                let r = numbers[0];
+                let [g, b] = [numbers.get(1).copied().unwrap_or(r), r];
+                out.extend_from_slice(format!("{keyword} {r} {g} {b}").as_bytes());
+            }
+            Some((_, false)) => problems.push(format!(
+                "line {}: '{}' is not read (only r g b colours are); the material keeps that colour's default",
+                number + 1,
+                String::from_utf8_lossy(line).trim()
+            )),
+            None => out.extend_from_slice(line),
+        }
+        out.push(b'\n');
+    }
+    out.pop();
+    (std::borrow::Cow::Owned(out), problems)
 }
 
 /// The MTL materials mapped onto ours (see the module docs), with the textures and images
@@ -1156,6 +1214,50 @@ mod tests {
             assert!((mapped[0] - u2).abs() < 1e-6 && (mapped[1] - (1.0 - v2)).abs() < 1e-6);
         }
         assert!(texture_statement("-clamp on x.png").transform().is_none());
+    }
+
+    /// Colours given by r alone (valid MTL, which tobj panicked on) get r for g and b; those
+    /// in forms tobj cannot read are left out with a problem each, and the rest of the file
+    /// still counts; other lines keep their bytes.
+    #[test]
+    fn mtl_colours_given_by_r_alone_are_completed() {
+        let mtl =
+            b"newmtl a\r\nKd 0.5\nKs 0.2 0.3\n# \xff\nKe spectral sun.rfl\nKa\nKd 1 0 0\nNs 10";
+        let (completed, problems) = complete_colours(mtl);
+        assert_eq!(
+            &completed[..],
+            &b"newmtl a\r\nKd 0.5 0.5 0.5\nKs 0.2 0.3 0.2\n# \xff\n\n\nKd 1 0 0\nNs 10"[..]
+        );
+        assert_eq!(problems.len(), 2, "{problems:?}");
+        assert!(problems[0].starts_with("line 5: 'Ke spectral sun.rfl' is not read"));
+        assert!(problems[1].starts_with("line 6: 'Ka' is not read"));
+        let plain = b"newmtl a\nKd 1 1 1\n";
+        assert!(matches!(
+            complete_colours(plain).0,
+            std::borrow::Cow::Borrowed(_)
+        ));
+        // Through the loader: the grey material, and a warning for the spectral colour.
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(
+            dir.path().join("m.mtl"),
+            "newmtl grey\nKd 0.5\nKe spectral sun.rfl\n",
+        )
+        .unwrap();
+        let model = dir.path().join("m.obj");
+        let obj = "mtllib m.mtl\nusemtl grey\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let scene = load(&model, obj.as_bytes(), &LoadOptions::default()).unwrap();
+        assert_eq!(
+            scene.materials[0].base_color,
+            glam::Vec4::new(0.5, 0.5, 0.5, 1.0)
+        );
+        assert!(
+            scene
+                .warnings
+                .iter()
+                .any(|w| w.starts_with("MTL 'm.mtl': line 3:")),
+            "{:?}",
+            scene.warnings
+        );
     }
 
     #[test]

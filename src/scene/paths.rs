@@ -25,9 +25,10 @@ pub struct FileAccess {
     /// Every path [`FileAccess::resolve`] gave, shared by the clones: the files the model
     /// refers to.
     resolved: std::sync::Arc<std::sync::Mutex<Vec<PathBuf>>>,
-    /// The references found only with another letter case ([`find_ignoring_case`]): as
-    /// written, then as found. Shared by the clones.
-    recased: std::sync::Arc<std::sync::Mutex<Vec<(String, PathBuf)>>>,
+    /// The references found only with another letter case ([`find_ignoring_case`]) or only
+    /// by their file name elsewhere in the folder ([`find_by_name`]): as written, as found,
+    /// and whether by name. Shared by the clones.
+    recased: std::sync::Arc<std::sync::Mutex<Vec<(String, PathBuf, bool)>>>,
 }
 
 impl FileAccess {
@@ -55,22 +56,37 @@ impl FileAccess {
         }
     }
 
-    /// One warning for each reference found only with another letter case: the model names
-    /// its files as a case-insensitive file system (Windows', macOS') finds them.
+    /// One warning for each reference found only with another letter case (the model names
+    /// its files as a case-insensitive file system, Windows' or macOS', finds them) or only by
+    /// its file name (a path on its author's machine).
     pub fn recased_warnings(&self) -> Vec<String> {
         let recased = self.recased.lock().unwrap_or_else(|e| e.into_inner());
         let mut seen = std::collections::HashSet::new();
         recased
             .iter()
-            .filter(|(uri, _)| seen.insert(uri.clone()))
-            .map(|(uri, found)| {
-                let found = found.strip_prefix(&self.base).unwrap_or(found);
-                format!(
-                    "'{uri}' names no file; '{}' differs from it only in letter case and is used (Windows and macOS ignore the case of file names, other systems do not)",
-                    found.display()
-                )
+            .filter(|(uri, _, _)| seen.insert(uri.clone()))
+            .map(|(uri, found, by_name)| {
+                let found = found.strip_prefix(&self.base).unwrap_or(found).display();
+                if *by_name {
+                    format!(
+                        "'{uri}' names no file in the model's folder; '{found}', the one file of that name in it, is used"
+                    )
+                } else {
+                    format!(
+                        "'{uri}' names no file; '{found}' differs from it only in letter case and is used (Windows and macOS ignore the case of file names, other systems do not)"
+                    )
+                }
             })
             .collect()
+    }
+
+    /// `found` in place of the reference `uri`, noted for [`FileAccess::recased_warnings`].
+    fn found_instead(&self, uri: &str, found: PathBuf, by_name: bool) -> PathBuf {
+        self.recased
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push((uri.to_string(), found.clone(), by_name));
+        found
     }
 
     /// The files resolved so far (buffers, images, material libraries), each once, in the
@@ -123,28 +139,36 @@ impl FileAccess {
                 }
                 _ => {
                     let path = self.base.join(&rel);
-                    match (path.exists(), find_ignoring_case(&self.base, &rel)) {
-                        (false, Some(found)) => {
-                            self.recased
-                                .lock()
-                                .unwrap_or_else(|e| e.into_inner())
-                                .push((decoded.clone(), found.clone()));
-                            found
-                        }
-                        _ => path,
+                    if path.exists() {
+                        path
+                    } else if let Some(found) = find_ignoring_case(&self.base, &rel) {
+                        self.found_instead(&decoded, found, false)
+                    } else if let Some(found) = find_by_name(&self.base, &decoded) {
+                        self.found_instead(&decoded, found, true)
+                    } else {
+                        path
                     }
                 }
             },
             None if self.allow_external => {
                 let p = decoded.strip_prefix("file://").unwrap_or(&decoded);
                 let p = Path::new(p);
-                if p.is_absolute() {
+                let p = if p.is_absolute() {
                     p.to_path_buf()
                 } else {
                     self.base.join(p)
+                };
+                match (p.exists(), find_by_name(&self.base, &decoded)) {
+                    (false, Some(found)) => self.found_instead(&decoded, found, true),
+                    _ => p,
                 }
             }
-            None => return Err(external()),
+            // A path on the author's machine (`C:\Users\...\wood.png`): the file of that name
+            // in the model's folder, if there is one, else refused.
+            None => match find_by_name(&self.base, &decoded) {
+                Some(found) => self.found_instead(&decoded, found, true),
+                None => return Err(external()),
+            },
         };
         if !self.allow_external {
             // Symlinks: compare canonical forms when the file exists. A missing file is reported
@@ -234,6 +258,55 @@ fn find_ignoring_case(base: &Path, relative: &Path) -> Option<PathBuf> {
         found = first;
     }
     Some(found)
+}
+
+/// Folders below the model's that [`find_by_name`] looks in: two levels (`textures/`,
+/// `model/textures/`).
+const FIND_DEPTH: usize = 2;
+
+/// Folder entries [`find_by_name`] reads at most, so that a model in a large folder (a
+/// download folder, a home) costs little.
+const FIND_ENTRIES: usize = 4096;
+
+/// The file named as the last part of `uri` (after its last `/` or `\`), found without regard
+/// to letter case in `base` or the folders below it down to [`FIND_DEPTH`], at the shallowest
+/// level that has it, when exactly one file there has that name (as Blender's importers
+/// search for a texture whose path is another machine's). Folder links are not followed.
+fn find_by_name(base: &Path, uri: &str) -> Option<PathBuf> {
+    let name = uri.rsplit(['/', '\\']).next()?.to_lowercase();
+    if name.is_empty() || name == "." || name == ".." {
+        return None;
+    }
+    let mut folders = vec![base.to_path_buf()];
+    let mut read = 0usize;
+    for _ in 0..=FIND_DEPTH {
+        let (mut matches, mut below) = (Vec::new(), Vec::new());
+        for folder in &folders {
+            let Ok(entries) = std::fs::read_dir(folder) else {
+                continue;
+            };
+            for entry in entries.flatten() {
+                read += 1;
+                if read > FIND_ENTRIES {
+                    return None;
+                }
+                let Ok(kind) = entry.file_type() else {
+                    continue;
+                };
+                if kind.is_dir() {
+                    below.push(entry.path());
+                } else if entry.file_name().to_str().map(str::to_lowercase) == Some(name.clone()) {
+                    matches.push(entry.path());
+                }
+            }
+        }
+        match matches.len() {
+            0 => folders = below,
+            1 => return matches.pop(),
+            _ => return None,
+        }
+    }
+    None
 }
 
 /// What kind of file `meta` describes, when it is not a regular file or a directory: "a FIFO",
@@ -410,6 +483,53 @@ mod tests {
         assert!(
             warnings[1].starts_with("'textures\\WOOD.png'"),
             "{warnings:?}"
+        );
+    }
+
+    /// A path on the author's machine, or one whose folders are wrong, finds the one file of
+    /// its name in the model's folder or two levels below it (the shallowest level that has
+    /// it), said in a warning; two of that name at that level, or none, and it stays refused
+    /// (outside) or missing (inside).
+    #[test]
+    fn references_to_another_machine_find_the_file_by_name() {
+        let dir = tempfile::tempdir().unwrap();
+        for folder in ["maps/wood", "a", "b"] {
+            std::fs::create_dir_all(dir.path().join(folder)).unwrap();
+        }
+        for name in [
+            "maps/wood/Oak.png",
+            "a/twin.png",
+            "b/twin.png",
+            "c.png",
+            "a/c.png",
+        ] {
+            std::fs::write(dir.path().join(name), b"x").unwrap();
+        }
+        let access = FileAccess::new(&dir.path().join("m.obj"), false, 1 << 20);
+        let oak = dir.path().join("maps/wood/Oak.png");
+        let windows = "C:\\Users\\bob\\Desktop\\oak.png";
+        assert_eq!(access.resolve("map_Kd", windows).unwrap(), oak);
+        assert_eq!(
+            access.resolve("map_Kd", "/home/alice/Oak.png").unwrap(),
+            oak
+        );
+        assert_eq!(access.resolve("map_Kd", "textures/oak.png").unwrap(), oak);
+        // The shallowest wins; two at one level are no answer.
+        assert_eq!(
+            access.resolve("map_Kd", "/x/c.png").unwrap(),
+            dir.path().join("c.png")
+        );
+        assert!(access.resolve("map_Kd", "/x/twin.png").is_err());
+        assert_eq!(
+            access.resolve("map_Kd", "textures/twin.png").unwrap(),
+            dir.path().join("textures/twin.png")
+        );
+        assert!(access.resolve("map_Kd", "/etc/passwd").is_err());
+        let warnings = access.recased_warnings();
+        assert_eq!(warnings.len(), 4, "{warnings:?}");
+        assert_eq!(
+            warnings[0],
+            format!("'{windows}' names no file in the model's folder; 'maps/wood/Oak.png', the one file of that name in it, is used")
         );
     }
 }

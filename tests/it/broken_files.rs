@@ -403,7 +403,8 @@ fn cases() -> Vec<Case> {
         ),
         edited(
             "buffer URI escaping the folder",
-            |j, _| j["buffers"][0]["uri"] = json!("../tri.bin"),
+            // No file of its name in the folder either (`tri.bin` would be found by name).
+            |j, _| j["buffers"][0]["uri"] = json!("../secret.bin"),
             |k| matches!(k, K::ExternalFile { .. }),
         ),
         edited(
