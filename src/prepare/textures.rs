@@ -457,23 +457,25 @@ fn decode_encoded(source: &ImageSource) -> Result<image::RgbaImage, String> {
 }
 
 /// Whether an image of `format` (as its bytes show) may be decoded as a texture: glTF's
-/// PNG and JPEG (§3.8.4), WebP (`EXT_texture_webp`; KTX2 is read apart) and GIF, which OBJ
-/// files name. The build's other decoders (Radiance, OpenEXR) are for panoramas and outputs:
+/// PNG and JPEG (§3.8.4), WebP (`EXT_texture_webp`; KTX2 is read apart), and GIF, TGA and
+/// BMP, which OBJ files name (TGA above all, in game assets). The build's other decoders (Radiance, OpenEXR) are for panoramas and outputs:
 /// OpenEXR's decodes blocks on a thread pool of its own, where a panic on a hostile file would
 /// end the process instead of becoming this image's error.
 fn texture_format(format: Option<image::ImageFormat>) -> Result<(), String> {
     use image::ImageFormat as F;
     match format {
-        Some(F::Png | F::Jpeg | F::WebP | F::Gif) => Ok(()),
+        Some(F::Png | F::Jpeg | F::WebP | F::Gif | F::Tga | F::Bmp) => Ok(()),
         Some(other) => Err(format!(
-            "{} images are not textures (use PNG, JPEG, WebP or KTX2)",
+            "{} images are not textures (use PNG, JPEG, WebP, KTX2, TGA or BMP)",
             other
                 .extensions_str()
                 .first()
                 .map_or("these", |e| e)
                 .to_uppercase()
         )),
-        None => Err("not an image format meshtracer reads (use PNG, JPEG, WebP or KTX2)".into()),
+        None => Err(
+            "not an image format meshtracer reads (use PNG, JPEG, WebP, KTX2, TGA or BMP)".into(),
+        ),
     }
 }
 
@@ -862,10 +864,30 @@ mod tests {
                 pixels: None,
             }
         };
-        for format in [image::ImageFormat::Png, image::ImageFormat::Jpeg] {
+        for format in [
+            image::ImageFormat::Png,
+            image::ImageFormat::Jpeg,
+            image::ImageFormat::Bmp,
+        ] {
             let decoded = decode(&encoded(format)).expect("a texture format");
             assert_eq!(decoded.dimensions(), (2, 2));
         }
+        // TGA has no signature: a file is known by its extension.
+        let dir = tempfile::tempdir().expect("a temporary folder");
+        let tga = dir.path().join("wood.tga");
+        image::RgbImage::from_pixel(2, 2, image::Rgb([200, 100, 50]))
+            .save(&tga)
+            .expect("writes the TGA");
+        let from_file = ImageSource {
+            origin: "wood.tga".into(),
+            mime_type: None,
+            path: Some(tga),
+            bytes: None,
+            in_file: None,
+            pixels: None,
+        };
+        let decoded = decode(&from_file).expect("TGA is a texture format");
+        assert_eq!(decoded.image().get_pixel(1, 1).0, [200, 100, 50, 255]);
         for (format, name) in [
             (image::ImageFormat::OpenExr, "EXR"),
             (image::ImageFormat::Hdr, "HDR"),
@@ -875,7 +897,7 @@ mod tests {
                 .expect("not a texture format");
             assert_eq!(
                 refused,
-                format!("{name} images are not textures (use PNG, JPEG, WebP or KTX2)")
+                format!("{name} images are not textures (use PNG, JPEG, WebP, KTX2, TGA or BMP)")
             );
         }
         let mut unknown = encoded(image::ImageFormat::Png);

@@ -93,7 +93,8 @@ pub(crate) fn check_image_header(source: &ImageSource, max_pixels: u64) -> Resul
         }
         Encoded::Missing => return Err("no data".to_string()),
     };
-    let (w, h) = dims.map_err(|e| format!("not a readable PNG, JPEG, WebP or KTX2 image: {e}"))?;
+    let (w, h) =
+        dims.map_err(|e| format!("not a readable PNG, JPEG, WebP, KTX2, TGA or BMP image: {e}"))?;
     let pixels = w as u64 * h as u64;
     if pixels == 0 || pixels > max_pixels {
         return Err(format!(
