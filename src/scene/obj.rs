@@ -12,7 +12,10 @@
 //!   becomes roughness as Blender's MTL importer maps it, `1 - sqrt(Ns / 1000)` (Ns clamped to
 //!   0..1000), so an OBJ looks here as it does in Blender (the exponent <-> GGX match
 //!   `alpha² = 2 / (Ns + 2)` made most exporters' Ns 250 a roughness of 0.3 instead of 0.5).
-//! - metallic is 0: MTL has no metalness (mirrors, `illum 5`, are left to the specular term).
+//! - metallic is 0: classic MTL has no metalness (mirrors, `illum 5`, are left to the specular
+//!   term). The "PBR extension" that Blender's and other exporters write, `Pr` (roughness) and
+//!   `Pm` (metalness), is read as Blender's importer reads it: in place of what `Ns` and
+//!   `illum` give.
 //! - `illum` 4, 6, 7 and 9 are glass: transmission 1, `Ni` the index of refraction, `Tf` (not
 //!   `Kd`) the tint of what passes.
 //! - The dielectric's reflection follows `Ni` and `Ks` as Blender's MTL importer reads them
@@ -1024,6 +1027,16 @@ fn mtl_material(m: &tobj::Material) -> Material {
         .filter(|ns| ns.is_finite() && *ns >= 0.0)
         .map_or(1.0, |ns| 1.0 - (ns.min(1000.0) / 1000.0).sqrt());
     let no_highlights = matches!(m.illumination_model, Some(0 | 1));
+    // The MTL "PBR extension" (Blender's exporter writes it when asked, as do Substance and
+    // others): Pr, the roughness, and Pm, the metalness, as Blender's importer reads them
+    // (each in place of what Ns and illum would give).
+    let pbr = |key: &str| {
+        m.unknown_param
+            .get(key)
+            .and_then(|v| v.split_whitespace().next()?.parse::<f32>().ok())
+            .filter(|v| v.is_finite())
+            .map(|v| v.clamp(0.0, 1.0))
+    };
     // Ni, the index of refraction (1.5 when absent or unusable).
     let index = m
         .optical_density
@@ -1068,8 +1081,8 @@ fn mtl_material(m: &tobj::Material) -> Material {
     Material {
         name: Some(m.name.trim().to_string()),
         base_color: Vec4::new(tint[0], tint[1], tint[2], alpha),
-        metallic: 0.0,
-        roughness: if no_highlights { 1.0 } else { roughness },
+        metallic: pbr("Pm").unwrap_or(0.0),
+        roughness: pbr("Pr").unwrap_or(if no_highlights { 1.0 } else { roughness }),
         // Ke has no upper bound (an area light's is often above 1), but a negative or
         // non-finite one is no emission.
         emissive: m
@@ -1258,6 +1271,22 @@ mod tests {
             "{:?}",
             scene.warnings
         );
+    }
+
+    /// The MTL PBR extension's `Pr` and `Pm` set roughness and metalness (clamped to 0..1),
+    /// over what `Ns` and `illum` would give; without them, Ns's roughness and no metal.
+    #[test]
+    fn pbr_roughness_and_metalness_are_read() {
+        let material = |text: &str| {
+            let mtl = tobj::load_mtl_buf(&mut text.as_bytes()).unwrap().0;
+            mtl_material(&mtl[0])
+        };
+        let pbr = material("newmtl a\nNs 250\nillum 1\nPr 0.3\nPm 1\n");
+        assert_eq!((pbr.roughness, pbr.metallic), (0.3, 1.0));
+        let classic = material("newmtl a\nNs 250\nillum 2\n");
+        assert_eq!((classic.roughness, classic.metallic), (0.5, 0.0));
+        let outside = material("newmtl a\nPr 2\nPm -1\n");
+        assert_eq!((outside.roughness, outside.metallic), (1.0, 0.0));
     }
 
     #[test]
