@@ -32,7 +32,7 @@
 //!   specular term off: no dielectric reflection, Blinn-Phong specular 0 and roughness 1.
 //! - `map_Bump`/`bump`/`norm` -> normal map, `-bm` its strength.
 //! - Texture statements' `-s` and `-o` -> a texture transform; their file is the rest of the
-//!   line after the options ([`TextureStatement`]).
+//!   line after the options (`TextureStatement`).
 //! - Vertex colours (`v x y z r g b`, written by scanning and mesh-generating tools in place of
 //!   a texture) -> the soup's colours, which multiply the base colour as glTF's COLOR_0 does.
 //!   They are display colours, decoded from sRGB (as Blender 5.2's importer reads them,
