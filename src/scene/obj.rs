@@ -550,10 +550,12 @@ fn texture_statement(statement: &str) -> TextureStatement<'_> {
             // Arguments missing: what is left is taken as the file, as written.
             break;
         }
-        let uv = || [numbers[0], numbers.get(1).copied().unwrap_or(numbers[0])];
+        // v, when not given, is the option's default (1 for the scale, 0 for the offset), as
+        // the specification and Blender's importer have it.
+        let uv = |default: f32| [numbers[0], numbers.get(1).copied().unwrap_or(default)];
         match option {
-            "-s" => out.scale = Some(uv()),
-            "-o" => out.offset = Some([numbers[0], numbers.get(1).copied().unwrap_or(0.0)]),
+            "-s" => out.scale = Some(uv(1.0)),
+            "-o" => out.offset = Some(uv(0.0)),
             "-bm" => out.bump_multiplier = Some(numbers[0]),
             _ => {}
         }
@@ -1208,7 +1210,7 @@ mod tests {
             read("-o 0.5 -bm 0.3 -clamp on -mm 0 1 n.png"),
             ("n.png".into(), None, Some([0.5, 0.0]), Some(0.3))
         );
-        assert_eq!(read("-s 4 tiles.png").1, Some([4.0, 4.0]));
+        assert_eq!(read("-s 4 tiles.png").1, Some([4.0, 1.0]));
         // Arguments missing, or an option not in the specification: the rest is the file.
         assert_eq!(read("-bm").0, "-bm");
         assert_eq!(read("-blendu").0, "-blendu");

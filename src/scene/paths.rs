@@ -158,9 +158,12 @@ impl FileAccess {
                 } else {
                     self.base.join(p)
                 };
-                match (p.exists(), find_by_name(&self.base, &decoded)) {
-                    (false, Some(found)) => self.found_instead(&decoded, found, true),
-                    _ => p,
+                match p.exists() {
+                    true => p,
+                    false => match find_by_name(&self.base, &decoded) {
+                        Some(found) => self.found_instead(&decoded, found, true),
+                        None => p,
+                    },
                 }
             }
             // A path on the author's machine (`C:\Users\...\wood.png`): the file of that name
