@@ -458,8 +458,8 @@ fn decode_encoded(source: &ImageSource) -> Result<image::RgbaImage, String> {
 
 /// Whether an image of `format` (as its bytes show) may be decoded as a texture: glTF's
 /// PNG and JPEG (§3.8.4), WebP (`EXT_texture_webp`; KTX2 is read apart), and GIF, TGA and
-/// BMP, which OBJ files name (TGA above all, in game assets). The build's other decoders (Radiance, OpenEXR) are for panoramas and outputs:
-/// OpenEXR's decodes blocks on a thread pool of its own, where a panic on a hostile file would
+/// BMP, which OBJ files name (TGA above all, in game assets). The build's other decoders
+/// (Radiance, OpenEXR) are for panoramas and outputs: OpenEXR's decodes blocks on a thread pool of its own, where a panic on a hostile file would
 /// end the process instead of becoming this image's error.
 fn texture_format(format: Option<image::ImageFormat>) -> Result<(), String> {
     use image::ImageFormat as F;

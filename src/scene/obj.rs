@@ -513,13 +513,10 @@ fn texture_statement(statement: &str) -> TextureStatement<'_> {
         bump_multiplier: None,
     };
     let mut rest = statement.trim_start();
-    // The next word and what follows it.
-    let split = |s: &str| -> (usize, usize) {
-        let end = s.find(|c: char| c.is_ascii_whitespace()).unwrap_or(s.len());
-        (end, s[end..].len())
-    };
+    // Where the first word of `s` ends.
+    let word_end = |s: &str| s.find(|c: char| c.is_ascii_whitespace()).unwrap_or(s.len());
     while rest.starts_with('-') {
-        let (end, _) = split(rest);
+        let end = word_end(rest);
         let option = &rest[..end];
         let fixed = match option {
             "-blendu" | "-blendv" | "-cc" | "-clamp" | "-imfchan" | "-texres" | "-bm"
@@ -533,18 +530,18 @@ fn texture_statement(statement: &str) -> TextureStatement<'_> {
         let mut numbers = Vec::new();
         loop {
             let wanted = fixed.map_or(numbers.len() < 3, |n| numbers.len() < n);
-            let (word_end, _) = split(after);
-            if !wanted || word_end == 0 {
+            let end = word_end(after);
+            if !wanted || end == 0 {
                 break;
             }
-            let word = &after[..word_end];
+            let word = &after[..end];
             let number = word.parse::<f32>().ok();
             // A variable count stops at the first word that is not a number (the file).
             if fixed.is_none() && number.is_none() {
                 break;
             }
             numbers.push(number.unwrap_or(f32::NAN));
-            after = after[word_end..].trim_start();
+            after = after[end..].trim_start();
         }
         if fixed.is_some_and(|n| numbers.len() < n) || numbers.is_empty() {
             // Arguments missing: what is left is taken as the file, as written.
