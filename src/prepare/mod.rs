@@ -5,7 +5,7 @@
 //! settings give the same image whoever renders it.
 
 pub mod lights;
-mod queries;
+pub(crate) mod queries;
 mod texture_inputs;
 pub mod textures;
 

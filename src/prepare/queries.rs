@@ -8,7 +8,7 @@ use crate::accel::Hit;
 use crate::geometry::Ray;
 use crate::prepare::textures::transform_uv;
 use crate::prepare::Prepared;
-use crate::scene::{AlphaMode, Material, TextureRef};
+use crate::scene::{AlphaMode, Channel, Material, TextureRef};
 use glam::{Vec2, Vec3, Vec4};
 use std::cell::Cell;
 
@@ -40,6 +40,26 @@ impl Prepared {
         Some(image.sample(uv, 0.0, sampler, srgb))
     }
 
+    /// Channel `channel` of texture `r` (a [`crate::scene::ScalarMaps`] map) at barycentrics
+    /// `b` of soup triangle `tri`, at full resolution, as [`Prepared::texel_at`] reads it.
+    pub(crate) fn scalar_at(
+        &self,
+        r: &Option<TextureRef>,
+        channel: Channel,
+        tri: usize,
+        b: Vec3,
+    ) -> Option<f32> {
+        let texel = self.texel_at(r, tri, b, false)?;
+        Some(channel_of(texel, channel, || self.translucent(r)))
+    }
+
+    /// Whether the image behind texture `r` has any transparency (false without one).
+    pub(crate) fn translucent(&self, r: &Option<TextureRef>) -> bool {
+        r.as_ref()
+            .and_then(|r| self.textures.lookup(&self.scene, r))
+            .is_some_and(|(image, _)| image.translucent())
+    }
+
     /// What a see-through sheet made of `material` lets straight through at barycentrics `b`
     /// of soup triangle `tri` ([`Material::straight_transmittance`]), with the inputs camera
     /// rays read there ([`Prepared::surface`]): base colour factor × vertex colour × base
@@ -58,11 +78,17 @@ impl Prepared {
             Some(t) => (material.transmission * t.x).clamp(0.0, 1.0),
             None => material.transmission,
         };
-        let metallic = match self.texel_at(&material.metallic_roughness_texture, tri, b, false) {
+        let mut metallic = material.metallic;
+        if let Some(t) = self.texel_at(&material.metallic_roughness_texture, tri, b, false) {
             // glTF 2.0 §3.9.2: metalness in B.
-            Some(t) => (material.metallic * t.z).clamp(0.0, 1.0),
-            None => material.metallic,
-        };
+            metallic *= t.z;
+        }
+        if let Some(m) = &material.scalar_maps {
+            metallic *= self
+                .scalar_at(&m.metallic, m.metallic_channel, tri, b)
+                .unwrap_or(1.0);
+        }
+        let metallic = metallic.clamp(0.0, 1.0);
         material.straight_transmittance(base.truncate(), transmission, metallic)
     }
 
@@ -114,6 +140,11 @@ impl Prepared {
         }
         if let Some(t) = self.texel_at(&material.base_color_texture, tri, barycentric, false) {
             alpha *= t.w;
+        }
+        if let Some(m) = &material.scalar_maps {
+            alpha *= self
+                .scalar_at(&m.alpha, m.alpha_channel, tri, barycentric)
+                .unwrap_or(1.0);
         }
         alpha
     }
@@ -266,5 +297,21 @@ impl Prepared {
             }
         }
         same
+    }
+}
+
+/// Channel `channel` of a texel of stored (not sRGB-decoded) values; `translucent` tells
+/// whether its image has any transparency, which [`Channel::AlphaOrLuminance`] asks (only
+/// that channel calls it: the answer is found by a pass over the image the first time).
+#[inline]
+pub(crate) fn channel_of(texel: Vec4, channel: Channel, translucent: impl FnOnce() -> bool) -> f32 {
+    match channel {
+        Channel::Red => texel.x,
+        Channel::Green => texel.y,
+        Channel::Blue => texel.z,
+        Channel::Alpha => texel.w,
+        Channel::Luminance => crate::color::luminance(texel.truncate()),
+        Channel::AlphaOrLuminance if translucent() => texel.w,
+        Channel::AlphaOrLuminance => crate::color::luminance(texel.truncate()),
     }
 }

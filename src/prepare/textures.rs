@@ -86,6 +86,8 @@ impl Decoded {
 #[derive(Clone, Debug)]
 pub struct MipImage {
     levels: Vec<Level>,
+    /// Whether any texel of level 0 is not fully opaque, found when first asked.
+    translucent: OnceLock<bool>,
 }
 
 /// Why textures could not be prepared.
@@ -189,7 +191,18 @@ impl MipImage {
                 texels: Texels::Owned(texels),
             });
         }
-        MipImage { levels }
+        MipImage {
+            levels,
+            translucent: OnceLock::new(),
+        }
+    }
+
+    /// Whether the image has any transparency (a texel of alpha below 1). An image without an
+    /// alpha channel has none: its decoded alpha is 1 everywhere.
+    pub fn translucent(&self) -> bool {
+        *self
+            .translucent
+            .get_or_init(|| self.levels[0].texels.iter().any(|t| t[3] < u8::MAX))
     }
 
     /// What `MipImage::bytes` is for an image of `width` x `height`: every level of the

@@ -126,6 +126,51 @@ pub struct Material {
     /// `KHR_materials_diffuse_transmission` (absent or factor 0: the diffuse base reflects
     /// only).
     pub diffuse_transmission: Option<DiffuseTransmissionLayer>,
+    /// Alpha, roughness and metalness each from one channel of an image of its own (MTL's
+    /// `map_d`, `map_Pr`, `map_Pm`), where glTF packs them into the base colour and
+    /// metallic-roughness textures.
+    pub scalar_maps: Option<ScalarMaps>,
+}
+
+/// Textures whose one channel scales one number of the material (linear data, times the
+/// factor): the form OBJ's MTL gives them, one grey image a property.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ScalarMaps {
+    /// Scales the alpha (MTL `map_d`).
+    pub alpha: Option<TextureRef>,
+    /// The channel `alpha` is read from.
+    pub alpha_channel: Channel,
+    /// Scales the roughness (MTL `map_Pr`).
+    pub roughness: Option<TextureRef>,
+    /// The channel `roughness` is read from.
+    pub roughness_channel: Channel,
+    /// Scales the metalness (MTL `map_Pm`).
+    pub metallic: Option<TextureRef>,
+    /// The channel `metallic` is read from.
+    pub metallic_channel: Channel,
+}
+
+/// Which channel of a texel a [`ScalarMaps`] texture gives (MTL's `-imfchan`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Channel {
+    /// Red (`-imfchan r`).
+    Red,
+    /// Green (`-imfchan g`).
+    Green,
+    /// Blue (`-imfchan b`).
+    Blue,
+    /// Alpha, MTL's "matte" (`-imfchan m`).
+    Alpha,
+    /// Rec. 709 luminance of the stored values (`-imfchan l`, the MTL specification's default
+    /// for scalar textures).
+    #[default]
+    Luminance,
+    /// Alpha where the image has any transparency, else luminance: `map_d`'s default. A mask
+    /// is a grey image (the specification's luminance) or, from Blender's exporter and many
+    /// others, the colour texture's own alpha channel (Blender's importer reads alpha only,
+    /// so a grey mask leaves its surfaces opaque there).
+    AlphaOrLuminance,
 }
 
 /// `KHR_materials_diffuse_transmission`: a Lambertian BTDF that takes the share `factor` of
@@ -285,7 +330,8 @@ impl Material {
     /// Every texture the material references (base colour, metallic-roughness, normal,
     /// occlusion, emissive, transmission, volume thickness, then the specular, sheen,
     /// clearcoat and iridescence layers' ones, then the specular-glossiness, anisotropy and
-    /// diffuse transmission textures), in that order, skipping those it lacks.
+    /// diffuse transmission textures, then the scalar maps), in that order, skipping those it
+    /// lacks.
     pub fn texture_refs(&self) -> impl Iterator<Item = TextureRef> {
         let mut refs = vec![
             self.base_color_texture,
@@ -315,6 +361,9 @@ impl Material {
         }
         if let Some(l) = &self.diffuse_transmission {
             refs.extend([l.texture, l.color_texture]);
+        }
+        if let Some(m) = &self.scalar_maps {
+            refs.extend([m.alpha, m.roughness, m.metallic]);
         }
         refs.into_iter().flatten()
     }
@@ -353,6 +402,9 @@ impl Material {
         }
         if let Some(l) = &mut self.diffuse_transmission {
             slots.extend([&mut l.texture, &mut l.color_texture]);
+        }
+        if let Some(m) = &mut self.scalar_maps {
+            slots.extend([&mut m.alpha, &mut m.roughness, &mut m.metallic]);
         }
         slots
     }
@@ -501,6 +553,7 @@ impl Default for Material {
             specular_glossiness: None,
             anisotropy: None,
             diffuse_transmission: None,
+            scalar_maps: None,
         }
     }
 }

@@ -39,8 +39,9 @@ pub use exr_blocks::{decode_exr, decode_exr_channels, ExrChannels, MAX_EXR_TEXEL
 pub use file_stamp::FileStamp;
 pub use image_source::{Encoded, FileRange, ImageSource, SharedBytes};
 pub use material::{
-    AlphaMode, AnisotropyLayer, ClearcoatLayer, DiffuseTransmissionLayer, IridescenceLayer,
-    Material, SheenLayer, SpecularGlossiness, SpecularLayer, TextureRef, TextureTransform,
+    AlphaMode, AnisotropyLayer, Channel, ClearcoatLayer, DiffuseTransmissionLayer,
+    IridescenceLayer, Material, ScalarMaps, SheenLayer, SpecularGlossiness, SpecularLayer,
+    TextureRef, TextureTransform,
 };
 pub use model::Scene;
 pub use options::{Format, LoadLimits, LoadOptions};

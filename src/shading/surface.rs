@@ -12,10 +12,12 @@
 use crate::accel::Hit;
 use crate::geometry::{spawn, Ray, SpawnPoint};
 use crate::prepare::lights::LightSample;
+use crate::prepare::queries::channel_of;
 use crate::prepare::textures::transform_uv;
 use crate::prepare::Prepared;
 use crate::scene::{
-    AlphaMode, AnisotropyLayer, DiffuseTransmissionLayer, Material, TextureRef, TextureTransform,
+    AlphaMode, AnisotropyLayer, DiffuseTransmissionLayer, Material, ScalarMaps, TextureRef,
+    TextureTransform,
 };
 use crate::shading::{
     Anisotropy, Clearcoat, DiffuseTransmission, Iridescence, Sheen, SurfaceMaterial,
@@ -266,19 +268,7 @@ impl Prepared {
         let tri = hit.triangle as usize;
         let b = hit.barycentric;
         let [pa, pb, pc] = soup.triangle(tri);
-        // The importer drops degenerate triangles, so this always succeeds; the fallback keeps a
-        // bad triangle from panicking (its shadow rays start at the interpolated point).
-        let (spawn, facet) = match SpawnPoint::on_triangle([pa, pb, pc], b) {
-            Some(spawn) => (spawn, spawn.normal),
-            None => (
-                SpawnPoint {
-                    point: pa * b.x + pb * b.y + pc * b.z,
-                    error: Vec3::ZERO,
-                    normal: Vec3::Z,
-                },
-                Vec3::ZERO,
-            ),
-        };
+        let (spawn, facet) = spawn_and_facet([pa, pb, pc], b);
         let direction = Vec3::from(ray.direction);
         // The spawn point's own unit normal, turned to face the ray: negation is exact, so a
         // direction on this side is on the side `SpawnPoint::origin` offsets to (see `exit`).
@@ -322,6 +312,10 @@ impl Prepared {
             // glTF 2.0 §3.9.2: roughness in G, metalness in B.
             roughness *= t.y;
             metallic *= t.z;
+        }
+        if let Some(maps) = &material.scalar_maps {
+            let [r, m, a] = self.scalar_factors(maps, &sample);
+            (roughness, metallic, base.w) = (roughness * r, metallic * m, base.w * a);
         }
         // KHR_materials_pbrSpecularGlossiness: specular (sRGB RGB) and glossiness (linear A)
         // times their factors; c_diff = diffuse · (1 - max(specular)), F0 = specular (set
@@ -411,6 +405,25 @@ impl Prepared {
             thin_walled,
             source: material,
         }
+    }
+
+    /// The factors `maps` put on the roughness, metalness and alpha, in that order, read
+    /// through `sample` (1 where a map is absent or its image did not load).
+    fn scalar_factors(
+        &self,
+        maps: &ScalarMaps,
+        sample: &impl Fn(&Option<TextureRef>, bool) -> Option<Vec4>,
+    ) -> [f32; 3] {
+        let read = |r: &Option<TextureRef>, channel| {
+            sample(r, false).map_or(1.0, |texel| {
+                channel_of(texel, channel, || self.translucent(r))
+            })
+        };
+        [
+            read(&maps.roughness, maps.roughness_channel),
+            read(&maps.metallic, maps.metallic_channel),
+            read(&maps.alpha, maps.alpha_channel),
+        ]
     }
 
     /// The extension layers of `material` on `shaded` (the core material with `ior_f0`, the
@@ -752,6 +765,25 @@ pub(crate) fn valid_reflection_normal(ng: Vec3, i: Vec3, n: Vec3) -> Vec3 {
     };
     let (nx, nz) = ((1.0 - nz2).max(0.0).sqrt(), nz2.max(0.0).sqrt());
     (nx * x + nz * ng).normalize_or(n)
+}
+
+/// The spawn point at barycentrics `b` of the triangle with corners `corners`, with its unit
+/// normal. The importer drops degenerate triangles, so [`SpawnPoint::on_triangle`] always
+/// succeeds; the fallback keeps a bad triangle from panicking (its shadow rays start at the
+/// interpolated point, and its normal is zero).
+#[inline(always)]
+fn spawn_and_facet([pa, pb, pc]: [Vec3; 3], b: Vec3) -> (SpawnPoint, Vec3) {
+    match SpawnPoint::on_triangle([pa, pb, pc], b) {
+        Some(spawn) => (spawn, spawn.normal),
+        None => (
+            SpawnPoint {
+                point: pa * b.x + pb * b.y + pc * b.z,
+                error: Vec3::ZERO,
+                normal: Vec3::Z,
+            },
+            Vec3::ZERO,
+        ),
+    }
 }
 
 #[cfg(test)]

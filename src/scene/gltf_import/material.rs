@@ -222,6 +222,9 @@ fn core_material(m: &gltf::Material) -> Material {
                     .clamp(Vec3::ZERO, Vec3::ONE),
                 color_texture: json_texture_ref(e.get("diffuseTransmissionColorTexture")),
             }),
+        // glTF packs alpha and roughness/metalness into the base colour and metallic-roughness
+        // textures.
+        scalar_maps: None,
     }
 }
 
