@@ -8,6 +8,15 @@
 //! MTL mapping onto the glTF metallic-roughness [`Material`]:
 //! - `Kd` -> base colour, `map_Kd` -> base colour texture, `d` (or `1 - Tr`) -> alpha
 //!   (BLEND when below 1), `Ke` -> emissive.
+//! - A map takes the place of its value, as Blender 5.2's importer links it (checked):
+//!   `map_Kd` of `Kd` (Blender's exporter leaves `Kd` out when it writes `map_Kd`, and the
+//!   0.8 default would darken the texture), `map_Ke` of `Ke`, `map_d` of `d` (the surface is
+//!   then BLEND), `map_Pr` of `Pr`, `map_Pm` of `Pm`. The last three are data, one channel each
+//!   ([`ScalarMaps`]): `-imfchan`'s, else luminance (the specification's default), and for
+//!   `map_d` the alpha of an image that has transparency (what Blender reads, and all it reads:
+//!   a grey mask leaves Blender's surface opaque). Blender tags `map_Pr`/`map_Pm` images
+//!   sRGB, which reads a texel of 0.5 as 0.21; they are read here as the data they are authored
+//!   as. A map whose image is missing or unreadable replaces nothing.
 //! - `Ks` is kept as the Blinn-Phong specular colour; `Ns` (a Phong exponent, 0 to 1000)
 //!   becomes roughness as Blender's MTL importer maps it, `1 - sqrt(Ns / 1000)` (Ns clamped to
 //!   0..1000), so an OBJ looks here as it does in Blender (the exponent <-> GGX match
@@ -31,8 +40,8 @@
 //! - `illum 0` and `illum 1` (colour, or colour and ambient, without highlights) turn the
 //!   specular term off: no dielectric reflection, Blinn-Phong specular 0 and roughness 1.
 //! - `map_Bump`/`bump`/`norm` -> normal map, `-bm` its strength.
-//! - Texture statements' `-s` and `-o` -> a texture transform; their file is the rest of the
-//!   line after the options (`TextureStatement`).
+//! - Texture statements' `-s` and `-o` -> a texture transform, `-imfchan` -> a scalar map's
+//!   channel; their file is the rest of the line after the options (`TextureStatement`).
 //! - Vertex colours (`v x y z r g b`, written by scanning and mesh-generating tools in place of
 //!   a texture) -> the soup's colours, which multiply the base colour as glTF's COLOR_0 does.
 //!   They are display colours, decoded from sRGB (as Blender 5.2's importer reads them,
@@ -43,7 +52,8 @@ use super::builder::{SoupBuilder, TriangleIn, VerticesIn};
 use super::error::{LoadError, LoadErrorKind};
 use super::image_source::ImageSource;
 use super::material::{
-    draw_without, AlphaMode, Material, SpecularLayer, TextureRef, UnusableImage,
+    draw_without, AlphaMode, Channel, Material, ScalarMaps, SpecularLayer, TextureRef,
+    UnusableImage,
 };
 use super::model::Scene;
 use super::options::{Format, LoadOptions};
@@ -446,20 +456,32 @@ fn map_materials(
                     tex_coord: 0,
                     transform: statement.transform(),
                 },
-                statement.bump_multiplier,
+                TextureStatementExtras {
+                    bump_multiplier: statement.bump_multiplier,
+                    channel: statement.channel,
+                    usable: !unusable.iter().any(|u| u.image == textures[index].image),
+                },
             )))
         };
     let mut materials = Vec::with_capacity(mtl_materials.len() + 1);
     for m in mtl_materials {
         let mut mat = mtl_material(m);
-        mat.base_color_texture = texture("map_Kd", &m.diffuse_texture)?.map(|(t, _)| t);
-        if let Some((normal, bump_multiplier)) = texture("map_Bump", &m.normal_texture)? {
+        let kd = texture("map_Kd", &m.diffuse_texture)?;
+        if let Some((normal, extras)) = texture("map_Bump", &m.normal_texture)? {
             mat.normal_texture = Some(normal);
             // `-bm`: the bump's strength, as Blender's importer reads it for its normal map.
-            if let Some(strength) = bump_multiplier.filter(|b| b.is_finite()) {
+            if let Some(strength) = extras.bump_multiplier.filter(|b| b.is_finite()) {
                 mat.normal_scale = strength;
             }
         }
+        let maps = MtlMaps {
+            kd,
+            d: texture("map_d", &m.dissolve_texture)?,
+            ke: texture("map_Ke", &unknown_param(m, "map_Ke"))?,
+            pr: texture("map_Pr", &unknown_param(m, "map_Pr"))?,
+            pm: texture("map_Pm", &unknown_param(m, "map_Pm"))?,
+        };
+        maps.apply(&mut mat);
         materials.push(mat);
     }
     Ok(MtlMaterials {
@@ -468,6 +490,78 @@ fn map_materials(
         images,
         unusable,
     })
+}
+
+/// Statement `key` of an MTL material that tobj does not read itself (`map_Ke`, `map_Pr`),
+/// its case ignored (`map_ke`), as written after the keyword.
+fn unknown_param(m: &tobj::Material, key: &str) -> Option<String> {
+    m.unknown_param.get(key).cloned().or_else(|| {
+        m.unknown_param
+            .iter()
+            .find(|(k, _)| k.eq_ignore_ascii_case(key))
+            .map(|(_, v)| v.clone())
+    })
+}
+
+/// An MTL material's colour and scalar texture maps.
+struct MtlMaps {
+    kd: Option<MtlTexture>,
+    d: Option<MtlTexture>,
+    ke: Option<MtlTexture>,
+    pr: Option<MtlTexture>,
+    pm: Option<MtlTexture>,
+}
+
+impl MtlMaps {
+    /// Puts the maps on `mat` as Blender 5.2's importer links them (checked): each texture
+    /// takes the place of its property's value (`map_Kd` of `Kd`, which Blender's exporter
+    /// leaves out when it writes `map_Kd`, so a default of 0.8 would darken every such
+    /// texture; `map_d` of `d`; `map_Ke` of `Ke`; `map_Pr` of `Pr`; `map_Pm` of `Pm`).
+    /// `map_Kd` and `map_Ke` are colour (sRGB); `map_d`, `map_Pr` and `map_Pm` are data, one
+    /// channel each (`-imfchan`; by default luminance, and for `map_d` the image's alpha
+    /// where it has transparency). A surface with `map_d` is blended, as Blender's is. A
+    /// texture whose image is missing or unreadable replaces nothing: the material keeps the
+    /// value, and draws without the texture.
+    fn apply(self, mat: &mut Material) {
+        if let Some((t, extras)) = self.kd {
+            mat.base_color_texture = Some(t);
+            if extras.usable {
+                mat.base_color = Vec4::ONE.with_w(mat.base_color.w);
+            }
+        }
+        if let Some((t, extras)) = self.ke {
+            mat.emissive_texture = Some(t);
+            if extras.usable {
+                mat.emissive = Vec3::ONE;
+            }
+        }
+        let mut scalar = ScalarMaps::default();
+        if let Some((t, extras)) = self.d {
+            scalar.alpha = Some(t);
+            scalar.alpha_channel = extras.channel.unwrap_or(Channel::AlphaOrLuminance);
+            if extras.usable {
+                mat.base_color.w = 1.0;
+                mat.alpha_mode = AlphaMode::Blend;
+            }
+        }
+        if let Some((t, extras)) = self.pr {
+            scalar.roughness = Some(t);
+            scalar.roughness_channel = extras.channel.unwrap_or_default();
+            if extras.usable {
+                mat.roughness = 1.0;
+            }
+        }
+        if let Some((t, extras)) = self.pm {
+            scalar.metallic = Some(t);
+            scalar.metallic_channel = extras.channel.unwrap_or_default();
+            if extras.usable {
+                mat.metallic = 1.0;
+            }
+        }
+        if scalar != ScalarMaps::default() {
+            mat.scalar_maps = Some(scalar);
+        }
+    }
 }
 
 /// A texture statement of an MTL file (`map_Kd -s 2 2 1 wood grain.png`) read as the MTL
@@ -484,6 +578,8 @@ struct TextureStatement<'a> {
     offset: Option<[f32; 2]>,
     /// `-bm m`: the bump multiplier (a normal map's strength).
     bump_multiplier: Option<f32>,
+    /// `-imfchan r|g|b|m|l`: the channel a scalar texture (`map_d`, `map_Pr`, `map_Pm`) reads.
+    channel: Option<Channel>,
 }
 
 impl TextureStatement<'_> {
@@ -504,6 +600,18 @@ impl TextureStatement<'_> {
     }
 }
 
+/// The channel `-imfchan` names (`z`, a depth channel, is no channel of an image: `None`).
+fn imfchan(word: &str) -> Option<Channel> {
+    match word {
+        "r" => Some(Channel::Red),
+        "g" => Some(Channel::Green),
+        "b" => Some(Channel::Blue),
+        "m" => Some(Channel::Alpha),
+        "l" => Some(Channel::Luminance),
+        _ => None,
+    }
+}
+
 /// Reads an MTL texture statement's options and file ([`TextureStatement`]).
 fn texture_statement(statement: &str) -> TextureStatement<'_> {
     let mut out = TextureStatement {
@@ -511,6 +619,7 @@ fn texture_statement(statement: &str) -> TextureStatement<'_> {
         scale: None,
         offset: None,
         bump_multiplier: None,
+        channel: None,
     };
     let mut rest = statement.trim_start();
     // Where the first word of `s` ends.
@@ -541,6 +650,9 @@ fn texture_statement(statement: &str) -> TextureStatement<'_> {
                 break;
             }
             numbers.push(number.unwrap_or(f32::NAN));
+            if option == "-imfchan" {
+                out.channel = imfchan(word);
+            }
             after = after[end..].trim_start();
         }
         if fixed.is_some_and(|n| numbers.len() < n) || numbers.is_empty() {
@@ -568,7 +680,17 @@ fn texture_statement(statement: &str) -> TextureStatement<'_> {
 }
 
 /// A texture reference of an MTL material, with its statement's `-bm` (bump multiplier).
-type MtlTexture = (TextureRef, Option<f32>);
+type MtlTexture = (TextureRef, TextureStatementExtras);
+
+/// What a texture statement says beyond its file and transform (`-bm` and `-imfchan`), and
+/// whether its image passed the load's checks (a missing or unreadable one leaves the
+/// material with the value the texture would have replaced).
+#[derive(Clone, Copy)]
+struct TextureStatementExtras {
+    bump_multiplier: Option<f32>,
+    channel: Option<Channel>,
+    usable: bool,
+}
 
 /// What [`map_materials`] maps: materials, textures, images, and the images it cannot use.
 struct MtlMaterials {
@@ -1226,6 +1348,15 @@ mod tests {
             assert!((mapped[0] - u2).abs() < 1e-6 && (mapped[1] - (1.0 - v2)).abs() < 1e-6);
         }
         assert!(texture_statement("-clamp on x.png").transform().is_none());
+        // -imfchan: the channel, which 'z' (depth) is not.
+        let channel = |line: &str| texture_statement(line).channel;
+        assert_eq!(channel("-imfchan m mask.png"), Some(Channel::Alpha));
+        assert_eq!(
+            channel("-clamp on -imfchan g -bm 1 m.png"),
+            Some(Channel::Green)
+        );
+        assert_eq!(channel("-imfchan z m.png"), None);
+        assert_eq!(texture_statement("-imfchan l m.png").file, "m.png");
     }
 
     /// Colours given by r alone (valid MTL, which tobj panicked on) get r for g and b; those
@@ -1286,6 +1417,87 @@ mod tests {
         assert_eq!((classic.roughness, classic.metallic), (0.5, 0.0));
         let outside = material("newmtl a\nPr 2\nPm -1\n");
         assert_eq!((outside.roughness, outside.metallic), (1.0, 0.0));
+    }
+
+    /// A map takes its property's place only when its image is there: a missing `map_Kd`,
+    /// `map_d`, `map_Ke`, `map_Pr` or `map_Pm` leaves `Kd`, `d`, `Ke`, `Pr` and `Pm` as
+    /// written (and a warning naming the material that draws without it), where a present one
+    /// replaces them.
+    #[test]
+    fn maps_replace_their_property_only_when_their_image_is_there() {
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("there.png");
+        image::GrayImage::from_pixel(2, 2, image::Luma([128]))
+            .save(&png)
+            .unwrap();
+        let props = "Kd 0.2 0.5 0.9\nd 0.5\nKe 0.1 0.2 0.3\nPr 0.3\nPm 0.7\n";
+        let maps = |file: &str| {
+            ["Kd", "d", "Ke", "Pr", "Pm"]
+                .map(|key| format!("map_{key} {file}\n"))
+                .concat()
+        };
+        std::fs::write(
+            dir.path().join("m.mtl"),
+            format!(
+                "newmtl gone\n{props}{}newmtl there\n{props}{}",
+                maps("gone.png"),
+                maps("there.png")
+            ),
+        )
+        .unwrap();
+        let model = dir.path().join("m.obj");
+        let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl gone\nf 1 2 3\nusemtl there\nf 1 2 3\n";
+        let scene = load(&model, obj.as_bytes(), &LoadOptions::default()).unwrap();
+        let [gone, there] = [0, 1].map(|i| &scene.materials[i]);
+        let values = |m: &Material| {
+            (
+                m.base_color,
+                m.emissive,
+                m.roughness,
+                m.metallic,
+                m.alpha_mode,
+            )
+        };
+        assert_eq!(
+            values(gone),
+            (
+                Vec4::new(0.2, 0.5, 0.9, 0.5),
+                Vec3::new(0.1, 0.2, 0.3),
+                0.3,
+                0.7,
+                AlphaMode::Blend
+            )
+        );
+        assert!(
+            gone.base_color_texture.is_none()
+                && gone.scalar_maps.as_ref().is_none_or(|m| m.alpha.is_none())
+        );
+        assert!(
+            scene
+                .warnings
+                .iter()
+                .any(|w| w.contains("gone.png") && w.contains("'gone'")),
+            "{:?}",
+            scene.warnings
+        );
+        assert_eq!(
+            values(there),
+            (Vec4::ONE, Vec3::ONE, 1.0, 1.0, AlphaMode::Blend)
+        );
+        let maps = there.scalar_maps.as_ref().unwrap();
+        assert!(maps.alpha.is_some() && maps.roughness.is_some() && maps.metallic.is_some());
+        assert_eq!(
+            (
+                maps.alpha_channel,
+                maps.roughness_channel,
+                maps.metallic_channel
+            ),
+            (
+                Channel::AlphaOrLuminance,
+                Channel::Luminance,
+                Channel::Luminance
+            )
+        );
     }
 
     #[test]

@@ -1146,3 +1146,105 @@ fn obj_texture_statements_read_as_blender_reads_them() {
         [green, yellow, red, blue]
     );
 }
+
+/// MTL's maps as Blender 5.2's importer links them: each texture takes the place of its
+/// property (`map_Kd` of `Kd`, `map_Ke` of `Ke`, `map_d` of `d`, `map_Pr` of `Pr`, `map_Pm`
+/// of `Pm`), and the scalar ones read one channel of the image (luminance, or for `map_d` the
+/// alpha of an image with transparency; `-imfchan` names another). Each map is an 8x8 image
+/// whose left half reads 0 and right half 1, on a quad that fills the view: the left half of
+/// the render must be the render of the property set to 0 and the right half the render of
+/// it set to 1 (within 2/255, away from the seam), and those two must differ.
+#[test]
+fn obj_scalar_and_colour_maps_replace_their_property() {
+    let dir = tempfile::tempdir().unwrap();
+    let halves = |name: &str, left: [u8; 4], right: [u8; 4]| {
+        image::RgbaImage::from_fn(8, 8, |x, _| image::Rgba(if x < 4 { left } else { right }))
+            .save(dir.path().join(name))
+            .unwrap();
+    };
+    image::GrayImage::from_fn(8, 8, |x, _| image::Luma([if x < 4 { 0 } else { 255 }]))
+        .save(dir.path().join("grey.png"))
+        .unwrap();
+    // Colour everywhere, its transparency on the left: alpha is what map_d reads.
+    halves("cutout.png", [255, 255, 255, 0], [0, 0, 0, 255]);
+    // Opaque: luminance is what it reads. Red is the mask, green its inverse.
+    halves("red.png", [0, 255, 0, 255], [255, 0, 0, 255]);
+    halves("white.png", [255; 4], [255; 4]);
+    let render = |name: &str, mtl: &str| {
+        std::fs::write(
+            dir.path().join(format!("{name}.mtl")),
+            format!("newmtl m\n{mtl}\n"),
+        )
+        .unwrap();
+        let obj = format!(
+            "mtllib {name}.mtl\nusemtl m\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n\
+             vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1 4/4/1\n"
+        );
+        let model = dir.path().join(format!("{name}.obj"));
+        std::fs::write(&model, obj).unwrap();
+        let out = dir.path().join(format!("{name}.png"));
+        let view = ["--look-from", "0,0,2", "--look-at", "0,0,0", "--yfov", "40"];
+        let args = crate::common::small_run("render", s(&model), s(&out), ("64", "64"), "1", &view);
+        run(&args, true);
+        read_rgba(&out).2
+    };
+    let differ = |a: &[[f32; 4]], b: &[[f32; 4]], x: std::ops::Range<usize>| {
+        (4..60)
+            .flat_map(|y| x.clone().map(move |x| y * 64 + x))
+            .map(|i| {
+                (0..4)
+                    .map(|c| (a[i][c] - b[i][c]).abs())
+                    .fold(0.0, f32::max)
+            })
+            .fold(0.0, f32::max)
+    };
+    let cases = [
+        (
+            "kd",
+            "Kd 0.2 0.5 0.9\nmap_Kd grey.png",
+            "Kd 0 0 0",
+            "Kd 1 1 1",
+        ),
+        (
+            "ke",
+            "Kd 0 0 0\nmap_Ke grey.png",
+            "Kd 0 0 0\nKe 0 0 0",
+            "Kd 0 0 0\nKe 1 1 1",
+        ),
+        ("d-grey", "d 0.5\nmap_d grey.png", "d 0", "d 1"),
+        ("d-alpha", "map_d cutout.png", "d 0", "d 1"),
+        ("d-imfchan", "map_d -imfchan r red.png", "d 0", "d 1"),
+        (
+            "pr",
+            "Kd 0.9 0.3 0.2\nPm 1\nPr 0.5\nmap_Pr grey.png",
+            "Kd 0.9 0.3 0.2\nPm 1\nPr 0",
+            "Kd 0.9 0.3 0.2\nPm 1\nPr 1",
+        ),
+        (
+            "pm",
+            "Kd 0.9 0.3 0.2\nPr 0.4\nmap_Pm -imfchan r red.png",
+            "Kd 0.9 0.3 0.2\nPr 0.4\nPm 0",
+            "Kd 0.9 0.3 0.2\nPr 0.4\nPm 1",
+        ),
+    ];
+    for (name, mapped, zero, one) in cases {
+        let mapped = render(name, mapped);
+        let (zero, one) = (
+            render(&format!("{name}-0"), zero),
+            render(&format!("{name}-1"), one),
+        );
+        assert!(
+            differ(&zero, &one, 0..64) > 0.1,
+            "{name}: the two values look alike"
+        );
+        let tolerance = 2.0 / 255.0;
+        assert!(
+            differ(&mapped, &zero, 4..24) <= tolerance,
+            "{name}: left half is not the 0 render"
+        );
+        assert!(
+            differ(&mapped, &one, 40..60) <= tolerance,
+            "{name}: right half is not the 1 render"
+        );
+    }
+}
