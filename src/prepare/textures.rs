@@ -438,6 +438,9 @@ fn decode_encoded(source: &ImageSource) -> Result<image::RgbaImage, String> {
         if crate::scene::ktx2::is_ktx2(bytes) {
             return crate::scene::ktx2::decode(bytes);
         }
+        if crate::scene::dds::is_dds(bytes) {
+            return crate::scene::dds::decode(bytes);
+        }
         let mut r = image::ImageReader::new(std::io::Cursor::new(bytes))
             .with_guessed_format()
             .map_err(|e| e.to_string())?;
@@ -451,8 +454,16 @@ fn decode_encoded(source: &ImageSource) -> Result<image::RgbaImage, String> {
         Encoded::Bytes(bytes) => return from_bytes(bytes),
         // An image of a GLB that the load left on disk: read now, on the decoding thread.
         Encoded::InFile(part) => return from_bytes(&part.read(u64::MAX)?),
-        Encoded::File(path) if crate::scene::ktx2::is_ktx2_source(source) => {
+        Encoded::File(path)
+            if crate::scene::ktx2::is_ktx2_source(source)
+                || crate::scene::dds::is_dds_file(path) =>
+        {
+            // Read whole, then decoded by the magic (a KTX2 named by its MIME type alone is
+            // decoded as KTX2 and refused there if it is not).
             let bytes = std::fs::read(path).map_err(|e| format!("'{}': {e}", path.display()))?;
+            if crate::scene::dds::is_dds(&bytes) {
+                return crate::scene::dds::decode(&bytes);
+            }
             return crate::scene::ktx2::decode(&bytes);
         }
         Encoded::File(path) => {
@@ -479,7 +490,7 @@ fn texture_format(format: Option<image::ImageFormat>) -> Result<(), String> {
     match format {
         Some(F::Png | F::Jpeg | F::WebP | F::Gif | F::Tga | F::Bmp) => Ok(()),
         Some(other) => Err(format!(
-            "{} images are not textures (use PNG, JPEG, WebP, KTX2, TGA or BMP)",
+            "{} images are not textures (use PNG, JPEG, WebP, KTX2, TGA, BMP or DDS)",
             other
                 .extensions_str()
                 .first()
@@ -487,7 +498,8 @@ fn texture_format(format: Option<image::ImageFormat>) -> Result<(), String> {
                 .to_uppercase()
         )),
         None => Err(
-            "not an image format meshtracer reads (use PNG, JPEG, WebP, KTX2, TGA or BMP)".into(),
+            "not an image format meshtracer reads (use PNG, JPEG, WebP, KTX2, TGA, BMP or DDS)"
+                .into(),
         ),
     }
 }
@@ -910,7 +922,9 @@ mod tests {
                 .expect("not a texture format");
             assert_eq!(
                 refused,
-                format!("{name} images are not textures (use PNG, JPEG, WebP, KTX2, TGA or BMP)")
+                format!(
+                    "{name} images are not textures (use PNG, JPEG, WebP, KTX2, TGA, BMP or DDS)"
+                )
             );
         }
         let mut unknown = encoded(image::ImageFormat::Png);

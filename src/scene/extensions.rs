@@ -114,6 +114,12 @@ pub const EXTENSIONS: &[KnownExtension] = &[
         "ETC1S and UASTC KTX2 transcoded by basisu; the core source is the fallback",
     ),
     ext(
+        "MSFT_texture_dds",
+        Supported,
+        false,
+        "BC1-BC5, BC7 and 8-bit DDS decoded by bcdec_rs; the core source is the fallback",
+    ),
+    ext(
         "KHR_materials_ior",
         Supported,
         false,

@@ -2,6 +2,7 @@
 //! every image source (glTF images, OBJ/MTL texture files), so that a file that is not an
 //! image, or one whose declared size is over the pixel budget, is known at load time.
 
+use super::dds;
 use super::image_source::{Encoded, ImageSource};
 use super::ktx2;
 use std::path::Path;
@@ -48,6 +49,9 @@ pub(crate) fn check_image_header(source: &ImageSource, max_pixels: u64) -> Resul
         if ktx2::is_ktx2(bytes) {
             return Ok(Ok(ktx2::dimensions(bytes)?));
         }
+        if dds::is_dds(bytes) {
+            return Ok(Ok(dds::dimensions(bytes)?));
+        }
         Ok(match jpeg_dimensions_from_prefix(bytes) {
             Some(dims) => Ok(dims),
             None => image::ImageReader::new(std::io::Cursor::new(bytes))
@@ -66,6 +70,8 @@ pub(crate) fn check_image_header(source: &ImageSource, max_pixels: u64) -> Resul
             let whole = head.len() as u64 == part.range.end - part.range.start;
             if !whole && ktx2::is_ktx2(&head) {
                 Ok(ktx2::dimensions(&head)?)
+            } else if !whole && dds::is_dds(&head) {
+                Ok(dds::dimensions(&head)?)
             } else if let (false, Some(dims)) = (whole, jpeg_dimensions_from_prefix(&head)) {
                 Ok(dims)
             } else if whole {
@@ -82,7 +88,11 @@ pub(crate) fn check_image_header(source: &ImageSource, max_pixels: u64) -> Resul
             Ok(ktx2::dimensions(&header[..read])?)
         }
         Encoded::File(path) => {
-            match read_prefix(path).and_then(|p| jpeg_dimensions_from_prefix(&p)) {
+            let prefix = read_prefix(path);
+            if let Some(head) = prefix.as_deref().filter(|p| dds::is_dds(p)) {
+                return check_size(dds::dimensions(head)?, max_pixels);
+            }
+            match prefix.and_then(|p| jpeg_dimensions_from_prefix(&p)) {
                 Some(dims) => Ok(dims),
                 None => image::ImageReader::open(path)
                     .map_err(|e| format!("'{}': {e}", path.display()))?
@@ -93,8 +103,13 @@ pub(crate) fn check_image_header(source: &ImageSource, max_pixels: u64) -> Resul
         }
         Encoded::Missing => return Err("no data".to_string()),
     };
-    let (w, h) =
-        dims.map_err(|e| format!("not a readable PNG, JPEG, WebP, KTX2, TGA or BMP image: {e}"))?;
+    let dims = dims
+        .map_err(|e| format!("not a readable PNG, JPEG, WebP, KTX2, TGA, BMP or DDS image: {e}"))?;
+    check_size(dims, max_pixels)
+}
+
+/// Refuses an image of `w` x `h` pixels that is empty or over `max_pixels`.
+fn check_size((w, h): (u32, u32), max_pixels: u64) -> Result<(), String> {
     let pixels = w as u64 * h as u64;
     if pixels == 0 || pixels > max_pixels {
         return Err(format!(

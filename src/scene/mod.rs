@@ -6,6 +6,7 @@
 mod archive;
 mod arrays;
 mod builder;
+pub(crate) mod dds;
 mod error;
 mod exr_blocks;
 pub mod extensions;

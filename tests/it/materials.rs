@@ -1147,6 +1147,27 @@ fn obj_texture_statements_read_as_blender_reads_them() {
     );
 }
 
+/// Renders to `out` (64x64, one sample, the direct integrator) an OBJ quad of 2x2 facing +z,
+/// its UVs spanning the texture, whose one material `m` is `mtl` (the MTL's lines after
+/// `newmtl`), written as `{name}.obj` and `{name}.mtl` into `dir`, seen from 2 units away
+/// with a vertical field of view of 40° (the quad fills the frame). Returns the standard error.
+fn render_quad_obj(dir: &Path, name: &str, mtl: &str, out: &Path) -> String {
+    std::fs::write(
+        dir.join(format!("{name}.mtl")),
+        format!("newmtl m\n{mtl}\n"),
+    )
+    .unwrap();
+    let obj = format!(
+        "mtllib {name}.mtl\nusemtl m\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n\
+         vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1 4/4/1\n"
+    );
+    let model = dir.join(format!("{name}.obj"));
+    std::fs::write(&model, obj).unwrap();
+    let view = ["--look-from", "0,0,2", "--look-at", "0,0,0", "--yfov", "40"];
+    let args = crate::common::small_run("render", s(&model), s(out), ("64", "64"), "1", &view);
+    crate::common::stderr(&run(&args, true))
+}
+
 /// MTL's maps as Blender 5.2's importer links them: each texture takes the place of its
 /// property (`map_Kd` of `Kd`, `map_Ke` of `Ke`, `map_d` of `d`, `map_Pr` of `Pr`, `map_Pm`
 /// of `Pm`), and the scalar ones read one channel of the image (luminance, or for `map_d` the
@@ -1171,21 +1192,8 @@ fn obj_scalar_and_colour_maps_replace_their_property() {
     halves("red.png", [0, 255, 0, 255], [255, 0, 0, 255]);
     halves("white.png", [255; 4], [255; 4]);
     let render = |name: &str, mtl: &str| {
-        std::fs::write(
-            dir.path().join(format!("{name}.mtl")),
-            format!("newmtl m\n{mtl}\n"),
-        )
-        .unwrap();
-        let obj = format!(
-            "mtllib {name}.mtl\nusemtl m\nv -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\n\
-             vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1 4/4/1\n"
-        );
-        let model = dir.path().join(format!("{name}.obj"));
-        std::fs::write(&model, obj).unwrap();
         let out = dir.path().join(format!("{name}.png"));
-        let view = ["--look-from", "0,0,2", "--look-at", "0,0,0", "--yfov", "40"];
-        let args = crate::common::small_run("render", s(&model), s(&out), ("64", "64"), "1", &view);
-        run(&args, true);
+        render_quad_obj(dir.path(), name, mtl, &out);
         read_rgba(&out).2
     };
     let differ = |a: &[[f32; 4]], b: &[[f32; 4]], x: std::ops::Range<usize>| {
@@ -1247,4 +1255,103 @@ fn obj_scalar_and_colour_maps_replace_their_property() {
             "{name}: right half is not the 1 render"
         );
     }
+}
+
+/// An 8x8 texture of four coloured quadrants (red, blue / green, yellow) as a DDS file: BC1
+/// blocks of one colour each (`bc1: true`, the legacy `DXT1` FourCC) or 32-bit BGRA.
+fn quadrants_dds(bc1: bool) -> Vec<u8> {
+    let colours: [[u8; 3]; 4] = [[255, 0, 0], [0, 0, 255], [0, 255, 0], [255, 255, 0]];
+    let mut b = b"DDS ".to_vec();
+    // Header: size, flags, height, width, pitch, depth, mip count, 11 reserved words.
+    for word in [124u32, 0x1007, 8, 8, 0, 0, 1].into_iter().chain([0; 11]) {
+        b.extend(word.to_le_bytes());
+    }
+    // Pixel format (size, flags, FourCC, bits, R, G, B, A masks), then caps 1-4 and reserved.
+    let format = match bc1 {
+        true => [32, 0x4, u32::from_le_bytes(*b"DXT1"), 0, 0, 0, 0, 0],
+        false => [32, 0x41, 0, 32, 0xFF_0000, 0xFF00, 0xFF, 0xFF00_0000],
+    };
+    for word in format.into_iter().chain([0x1000, 0, 0, 0, 0]) {
+        b.extend(word.to_le_bytes());
+    }
+    if bc1 {
+        for [r, g, bl] in colours {
+            // Both endpoints the colour in RGB565, every texel index 0.
+            let c565 = (u16::from(r >> 3) << 11) | (u16::from(g >> 2) << 5) | u16::from(bl >> 3);
+            b.extend(c565.to_le_bytes().repeat(2));
+            b.extend([0u8; 4]);
+        }
+    } else {
+        for y in 0..8 {
+            for x in 0..8 {
+                let [r, g, bl] = colours[(y / 4) * 2 + x / 4];
+                b.extend([bl, g, r, 255]);
+            }
+        }
+    }
+    b
+}
+
+/// DDS textures (game assets' format, and glTF's `MSFT_texture_dds`): the same quadrants as
+/// BC1 blocks and as BGRA texels, named by an OBJ's `map_Kd`, render byte for byte as the PNG
+/// of them does; a glTF texture whose only source is the DDS (through the extension) draws
+/// its quadrants where they are.
+#[test]
+fn dds_textures_render_as_their_png() {
+    let dir = tempfile::tempdir().unwrap();
+    let colours: [[u8; 3]; 4] = [[255, 0, 0], [0, 0, 255], [0, 255, 0], [255, 255, 0]];
+    image::RgbImage::from_fn(8, 8, |x, y| {
+        image::Rgb(colours[(y as usize / 4) * 2 + x as usize / 4])
+    })
+    .save(dir.path().join("quadrants.png"))
+    .unwrap();
+    std::fs::write(dir.path().join("bc1.dds"), quadrants_dds(true)).unwrap();
+    std::fs::write(dir.path().join("bgra.dds"), quadrants_dds(false)).unwrap();
+    let render_obj = |texture: &str| {
+        let stem = texture.replace('.', "-");
+        let out = dir.path().join(format!("{stem}.png"));
+        let warnings = render_quad_obj(dir.path(), &stem, &format!("map_Kd {texture}"), &out);
+        assert!(!warnings.contains("warning"), "{texture}: {warnings}");
+        std::fs::read(&out).unwrap()
+    };
+    let png = render_obj("quadrants.png");
+    assert!(png == render_obj("bc1.dds"), "BC1 differs from the PNG");
+    assert!(png == render_obj("bgra.dds"), "BGRA differs from the PNG");
+
+    // glTF: an unlit quad filling an orthographic view, its texture's only source the DDS.
+    let (json, bin) = crate::common::quads_gltf(
+        &[(crate::common::square(1.0, 0.0), 0)],
+        json!({
+            "extensionsUsed": ["KHR_materials_unlit", "MSFT_texture_dds"],
+            "extensionsRequired": ["MSFT_texture_dds"],
+            "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}},
+                "extensions": {"KHR_materials_unlit": {}}}],
+            "textures": [{"extensions": {"MSFT_texture_dds": {"source": 0}}}],
+            "images": [{"uri": "bc1.dds"}],
+            "cameras": [{"type": "orthographic", "orthographic": {"xmag": 1.0, "ymag": 1.0, "znear": 0.1, "zfar": 10.0}}],
+            "nodes": [{"camera": 0, "translation": [0.0, 0.0, 2.0]}]
+        }),
+    );
+    let model = crate::common::write_gltf(dir.path(), "dds.gltf", json, &bin);
+    let out = dir.path().join("dds-gltf.png");
+    run(
+        &[
+            "render",
+            s(&model),
+            "-o",
+            s(&out),
+            "--width",
+            "32",
+            "--height",
+            "32",
+            "-q",
+        ],
+        true,
+    );
+    let (_, _, pixels) = read_rgba(&out);
+    let at = |x: usize, y: usize| pixels[y * 32 + x].map(|c| u8::from(c > 0.5))[..3].to_vec();
+    assert_eq!(
+        [at(8, 8), at(24, 8), at(8, 24), at(24, 24)],
+        colours.map(|c| c.map(|v| u8::from(v > 128)).to_vec())
+    );
 }

@@ -291,6 +291,7 @@ fn unsupported_extension(name: &str) -> LoadErrorKind {
         "KHR_mesh_quantization" => " (quantized vertex attributes)",
         "KHR_texture_basisu" => " (Basis Universal / KTX2 textures)",
         "EXT_texture_webp" => " (WebP textures)",
+        "MSFT_texture_dds" => " (DDS textures)",
         _ => "",
     };
     LoadErrorKind::UnsupportedExtension {

@@ -1,5 +1,5 @@
-//! glTF textures (§3.8): the image each one uses (`EXT_texture_webp` and `KHR_texture_basisu`
-//! sources, with their fallbacks), its sampler, and every image's source with its header
+//! glTF textures (§3.8): the image each one uses (`EXT_texture_webp`, `KHR_texture_basisu`
+//! and `MSFT_texture_dds` sources, with their fallbacks), its sampler, and every image's source with its header
 //! checked.
 
 use super::buffer::Buffer;
@@ -12,8 +12,8 @@ use crate::scene::options::LoadOptions;
 use crate::scene::paths::FileAccess;
 use crate::scene::texture::{Filter, Sampler, Texture, Wrap};
 
-/// EXT_texture_webp and KHR_texture_basisu: a texture whose extension names a WebP or KTX2
-/// image uses it, and keeps its core `source` (if any) as the fallback for when that image
+/// EXT_texture_webp, KHR_texture_basisu and MSFT_texture_dds: a texture whose extension names
+/// a WebP, KTX2 or DDS image uses it, and keeps its core `source` (if any) as the fallback for when that image
 /// cannot be decoded (the extensions' fallback rule). Rewritten in the JSON before the `gltf`
 /// crate validates it, since gltf-json 1.4 requires `source` (WebP-only and KTX2-only files
 /// have none). Returns each texture's fallback.
@@ -33,8 +33,9 @@ pub(super) fn choose_texture_sources(root: &mut gltf::json::Root) -> Vec<Option<
                     .filter(|&i| i < image_count)
             };
             let core = texture.source.value();
-            let chosen =
-                source_of("EXT_texture_webp").or_else(|| source_of("KHR_texture_basisu"))?;
+            let chosen = source_of("EXT_texture_webp")
+                .or_else(|| source_of("KHR_texture_basisu"))
+                .or_else(|| source_of("MSFT_texture_dds"))?;
             texture.source = gltf::json::Index::new(chosen as u32);
             (core < image_count && core != chosen).then_some(core)
         })
