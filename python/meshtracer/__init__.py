@@ -75,7 +75,8 @@ def load(path, *, animation=None, time=None, variant=None, strict=False,
 
     if animation is not None and not isinstance(animation, str):
         animation = str(int(animation))
-    return _load(os.fspath(path), animation=animation,
+    # os.fsdecode: str, bytes or os.PathLike, as Python's own file functions take a name.
+    return _load(os.fsdecode(path), animation=animation,
                  time=None if time is None else float(time), variant=variant,
                  strict=bool(strict), allow_external_files=bool(allow_external_files))
 
@@ -317,7 +318,7 @@ def _render_views(self, spec, width, height, **options):
     if isinstance(spec, (list, tuple)):
         return _scene_render_views(self, "", width, height, views_json=json.dumps(list(spec)),
                                    **options)
-    return _scene_render_views(self, os.fspath(spec), width, height, **options)
+    return _scene_render_views(self, os.fsdecode(spec), width, height, **options)
 
 
 Scene.add_mesh = _add_mesh

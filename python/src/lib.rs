@@ -1325,7 +1325,9 @@ impl RenderOptions {
                         .map(Vec3::from)
                 }
                 "default_lights" => o.default_lights = value.extract().map_err(bad)?,
-                "env" => o.env = value.extract().map_err(bad)?,
+                "env" if value.is_none() => o.env = None,
+                // str, os.PathLike or bytes, as `open` takes them.
+                "env" => o.env = Some(fs_path(&value).map_err(bad)?),
                 "env_rotation" => o.env_rotation = value.extract().map_err(bad)?,
                 "env_intensity" => o.env_intensity = value.extract().map_err(bad)?,
                 "env_visible" => o.env_visible = value.extract().map_err(bad)?,
@@ -1407,6 +1409,13 @@ impl RenderOptions {
         }
         Ok(o)
     }
+}
+
+/// A file name as Python's own file functions take one: str, bytes (decoded as `os.fsdecode`
+/// decodes them) or an `os.PathLike` object.
+fn fs_path(value: &Bound<'_, PyAny>) -> PyResult<PathBuf> {
+    let os = value.py().import("os")?;
+    os.call_method1("fsdecode", (value,))?.extract()
 }
 
 /// Loads a model (glTF, GLB or OBJ) as `meshtracer render` and `info` load it; see

@@ -218,6 +218,16 @@ def test_info_is_what_info_json_prints(cli):
     assert scene.info() == json.loads(cli("info", "--json", CORNELL).stdout)
 
 
+def test_a_file_name_may_be_str_bytes_or_path_like():
+    """As Python's own file functions take a name (`open`, `os.stat`): a `str`, `bytes` or an
+    `os.PathLike`, all the same file; anything else is a TypeError, as `open` raises."""
+    info = meshtracer.load(CORNELL).info()
+    assert meshtracer.load(str(CORNELL)).info() == info
+    assert meshtracer.load(os.fsencode(CORNELL)).info() == info
+    with pytest.raises(TypeError):
+        meshtracer.load(3)
+
+
 def test_a_zip_download_loads_as_its_files_and_is_named_inside(tmp_path):
     import zipfile
 
@@ -343,6 +353,9 @@ def test_env_options_equal_the_clis(cli, tmp_path):
     # Read once: a second render with the same file and transform uses what was read.
     again = scene.render(48, 36, env=str(hdr), **options)
     np.testing.assert_array_equal(again["srgb8"], arrays["srgb8"])
+    # A file name as bytes, as Python's own file functions take one.
+    named_in_bytes = scene.render(48, 36, env=os.fsencode(hdr), **options)
+    np.testing.assert_array_equal(named_in_bytes["srgb8"], arrays["srgb8"])
     turned = scene.render(48, 36, env=hdr, **{**options, "env_rotation": 180})
     assert not np.array_equal(turned["srgb8"], arrays["srgb8"])
     with pytest.raises(meshtracer.Error, match="env and env_visible light the path tracer"):
