@@ -19,6 +19,7 @@ pub(crate) mod ktx2;
 mod material;
 mod model;
 pub mod obj;
+mod obj_smoothing;
 mod options;
 mod paths;
 pub mod pose;

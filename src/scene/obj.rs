@@ -42,6 +42,8 @@
 //! - `map_Bump`/`bump`/`norm` -> normal map, `-bm` its strength.
 //! - Texture statements' `-s` and `-o` -> a texture transform, `-imfchan` -> a scalar map's
 //!   channel; their file is the rest of the line after the options (`TextureStatement`).
+//! - A file without normals is shaded as its smoothing groups (`s`) say, as Blender shades it
+//!   (`super::obj_smoothing`): faces under `s 1` smooth, the others flat.
 //! - Vertex colours (`v x y z r g b`, written by scanning and mesh-generating tools in place of
 //!   a texture) -> the soup's colours, which multiply the base colour as glTF's COLOR_0 does.
 //!   They are display colours, decoded from sRGB (as Blender 5.2's importer reads them,
@@ -76,22 +78,32 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         options.allow_external_files,
         options.limits.max_file_bytes,
     );
-    let (models, mtl_materials, mtl_warnings) = match parse(path, text, &access, options.strict) {
+    let (parsed_text, parsed) = match parse(path, text, &access, options.strict) {
         // tobj refuses a face whose vertex has no colour when others have one: give those
         // white, as a vertex without COLOR_0 is drawn in glTF, and parse again.
         Err(e) => match with_every_vertex_coloured(text) {
             Some(padded) => {
-                let mut parsed = parse(path, &padded, &access, options.strict)?;
-                parsed.2.push(
-                    "only some vertices have a colour (v x y z r g b); the others are drawn white"
-                        .into(),
-                );
-                parsed
+                let parsed = parse(path, &padded, &access, options.strict)?;
+                (std::borrow::Cow::Owned(padded), parsed)
             }
             None => return Err(e),
         },
-        Ok(parsed) => parsed,
+        Ok(parsed) => (std::borrow::Cow::Borrowed(text), parsed),
     };
+    // A file without normals whose faces are in smoothing groups: parsed again with the
+    // normals those give written in (`obj_smoothing`). The first parse, of the file as it is,
+    // is the one whose errors count.
+    let no_normals = parsed.0.iter().all(|m| m.mesh.normals.is_empty());
+    let smoothed = no_normals
+        .then(|| super::obj_smoothing::with_smooth_normals(&parsed_text))
+        .flatten()
+        .and_then(|smooth| parse(path, &smooth, &access, options.strict).ok());
+    let (models, mtl_materials, mut mtl_warnings) = smoothed.unwrap_or(parsed);
+    if matches!(parsed_text, std::borrow::Cow::Owned(_)) {
+        mtl_warnings.push(
+            "only some vertices have a colour (v x y z r g b); the others are drawn white".into(),
+        );
+    }
     steps.mark("parse");
 
     let MtlMaterials {
