@@ -6,8 +6,9 @@
 //! double-sided.
 //!
 //! MTL mapping onto the glTF metallic-roughness [`Material`]:
-//! - `Kd` -> base colour, `map_Kd` -> base colour texture, `d` (or `1 - Tr`) -> alpha
-//!   (BLEND when below 1), `Ke` -> emissive.
+//! - `Kd` -> base colour, `map_Kd` -> base colour texture, `d` (or `1 - Tr`, but not for
+//!   `Tr 1`, which exporters write for opaque surfaces too) -> alpha (BLEND when below 1), `Ke`
+//!   -> emissive.
 //! - A map takes the place of its value, as Blender 5.2's importer links it (checked):
 //!   `map_Kd` of `Kd` (Blender's exporter leaves `Kd` out when it writes `map_Kd`, and the
 //!   0.8 default would darken the texture), `map_Ke` of `Ke`, `map_d` of `d` (the surface is
@@ -1142,12 +1143,7 @@ fn obj_default_material() -> Material {
 fn mtl_material(m: &tobj::Material) -> Material {
     let alpha = m
         .dissolve
-        .or_else(|| {
-            m.unknown_param
-                .get("Tr")
-                .and_then(|t| t.trim().parse::<f32>().ok())
-                .map(|tr| 1.0 - tr)
-        })
+        .or_else(|| transparency(m).map(|tr| 1.0 - tr))
         .unwrap_or(1.0)
         .clamp(0.0, 1.0);
     // A diffuse colour reflects at most what arrives: Kd in [0, 1] (`mtl_out_of_range` warns).
@@ -1245,6 +1241,17 @@ fn mtl_material(m: &tobj::Material) -> Material {
     }
 }
 
+/// `Tr`, the transparency (1 - `d`), where `d` is absent and `Tr` leaves some of the surface:
+/// `Tr 1` alone is read as no statement, as Blender 5.2 reads every `Tr` (checked), since
+/// exporters write it for opaque surfaces (taking Tr for an opacity) as well as for invisible
+/// ones, and an invisible model is the worse guess ([`mtl_out_of_range`] warns).
+fn transparency(m: &tobj::Material) -> Option<f32> {
+    m.unknown_param
+        .get("Tr")
+        .and_then(|t| t.split_whitespace().next()?.parse::<f32>().ok())
+        .filter(|tr| *tr < 1.0)
+}
+
 /// A channel of `Ke` as emitted: itself when finite and not negative, else 0.
 fn usable_emission(c: f32) -> f32 {
     if c.is_finite() && c >= 0.0 {
@@ -1264,6 +1271,16 @@ fn mtl_out_of_range(m: &tobj::Material) -> Vec<String> {
         .filter(|kd| !kd.iter().all(|c| (0.0..=1.0).contains(c)))
     {
         problems.push(format!("Kd {kd:?} is outside [0, 1]; clamped"));
+    }
+    let tr = m.unknown_param.get("Tr").map(|t| t.trim());
+    if let (None, Some(tr)) = (
+        m.dissolve,
+        tr.filter(|t| t.parse::<f32>().is_ok_and(|v| v >= 1.0)),
+    ) {
+        problems.push(format!(
+            "Tr {tr} (fully transparent) without d is read as opaque, as Blender reads it: \
+             exporters write it for opaque surfaces too; write d 0 for an invisible one"
+        ));
     }
     if let Some(ke) = m
         .emissive
@@ -1874,6 +1891,13 @@ mod tests {
         let mat = mtl_material(&m);
         assert_eq!(mat.base_color.w, 0.75);
         assert_eq!(mat.alpha_mode, AlphaMode::Blend);
+        // Tr 1 alone: opaque, with a warning; d, when given, decides.
+        m.unknown_param.insert("Tr".into(), "1".into());
+        assert_eq!(mtl_material(&m).alpha_mode, AlphaMode::Opaque);
+        assert!(mtl_out_of_range(&m)[0].contains("Tr 1 (fully transparent) without d"));
+        m.dissolve = Some(0.5);
+        assert_eq!(mtl_material(&m).base_color.w, 0.5);
+        assert!(mtl_out_of_range(&m).is_empty());
     }
 }
 
