@@ -88,6 +88,9 @@ pub struct MipImage {
     levels: Vec<Level>,
     /// Whether any texel of level 0 is not fully opaque, found when first asked.
     translucent: OnceLock<bool>,
+    /// Whether every texel of level 0 is grey (red, green and blue equal), found when first
+    /// asked.
+    grey: OnceLock<bool>,
 }
 
 /// Why textures could not be prepared.
@@ -194,7 +197,20 @@ impl MipImage {
         MipImage {
             levels,
             translucent: OnceLock::new(),
+            grey: OnceLock::new(),
         }
+    }
+
+    /// Whether every texel is grey. A normal map never is (its texels are directions, mostly
+    /// blue); a grey image named as one is a height map (MTL's `map_Bump` and `bump` often
+    /// name one). The pass stops at the first coloured texel: at once, for a normal map.
+    pub fn grey(&self) -> bool {
+        *self.grey.get_or_init(|| {
+            self.levels[0]
+                .texels
+                .iter()
+                .all(|t| t[0] == t[1] && t[1] == t[2])
+        })
     }
 
     /// Whether the image has any transparency (a texel of alpha below 1). An image without an
@@ -675,10 +691,41 @@ impl TextureSet {
         }
         let mut own_warnings = Vec::new();
         let mut set = TextureSet::decode(scene, &used, budget_bytes, strict, &mut own_warnings)?;
+        own_warnings.extend(set.height_maps_as_normal_maps(scene));
         warnings.extend(own_warnings.iter().cloned());
         set.inputs = inputs;
         set.warnings = own_warnings;
         Ok(set)
+    }
+
+    /// One warning for each grey image that a material names as a normal map
+    /// ([`MipImage::grey`]): a height map, which is not read as one; the surface is drawn
+    /// without it ([`crate::shading::surface`] skips it) rather than with its greys taken for
+    /// directions.
+    fn height_maps_as_normal_maps(&self, scene: &Scene) -> Vec<String> {
+        let mut seen = Vec::new();
+        for material in &scene.materials {
+            let coat = material.clearcoat.as_ref().and_then(|c| c.normal_texture);
+            for r in [material.normal_texture, coat].into_iter().flatten() {
+                let image = scene.textures.get(r.texture).map(|t| t.image);
+                let grey = self.lookup(scene, &r).is_some_and(|(i, _)| i.grey());
+                if let (Some(image), true) = (image, grey) {
+                    if !seen.contains(&image) {
+                        seen.push(image);
+                    }
+                }
+            }
+        }
+        seen.into_iter()
+            .map(|image| {
+                format!(
+                    "image {image} ({}): a grey image named as a normal map is a height (bump) \
+                     map, which is not read; {} drawn without it",
+                    scene.images.get(image).map_or("", |i| i.origin.as_str()),
+                    users_of(scene, image)
+                )
+            })
+            .collect()
     }
 
     /// Whether this set was kept from an earlier load ([`TextureSet::load_reusing`]) rather
@@ -831,6 +878,15 @@ pub fn transform_uv(r: &TextureRef, uv: Vec2) -> Vec2 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Grey images are told from colour ones, and an image without transparency from one with.
+    #[test]
+    fn grey_and_translucent_images_are_told_apart() {
+        let grey = MipImage::new(2, 1, vec![[7, 7, 7, 255], [200, 200, 200, 255]]);
+        assert!(grey.grey() && !grey.translucent());
+        let normals = MipImage::new(2, 1, vec![[128, 128, 255, 255], [128, 128, 255, 0]]);
+        assert!(!normals.grey() && normals.translucent());
+    }
 
     #[test]
     fn even_levels_average_like_odd_ones() {

@@ -528,7 +528,15 @@ impl Prepared {
         texel: Vec4,
         scale: f32,
     ) -> Vec3 {
-        let Some((t, bt)) = self.tangent_frame(tri, b, r.tex_coord, n) else {
+        // A grey image is a height map, not directions (`TextureSet` warns of it).
+        let height_map = self
+            .textures
+            .lookup(&self.scene, r)
+            .is_some_and(|(image, _)| image.grey());
+        let Some((t, bt)) = self
+            .tangent_frame(tri, b, r.tex_coord, n)
+            .filter(|_| !height_map)
+        else {
             return n;
         };
         let m = Vec3::new(

@@ -1355,3 +1355,34 @@ fn dds_textures_render_as_their_png() {
         colours.map(|c| c.map(|v| u8::from(v > 128)).to_vec())
     );
 }
+
+/// A grey image named as a normal map (MTL's `map_Bump` and `bump` often name a height map)
+/// is not read as directions: the surface renders byte for byte as without it, with a warning
+/// naming the image; a real normal map (bluish, tilted) still changes the shading.
+#[test]
+fn a_grey_bump_map_is_not_read_as_normals() {
+    let dir = tempfile::tempdir().unwrap();
+    image::GrayImage::from_fn(8, 8, |x, _| image::Luma([if x < 4 { 60 } else { 220 }]))
+        .save(dir.path().join("height.png"))
+        .unwrap();
+    // Every texel the normal (0.5, 0, 0.87) of a surface tilted 30° about v.
+    image::RgbImage::from_pixel(8, 8, image::Rgb([191, 128, 238]))
+        .save(dir.path().join("normals.png"))
+        .unwrap();
+    let render = |name: &str, mtl: &str| {
+        let out = dir.path().join(format!("{name}.png"));
+        let warnings = render_quad_obj(dir.path(), name, mtl, &out);
+        (std::fs::read(&out).unwrap(), warnings)
+    };
+    let (plain, _) = render("plain", "Kd 0.8 0.8 0.8");
+    let (grey, warnings) = render("grey", "Kd 0.8 0.8 0.8\nmap_Bump -bm 2 height.png");
+    assert!(grey == plain, "the grey bump map changed the shading");
+    assert!(
+        warnings
+            .contains("(height.png): a grey image named as a normal map is a height (bump) map"),
+        "{warnings}"
+    );
+    let (tilted, warnings) = render("tilted", "Kd 0.8 0.8 0.8\nmap_Bump normals.png");
+    assert!(tilted != plain, "the normal map did not change the shading");
+    assert!(!warnings.contains("warning"), "{warnings}");
+}
