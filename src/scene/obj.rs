@@ -414,7 +414,10 @@ fn map_materials(
 ) -> Result<MtlMaterials, LoadError> {
     let mut textures: Vec<Texture> = Vec::new();
     let mut images: Vec<ImageSource> = Vec::new();
+    // Each file once: by the name as written, then by the file it resolves to (`Wood.png` and
+    // `./textures/../wood.png`, found to be one file, are one image, decoded once).
     let mut image_index: HashMap<String, usize> = HashMap::new();
+    let mut path_index: HashMap<PathBuf, usize> = HashMap::new();
     let mut unusable = Vec::new();
     let mut texture =
         |what: &str, name: &Option<String>| -> Result<Option<MtlTexture>, LoadError> {
@@ -427,42 +430,49 @@ fn map_materials(
                 Some(&i) => i,
                 None => {
                     let resolved = access.resolve(what, file)?;
-                    let source = ImageSource {
-                        origin: file.to_string(),
-                        mime_type: None,
-                        path: Some(resolved),
-                        bytes: None,
-                        in_file: None,
-                        pixels: None,
-                    };
-                    let checked = match &source.path {
-                        Some(path) if !path.is_file() => {
-                            Err(format!("{what} texture '{}' not found", path.display()))
+                    if let Some(&i) = path_index.get(&resolved) {
+                        image_index.insert(file.to_string(), i);
+                        i
+                    } else {
+                        path_index.insert(resolved.clone(), textures.len());
+                        let source = ImageSource {
+                            origin: file.to_string(),
+                            mime_type: None,
+                            path: Some(resolved),
+                            bytes: None,
+                            in_file: None,
+                            pixels: None,
+                        };
+                        let checked = match &source.path {
+                            Some(path) if !path.is_file() => {
+                                Err(format!("{what} texture '{}' not found", path.display()))
+                            }
+                            _ => super::image_header::check_image_header(
+                                &source,
+                                options.limits.max_image_pixels,
+                            ),
+                        };
+                        if let Err(problem) = checked {
+                            unusable.push(UnusableImage::new(
+                                images.len(),
+                                file.to_string(),
+                                problem,
+                                source.path.as_deref(),
+                            ));
                         }
-                        _ => super::image_header::check_image_header(
-                            &source,
-                            options.limits.max_image_pixels,
-                        ),
-                    };
-                    if let Err(problem) = checked {
-                        unusable.push(UnusableImage::new(
-                            images.len(),
-                            file.to_string(),
-                            problem,
-                            source.path.as_deref(),
-                        ));
+                        images.push(source);
+                        textures.push(Texture {
+                            name: Some(file.to_string()),
+                            image: images.len() - 1,
+                            fallback_image: None,
+                            sampler: Sampler::default(),
+                        });
+                        image_index.insert(file.to_string(), textures.len() - 1);
+                        textures.len() - 1
                     }
-                    images.push(source);
-                    textures.push(Texture {
-                        name: Some(file.to_string()),
-                        image: images.len() - 1,
-                        fallback_image: None,
-                        sampler: Sampler::default(),
-                    });
-                    image_index.insert(file.to_string(), textures.len() - 1);
-                    textures.len() - 1
                 }
             };
+            let usable = !unusable.iter().any(|u| u.image == textures[index].image);
             Ok(Some((
                 TextureRef {
                     texture: index,
@@ -472,7 +482,7 @@ fn map_materials(
                 TextureStatementExtras {
                     bump_multiplier: statement.bump_multiplier,
                     channel: statement.channel,
-                    usable: !unusable.iter().any(|u| u.image == textures[index].image),
+                    usable,
                 },
             )))
         };
@@ -1527,6 +1537,31 @@ mod tests {
                 Channel::Luminance
             )
         );
+    }
+
+    /// Two spellings of one file (another letter case, a `./` prefix) are one image: the
+    /// texture is decoded once however the MTL names it.
+    #[test]
+    fn one_file_named_two_ways_is_one_image() {
+        let dir = tempfile::tempdir().unwrap();
+        image::GrayImage::from_pixel(2, 2, image::Luma([9]))
+            .save(dir.path().join("Wood.png"))
+            .unwrap();
+        std::fs::write(
+            dir.path().join("m.mtl"),
+            "newmtl a\nmap_Kd Wood.png\nnewmtl b\nmap_Kd wood.png\nnewmtl c\nmap_Kd ./Wood.png\n",
+        )
+        .unwrap();
+        let model = dir.path().join("m.obj");
+        let obj = "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n\
+                   usemtl a\nf 1 2 3\nusemtl b\nf 1 2 3\nusemtl c\nf 1 2 3\n";
+        let scene = load(&model, obj.as_bytes(), &LoadOptions::default()).unwrap();
+        assert_eq!(scene.images.len(), 1, "{:?}", scene.images);
+        let textures: Vec<_> = scene.materials[..3]
+            .iter()
+            .map(|m| m.base_color_texture.map(|t| t.texture))
+            .collect();
+        assert_eq!(textures, [Some(0); 3]);
     }
 
     #[test]
