@@ -414,8 +414,8 @@ fn map_materials(
 ) -> Result<MtlMaterials, LoadError> {
     let mut textures: Vec<Texture> = Vec::new();
     let mut images: Vec<ImageSource> = Vec::new();
-    // Each file once: by the name as written, then by the file it resolves to (`Wood.png` and
-    // `./textures/../wood.png`, found to be one file, are one image, decoded once).
+    // Each file once: by the name as written, then by the file it resolves to (`Wood.png`,
+    // `./Wood.png` and `wood.png` found by its letter case are one image, decoded once).
     let mut image_index: HashMap<String, usize> = HashMap::new();
     let mut path_index: HashMap<PathBuf, usize> = HashMap::new();
     let mut unusable = Vec::new();
