@@ -79,32 +79,35 @@ pub(crate) fn load(path: &Path, bytes: &[u8], options: &LoadOptions) -> Result<S
         options.allow_external_files,
         options.limits.max_file_bytes,
     );
-    let (parsed_text, parsed) = match parse(path, text, &access, options.strict) {
-        // tobj refuses a face whose vertex has no colour when others have one: give those
-        // white, as a vertex without COLOR_0 is drawn in glTF, and parse again.
-        Err(e) => match with_every_vertex_coloured(text) {
-            Some(padded) => {
-                let parsed = parse(path, &padded, &access, options.strict)?;
-                (std::borrow::Cow::Owned(padded), parsed)
-            }
-            None => return Err(e),
-        },
-        Ok(parsed) => (std::borrow::Cow::Borrowed(text), parsed),
+    // A file without normals whose faces are in smoothing groups is parsed with the normals
+    // those give written in (`obj_smoothing`); if that text does not parse, the file as it is
+    // is parsed, so that the errors and their line numbers are the file's own.
+    let smoothed = |t: &str| {
+        super::obj_smoothing::with_smooth_normals(t)
+            .and_then(|smooth| parse(path, &smooth, &access, options.strict).ok())
     };
-    // A file without normals whose faces are in smoothing groups: parsed again with the
-    // normals those give written in (`obj_smoothing`). The first parse, of the file as it is,
-    // is the one whose errors count.
-    let no_normals = parsed.0.iter().all(|m| m.mesh.normals.is_empty());
-    let smoothed = no_normals
-        .then(|| super::obj_smoothing::with_smooth_normals(&parsed_text))
-        .flatten()
-        .and_then(|smooth| parse(path, &smooth, &access, options.strict).ok());
-    let (models, mtl_materials, mut mtl_warnings) = smoothed.unwrap_or(parsed);
-    if matches!(parsed_text, std::borrow::Cow::Owned(_)) {
-        mtl_warnings.push(
-            "only some vertices have a colour (v x y z r g b); the others are drawn white".into(),
-        );
-    }
+    let (models, mtl_materials, mtl_warnings) = match smoothed(text) {
+        Some(parsed) => parsed,
+        None => match parse(path, text, &access, options.strict) {
+            // tobj refuses a face whose vertex has no colour when others have one: give those
+            // white, as a vertex without COLOR_0 is drawn in glTF, and parse again.
+            Err(e) => match with_every_vertex_coloured(text) {
+                Some(padded) => {
+                    let mut parsed = match smoothed(&padded) {
+                        Some(parsed) => parsed,
+                        None => parse(path, &padded, &access, options.strict)?,
+                    };
+                    parsed.2.push(
+                        "only some vertices have a colour (v x y z r g b); the others are drawn white"
+                            .into(),
+                    );
+                    parsed
+                }
+                None => return Err(e),
+            },
+            Ok(parsed) => parsed,
+        },
+    };
     steps.mark("parse");
 
     let MtlMaterials {
@@ -1748,6 +1751,16 @@ mod tests {
             (
                 "f 1/1/1/1 2 3\n",
                 "line 4: bad face ('f' line): '1/1/1/1' is not an index",
+            ),
+            // Under a smoothing group (whose normals are written into the text before tobj
+            // reads it), the errors still name the file's own lines.
+            (
+                "s 1\nf 1 2 3\nf 1 2 4\n",
+                "line 6: face index 4 refers to a vertex",
+            ),
+            (
+                "s 1\nvt 0 0\nf 1/1 2/1 3/2\n",
+                "line 6: face index 2 refers to a texture",
             ),
         ] {
             let text = format!("{tri}{body}");

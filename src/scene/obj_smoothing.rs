@@ -11,7 +11,6 @@
 //! every face corner naming its normal, and tobj parses that text.
 
 use glam::Vec3;
-use std::collections::HashMap;
 
 /// The OBJ `text` with normals written in for its smoothing groups (see the module docs), or
 /// `None` when there is nothing to do (the file has normals, or no face is in a smoothing
@@ -22,26 +21,27 @@ pub(crate) fn with_smooth_normals(text: &str) -> Option<String> {
     if !has_smooth_group(text) {
         return None;
     }
+    use std::fmt::Write;
     let faces = read_faces(text)?;
     let (normals, corner_normals) = normals_of(&faces);
-    let mut out = String::with_capacity(text.len() + 40 * normals.len() + 8 * faces.len());
+    let mut out = String::with_capacity(text.len() + 40 * normals.len() + 8 * faces.corners.len());
+    // Writing into `out` cannot fail.
     for n in &normals {
-        out.push_str(&format!("vn {} {} {}\n", n.x, n.y, n.z));
+        let _ = writeln!(out, "vn {} {} {}", n.x, n.y, n.z);
     }
-    let mut next_face = 0;
+    let mut next_corner = 0;
     for line in text.split_inclusive('\n') {
         if keyword(line) != Some("f") {
             out.push_str(line);
             continue;
         }
-        let corners = &corner_normals[next_face];
-        next_face += 1;
         out.push('f');
-        for (token, n) in line.split_ascii_whitespace().skip(1).zip(corners) {
+        for token in line.split_ascii_whitespace().skip(1) {
             let mut parts = token.split('/');
             let v = parts.next().unwrap_or_default();
             let vt = parts.next().unwrap_or_default();
-            out.push_str(&format!(" {v}/{vt}/{}", n + 1));
+            let _ = write!(out, " {v}/{vt}/{}", corner_normals[next_corner] + 1);
+            next_corner += 1;
         }
         out.push('\n');
     }
@@ -71,11 +71,23 @@ fn first_line(text: &str) -> &str {
     text.lines().next().unwrap_or_default()
 }
 
-/// A face as the text gives it: its object, whether it is smooth, its corners' positions.
-struct Face {
-    object: usize,
-    smooth: bool,
+/// The faces as the text gives them, in order: each one's object, whether it is smooth, and
+/// where its corners start in `corners` (each corner's position index and position).
+struct Faces {
+    faces: Vec<(usize, bool, usize)>,
     corners: Vec<(usize, Vec3)>,
+}
+
+impl Faces {
+    /// Face `f`'s object, smoothness and corners.
+    fn face(&self, f: usize) -> (usize, bool, &[(usize, Vec3)]) {
+        let (object, smooth, start) = self.faces[f];
+        let end = self
+            .faces
+            .get(f + 1)
+            .map_or(self.corners.len(), |next| next.2);
+        (object, smooth, &self.corners[start..end])
+    }
 }
 
 /// The first word of `line`.
@@ -90,9 +102,12 @@ fn smooth_statement(line: &str) -> Option<bool> {
 }
 
 /// The faces of `text` in order, or `None` for anything not read with certainty.
-fn read_faces(text: &str) -> Option<Vec<Face>> {
+fn read_faces(text: &str) -> Option<Faces> {
     let mut positions: Vec<Vec3> = Vec::new();
-    let mut faces = Vec::new();
+    let mut faces = Faces {
+        faces: Vec::new(),
+        corners: Vec::new(),
+    };
     let (mut object, mut smooth) = (0, false);
     for line in text.lines() {
         if line.trim_end().ends_with('\\') {
@@ -111,28 +126,23 @@ fn read_faces(text: &str) -> Option<Vec<Face>> {
             Some("o") => object += 1,
             Some("s") => smooth = smooth_statement(line)?,
             Some("f") => {
-                let corners = words
-                    .map(|token| {
-                        let mut parts = token.split('/');
-                        let index: i64 = parts.next()?.parse().ok()?;
-                        // A corner naming a normal in a file without normals: not ours to read.
-                        if parts.nth(1).is_some_and(|n| !n.is_empty()) {
-                            return None;
-                        }
-                        let count = positions.len() as i64;
-                        let at = if index < 0 { count + index } else { index - 1 };
-                        let at = usize::try_from(at).ok().filter(|&i| i < positions.len())?;
-                        Some((at, positions[at]))
-                    })
-                    .collect::<Option<Vec<_>>>()?;
-                if corners.len() < 3 {
+                let start = faces.corners.len();
+                for token in words {
+                    let mut parts = token.split('/');
+                    let index: i64 = parts.next()?.parse().ok()?;
+                    // A corner naming a normal in a file without normals: not ours to read.
+                    if parts.nth(1).is_some_and(|n| !n.is_empty()) {
+                        return None;
+                    }
+                    let count = positions.len() as i64;
+                    let at = if index < 0 { count + index } else { index - 1 };
+                    let at = usize::try_from(at).ok().filter(|&i| i < positions.len())?;
+                    faces.corners.push((at, positions[at]));
+                }
+                if faces.corners.len() - start < 3 {
                     return None;
                 }
-                faces.push(Face {
-                    object,
-                    smooth,
-                    corners,
-                });
+                faces.faces.push((object, smooth, start));
             }
             _ => {}
         }
@@ -140,15 +150,16 @@ fn read_faces(text: &str) -> Option<Vec<Face>> {
     Some(faces)
 }
 
-/// The normals to write, and for each face its corners' indices into them: a smooth face's
-/// corner the normal of its vertex in its object, a flat face's corners its own normal.
-fn normals_of(faces: &[Face]) -> (Vec<Vec3>, Vec<Vec<usize>>) {
-    let unit_normal = |face: &Face| {
+/// The normals to write, and each face corner's index into them (in the order of
+/// `faces.corners`): a smooth face's corner the normal of its vertex in its object, a flat
+/// face's corners its own normal.
+fn normals_of(faces: &Faces) -> (Vec<Vec3>, Vec<usize>) {
+    let unit_normal = |corners: &[(usize, Vec3)]| {
         // Newell's normal: the polygon's area vector, exact for planar faces and a fair
         // average for the rest.
-        let n = face.corners.len();
+        let n = corners.len();
         let sum = (0..n).fold(Vec3::ZERO, |acc, i| {
-            let (a, b) = (face.corners[i].1, face.corners[(i + 1) % n].1);
+            let (a, b) = (corners[i].1, corners[(i + 1) % n].1);
             acc + Vec3::new(
                 (a.y - b.y) * (a.z + b.z),
                 (a.z - b.z) * (a.x + b.x),
@@ -158,33 +169,43 @@ fn normals_of(faces: &[Face]) -> (Vec<Vec3>, Vec<Vec<usize>>) {
         sum.normalize_or_zero()
     };
     let mut normals: Vec<Vec3> = Vec::new();
-    let mut vertex_normal: HashMap<(usize, usize), usize> = HashMap::new();
-    let mut corner_normals = Vec::with_capacity(faces.len());
-    for face in faces {
-        let normal = unit_normal(face);
-        if !face.smooth {
+    // The normal of each position in the current object (objects only follow one another:
+    // the table starts again at each). `usize::MAX`: none yet.
+    let mut vertex_normal: Vec<usize> = Vec::new();
+    let mut current_object = None;
+    let mut corner_normals = Vec::with_capacity(faces.corners.len());
+    for f in 0..faces.faces.len() {
+        let (object, smooth, corners) = faces.face(f);
+        let normal = unit_normal(corners);
+        if !smooth {
             normals.push(normal);
-            corner_normals.push(vec![normals.len() - 1; face.corners.len()]);
+            corner_normals.extend(std::iter::repeat_n(normals.len() - 1, corners.len()));
             continue;
         }
-        let n = face.corners.len();
-        let mut corners = Vec::with_capacity(n);
-        for i in 0..n {
-            let (at, p) = face.corners[i];
-            let to_next = (face.corners[(i + 1) % n].1 - p).normalize_or_zero();
-            let to_previous = (face.corners[(i + n - 1) % n].1 - p).normalize_or_zero();
-            let angle = to_next.dot(to_previous).clamp(-1.0, 1.0).acos();
-            let index = *vertex_normal.entry((face.object, at)).or_insert_with(|| {
-                normals.push(Vec3::ZERO);
-                normals.len() - 1
-            });
-            normals[index] += normal * angle;
-            corners.push(index);
+        if current_object != Some(object) {
+            current_object = Some(object);
+            vertex_normal.fill(usize::MAX);
         }
-        corner_normals.push(corners);
+        let n = corners.len();
+        for i in 0..n {
+            let (at, p) = corners[i];
+            let to_next = (corners[(i + 1) % n].1 - p).normalize_or_zero();
+            let to_previous = (corners[(i + n - 1) % n].1 - p).normalize_or_zero();
+            let angle = to_next.dot(to_previous).clamp(-1.0, 1.0).acos();
+            if vertex_normal.len() <= at {
+                vertex_normal.resize(at + 1, usize::MAX);
+            }
+            if vertex_normal[at] == usize::MAX {
+                vertex_normal[at] = normals.len();
+                normals.push(Vec3::ZERO);
+            }
+            normals[vertex_normal[at]] += normal * angle;
+            corner_normals.push(vertex_normal[at]);
+        }
     }
-    for &index in vertex_normal.values() {
-        normals[index] = normals[index].normalize_or_zero();
+    // Smooth sums to unit length (flat normals already are: unchanged).
+    for n in &mut normals {
+        *n = n.normalize_or_zero();
     }
     (normals, corner_normals)
 }
