@@ -698,6 +698,31 @@ fn cases() -> Vec<Case> {
             },
         ),
         obj_case(
+            "OBJ with a DDS texture declaring 65535x65535 texels",
+            b"mtllib m.mtl\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            vec![
+                ("m.mtl".into(), b"newmtl a\nmap_Kd huge.dds\n".to_vec()),
+                ("huge.dds".into(), {
+                    let mut dds = crate::materials::quadrants_dds(true);
+                    dds[12..20].copy_from_slice(&[0xFF, 0xFF, 0, 0, 0xFF, 0xFF, 0, 0]);
+                    dds
+                }),
+            ],
+            |k| matches!(k, K::Image { problem, .. } if problem.contains("declares 65535x65535 pixels")),
+        ),
+        obj_case(
+            "OBJ with a DDS texture cut inside its header",
+            b"mtllib m.mtl\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            vec![
+                ("m.mtl".into(), b"newmtl a\nmap_Kd cut.dds\n".to_vec()),
+                (
+                    "cut.dds".into(),
+                    crate::materials::quadrants_dds(true)[..14].to_vec(),
+                ),
+            ],
+            |k| matches!(k, K::Image { problem, .. } if problem.contains("truncated DDS header")),
+        ),
+        obj_case(
             "OBJ face index that is not a number",
             b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf a b c\n",
             vec![],
@@ -870,6 +895,8 @@ const TEXTURE_CASES: &[&str] = &[
     "image declaring 100000x100000 pixels",
     "KTX2 image declaring 60000x60000 pixels",
     "OBJ with a missing texture",
+    "OBJ with a DDS texture declaring 65535x65535 texels",
+    "OBJ with a DDS texture cut inside its header",
 ];
 
 /// The case whose only fault is a missing material library: an error under `--strict`, a

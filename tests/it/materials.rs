@@ -1259,7 +1259,7 @@ fn obj_scalar_and_colour_maps_replace_their_property() {
 
 /// An 8x8 texture of four coloured quadrants (red, blue / green, yellow) as a DDS file: BC1
 /// blocks of one colour each (`bc1: true`, the legacy `DXT1` FourCC) or 32-bit BGRA.
-fn quadrants_dds(bc1: bool) -> Vec<u8> {
+pub(crate) fn quadrants_dds(bc1: bool) -> Vec<u8> {
     let colours: [[u8; 3]; 4] = [[255, 0, 0], [0, 0, 255], [0, 255, 0], [255, 255, 0]];
     let mut b = b"DDS ".to_vec();
     // Header: size, flags, height, width, pitch, depth, mip count, 11 reserved words.
@@ -1385,4 +1385,52 @@ fn a_grey_bump_map_is_not_read_as_normals() {
     let (tilted, warnings) = render("tilted", "Kd 0.8 0.8 0.8\nmap_Bump normals.png");
     assert!(tilted != plain, "the normal map did not change the shading");
     assert!(!warnings.contains("warning"), "{warnings}");
+}
+
+/// DDS files whose header reads but whose texels do not decode (cut short, or BC6H, which is
+/// not read) are found when the textures are decoded: the render goes on without the texture,
+/// with one warning naming the file and the problem; with `--strict` it stops with that
+/// message, a non-zero exit and no image written.
+#[test]
+fn dds_textures_that_do_not_decode_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let whole = quadrants_dds(true);
+    std::fs::write(dir.path().join("short.dds"), &whole[..whole.len() - 8]).unwrap();
+    // The DX10 header (FourCC DX10, then DXGI format 95, BC6H_UF16; 2D; one layer).
+    let mut bc6h = whole[..128].to_vec();
+    bc6h[84..88].copy_from_slice(b"DX10");
+    for word in [95u32, 3, 0, 1, 0] {
+        bc6h.extend(word.to_le_bytes());
+    }
+    bc6h.extend([0u8; 64]);
+    std::fs::write(dir.path().join("bc6h.dds"), bc6h).unwrap();
+    for (file, problem) in [
+        (
+            "short.dds",
+            "truncated DDS: 8x8 needs 32 bytes of texels, the file holds 24",
+        ),
+        ("bc6h.dds", "DDS BC6H_UF16 is not read"),
+    ] {
+        let stem = file.replace('.', "-");
+        let out = dir.path().join(format!("{stem}.png"));
+        let warnings = render_quad_obj(dir.path(), &stem, &format!("map_Kd {file}"), &out);
+        assert!(
+            warnings.contains(&format!("({file}): {problem}")),
+            "{warnings}"
+        );
+        let strict_out = dir.path().join(format!("{stem}-strict.png"));
+        let model = dir.path().join(format!("{stem}.obj"));
+        let args = ["render", s(&model), "-o", s(&strict_out), "--strict", "-q"];
+        let message = crate::common::stderr(&run(&args, false));
+        assert!(
+            message.contains(file) && message.contains(problem),
+            "{message}"
+        );
+        assert_eq!(message.trim().lines().count(), 1, "{message}");
+        assert!(
+            !strict_out.exists(),
+            "--strict wrote {}",
+            strict_out.display()
+        );
+    }
 }
